@@ -1,0 +1,340 @@
+"""scikit-fem HF backend (the default).
+
+Reference meshes are built once (``__init__``) and mapped by mu in
+:meth:`SkfemBackend.discretize`: the upper half-disk is ``x = R1 x_hat + c``,
+so dof counts do not depend on mu while ``B(mu)`` and the gap do.
+
+Scenes: ``halfdisks`` (plane-strain elasticity, two half-disks or a half-disk
+on a rigid flat) and ``unit_square`` (scalar membrane obstacle problem).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import (
+    Basis,
+    BilinearForm,
+    ElementTriP1,
+    ElementTriP2,
+    ElementVector,
+    LinearForm,
+    asm,
+)
+from skfem.helpers import dot, grad
+from skfem.models.elasticity import lame_parameters, linear_elasticity
+
+from rbbench.contact_geometry import (
+    facet_shape,
+    gauss_legendre_01,
+    multiplier_basis,
+    outward_normals,
+    ray_cast,
+)
+from rbbench.interfaces import Backend, BodyMesh, ContactOperators, Discretization
+from rbbench.scene import Scene, SceneError
+from rbbench_plugins.backends.meshes import graded_half_disk, unit_square
+
+
+@BilinearForm
+def _laplace(u, v, w):
+    return dot(grad(u), grad(v))
+
+
+@BilinearForm
+def _mass(u, v, w):
+    return u * v
+
+
+@BilinearForm
+def _vector_h1(u, v, w):
+    return dot(u, v) + (grad(u) * grad(v)).sum(axis=(0, 1))
+
+
+@LinearForm
+def _unit_load(v, w):
+    return v
+
+
+def _element(degree: int):
+    return {1: ElementTriP1, 2: ElementTriP2}[degree]()
+
+
+class _Body:
+    """One elastic body: reference mesh, basis factory and facet dof maps."""
+
+    def __init__(self, name: str, mesh_hat, degree: int, offset: int):
+        self.name = name
+        self.mesh_hat = mesh_hat
+        self.degree = degree
+        self.offset = offset
+        self.basis_hat = Basis(mesh_hat, ElementVector(_element(degree)))
+        self.ndofs = self.basis_hat.N
+
+    def facet_dofs(self, facets: np.ndarray, flip: np.ndarray) -> np.ndarray:
+        """(n_facets, degree + 1, 2) global dofs: [start, end, (mid)] x component."""
+        b = self.basis_hat
+        n0 = np.where(flip, self.mesh_hat.facets[1, facets], self.mesh_hat.facets[0, facets])
+        n1 = np.where(flip, self.mesh_hat.facets[0, facets], self.mesh_hat.facets[1, facets])
+        local = [b.nodal_dofs[:, n0].T, b.nodal_dofs[:, n1].T]
+        if self.degree == 2:
+            local.append(b.facet_dofs[:, facets].T)
+        return np.stack(local, axis=1) + self.offset
+
+    def vertex_dofs(self) -> np.ndarray:
+        return self.basis_hat.nodal_dofs.T + self.offset
+
+
+class SkfemBackend(Backend):
+    """scikit-fem backend: graded meshes, P1/P2 Lagrange, GPTS contact pairing.
+
+    Parameters
+    ----------
+    scene : Scene
+        A validated scene.
+    """
+
+    name = "skfem"
+
+    def __init__(self, scene: Scene, **options):
+        if options:
+            raise TypeError(f"skfem backend: unknown options {sorted(options)}")
+        self.scene = scene
+        disc = scene.data["discretization"]
+        self.degree = int(disc["degree"])
+        scale = 2.0 ** (-int(disc["level"]))
+        self.h_contact = float(disc["h_contact"]) * scale
+        self.h_max = float(disc["h_max"]) * scale
+        self.grading = float(disc["grading"])
+        self.n_gauss = int(disc["quadrature"]) or self.degree + 1
+        self.multiplier = disc["multiplier"]
+        self.kind = scene.data["geometry"]["kind"]
+        t0 = time.perf_counter()
+        if self.kind == "halfdisks":
+            self._init_halfdisks()
+        else:
+            self._init_square()
+        self.t_mesh = time.perf_counter() - t0
+        self._X = None
+
+    # ------------------------------------------------------------------ setup
+    def _init_halfdisks(self) -> None:
+        g = self.scene.data["geometry"]
+        if self.multiplier == "nodal":
+            raise SceneError(f"{self.scene.path}: [discretization] multiplier: 'nodal' is for "
+                             "obstacle problems; use 'lac', 'p0' or 'p1' for two-body contact")
+        self.zone = tuple(np.pi * np.asarray(g["contact_zone"]))
+        mesh_up = graded_half_disk(self.zone, self.h_contact, self.h_max, self.grading)
+        self.upper = _Body("upper", mesh_up, self.degree, 0)
+        self.rigid = g["lower"] == "rigid_flat"
+        self.lower = None
+        if not self.rigid:
+            mzone = np.pi * np.asarray(g["master_zone"])
+            mesh_lo = graded_half_disk((-mzone[1], -mzone[0]), self.h_contact, self.h_max,
+                                       self.grading)
+            mesh_lo = type(mesh_lo)(mesh_lo.p * np.array([[1.0], [-1.0]]), mesh_lo.t[[0, 2, 1]])
+            self.lower = _Body("lower", mesh_lo, self.degree, self.upper.ndofs)
+            self.master_zone = mzone
+        self.ndofs = self.upper.ndofs + (self.lower.ndofs if self.lower else 0)
+        self._slave = self._zone_facets(self.upper.mesh_hat, self.zone)
+        if self.lower is not None:
+            self._master = self._zone_facets(self.lower.mesh_hat, tuple(self.master_zone))
+
+    @staticmethod
+    def _zone_facets(mesh, zone) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Boundary facets whose midpoint angle lies in ``zone``, ordered by angle.
+
+        Returns (facets, flip, inner) where ``flip`` orders each facet's
+        vertices by increasing angle and ``inner`` is the adjacent element's centroid
+        (reference coordinates).
+        """
+        bf = mesh.boundary_facets()
+        mid = mesh.p[:, mesh.facets[:, bf]].mean(axis=1)
+        ang = np.arctan2(mid[1], mid[0])
+        on_arc = np.abs(np.linalg.norm(mid, axis=0) - 1.0) < 0.1
+        keep = on_arc & (ang >= zone[0]) & (ang <= zone[1])
+        facets = bf[keep][np.argsort(ang[keep])]
+        a0 = np.arctan2(*mesh.p[::-1, mesh.facets[0, facets]])
+        a1 = np.arctan2(*mesh.p[::-1, mesh.facets[1, facets]])
+        flip = a0 > a1
+        inner = mesh.p[:, mesh.t[:, mesh.f2t[0, facets]]].mean(axis=1).T
+        return facets, flip, inner
+
+    def _init_square(self) -> None:
+        n = int(self.scene.data["discretization"]["n_cells"]) * 2 ** int(
+            self.scene.data["discretization"]["level"])
+        self.mesh = unit_square(n)
+        self.basis = Basis(self.mesh, _element(self.degree))
+        self.ndofs = self.basis.N
+        self.A_lap = asm(_laplace, self.basis).tocsr()
+        self.M = asm(_mass, self.basis).tocsr()
+        self.load_vec = asm(_unit_load, self.basis)
+
+    # -------------------------------------------------------------- operators
+    def inner_product(self) -> sp.csr_matrix:
+        """V inner product on the reference configuration (mu = the scene default)."""
+        if self._X is None:
+            which = self.scene.data["discretization"]["inner_product"]
+            if self.kind == "unit_square":
+                self._X = self.A_lap + (self.M if which == "h1" else 0 * self.M)
+            else:
+                mu0 = self.scene.default_mu
+                if which == "energy":
+                    self._X = self._elastic_operators(mu0)[0]
+                else:
+                    blocks = [asm(_vector_h1, b.basis_hat) for b in self._bodies()]
+                    self._X = sp.block_diag(blocks).tocsr()
+        return self._X
+
+    def _bodies(self) -> list[_Body]:
+        return [self.upper] + ([self.lower] if self.lower is not None else [])
+
+    def _geometry(self, mu) -> dict:
+        s = self.scene
+        r1 = float(s.value("geometry", "upper_radius", mu))
+        r2 = float(s.value("geometry", "lower_radius", mu))
+        g0 = float(s.value("geometry", "initial_gap", mu))
+        top = 0.0 if self.rigid else r2
+        return {"R1": r1, "R2": None if self.rigid else r2, "g0": g0,
+                "centre1": np.array([0.0, top + g0 + r1])}
+
+    def _mapped(self, body: _Body, geo: dict) -> np.ndarray:
+        if body.name == "upper":
+            return geo["R1"] * body.mesh_hat.p + geo["centre1"][:, None]
+        return geo["R2"] * body.mesh_hat.p
+
+    def _elastic_operators(self, mu) -> tuple[sp.csr_matrix, list]:
+        geo = self._geometry(mu)
+        blocks, bases = [], []
+        for body in self._bodies():
+            E, nu = self.scene.material(body.name, mu)
+            mesh = type(body.mesh_hat)(self._mapped(body, geo), body.mesh_hat.t)
+            basis = Basis(mesh, ElementVector(_element(self.degree)))
+            blocks.append(asm(linear_elasticity(*lame_parameters(E, nu)), basis))
+            bases.append(basis)
+        return sp.block_diag(blocks).tocsr(), bases
+
+    def discretize(self, mu) -> Discretization:
+        mu = self.scene.check_mu(mu)
+        if self.kind == "unit_square":
+            return self._discretize_square(mu)
+        return self._discretize_halfdisks(mu)
+
+    def _discretize_halfdisks(self, mu) -> Discretization:
+        t0 = time.perf_counter()
+        geo = self._geometry(mu)
+        A, bases = self._elastic_operators(mu)
+        t_asm = time.perf_counter() - t0
+        d = float(self.scene.value("load", "displacement", mu))
+        # Dirichlet: upper flat face moves by (0, -d); lower flat face clamped.
+        b_up = bases[0]
+        y_face = geo["centre1"][1]
+        up = b_up.get_dofs(lambda x: np.abs(x[1] - y_face) < 1e-9 * geo["R1"])
+        dofs = [up.all("u^1"), up.all("u^2")]
+        vals = [np.zeros(up.all("u^1").size), np.full(up.all("u^2").size, -d)]
+        if self.lower is not None:
+            lo = bases[1].get_dofs(lambda x: np.abs(x[1]) < 1e-9 * geo["R2"])
+            dofs.append(lo.all() + self.lower.offset)
+            vals.append(np.zeros(lo.all().size))
+        ddofs = np.concatenate(dofs)
+        dvals = np.concatenate(vals)
+        contact = self._contact(geo)
+        bodies = []
+        for body in self._bodies():
+            E, nu = self.scene.material(body.name, mu)
+            bodies.append(BodyMesh(body.name, self._mapped(body, geo).T.copy(),
+                                   body.mesh_hat.t.T.copy(), body.vertex_dofs(), E, nu))
+        info = {"geometry": geo, "t_assemble_s": t_asm, "n_facets_slave": int(self._slave[0].size),
+                "h_contact": self.h_contact, "degree": self.degree, "backend": self.name}
+        return Discretization(mu=mu, A=A, F=np.zeros(self.ndofs), dirichlet_dofs=ddofs,
+                              dirichlet_values=dvals, X=self.inner_product(), contact=contact,
+                              bodies=bodies, physics="elasticity", info=info)
+
+    def _contact(self, geo: dict) -> ContactOperators:
+        """GPTS pairing at mu (see :mod:`rbbench.contact_geometry`)."""
+        facets, flip, inner_hat = self._slave
+        up = self.upper
+        p1 = self._mapped(up, geo)
+        n0 = np.where(flip, up.mesh_hat.facets[1, facets], up.mesh_hat.facets[0, facets])
+        n1 = np.where(flip, up.mesh_hat.facets[0, facets], up.mesh_hat.facets[1, facets])
+        a, b = p1[:, n0].T, p1[:, n1].T
+        inner = geo["R1"] * inner_hat + geo["centre1"]
+        nrm_f = outward_normals(a, b, inner)
+        sg, wg = gauss_legendre_01(self.n_gauss)
+        nf, ng = facets.size, sg.size
+        fq = np.repeat(np.arange(nf), ng)
+        sq = np.tile(sg, nf)
+        x = a[fq] + sq[:, None] * (b[fq] - a[fq])
+        nrm = nrm_f[fq]
+        w = np.tile(wg, nf) * np.linalg.norm(b - a, axis=1)[fq]
+        # slave part of the normal jump
+        phi = facet_shape(sq, self.degree)  # (nq, k)
+        sdofs = up.facet_dofs(facets, flip)[fq]  # (nq, k, 2)
+        rows = [np.repeat(np.arange(x.shape[0]), phi.shape[1] * 2)]
+        cols = [sdofs.reshape(-1)]
+        vals = [(phi[:, :, None] * nrm[:, None, :]).reshape(-1)]
+        if self.rigid:
+            gap = -x[:, 1] / nrm[:, 1]
+        else:
+            lo = self.lower
+            mf, mflip, _ = self._master
+            p2 = self._mapped(lo, geo)
+            m0 = np.where(mflip, lo.mesh_hat.facets[1, mf], lo.mesh_hat.facets[0, mf])
+            m1 = np.where(mflip, lo.mesh_hat.facets[0, mf], lo.mesh_hat.facets[1, mf])
+            ma, mb = p2[:, m0].T, p2[:, m1].T
+            seg, s2, gap = ray_cast(x, nrm, ma, mb)
+            if np.any(seg < 0):
+                bad = x[seg < 0]
+                raise SceneError(
+                    f"{self.scene.path}: [geometry] master_zone: {int(np.sum(seg < 0))} slave "
+                    f"quadrature point(s) (e.g. x = {bad[0].round(4).tolist()}) project outside "
+                    f"the master zone {list(np.asarray(self.scene.data['geometry']['master_zone']))}"
+                    " (theta/pi); widen it")
+            phi2 = facet_shape(s2, self.degree)
+            mdofs = lo.facet_dofs(mf, mflip)[seg]
+            rows.append(rows[0])
+            cols.append(mdofs.reshape(-1))
+            vals.append(-(phi2[:, :, None] * nrm[:, None, :]).reshape(-1))
+        Un = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                           shape=(x.shape[0], self.ndofs))
+        patch = int(self.scene.data["discretization"]["lac_patch"])
+        Mlam = multiplier_basis(self.multiplier, nf, fq, sq, patch)
+        mw = np.asarray(Mlam.T @ w).ravel()
+        mpts = np.asarray(Mlam.T @ (w[:, None] * x)) / mw[:, None]
+        # horizontal extent of each multiplier's support
+        ext = np.zeros((Mlam.shape[1], 2))
+        coo = Mlam.tocoo()
+        xs = x[coo.row, 0]
+        ext[:, 0], ext[:, 1] = np.inf, -np.inf
+        fa, fb = a[fq][coo.row, 0], b[fq][coo.row, 0]
+        np.minimum.at(ext[:, 0], coo.col, np.minimum(np.minimum(fa, fb), xs))
+        np.maximum.at(ext[:, 1], coo.col, np.maximum(np.maximum(fa, fb), xs))
+        return ContactOperators(Un=Un, gap=gap, weights=w, points=x, normals=nrm, Mlam=Mlam,
+                                multiplier=self.multiplier, mult_points=mpts, mult_extent=ext)
+
+    def _discretize_square(self, mu) -> Discretization:
+        s = self.scene
+        f = float(s.value("load", "source", mu))
+        h = float(s.value("obstacle", "height", mu))
+        c = float(s.value("obstacle", "curvature", mu))
+        x0 = np.asarray(s.data["obstacle"]["centre"])
+        m, b = self.mesh, self.basis
+        bnd = self.mesh.boundary_nodes() if self.degree == 1 else b.get_dofs().all()
+        free_nodes = np.setdiff1d(np.arange(b.N), bnd)
+        xy = b.doflocs[:, free_nodes].T
+        psi = h - c * np.sum((xy - x0) ** 2, axis=1)
+        lumped = np.asarray(self.M.sum(axis=1)).ravel()[free_nodes]
+        nq = free_nodes.size
+        Un = sp.csr_matrix((-np.ones(nq), (np.arange(nq), free_nodes)), shape=(nq, b.N))
+        contact = ContactOperators(
+            Un=Un, gap=-psi, weights=lumped, points=xy, normals=np.tile([0.0, -1.0], (nq, 1)),
+            Mlam=sp.identity(nq, format="csr"), multiplier="nodal", mult_points=xy,
+            mult_extent=np.stack([xy[:, 0], xy[:, 0]], axis=1))
+        body = BodyMesh("membrane", m.p.T.copy(), m.t.T.copy(), np.arange(m.nvertices)[:, None])
+        return Discretization(mu=mu, A=self.A_lap, F=f * self.load_vec,
+                              dirichlet_dofs=bnd, dirichlet_values=np.zeros(bnd.size),
+                              X=self.inner_product(), contact=contact, bodies=[body],
+                              physics="poisson", info={"backend": self.name,
+                                                       "degree": self.degree})

@@ -1,0 +1,170 @@
+"""One HF solve: scene -> backend -> formulation -> solver -> metrics.
+
+:func:`solve_hf` is the entry point shared by ``rbbench solve``, the tests and
+the benchmarks. :func:`contact_metrics` turns a solution into the labelled
+numbers of ``summary.json``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from rbbench.hertz import hertz_2d
+from rbbench.interfaces import ContactProblem, Discretization, SolveResult
+from rbbench.registry import Registry, default_registry
+from rbbench.scene import Scene
+
+#: Relative threshold on lam (w.r.t. max lam) above which a multiplier counts as active.
+ACTIVE_THRESHOLD = 1e-8
+
+
+@dataclass
+class HFSolution:
+    scene: Scene
+    mu: np.ndarray
+    components: dict[str, str]
+    disc: Discretization
+    problem: ContactProblem
+    result: SolveResult
+    times: dict[str, float]
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+
+def _noop(stage: str) -> None:
+    return None
+
+
+def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mixed",
+                    solver: str = "ssn", registry: Registry | None = None,
+                    solver_options: dict | None = None):
+    """Instantiate the three HF roles by name (unknown names list the valid ones)."""
+    reg = registry or default_registry()
+    b = reg.create("backend", backend, scene=scene)
+    f = reg.create("formulation", formulation)
+    s = reg.create("solver", solver, **(solver_options or {}))
+    return b, f, s
+
+
+def solve_hf(scene: Scene, mu: Any = None, backend: str = "skfem", formulation: str = "mixed",
+             solver: str = "ssn", registry: Registry | None = None,
+             solver_options: dict | None = None,
+             progress: Callable[[str], None] = _noop, components=None) -> HFSolution:
+    """Solve the HF contact problem of ``scene`` at ``mu`` (default: the scene default)."""
+    mu = scene.default_mu if mu is None else scene.check_mu(mu)
+    t0 = time.perf_counter()
+    if components is None:
+        progress("meshing the reference configuration")
+        components = make_components(scene, backend, formulation, solver, registry,
+                                     solver_options)
+    b, f, s = components
+    t1 = time.perf_counter()
+    progress("assembling operators")
+    disc = b.discretize(mu)
+    t2 = time.perf_counter()
+    problem = f.build(disc)
+    progress(f"solving ({disc.n_dofs} dofs, {disc.contact.n_mult} contact unknowns)")
+    t3 = time.perf_counter()
+    result = s.solve(problem)
+    t4 = time.perf_counter()
+    times = {"setup_s": t1 - t0, "discretize_s": t2 - t1, "formulate_s": t3 - t2,
+             "solve_s": t4 - t3, "total_s": t4 - t0}
+    sol = HFSolution(scene, mu, {"backend": backend, "formulation": formulation,
+                                 "solver": solver}, disc, problem, result, times)
+    sol.metrics = contact_metrics(sol)
+    return sol
+
+
+def contact_metrics(sol: HFSolution) -> dict[str, Any]:
+    """Labelled contact quantities of a solution (see ``definitions`` in the output)."""
+    disc, res, prob = sol.disc, sol.result, sol.problem
+    c = disc.contact
+    lam = res.lam
+    u = res.u
+    B = c.B()
+    G = c.G()
+    s = G - B @ u  # weighted gap per multiplier
+    support = np.asarray(c.Mlam.T @ c.weights).ravel()  # int phi_i
+    lam_q = np.asarray(c.Mlam @ lam).ravel()
+    if disc.physics == "elasticity":
+        force = float(np.sum(c.weights * lam_q * -c.normals[:, 1]))
+    else:
+        force = float(np.sum(c.weights * lam_q))
+    lam_max = float(np.max(lam)) if lam.size else 0.0
+    active = lam > ACTIVE_THRESHOLD * max(lam_max, np.finfo(float).tiny)
+    if active.any():
+        half_width = 0.5 * float(c.mult_extent[active, 1].max() - c.mult_extent[active, 0].min())
+        saturated = bool(active[0] or active[-1]) if disc.physics == "elasticity" else False
+    else:
+        half_width, saturated = 0.0, False
+    pen_q = np.asarray(c.Un @ u).ravel() - c.gap
+    A = disc.A
+    energy = float(0.5 * u @ (A @ u) - disc.F @ u)
+    denom = np.linalg.norm(lam) * np.linalg.norm(G)
+    m = {
+        "n_dofs": int(disc.n_dofs),
+        "n_free_dofs": int(prob.free.size),
+        "n_contact": int(c.n_mult),
+        "n_contact_quadrature": int(c.n_quad),
+        "n_active": int(active.sum()),
+        "multiplier": c.multiplier,
+        "iterations": int(res.iterations),
+        "converged": bool(res.converged),
+        "stop_reason": res.stop_reason,
+        "solver_info": {k: v for k, v in res.info.items()},
+        "final_residual": float(res.residuals[-1]) if res.residuals else None,
+        "solve_time_s": float(sol.times["total_s"]),
+        "times_s": {**sol.times, **res.times},
+        "contact_force": force,
+        "contact_half_width": half_width,
+        "max_pressure": lam_max,
+        "complementarity": float(abs(lam @ s) / denom) if denom > 0 else 0.0,
+        "penetration_max": float(max(0.0, np.max(-s / support))) if s.size else 0.0,
+        "penetration_pointwise_max": float(max(0.0, pen_q.max())) if pen_q.size else 0.0,
+        "min_multiplier": float(lam.min()) if lam.size else 0.0,
+        "energy": energy,
+        "zone_saturated": saturated,
+    }
+    if disc.physics == "elasticity":
+        geo = disc.info["geometry"]
+        E1, nu1 = disc.bodies[0].E, disc.bodies[0].nu
+        lower = disc.bodies[1] if len(disc.bodies) > 1 else None
+        m["material"] = {b.name: {"E": b.E, "nu": b.nu} for b in disc.bodies}
+        m["material"]["plane_strain"] = True
+        m["radii"] = {"R1": geo["R1"], "R2": geo["R2"]}
+        if sol.scene.data["reference"]["hertz"] and force > 0:
+            h = hertz_2d(force, geo["R1"], geo["R2"], E1, nu1,
+                         lower.E if lower else None, lower.nu if lower else None)
+            m["hertz"] = {
+                "P": h.P, "R_star": h.R_star, "E_star": h.E_star, "a": h.a, "p0": h.p0,
+                "a_rel_error": (half_width - h.a) / h.a,
+                "p0_rel_error": (lam_max - h.p0) / h.p0,
+                "note": "theory evaluated at the solver's own force P; errors are signed, "
+                        "relative: (computed - theory) / theory",
+            }
+    m["definitions"] = DEFINITIONS
+    return m
+
+
+DEFINITIONS = {
+    "contact_force": "total normal contact force per unit thickness (N/m): vertical resultant "
+                     "int lam (-n_y) over the slave zone (obstacle: int lam)",
+    "contact_half_width": "half the horizontal extent of the supports of the active multipliers "
+                          "(m); overestimates the true half-width by at most one support",
+    "max_pressure": "largest multiplier value (Pa): the peak of the discrete pressure",
+    "complementarity": "|lam . (G - B u)| / (||lam||_2 ||G||_2), dimensionless; 0 at an exact "
+                       "solution",
+    "penetration_max": "largest mean penetration over one multiplier's support (m): "
+                       "max_i (B u - G)_i / int phi_i, clipped at 0",
+    "penetration_pointwise_max": "largest penetration (Un u - gap) at a contact quadrature "
+                                 "point (m), clipped at 0; LAC only constrains patch means",
+    "final_residual": "relative natural residual ||min(lam, c s)|| / ||c q|| of the condensed "
+                      "LCP at the last iterate",
+    "energy": "J(u) = 1/2 u^T A u - F^T u on all dofs (J/m)",
+    "zone_saturated": "true if the first or last multiplier of the potential zone is active: "
+                      "the contact patch reaches the edge of the potential zone",
+}

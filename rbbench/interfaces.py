@@ -1,0 +1,207 @@
+"""The abstract roles and the data that flow between them.
+
+Data flow (one way)::
+
+    Scene -> Backend.discretize(mu) -> Discretization (sparse operators)
+          -> Formulation.build(...)  -> ContactProblem (algebraic VI)
+          -> Solver.solve(...)       -> SolveResult (u, lam, stop reason)
+
+Everything here is plain numpy / scipy: no backend type crosses a role
+boundary, so formulations and solvers are backend-agnostic.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+#: Why an iterative solve stopped. Every solver reports exactly one of these.
+STOP_REASONS = ("converged", "max_iterations", "stagnation", "nan", "diverged")
+
+
+@dataclass
+class ContactOperators:
+    """Contact-boundary operators at contact quadrature points x_q on the slave side.
+
+    Seed 000, slide "HF model": ``b^n(v, eta) = int_{Gamma_c} v_n eta``,
+    ``g^n(eta) = int_{Gamma_c} d^n eta``. With the matrices below,
+    ``B = Mlam^T diag(weights) Un`` and ``G = Mlam^T diag(weights) gap``.
+
+    Attributes
+    ----------
+    Un : (n_q, n_dofs) sparse
+        Normal displacement jump ``(u_1(x_q) - u_2(pi(x_q))) . n_1(x_q)``, with
+        ``n_1`` the outward normal of the slave body and ``pi`` the projection
+        along ``n_1`` onto the master (zero master part for a rigid obstacle).
+        For a scalar obstacle problem, ``-u(x_q)``.
+    gap : (n_q,)
+        Initial normal gap ``d^n(x_q)`` (m): the constraint is ``Un u <= gap``.
+    weights : (n_q,)
+        Quadrature weights on the current (mu-mapped) boundary (m).
+    points, normals : (n_q, 2)
+        Physical positions and slave normals of the quadrature points.
+    Mlam : (n_q, n_mult) sparse
+        Multiplier basis functions evaluated at the quadrature points.
+    multiplier : str
+        Multiplier space: ``"lac"`` (P0 per patch of facets), ``"p0"``, ``"p1"``
+        (continuous nodal), or ``"nodal"`` (collocation, obstacle problems).
+    mult_points : (n_mult, 2)
+        A representative point of each multiplier's support (its centroid).
+    mult_extent : (n_mult, 2)
+        Horizontal extent ``[x_min, x_max]`` of each multiplier's support.
+    Ut : (n_q, n_dofs) sparse or None
+        Tangential displacement jump (only built for friction scenes).
+    Snn : (n_q, n_dofs) sparse or None
+        Normal stress ``sigma_nn(u)(x_q)`` of the slave body (only for Nitsche).
+    """
+
+    Un: sp.csr_matrix
+    gap: np.ndarray
+    weights: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    Mlam: sp.csr_matrix
+    multiplier: str
+    mult_points: np.ndarray
+    mult_extent: np.ndarray
+    Ut: sp.csr_matrix | None = None
+    Snn: sp.csr_matrix | None = None
+
+    @property
+    def n_quad(self) -> int:
+        return int(self.Un.shape[0])
+
+    @property
+    def n_mult(self) -> int:
+        return int(self.Mlam.shape[1])
+
+    def B(self) -> sp.csr_matrix:
+        """``B = Mlam^T diag(w) Un`` (n_mult x n_dofs)."""
+        return (self.Mlam.T @ sp.diags(self.weights) @ self.Un).tocsr()
+
+    def G(self) -> np.ndarray:
+        """``G = Mlam^T diag(w) gap`` (n_mult,)."""
+        return np.asarray(self.Mlam.T @ (self.weights * self.gap)).ravel()
+
+    def W(self) -> sp.csr_matrix:
+        """Gram matrix of the multiplier space in L2(Gamma_c): ``Mlam^T diag(w) Mlam``."""
+        return (self.Mlam.T @ sp.diags(self.weights) @ self.Mlam).tocsr()
+
+
+@dataclass
+class BodyMesh:
+    """One body's mesh in the physical (mu-mapped) configuration, for output.
+
+    ``vertex_dofs[i, c]`` is the global dof of component ``c`` at vertex ``i``
+    (one column for a scalar problem).
+    """
+
+    name: str
+    points: np.ndarray  # (n_vertices, 2)
+    triangles: np.ndarray  # (n_triangles, 3)
+    vertex_dofs: np.ndarray  # (n_vertices, n_components)
+    E: float | None = None
+    nu: float | None = None
+
+
+@dataclass
+class Discretization:
+    """Sparse HF operators of a scene at one parameter value.
+
+    ``A u = F`` on all dofs; Dirichlet dofs and values are given separately
+    (the formulation eliminates them). ``X`` is the V inner product
+    (parameter-independent: assembled on the reference configuration).
+    """
+
+    mu: np.ndarray
+    A: sp.csr_matrix
+    F: np.ndarray
+    dirichlet_dofs: np.ndarray
+    dirichlet_values: np.ndarray
+    X: sp.csr_matrix
+    contact: ContactOperators
+    bodies: list[BodyMesh]
+    physics: str
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_dofs(self) -> int:
+        return int(self.A.shape[0])
+
+
+@dataclass
+class ContactProblem:
+    """The algebraic HF contact problem on the free dofs (seed 000, "Mixed formulation").
+
+    Find ``u, lam`` with ``A u + B^T lam = F``, ``lam >= 0``, ``B u <= G``,
+    ``lam . (G - B u) = 0``. ``free`` maps free to global dofs; ``u_lift``
+    is the global Dirichlet lifting.
+    """
+
+    A: sp.csr_matrix
+    F: np.ndarray
+    B: sp.csr_matrix
+    G: np.ndarray
+    free: np.ndarray
+    u_lift: np.ndarray
+    X: sp.csr_matrix
+    W: sp.csr_matrix
+
+    def expand(self, u_free: np.ndarray) -> np.ndarray:
+        """Global displacement from free-dof values."""
+        u = self.u_lift.copy()
+        u[self.free] = u_free
+        return u
+
+
+@dataclass
+class SolveResult:
+    """Outcome of one HF solve; ``stop_reason`` is one of :data:`STOP_REASONS`."""
+
+    u: np.ndarray
+    lam: np.ndarray
+    iterations: int
+    stop_reason: str
+    residuals: list[float] = field(default_factory=list)
+    times: dict[str, float] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def converged(self) -> bool:
+        return self.stop_reason == "converged"
+
+
+class Backend(ABC):
+    """HF backend role: mesh the reference geometry once, map it by mu, assemble."""
+
+    name: str = ""
+
+    @abstractmethod
+    def __init__(self, scene: Any, **options: Any) -> None: ...
+
+    @abstractmethod
+    def discretize(self, mu: np.ndarray | float) -> Discretization:
+        """Operators of the scene at ``mu``."""
+
+
+class Formulation(ABC):
+    """Formulation role: turn backend operators into the algebraic contact problem."""
+
+    name: str = ""
+
+    @abstractmethod
+    def build(self, disc: Discretization) -> ContactProblem: ...
+
+
+class Solver(ABC):
+    """Algebraic VI solver role."""
+
+    name: str = ""
+
+    @abstractmethod
+    def solve(self, problem: ContactProblem, warm_start: np.ndarray | None = None) -> SolveResult:
+        """Solve; never hang: every return carries a stop reason."""

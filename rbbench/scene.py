@@ -1,0 +1,449 @@
+"""Scene files (``problems/*.toml``): loading, validation, overrides, parameters.
+
+A scene names its geometry, materials, load, contact, parameter domain,
+sampling and discretisation defaults, and the reference checks that apply.
+Any number that may depend on the parameter is written either as a number or
+as ``"mu.NAME"``, a reference to the parameter ``NAME`` declared in
+``[parameters.NAME]``.
+
+Every validation error names the file, the key, what was found and what would
+be valid (:class:`SceneError`).
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+PROBLEMS_DIR = Path(__file__).resolve().parent.parent / "problems"
+
+
+class SceneError(ValueError):
+    """A scene file or override is invalid; the message says where and what is valid."""
+
+
+# ---------------------------------------------------------------------------
+# schema
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Field:
+    """One scene key: its type, whether it may reference a parameter, its valid range."""
+
+    kind: str  # "float", "int", "str", "bool", "pair", "table"
+    default: Any = None
+    required: bool = False
+    choices: tuple[Any, ...] | None = None
+    low: float | None = None  # inclusive unless low_open
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    parametric: bool = False
+    doc: str = ""
+
+    def describe(self) -> str:
+        if self.choices is not None:
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        parts = {"float": "a number", "int": "an integer", "str": "a string",
+                 "bool": "true or false", "pair": "a pair of numbers [a, b] with a < b"}
+        text = parts.get(self.kind, self.kind)
+        rng = []
+        if self.low is not None:
+            rng.append(f"{'>' if self.low_open else '>='} {self.low:g}")
+        if self.high is not None:
+            rng.append(f"{'<' if self.high_open else '<='} {self.high:g}")
+        if rng:
+            text += " " + " and ".join(rng)
+        if self.parametric:
+            text += ', or "mu.NAME" for a declared parameter'
+        return text
+
+
+_ELASTIC = {
+    "E": Field("float", required=True, low=0, low_open=True, parametric=True,
+               doc="Young's modulus (Pa)"),
+    "nu": Field("float", required=True, low=0.0, high=0.5, high_open=True, parametric=True,
+                doc="Poisson's ratio"),
+}
+
+SCHEMA: dict[str, dict[str, Field]] = {
+    "scene": {
+        "name": Field("str", required=True),
+        "description": Field("str", default=""),
+        "physics": Field("str", required=True, choices=("elasticity", "poisson")),
+        "friction": Field("str", default="none", choices=("none",)),
+    },
+    "geometry": {
+        "kind": Field("str", required=True, choices=("halfdisks", "unit_square")),
+        "upper_radius": Field("float", low=0, low_open=True, parametric=True,
+                              doc="radius R1 of the upper half-disk (m)"),
+        "lower": Field("str", default="half_disk", choices=("half_disk", "rigid_flat"),
+                       doc="the lower body: an elastic half-disk or a rigid flat foundation"),
+        "lower_radius": Field("float", low=0, low_open=True, parametric=True,
+                              doc="radius R2 of the lower half-disk (m)"),
+        "initial_gap": Field("float", default=0.0, low=0.0, parametric=True,
+                             doc="initial gap g0 between the bodies (m)"),
+        "contact_zone": Field("pair", default=(-0.625, -0.375), low=-1.0, high=0.0,
+                              doc="potential contact zone on the upper body, theta/pi"),
+        "master_zone": Field("pair", default=(0.25, 0.75), low=0.0, high=1.0,
+                             doc="candidate master zone on the lower body, theta/pi"),
+    },
+    "material": {
+        "plane": Field("str", default="strain", choices=("strain",)),
+        "upper": Field("table"),
+        "lower": Field("table"),
+    },
+    "load": {
+        "displacement": Field("float", low=0.0, parametric=True,
+                              doc="imposed downward displacement d of the upper flat face (m)"),
+        "source": Field("float", parametric=True, doc="source term f of -Laplace u = f"),
+    },
+    "obstacle": {
+        "kind": Field("str", default="paraboloid", choices=("paraboloid",)),
+        "height": Field("float", parametric=True, doc="obstacle top height"),
+        "curvature": Field("float", low=0.0, parametric=True,
+                           doc="psi = height - curvature |x - centre|^2"),
+        "centre": Field("pair", default=(0.5, 0.5), low=0.0, high=1.0),
+    },
+    "sampling": {
+        "train": Field("str", default="uniform", choices=("uniform", "random", "lhs")),
+        "n_train": Field("int", default=21, low=1),
+        "valid": Field("str", default="random", choices=("uniform", "random", "lhs")),
+        "n_valid": Field("int", default=20, low=1),
+        "seed": Field("int", default=0, low=0),
+    },
+    "discretization": {
+        "degree": Field("int", default=1, choices=(1, 2)),
+        "multiplier": Field("str", default="lac", choices=("lac", "p0", "p1", "nodal")),
+        "lac_patch": Field("int", default=2, low=1,
+                           doc="facets per LAC patch (P0 multiplier per patch)"),
+        "h_contact": Field("float", default=0.0025, low=0, low_open=True, high=0.5,
+                           doc="element size on the contact zones, relative to the radius"),
+        "h_max": Field("float", default=0.1, low=0, low_open=True, high=1.0,
+                       doc="largest element size, relative to the radius"),
+        "grading": Field("float", default=0.15, low=0, low_open=True, high=2.0,
+                         doc="growth of the element size with distance to the contact zone"),
+        "level": Field("int", default=0, low=0, high=6,
+                       doc="uniform refinement level: sizes are divided by 2**level"),
+        "n_cells": Field("int", default=16, low=2, doc="cells per side (unit_square)"),
+        "quadrature": Field("int", default=0, low=0, high=6,
+                            doc="Gauss points per contact facet (0: degree + 1)"),
+        "inner_product": Field("str", default="energy", choices=("energy", "h1")),
+    },
+    "reference": {
+        "hertz": Field("bool", default=False,
+                       doc="compare with 2D plane-strain Hertz theory"),
+    },
+}
+
+_PARAM_FIELDS = {
+    "range": Field("pair", required=True),
+    "default": Field("float"),
+    "unit": Field("str", default=""),
+    "description": Field("str", default=""),
+}
+
+# What each geometry kind needs (key -> required)
+_KIND_REQUIRES = {
+    "halfdisks": {
+        "geometry": ("upper_radius", "lower_radius"),
+        "load": ("displacement",),
+        "material": ("upper",),
+    },
+    "unit_square": {"load": ("source",), "obstacle": ("height", "curvature")},
+}
+
+
+# ---------------------------------------------------------------------------
+# the Scene
+# ---------------------------------------------------------------------------
+@dataclass
+class Parameter:
+    name: str
+    low: float
+    high: float
+    default: float
+    unit: str = ""
+    description: str = ""
+
+
+@dataclass
+class Scene:
+    """A validated scene: raw data (with defaults filled in) plus its parameters."""
+
+    name: str
+    path: str
+    data: dict[str, Any]
+    parameters: list[Parameter]
+    overrides: tuple[str, ...] = ()
+
+    # -- parameters ----------------------------------------------------------
+    @property
+    def param_names(self) -> list[str]:
+        return [p.name for p in self.parameters]
+
+    @property
+    def bounds(self) -> np.ndarray:
+        return np.array([[p.low, p.high] for p in self.parameters], dtype=float)
+
+    @property
+    def default_mu(self) -> np.ndarray:
+        return np.array([p.default for p in self.parameters], dtype=float)
+
+    def check_mu(self, mu: Any) -> np.ndarray:
+        """Return ``mu`` as an array, or raise :class:`SceneError` if out of the domain D."""
+        arr = np.atleast_1d(np.asarray(mu, dtype=float)).ravel()
+        if arr.size != len(self.parameters):
+            raise SceneError(
+                f"{self.path}: scene {self.name!r} has {len(self.parameters)} parameter(s) "
+                f"({', '.join(self.param_names)}); got {arr.size} value(s): {arr.tolist()}"
+            )
+        for value, p in zip(arr, self.parameters):
+            if not np.isfinite(value) or value < p.low or value > p.high:
+                raise SceneError(
+                    f"{self.path}: parameter {p.name} = {value!r} is outside its domain "
+                    f"[{p.low:g}, {p.high:g}]{' ' + p.unit if p.unit else ''}"
+                )
+        return arr
+
+    def mu_dict(self, mu: np.ndarray) -> dict[str, float]:
+        return {p.name: float(v) for p, v in zip(self.parameters, np.atleast_1d(mu))}
+
+    # -- values --------------------------------------------------------------
+    def get(self, section: str, key: str, default: Any = None) -> Any:
+        return self.data.get(section, {}).get(key, default)
+
+    def value(self, section: str, key: str, mu: np.ndarray | None = None) -> Any:
+        """A scene value at ``mu``, resolving ``"mu.NAME"`` references."""
+        raw = self.get(section, key)
+        return self.resolve(raw, mu)
+
+    def resolve(self, raw: Any, mu: np.ndarray | None = None) -> Any:
+        if isinstance(raw, str) and raw.startswith("mu."):
+            name = raw[3:]
+            mu = self.default_mu if mu is None else np.atleast_1d(mu)
+            return float(mu[self.param_names.index(name)])
+        return raw
+
+    def is_parametric(self, section: str, key: str) -> bool:
+        raw = self.get(section, key)
+        return isinstance(raw, str) and raw.startswith("mu.")
+
+    def material(self, body: str, mu: np.ndarray | None = None) -> tuple[float, float]:
+        table = self.data.get("material", {}).get(body)
+        if table is None:
+            raise SceneError(f"{self.path}: [material.{body}] is missing (E and nu)")
+        return float(self.resolve(table["E"], mu)), float(self.resolve(table["nu"], mu))
+
+    # -- identity ------------------------------------------------------------
+    def fingerprint(self) -> str:
+        """Hash of the validated content (for caches): same content, same key."""
+        blob = json.dumps(self.data, sort_keys=True, default=str).encode()
+        return hashlib.sha256(blob).hexdigest()[:16]
+
+    def with_overrides(self, overrides: list[str] | tuple[str, ...]) -> Scene:
+        return load_scene(self.path, overrides=tuple(self.overrides) + tuple(overrides))
+
+
+# ---------------------------------------------------------------------------
+# loading
+# ---------------------------------------------------------------------------
+def find_scene(name_or_path: str | Path) -> Path:
+    """A scene by file path, or by name in ``problems/``."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml" and path.exists():
+        return path
+    candidate = PROBLEMS_DIR / f"{name_or_path}.toml"
+    if candidate.exists():
+        return candidate
+    if path.exists():
+        return path
+    available = sorted(p.stem for p in PROBLEMS_DIR.glob("*.toml"))
+    raise SceneError(
+        f"no scene {str(name_or_path)!r}: not a file, and not in {PROBLEMS_DIR}; "
+        f"available scenes: {', '.join(available) or '(none)'}"
+    )
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """Parse ``section.key=value`` (value as a TOML literal, else a string)."""
+    if "=" not in text:
+        raise SceneError(f"override {text!r}: expected section.key=value")
+    key, raw = text.split("=", 1)
+    parts = [p for p in key.strip().split(".") if p]
+    if len(parts) < 2:
+        raise SceneError(f"override {text!r}: the key must read section.key (e.g. load.displacement)")
+    raw = raw.strip()
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return parts, value
+
+
+def load_scene(name_or_path: str | Path, overrides: tuple[str, ...] | list[str] = ()) -> Scene:
+    """Load and validate a scene, applying ``--set`` style overrides."""
+    path = find_scene(name_or_path)
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc}") from exc
+    data = copy.deepcopy(data)
+    for text in overrides:
+        parts, value = parse_override(text)
+        node = data
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+            if not isinstance(node, dict):
+                raise SceneError(f"{path}: override {text!r}: {p!r} is not a table")
+        node[parts[-1]] = value
+    return validate(data, str(path), tuple(overrides))
+
+
+def _err(path: str, where: str, msg: str) -> SceneError:
+    return SceneError(f"{path}: {where}: {msg}")
+
+
+def _check_value(path: str, where: str, f: Field, value: Any, params: dict[str, Parameter]) -> Any:
+    if f.parametric and isinstance(value, str) and value.startswith("mu."):
+        name = value[3:]
+        if name not in params:
+            raise _err(path, where, f"references parameter {name!r}, which is not declared; "
+                       f"declared: {', '.join(params) or '(none)'}")
+        p = params[name]
+        for end in (p.low, p.high):  # the whole parameter range must be valid
+            _check_value(path, f"{where} (at {name} = {end:g})", f, end, params)
+        return value
+    if f.kind == "float":
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise _err(path, where, f"expected {f.describe()}, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise _err(path, where, f"expected a finite number, got {value!r}")
+    elif f.kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise _err(path, where, f"expected {f.describe()}, got {value!r}")
+    elif f.kind == "str":
+        if not isinstance(value, str):
+            raise _err(path, where, f"expected {f.describe()}, got {value!r}")
+    elif f.kind == "bool":
+        if not isinstance(value, bool):
+            raise _err(path, where, f"expected true or false, got {value!r}")
+    elif f.kind == "pair":
+        ok = (isinstance(value, (list, tuple)) and len(value) == 2
+              and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))
+        if not ok or not value[0] < value[1]:
+            raise _err(path, where, f"expected {f.describe()}, got {value!r}")
+        value = (float(value[0]), float(value[1]))
+        for v in value:
+            if (f.low is not None and v < f.low) or (f.high is not None and v > f.high):
+                raise _err(path, where, f"expected values in [{f.low:g}, {f.high:g}], got {value!r}")
+        return value
+    elif f.kind == "table":
+        if not isinstance(value, dict):
+            raise _err(path, where, f"expected a table, got {value!r}")
+        return value
+    if f.choices is not None and value not in f.choices:
+        raise _err(path, where, f"{value!r} is not valid; expected {f.describe()}")
+    if f.kind in ("float", "int"):
+        bad_low = f.low is not None and (value <= f.low if f.low_open else value < f.low)
+        bad_high = f.high is not None and (value >= f.high if f.high_open else value > f.high)
+        if bad_low or bad_high:
+            raise _err(path, where, f"{value!r} is out of range; expected {f.describe()}")
+    return value
+
+
+def _unknown(path: str, where: str, key: str, valid: list[str]) -> SceneError:
+    return _err(path, where, f"unknown key {key!r}; valid keys: {', '.join(sorted(valid))}")
+
+
+def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, ...] = ()) -> Scene:
+    """Validate raw scene data; fill defaults; return a :class:`Scene`."""
+    data = copy.deepcopy(data)
+    valid_sections = sorted(list(SCHEMA) + ["parameters"])
+    for section in data:
+        if section not in SCHEMA and section != "parameters":
+            raise _unknown(path, "top level", section, valid_sections)
+        if not isinstance(data[section], dict):
+            raise _err(path, f"[{section}]", f"expected a table, got {data[section]!r}")
+
+    # parameters first: other keys may reference them
+    raw_params = data.get("parameters", {})
+    if not raw_params:
+        raise _err(path, "[parameters]", "declare at least one parameter, e.g. "
+                   "[parameters.mu] range = [0.7, 1.3]")
+    params: dict[str, Parameter] = {}
+    for name, table in raw_params.items():
+        where = f"[parameters.{name}]"
+        if not isinstance(table, dict):
+            raise _err(path, where, f"expected a table with 'range', got {table!r}")
+        for key in table:
+            if key not in _PARAM_FIELDS:
+                raise _unknown(path, where, key, list(_PARAM_FIELDS))
+        if "range" not in table:
+            raise _err(path, where, "missing 'range' = [low, high]")
+        lo, hi = _check_value(path, f"{where} range", _PARAM_FIELDS["range"], table["range"], {})
+        default = table.get("default", 0.5 * (lo + hi))
+        default = _check_value(path, f"{where} default", _PARAM_FIELDS["default"], default, {})
+        if not lo <= default <= hi:
+            raise _err(path, f"{where} default", f"{default:g} is outside range [{lo:g}, {hi:g}]")
+        table["default"] = default
+        params[name] = Parameter(name, lo, hi, default, str(table.get("unit", "")),
+                                 str(table.get("description", "")))
+
+    for section, fields in SCHEMA.items():
+        table = data.setdefault(section, {})
+        for key in table:
+            if key not in fields:
+                raise _unknown(path, f"[{section}]", key, list(fields))
+        for key, f in fields.items():
+            where = f"[{section}] {key}"
+            if key not in table:
+                if f.required:
+                    raise _err(path, where, f"is required; expected {f.describe()}")
+                if f.default is not None:
+                    table[key] = f.default
+                continue
+            table[key] = _check_value(path, where, f, table[key], params)
+
+    for body in ("upper", "lower"):
+        mat = data["material"].get(body)
+        if mat is None:
+            continue
+        for key in mat:
+            if key not in _ELASTIC:
+                raise _unknown(path, f"[material.{body}]", key, list(_ELASTIC))
+        for key, f in _ELASTIC.items():
+            if key not in mat:
+                raise _err(path, f"[material.{body}] {key}", f"is required; expected {f.describe()}")
+            mat[key] = _check_value(path, f"[material.{body}] {key}", f, mat[key], params)
+
+    kind = data["geometry"]["kind"]
+    for section, keys in _KIND_REQUIRES[kind].items():
+        for key in keys:
+            if key not in data[section]:
+                raise _err(path, f"[{section}] {key}",
+                           f"is required for geometry kind {kind!r}")
+    if kind == "halfdisks":
+        if data["geometry"]["lower"] == "half_disk" and "lower" not in data["material"]:
+            raise _err(path, "[material.lower]", "is required when geometry.lower = 'half_disk'")
+        if data["scene"]["physics"] != "elasticity":
+            raise _err(path, "[scene] physics", "geometry kind 'halfdisks' needs 'elasticity'")
+    if kind == "unit_square" and data["scene"]["physics"] != "poisson":
+        raise _err(path, "[scene] physics", "geometry kind 'unit_square' needs 'poisson'")
+
+    return Scene(name=data["scene"]["name"], path=path, data=data,
+                 parameters=list(params.values()), overrides=tuple(overrides))
