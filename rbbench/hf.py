@@ -44,6 +44,8 @@ def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mi
                     solver_options: dict | None = None):
     """Instantiate the three HF roles by name (unknown names list the valid ones)."""
     reg = registry or default_registry()
+    for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):
+        reg.get(role, name)  # unknown names fail here, before any meshing
     b = reg.create("backend", backend, scene=scene)
     f = reg.create("formulation", formulation)
     s = reg.create("solver", solver, **(solver_options or {}))

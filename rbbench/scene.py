@@ -57,7 +57,8 @@ class Field:
         if self.choices is not None:
             return "one of " + ", ".join(repr(c) for c in self.choices)
         parts = {"float": "a number", "int": "an integer", "str": "a string",
-                 "bool": "true or false", "pair": "a pair of numbers [a, b] with a < b"}
+                 "bool": "true or false", "pair": "a pair of numbers [a, b] with a < b",
+                 "point": "a point [x, y]"}
         text = parts.get(self.kind, self.kind)
         rng = []
         if self.low is not None:
@@ -115,7 +116,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "height": Field("float", parametric=True, doc="obstacle top height"),
         "curvature": Field("float", low=0.0, parametric=True,
                            doc="psi = height - curvature |x - centre|^2"),
-        "centre": Field("pair", default=(0.5, 0.5), low=0.0, high=1.0),
+        "centre": Field("point", default=(0.5, 0.5), low=0.0, high=1.0),
     },
     "sampling": {
         "train": Field("str", default="uniform", choices=("uniform", "random", "lhs")),
@@ -129,7 +130,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "multiplier": Field("str", default="lac", choices=("lac", "p0", "p1", "nodal")),
         "lac_patch": Field("int", default=2, low=1,
                            doc="facets per LAC patch (P0 multiplier per patch)"),
-        "h_contact": Field("float", default=0.0025, low=0, low_open=True, high=0.5,
+        "h_contact": Field("float", default=0.005, low=0, low_open=True, high=0.5,
                            doc="element size on the contact zones, relative to the radius"),
         "h_max": Field("float", default=0.1, low=0, low_open=True, high=1.0,
                        doc="largest element size, relative to the radius"),
@@ -211,9 +212,9 @@ class Scene:
                 f"({', '.join(self.param_names)}); got {arr.size} value(s): {arr.tolist()}"
             )
         for value, p in zip(arr, self.parameters):
-            if not np.isfinite(value) or value < p.low or value > p.high:
+            if not np.isfinite(value) or value < p.low or value > p.high:  # D is closed
                 raise SceneError(
-                    f"{self.path}: parameter {p.name} = {value!r} is outside its domain "
+                    f"{self.path}: parameter {p.name} = {float(value):g} is outside its domain "
                     f"[{p.low:g}, {p.high:g}]{' ' + p.unit if p.unit else ''}"
                 )
         return arr
@@ -342,10 +343,10 @@ def _check_value(path: str, where: str, f: Field, value: Any, params: dict[str, 
     elif f.kind == "bool":
         if not isinstance(value, bool):
             raise _err(path, where, f"expected true or false, got {value!r}")
-    elif f.kind == "pair":
+    elif f.kind in ("pair", "point"):
         ok = (isinstance(value, (list, tuple)) and len(value) == 2
               and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value))
-        if not ok or not value[0] < value[1]:
+        if not ok or (f.kind == "pair" and not value[0] < value[1]):
             raise _err(path, where, f"expected {f.describe()}, got {value!r}")
         value = (float(value[0]), float(value[1]))
         for v in value:

@@ -1,0 +1,144 @@
+"""The ``rbbench`` command line.
+
+``rbbench solve SCENE``: one HF solve with summary and files;
+``rbbench plugins``: every registered component and whether it is importable;
+``rbbench scenes``: the scenes in ``problems/``.
+Bad input exits with status 2 and a message naming what is wrong.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from rbbench.registry import NotInstalledError, UnknownComponentError, default_registry
+from rbbench.scene import PROBLEMS_DIR, SceneError, load_scene
+
+
+class _Progress:
+    """One status line per stage, with the elapsed time, on stderr."""
+
+    def __init__(self, quiet: bool = False):
+        self.quiet = quiet
+        self.t0 = time.perf_counter()
+
+    def __call__(self, stage: str) -> None:
+        if not self.quiet:
+            print(f"[{time.perf_counter() - self.t0:7.2f} s] {stage}", file=sys.stderr,
+                  flush=True)
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def print_summary(m: dict, mu: dict) -> None:
+    keys = ["n_dofs", "n_contact", "n_active", "iterations", "stop_reason", "final_residual",
+            "solve_time_s", "contact_force", "contact_half_width", "max_pressure",
+            "complementarity", "penetration_max", "zone_saturated"]
+    print("mu: " + ", ".join(f"{k} = {v:g}" for k, v in mu.items()))
+    for k in keys:
+        if k in m:
+            print(f"  {k:<22} {_fmt(m[k])}")
+    if "hertz" in m:
+        h = m["hertz"]
+        print("  2D Hertz at the computed force P:")
+        print(f"    a   = {h['a']:.6g} m   computed {m['contact_half_width']:.6g} m   "
+              f"rel. error {100 * h['a_rel_error']:+.2f} %")
+        print(f"    p0  = {h['p0']:.6g} Pa  computed {m['max_pressure']:.6g} Pa  "
+              f"rel. error {100 * h['p0_rel_error']:+.2f} %")
+    if m.get("zone_saturated"):
+        print("  WARNING: the contact patch reaches the edge of the potential contact zone")
+
+
+def cmd_solve(args) -> int:
+    scene = load_scene(args.scene, overrides=args.set or [])
+    mu = scene.check_mu(args.mu) if args.mu is not None else scene.default_mu
+    progress = _Progress(args.quiet)
+    from rbbench.hf import solve_hf
+    from rbbench.output import write_all
+
+    sol = solve_hf(scene, mu, backend=args.backend, formulation=args.formulation,
+                   solver=args.solver, progress=progress)
+    mu_txt = "_".join(f"{k}{v:g}" for k, v in scene.mu_dict(mu).items())
+    out = Path(args.out) if args.out else Path("results") / "solve" / f"{scene.name}_{mu_txt}"
+    progress(f"writing {out}")
+    paths = write_all(sol, out, plot=not args.no_plot)
+    print_summary(sol.metrics, scene.mu_dict(mu))
+    print("wrote: " + ", ".join(str(p) for p in paths))
+    return 0 if sol.result.converged else 1
+
+
+def cmd_plugins(args) -> int:
+    reg = default_registry()
+    rows = []
+    for spec in reg.specs():
+        ok, why = reg.availability(spec)
+        rows.append({"role": spec.role, "name": spec.name, "package": spec.package,
+                     "version": spec.version, "extras": list(spec.extras),
+                     "importable": ok, "hint": why, "description": spec.description,
+                     "capabilities": spec.capabilities})
+    if args.json:
+        print(json.dumps(rows, indent=2, default=str))
+        return 0
+    print(f"{'role':<12}{'name':<10}{'package':<22}{'extras':<10}{'importable':<11}description")
+    for r in rows:
+        pkg = f"{r['package']} {r['version']}".strip()
+        print(f"{r['role']:<12}{r['name']:<10}{pkg:<22}{','.join(r['extras']) or '-':<10}"
+              f"{'yes' if r['importable'] else 'NO':<11}{r['description']}")
+        if not r["importable"]:
+            print(f"{'':<12}-> {r['hint']}")
+    return 0
+
+
+def cmd_scenes(args) -> int:
+    for path in sorted(PROBLEMS_DIR.glob("*.toml")):
+        sc = load_scene(path)
+        params = ", ".join(f"{p.name} in [{p.low:g}, {p.high:g}]" for p in sc.parameters)
+        print(f"{sc.name:<22}{params:<44}{sc.data['scene']['description']}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="rbbench", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True)
+    s = sub.add_parser("solve", help="one HF contact solve: summary, contact.csv, VTU, PNG")
+    s.add_argument("scene", help="scene name in problems/ or path to a .toml file")
+    s.add_argument("--mu", type=float, nargs="+", help="parameter value(s) (default: scene's)")
+    s.add_argument("--backend", default="skfem")
+    s.add_argument("--formulation", default="mixed")
+    s.add_argument("--solver", default="ssn")
+    s.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE",
+                   help="override a scene value (repeatable), e.g. load.displacement=0.01")
+    s.add_argument("--out", help="output directory (default results/solve/<scene>_<mu>)")
+    s.add_argument("--no-plot", action="store_true", help="skip the PNG")
+    s.add_argument("--quiet", action="store_true", help="no progress lines")
+    s.set_defaults(func=cmd_solve)
+    pl = sub.add_parser("plugins", help="registered components and whether they are importable")
+    pl.add_argument("--json", action="store_true")
+    pl.set_defaults(func=cmd_plugins)
+    sc = sub.add_parser("scenes", help="list the scenes in problems/")
+    sc.set_defaults(func=cmd_scenes)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (SceneError, UnknownComponentError, NotInstalledError) as exc:
+        print(f"rbbench: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("rbbench: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,228 @@
+"""Files written by ``rbbench solve``: summary.json, contact.csv, solution.vtu, a PNG.
+
+Matplotlib and meshio are imported inside the functions that need them.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import platform
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rbbench import __version__
+from rbbench.hf import HFSolution
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (np.floating,)):
+        return float(obj)
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (np.bool_,)):
+        return bool(obj)
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def git_sha() -> str | None:
+    try:
+        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                             text=True, cwd=Path(__file__).parent, timeout=5)
+        return out.stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def provenance() -> dict[str, Any]:
+    import scipy
+
+    return {"rbbench": __version__, "git_sha": git_sha(), "python": platform.python_version(),
+            "numpy": np.__version__, "scipy": scipy.__version__, "machine": platform.node(),
+            "cpus": os.cpu_count()}
+
+
+def summary(sol: HFSolution) -> dict[str, Any]:
+    """The summary.json content: scene identity, components, metrics, provenance."""
+    sc = sol.scene
+    return _jsonable({
+        "scene": sc.name, "scene_file": sc.path, "overrides": list(sc.overrides),
+        "scene_fingerprint": sc.fingerprint(), "mu": sc.mu_dict(sol.mu),
+        **sol.components, **sol.metrics, "provenance": provenance(),
+    })
+
+
+def write_summary(sol: HFSolution, out: Path) -> Path:
+    path = out / "summary.json"
+    path.write_text(json.dumps(summary(sol), indent=2) + "\n")
+    return path
+
+
+def contact_table(sol: HFSolution) -> dict[str, np.ndarray]:
+    """Per-multiplier table: position, pressure, initial and final mean gaps."""
+    c = sol.disc.contact
+    support = np.asarray(c.Mlam.T @ c.weights).ravel()
+    s_final = c.G() - c.B() @ sol.result.u
+    return {"x": c.mult_points[:, 0], "y": c.mult_points[:, 1], "pressure": sol.result.lam,
+            "gap_initial": c.G() / support, "gap": s_final / support}
+
+
+def write_contact_csv(sol: HFSolution, out: Path) -> Path:
+    path = out / "contact.csv"
+    table = contact_table(sol)
+    units = {"x": "m", "y": "m", "pressure": "Pa", "gap_initial": "m", "gap": "m"}
+    if sol.disc.physics == "poisson":
+        units = {k: "" for k in units}
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow([f"{k} ({u})" if u else k for k, u in units.items()])
+        for row in zip(*table.values()):
+            w.writerow([f"{v:.10g}" for v in row])
+    return path
+
+
+def _vertex_values(sol: HFSolution, body) -> np.ndarray:
+    return sol.result.u[body.vertex_dofs]
+
+
+def von_mises(points: np.ndarray, tris: np.ndarray, disp: np.ndarray, E: float,
+              nu: float) -> np.ndarray:
+    """Element-wise plane-strain von Mises stress from vertex displacements (P1 gradient)."""
+    lam = E * nu / ((1 + nu) * (1 - 2 * nu))
+    mu = E / (2 * (1 + nu))
+    p = points[tris]  # (nt, 3, 2)
+    d = disp[tris]  # (nt, 3, 2)
+    J = np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)  # columns: edges
+    dU = np.stack([d[:, 1] - d[:, 0], d[:, 2] - d[:, 0]], axis=2)  # (nt, 2comp, 2)
+    grad = dU @ np.linalg.inv(J)  # du_i/dx_j
+    exx, eyy = grad[:, 0, 0], grad[:, 1, 1]
+    exy = 0.5 * (grad[:, 0, 1] + grad[:, 1, 0])
+    tr = exx + eyy
+    sxx, syy, szz = lam * tr + 2 * mu * exx, lam * tr + 2 * mu * eyy, lam * tr
+    sxy = 2 * mu * exy
+    return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2) + 3 * sxy**2)
+
+
+def write_vtu(sol: HFSolution, out: Path) -> Path:
+    """All bodies in one VTU (ParaView): displacement, body id, von Mises per cell."""
+    import meshio
+
+    pts, cells, disp, body_id, vm = [], [], [], [], []
+    offset = 0
+    for k, body in enumerate(sol.disc.bodies):
+        vals = _vertex_values(sol, body)
+        pts.append(body.points)
+        cells.append(body.triangles + offset)
+        if vals.shape[1] == 1:
+            disp.append(np.hstack([np.zeros((vals.shape[0], 2)), vals]))
+        else:
+            disp.append(np.hstack([vals, np.zeros((vals.shape[0], 1))]))
+            vm.append(von_mises(body.points, body.triangles, vals, body.E, body.nu))
+        body_id.append(np.full(body.triangles.shape[0], k))
+        offset += body.points.shape[0]
+    cell_data = {"body": [np.concatenate(body_id)]}
+    if vm:
+        cell_data["von_mises"] = [np.concatenate(vm)]
+    xyz = np.hstack([np.vstack(pts), np.zeros((offset, 1))])  # VTU wants 3-D points
+    mesh = meshio.Mesh(xyz, [("triangle", np.vstack(cells))],
+                       point_data={"displacement": np.vstack(disp)}, cell_data=cell_data)
+    path = out / "solution.vtu"
+    mesh.write(path)
+    return path
+
+
+def write_png(sol: HFSolution, out: Path) -> Path:
+    """Deformed mesh coloured by stress (or the membrane), and pressure vs Hertz."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.tri import Triangulation
+
+    table = contact_table(sol)
+    fig, axes = plt.subplots(1, 3, figsize=(16, 5))
+    m = sol.metrics
+    if sol.disc.physics == "elasticity":
+        vmax = 0.0
+        cols = []
+        for body in sol.disc.bodies:
+            vals = _vertex_values(sol, body)
+            vm = von_mises(body.points, body.triangles, vals, body.E, body.nu)
+            vmax = max(vmax, float(np.percentile(vm, 99.5)))
+            cols.append((Triangulation(*(body.points + vals).T, body.triangles), vm))
+        for ax, zoom in ((axes[0], False), (axes[1], True)):
+            for tri, vm in cols:
+                pc = ax.tripcolor(tri, facecolors=vm, cmap="viridis", vmin=0, vmax=vmax,
+                                  edgecolors="k" if zoom else "none", linewidth=0.1)
+            ax.set_aspect("equal")
+            ax.set_xlabel("x (m)")
+            ax.set_ylabel("y (m)")
+        a = max(m.get("contact_half_width", 0.05), 1e-3)
+        yc = float(np.mean(table["y"]))
+        axes[1].set_xlim(-2.5 * a, 2.5 * a)
+        axes[1].set_ylim(yc - 1.5 * a, yc + 1.5 * a)
+        axes[0].set_title("deformed configuration (scale 1), von Mises stress")
+        axes[1].set_title("contact zone (zoom)")
+        fig.colorbar(pc, ax=axes[1], label="von Mises stress (Pa)")
+    else:
+        body = sol.disc.bodies[0]
+        tri = Triangulation(*body.points.T, body.triangles)
+        pc = axes[0].tripcolor(tri, _vertex_values(sol, body)[:, 0], shading="gouraud")
+        fig.colorbar(pc, ax=axes[0], label="u")
+        axes[0].set_title("membrane displacement u")
+        act = table["pressure"] > 0
+        axes[1].scatter(table["x"][act], table["y"][act], s=8, c=table["pressure"][act])
+        axes[1].set_xlim(0, 1)
+        axes[1].set_ylim(0, 1)
+        axes[1].set_title("contact set (coloured by multiplier)")
+        for ax in axes[:2]:
+            ax.set_aspect("equal")
+    ax = axes[2]
+    if sol.disc.physics == "elasticity":
+        order = np.argsort(table["x"])
+        x = table["x"][order] - float(np.sum(table["x"] * table["pressure"])
+                                      / max(np.sum(table["pressure"]), 1e-300))
+        ax.step(x, table["pressure"][order], where="mid", label="computed (multiplier)")
+        if "hertz" in m:
+            h = m["hertz"]
+            xs = np.linspace(-1.3 * h["a"], 1.3 * h["a"], 400)
+            ax.plot(xs, h["p0"] * np.sqrt(np.clip(1 - (xs / h["a"]) ** 2, 0, None)), "r--",
+                    label=f"2D Hertz at P = {h['P']:.3g} N/m")
+            ax.set_xlim(-1.5 * h["a"], 1.5 * h["a"])
+            ax.set_title(f"pressure: a err {100 * h['a_rel_error']:+.2f} %, "
+                         f"p0 err {100 * h['p0_rel_error']:+.2f} %")
+        ax.set_xlabel("x (m), centred")
+        ax.set_ylabel("normal pressure (Pa)")
+        ax.legend()
+    else:
+        ax.hist(table["pressure"][table["pressure"] > 0], bins=30)
+        ax.set_xlabel("multiplier (active nodes)")
+        ax.set_title("multiplier distribution")
+    mu_txt = ", ".join(f"{k} = {v:g}" for k, v in sol.scene.mu_dict(sol.mu).items())
+    fig.suptitle(f"{sol.scene.name}: {mu_txt}; {m['n_dofs']} dofs, {m['stop_reason']} "
+                 f"in {m['iterations']} iterations")
+    fig.tight_layout()
+    path = out / "solution.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_all(sol: HFSolution, out: Path, plot: bool = True) -> list[Path]:
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [write_summary(sol, out), write_contact_csv(sol, out), write_vtu(sol, out)]
+    if plot:
+        paths.append(write_png(sol, out))
+    return paths
