@@ -116,6 +116,8 @@ def pdas(D: np.ndarray, q: np.ndarray, lam0: np.ndarray | None = None, max_iter:
     c = _scaling(D)
     m = q.size
     info: dict = {}
+    if not (np.all(np.isfinite(q)) and np.all(np.isfinite(D))):
+        return np.full(m, np.nan), 0, "nan", [float("nan")], {"why": "non-finite data"}
     lam = np.zeros(m) if lam0 is None else np.maximum(np.asarray(lam0, float), 0.0)
     s = q + D @ lam
     active = (lam - c * s) > 0
@@ -126,7 +128,7 @@ def pdas(D: np.ndarray, q: np.ndarray, lam0: np.ndarray | None = None, max_iter:
         s = q + D @ lam
         res = natural_residual(D, q, lam, c)
         residuals.append(res)
-        if not np.all(np.isfinite(lam)):
+        if not (np.all(np.isfinite(lam)) and np.isfinite(res)):
             return lam, it, "nan", residuals, info
         new = (lam - c * s) > 0
         if np.array_equal(new, active):

@@ -1,0 +1,716 @@
+"""Plugin contract test-suite: what every rbbench component must satisfy.
+
+A third-party plugin package runs the same checks as the built-in components::
+
+    import pytest
+    from rbbench.testing import check_component, component_params
+
+    @pytest.mark.parametrize("spec", component_params())
+    def test_contract(spec):
+        check_component(spec)
+
+or calls one role's check on its own class::
+
+    from rbbench.testing import check_solver
+    check_solver(MySolver)                      # any callable returning a Solver
+    check_backend(MyBackend, load_scene("membrane_obstacle"))
+
+Every check raises :class:`ContractViolation` (an ``AssertionError``) naming the
+component and the property that failed. The checks assert mathematical
+properties of the role (symmetry, definiteness, KKT conditions, shapes), never
+the output of a particular implementation.
+
+Reference scenes: ``membrane_obstacle`` (scalar, cheap) for every backend, and
+``hertz_halfdisks`` on a coarse mesh for backends declaring ``"elasticity"`` in
+``capabilities["physics"]``.
+
+``pytest`` is imported only by the helpers that need it (:func:`component_params`,
+:func:`check_component`), so importing this module stays cheap.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import re
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from rbbench.interfaces import (
+    STOP_REASONS,
+    ContactOperators,
+    ContactProblem,
+    Discretization,
+    SolveResult,
+)
+from rbbench.registry import ROLES, ComponentSpec, Registry, default_registry
+from rbbench.scene import SCHEMA, Scene, SceneError, load_scene
+
+__all__ = [
+    "ContractViolation",
+    "HERTZ_COARSE",
+    "ROLE_CHECKS",
+    "backend_scenes",
+    "check_backend",
+    "check_component",
+    "check_formulation",
+    "check_solver",
+    "check_spec",
+    "component_params",
+    "infeasible_contact_problem",
+    "random_contact_problem",
+    "reference_discretization",
+]
+
+#: Overrides making ``hertz_halfdisks`` cheap enough for a contract run.
+HERTZ_COARSE = ("discretization.h_contact=0.02", "discretization.h_max=0.2")
+
+#: Roles with a role-specific contract (the others get the declaration check only).
+ROLE_CHECKS = ("backend", "formulation", "solver")
+
+_KNOWN_PHYSICS = SCHEMA["scene"]["physics"].choices
+_KNOWN_MULTIPLIERS = SCHEMA["discretization"]["multiplier"].choices
+_SYM_TOL = 1e-12  # relative asymmetry allowed in A, X, W
+_DENSE_LIMIT = 2000  # up to this size definiteness is checked with dense eigvalsh
+_DEF_TOL = 1e-13  # lambda_min (or smallest pivot) relative to the largest diagonal entry
+_IDENT = r"[A-Za-z_][A-Za-z0-9_]*"
+_TARGET_RE = re.compile(rf"^{_IDENT}(\.{_IDENT})*:{_IDENT}(\.{_IDENT})*$")
+
+
+class ContractViolation(AssertionError):
+    """A component breaks its role's contract; the message says which property."""
+
+
+def _require(cond: Any, what: str) -> None:
+    if not cond:
+        raise ContractViolation(what)
+
+
+# ---------------------------------------------------------------------------
+# linear-algebra helpers (independent of the code under test)
+# ---------------------------------------------------------------------------
+def _as_sparse(M: Any, what: str) -> sp.csr_matrix:
+    _require(sp.issparse(M) or isinstance(M, np.ndarray), f"{what}: expected a sparse matrix "
+             f"or ndarray, got {type(M).__name__}")
+    M = sp.csr_matrix(M, dtype=float)
+    _require(np.all(np.isfinite(M.data)), f"{what}: has non-finite entries")
+    return M
+
+
+def _check_symmetric(M: sp.csr_matrix, what: str, tol: float = _SYM_TOL) -> None:
+    _require(M.shape[0] == M.shape[1], f"{what}: not square, shape {M.shape}")
+    scale = abs(M).max() if M.nnz else 0.0
+    asym = abs(M - M.T).max() if M.nnz else 0.0
+    _require(asym <= tol * max(scale, np.finfo(float).tiny),
+             f"{what}: not symmetric: max|M - M^T| = {asym:.3e} > {tol:g} * max|M| "
+             f"= {tol * scale:.3e}")
+
+
+def _check_spd(M: sp.csr_matrix, what: str) -> None:
+    """Positive definiteness of a symmetric matrix.
+
+    Dense ``eigvalsh`` for small matrices; otherwise an LDL^T-equivalent sparse LU
+    with symmetric permutation and diagonal pivots only: a symmetric matrix is
+    positive definite iff all those pivots are positive.
+    """
+    n = M.shape[0]
+    if n == 0:
+        return
+    dmax = float(np.max(np.abs(M.diagonal())))
+    _require(dmax > 0, f"{what}: zero diagonal")
+    if n <= _DENSE_LIMIT:
+        lam_min = float(np.linalg.eigvalsh(M.toarray())[0])
+        _require(lam_min > _DEF_TOL * dmax,
+                 f"{what}: not positive definite: smallest eigenvalue {lam_min:.3e} "
+                 f"(largest diagonal entry {dmax:.3e})")
+        return
+    try:
+        lu = spla.splu(sp.csc_matrix(M), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError as exc:  # "Factor is exactly singular"
+        raise ContractViolation(f"{what}: not positive definite ({exc})") from None
+    _require(np.array_equal(lu.perm_r, lu.perm_c),
+             f"{what}: not positive definite (LU needed an off-diagonal pivot)")
+    piv = lu.U.diagonal()
+    _require(piv.min() > _DEF_TOL * dmax,
+             f"{what}: not positive definite: smallest LDL^T pivot {piv.min():.3e} "
+             f"(largest diagonal entry {dmax:.3e})")
+
+
+def _vector(v: Any, n: int, what: str) -> np.ndarray:
+    v = np.asarray(v)
+    _require(v.shape == (n,), f"{what}: expected shape ({n},), got {v.shape}")
+    _require(np.issubdtype(v.dtype, np.number) and np.all(np.isfinite(v)),
+             f"{what}: not a finite numeric vector")
+    return v.astype(float)
+
+
+def _index_set(idx: Any, n: int, what: str) -> np.ndarray:
+    idx = np.asarray(idx)
+    _require(idx.ndim == 1, f"{what}: expected a 1-d index array, got shape {idx.shape}")
+    _require(idx.size == 0 or np.issubdtype(idx.dtype, np.integer),
+             f"{what}: expected integer indices, got dtype {idx.dtype}")
+    idx = idx.astype(np.int64)
+    _require(np.all((idx >= 0) & (idx < n)), f"{what}: indices outside [0, {n})")
+    _require(np.unique(idx).size == idx.size, f"{what}: repeated indices")
+    return idx
+
+
+def _shape(M: Any, shape: tuple[int, int], what: str) -> None:
+    _require(tuple(M.shape) == shape, f"{what}: expected shape {shape}, got {tuple(M.shape)}")
+
+
+# ---------------------------------------------------------------------------
+# declaration
+# ---------------------------------------------------------------------------
+_ROLE_METHOD = {"backend": "discretize", "formulation": "build", "solver": "solve"}
+
+
+def check_spec(registry: Registry, spec: ComponentSpec) -> Any:
+    """Check a component's declaration; return its loaded target, or None if not installed.
+
+    Role valid, ``target`` reads ``"module:attr"`` (and resolves when the
+    component is available), ``capabilities`` is a dict, description non-empty,
+    the spec is what the registry returns for its (role, name).
+    """
+    label = f"{spec.role} {spec.name!r} (package {spec.package or '?'})"
+    _require(isinstance(spec.name, str) and spec.name.strip(), f"{label}: empty name")
+    _require(spec.name == spec.name.strip() and " " not in spec.name,
+             f"{label}: the name must not contain spaces")
+    _require(spec.role in ROLES, f"{label}: role {spec.role!r} is not one of {ROLES}")
+    _require(isinstance(spec.target, str) and _TARGET_RE.match(spec.target),
+             f"{label}: target {spec.target!r} must read 'package.module:Attribute'")
+    _require(isinstance(spec.capabilities, dict),
+             f"{label}: capabilities must be a dict, got {type(spec.capabilities).__name__}")
+    _require(isinstance(spec.description, str) and spec.description.strip(),
+             f"{label}: empty description (shown by 'rbbench plugins')")
+    for field in ("extras", "modules"):
+        value = getattr(spec, field)
+        _require(isinstance(value, tuple) and all(isinstance(v, str) and v for v in value),
+                 f"{label}: {field} must be a tuple of non-empty strings, got {value!r}")
+    physics = spec.capabilities.get("physics")
+    if physics is not None:
+        _require(isinstance(physics, (tuple, list)) and set(physics) <= set(_KNOWN_PHYSICS),
+                 f"{label}: capabilities['physics'] = {physics!r}; known physics: "
+                 f"{_KNOWN_PHYSICS}")
+    _require(registry.get(spec.role, spec.name) == spec,
+             f"{label}: the registry returns a different spec for this (role, name)")
+    ok, why = registry.availability(spec)
+    _require(isinstance(ok, bool) and isinstance(why, str),
+             f"{label}: availability() must return (bool, str)")
+    if not ok:
+        _require(spec.install_hint in why, f"{label}: unavailable, but the reason {why!r} "
+                 f"does not give the install hint {spec.install_hint!r}")
+        return None
+    try:
+        obj = registry.load(spec.role, spec.name)
+    except (ImportError, AttributeError) as exc:
+        raise ContractViolation(
+            f"{label}: target {spec.target!r} does not resolve: {exc!r}") from exc
+    _require(callable(obj), f"{label}: target {spec.target!r} is not callable")
+    method = _ROLE_METHOD.get(spec.role)
+    if method and isinstance(obj, type):
+        _require(callable(getattr(obj, method, None)),
+                 f"{label}: class {obj.__name__} has no {method}() method")
+    return obj
+
+
+# ---------------------------------------------------------------------------
+# backend
+# ---------------------------------------------------------------------------
+@functools.cache
+def _scene(name: str, overrides: tuple[str, ...] = ()) -> Scene:
+    return load_scene(name, overrides)
+
+
+def backend_scenes(capabilities: dict | None = None) -> list[Scene]:
+    """The reference scenes for a component with these capabilities.
+
+    ``membrane_obstacle`` for ``poisson`` (or when ``physics`` is not declared),
+    coarse ``hertz_halfdisks`` when ``"elasticity"`` is declared.
+    """
+    physics = tuple((capabilities or {}).get("physics", ("poisson",)))
+    scenes = []
+    if "poisson" in physics:
+        scenes.append(_scene("membrane_obstacle"))
+    if "elasticity" in physics:
+        scenes.append(_scene("hertz_halfdisks", HERTZ_COARSE))
+    return scenes
+
+
+def _check_contact(c: ContactOperators, n: int, label: str) -> None:
+    _require(isinstance(c, ContactOperators),
+             f"{label}: contact is {type(c).__name__}, not a ContactOperators")
+    Un = _as_sparse(c.Un, f"{label}: contact.Un")
+    nq = Un.shape[0]
+    _shape(Un, (nq, n), f"{label}: contact.Un (n_q x n_dofs)")
+    _require(nq > 0, f"{label}: no contact quadrature points")
+    _vector(c.gap, nq, f"{label}: contact.gap")
+    w = _vector(c.weights, nq, f"{label}: contact.weights")
+    _require(np.all(w > 0), f"{label}: contact.weights must be > 0 (min {w.min():.3e})")
+    _shape(np.asarray(c.points), (nq, 2), f"{label}: contact.points")
+    nrm = np.asarray(c.normals, dtype=float)
+    _shape(nrm, (nq, 2), f"{label}: contact.normals")
+    _require(np.allclose(np.linalg.norm(nrm, axis=1), 1.0, atol=1e-10),
+             f"{label}: contact.normals are not unit vectors")
+    Mlam = _as_sparse(c.Mlam, f"{label}: contact.Mlam")
+    nm = Mlam.shape[1]
+    _shape(Mlam, (nq, nm), f"{label}: contact.Mlam (n_q x n_mult)")
+    _require(nm > 0, f"{label}: no contact multipliers")
+    _require(c.multiplier in _KNOWN_MULTIPLIERS,
+             f"{label}: contact.multiplier {c.multiplier!r} not one of {_KNOWN_MULTIPLIERS}")
+    _shape(np.asarray(c.mult_points), (nm, 2), f"{label}: contact.mult_points")
+    ext = np.asarray(c.mult_extent, dtype=float)
+    _shape(ext, (nm, 2), f"{label}: contact.mult_extent")
+    _require(np.all(ext[:, 0] <= ext[:, 1]), f"{label}: contact.mult_extent has x_min > x_max")
+    for opt in ("Ut", "Snn"):
+        M = getattr(c, opt)
+        if M is not None:
+            _shape(M, (nq, n), f"{label}: contact.{opt}")
+    _shape(c.B(), (nm, n), f"{label}: contact.B()")
+    _vector(c.G(), nm, f"{label}: contact.G()")
+    W = _as_sparse(c.W(), f"{label}: contact.W()")
+    _shape(W, (nm, nm), f"{label}: contact.W()")
+    _check_symmetric(W, f"{label}: contact.W()")
+    _check_spd(W, f"{label}: contact.W() (multiplier Gram matrix)")
+
+
+def _check_rigid_modes(disc: Discretization, label: str) -> None:
+    """``A`` on all dofs is the unconstrained operator: it annihilates the rigid modes.
+
+    Constants for a scalar problem; the two translations and the infinitesimal
+    rotation for plane elasticity. Checked when the bodies' vertex dofs cover
+    every dof (P1), where these modes are exactly representable.
+    """
+    n = disc.n_dofs
+    vd = [np.asarray(b.vertex_dofs) for b in disc.bodies]
+    covered = np.unique(np.concatenate([v.ravel() for v in vd]))
+    if covered.size != n:
+        return
+    modes = []
+    ncomp = vd[0].shape[1]
+    if ncomp == 1:
+        modes.append(("constant", np.ones(n)))
+    elif ncomp == 2:
+        for k, name in ((0, "x-translation"), (1, "y-translation")):
+            t = np.zeros(n)
+            for v in vd:
+                t[v[:, k]] = 1.0
+            modes.append((name, t))
+        for b, v in zip(disc.bodies, vd, strict=True):  # rotation of each body on its own
+            r = np.zeros(n)
+            p = np.asarray(b.points, dtype=float)
+            p = p - p.mean(axis=0)
+            r[v[:, 0]], r[v[:, 1]] = -p[:, 1], p[:, 0]
+            modes.append((f"rotation of body {b.name!r}", r))
+    A = disc.A
+    scale = abs(A).max()
+    for name, m in modes:
+        res = np.abs(A @ m).max()
+        _require(res <= 1e-8 * scale * np.abs(m).max() * 10,
+                 f"{label}: A does not annihilate the {name} (max|A m| = {res:.3e}): "
+                 "A must be the unconstrained operator, Dirichlet dofs given separately")
+
+
+def _check_bodies(disc: Discretization, label: str) -> None:
+    _require(isinstance(disc.bodies, list) and disc.bodies, f"{label}: no bodies for output")
+    for b in disc.bodies:
+        pts = np.asarray(b.points)
+        tri = np.asarray(b.triangles)
+        vd = np.asarray(b.vertex_dofs)
+        nv = pts.shape[0]
+        _require(pts.ndim == 2 and pts.shape[1] == 2, f"{label}: body {b.name}: points not (n, 2)")
+        _require(tri.ndim == 2 and tri.shape[1] == 3 and np.issubdtype(tri.dtype, np.integer),
+                 f"{label}: body {b.name}: triangles not an integer (n, 3) array")
+        _require(tri.min() >= 0 and tri.max() < nv,
+                 f"{label}: body {b.name}: triangles index outside the vertices")
+        _require(vd.ndim == 2 and vd.shape[0] == nv and np.issubdtype(vd.dtype, np.integer),
+                 f"{label}: body {b.name}: vertex_dofs not an integer (n_vertices, k) array")
+        _require(vd.min() >= 0 and vd.max() < disc.n_dofs,
+                 f"{label}: body {b.name}: vertex_dofs outside [0, n_dofs)")
+
+
+def _check_discretization(disc: Any, scene: Scene, mu: np.ndarray, label: str) -> None:
+    _require(isinstance(disc, Discretization),
+             f"{label}: discretize() returned {type(disc).__name__}, not a Discretization")
+    _require(np.allclose(np.asarray(disc.mu, dtype=float), mu),
+             f"{label}: Discretization.mu = {disc.mu!r}, expected {mu!r}")
+    physics = scene.data["scene"]["physics"]
+    _require(disc.physics == physics, f"{label}: physics {disc.physics!r}, scene says {physics!r}")
+    A = _as_sparse(disc.A, f"{label}: A")
+    n = A.shape[0]
+    _require(n > 0, f"{label}: no dofs")
+    _check_symmetric(A, f"{label}: A")
+    _vector(disc.F, n, f"{label}: F")
+    dd = _index_set(disc.dirichlet_dofs, n, f"{label}: dirichlet_dofs")
+    _vector(disc.dirichlet_values, dd.size, f"{label}: dirichlet_values")
+    free = np.setdiff1d(np.arange(n), dd)
+    _require(free.size > 0, f"{label}: every dof is a Dirichlet dof")
+    _check_spd(A[free][:, free], f"{label}: A on the free dofs")
+    X = _as_sparse(disc.X, f"{label}: X")
+    _shape(X, (n, n), f"{label}: X")
+    _check_symmetric(X, f"{label}: X")
+    _check_spd(X[free][:, free], f"{label}: X on the free dofs")
+    _check_contact(disc.contact, n, label)
+    _check_bodies(disc, label)
+    _check_rigid_modes(disc, label)
+
+
+def check_backend(factory: Callable[..., Any], scene: Scene, name: str | None = None) -> None:
+    """Contract of the backend role on ``scene`` (``factory(scene=scene)`` builds it).
+
+    ``discretize(default mu)`` returns a well-formed :class:`Discretization`:
+    ``A`` and ``X`` symmetric, positive definite on the free dofs, ``A`` the
+    unconstrained operator; consistent contact operators with positive weights
+    and an SPD multiplier Gram matrix ``W``; dof and multiplier counts
+    independent of mu; out-of-domain mu raises :class:`~rbbench.scene.SceneError`.
+    """
+    label = f"backend {name or getattr(factory, '__name__', factory)!r} on {scene.name}"
+    backend = factory(scene=scene)
+    mu0 = scene.default_mu
+    disc = backend.discretize(mu0)
+    _check_discretization(disc, scene, mu0, label)
+    n, nm, nq = disc.n_dofs, disc.contact.n_mult, disc.contact.n_quad
+    lo, hi = scene.bounds[:, 0], scene.bounds[:, 1]
+    for tag, mu in (("lower", lo), ("upper", hi)):
+        d = backend.discretize(mu)
+        where = f"{label} at the {tag} parameter bounds mu = {mu.tolist()}"
+        _require(isinstance(d, Discretization), f"{where}: not a Discretization")
+        _require((d.n_dofs, d.contact.n_mult, d.contact.n_quad) == (n, nm, nq),
+                 f"{where}: (n_dofs, n_mult, n_quad) = "
+                 f"{(d.n_dofs, d.contact.n_mult, d.contact.n_quad)} differ from "
+                 f"{(n, nm, nq)} at the default mu: counts must not depend on mu")
+        _require(np.all(np.isfinite(d.contact.gap)), f"{where}: non-finite gap")
+    outside = hi + (hi - lo) + 1.0
+    for bad in (outside, np.append(mu0, 0.0)):
+        try:
+            backend.discretize(bad)
+        except SceneError:
+            continue
+        raise ContractViolation(
+            f"{label}: discretize({bad.tolist()}) must raise SceneError (mu outside the "
+            f"domain {scene.bounds.tolist()} or of the wrong size)")
+
+
+# ---------------------------------------------------------------------------
+# formulation
+# ---------------------------------------------------------------------------
+@functools.cache
+def _cached_disc(backend: str, scene_name: str, overrides: tuple[str, ...],
+                 registry: Registry) -> Discretization:
+    scene = _scene(scene_name, overrides)
+    return registry.create("backend", backend, scene=scene).discretize(scene.default_mu)
+
+
+def reference_discretization(physics: str, registry: Registry | None = None) -> Discretization:
+    """A Discretization of the reference scene for ``physics`` from an installed backend.
+
+    Prefers the built-in ``skfem`` backend. Raises ``LookupError`` if no installed
+    backend declares that physics.
+    """
+    reg = registry or default_registry()
+    names = sorted(reg.names("backend"), key=lambda s: (s != "skfem", s))
+    scene = "membrane_obstacle" if physics == "poisson" else "hertz_halfdisks"
+    overrides = () if physics == "poisson" else HERTZ_COARSE
+    for name in names:
+        spec = reg.get("backend", name)
+        if physics in spec.capabilities.get("physics", ()) and reg.availability(spec)[0]:
+            return _cached_disc(name, scene, overrides, reg)
+    raise LookupError(f"no installed backend declares physics {physics!r}")
+
+
+def check_formulation(factory: Callable[..., Any], disc: Discretization,
+                      name: str | None = None) -> ContactProblem:
+    """Contract of the formulation role on one Discretization (``factory()`` builds it).
+
+    ``build(disc)`` returns a :class:`ContactProblem` with consistent shapes,
+    finite data, ``A`` symmetric positive definite, ``free`` a set of dofs
+    holding no Dirichlet dof it does not also lift, and ``expand`` placing the
+    Dirichlet values.
+    """
+    label = f"formulation {name or getattr(factory, '__name__', factory)!r} on {disc.physics}"
+    prob = factory().build(disc)
+    _require(isinstance(prob, ContactProblem),
+             f"{label}: build() returned {type(prob).__name__}, not a ContactProblem")
+    n = disc.n_dofs
+    free = _index_set(prob.free, n, f"{label}: free")
+    nf = free.size
+    _require(nf > 0, f"{label}: no free dofs")
+    A = _as_sparse(prob.A, f"{label}: A")
+    _shape(A, (nf, nf), f"{label}: A (n_free x n_free)")
+    _check_symmetric(A, f"{label}: A")
+    _check_spd(A, f"{label}: A")
+    _vector(prob.F, nf, f"{label}: F")
+    B = _as_sparse(prob.B, f"{label}: B")
+    _require(B.shape[1] == nf, f"{label}: B has {B.shape[1]} columns, expected n_free = {nf}")
+    m = B.shape[0]
+    _vector(prob.G, m, f"{label}: G")
+    lift = _vector(prob.u_lift, n, f"{label}: u_lift")
+    X = _as_sparse(prob.X, f"{label}: X")
+    _require(X.shape[0] == X.shape[1] and X.shape[0] in (n, nf),
+             f"{label}: X has shape {X.shape}, expected square of size n_dofs or n_free")
+    W = _as_sparse(prob.W, f"{label}: W")
+    _shape(W, (m, m), f"{label}: W (n_mult x n_mult)")
+    constrained = np.setdiff1d(np.asarray(disc.dirichlet_dofs), free)
+    dvals = dict(zip(np.asarray(disc.dirichlet_dofs).tolist(),
+                     np.asarray(disc.dirichlet_values, dtype=float).tolist(), strict=True))
+    want = np.array([dvals[d] for d in constrained.tolist()])
+    rng = np.random.default_rng(0)
+    v = rng.standard_normal(nf)
+    u = np.asarray(prob.expand(v))
+    _shape(u.reshape(-1, 1), (n, 1), f"{label}: expand(u_free)")
+    _require(np.allclose(u[free], v, rtol=0, atol=0),
+             f"{label}: expand() does not place the free values at free dofs")
+    _require(np.allclose(u[constrained], want, rtol=1e-12, atol=0)
+             and np.allclose(lift[constrained], want, rtol=1e-12, atol=0),
+             f"{label}: expand()/u_lift do not carry the Dirichlet values")
+    return prob
+
+
+# ---------------------------------------------------------------------------
+# solver
+# ---------------------------------------------------------------------------
+def _problem(A, F, B, G, n_fixed: int, rng) -> ContactProblem:
+    nf = A.shape[0]
+    n = nf + n_fixed
+    fixed = np.sort(rng.choice(n, size=n_fixed, replace=False))
+    free = np.setdiff1d(np.arange(n), fixed)
+    u_lift = np.zeros(n)
+    u_lift[fixed] = rng.standard_normal(n_fixed)
+    return ContactProblem(A=sp.csr_matrix(A), F=np.asarray(F, float), B=sp.csr_matrix(B),
+                          G=np.asarray(G, float), free=free, u_lift=u_lift,
+                          X=sp.identity(nf, format="csr"),
+                          W=sp.identity(B.shape[0], format="csr"))
+
+
+def random_contact_problem(seed: int = 0, n: int = 30, m: int = 8,
+                           n_fixed: int = 4) -> ContactProblem:
+    """A small, well-posed LCP-type problem: SPD ``A`` (n x n), full-rank ``B`` (m x n).
+
+    ``G`` has negative entries so some constraints are active at the solution.
+    ``n_fixed`` extra global dofs carry a Dirichlet lifting.
+    """
+    rng = np.random.default_rng(seed)
+    M = rng.standard_normal((n, n))
+    A = M @ M.T / n + np.eye(n)
+    B = rng.standard_normal((m, n))
+    F = rng.standard_normal(n)
+    G = rng.standard_normal(m)
+    G[: max(1, m // 3)] = -np.abs(G[: max(1, m // 3)])
+    return _problem(A, F, B, G, n_fixed, rng)
+
+
+def infeasible_contact_problem(seed: int = 0, n: int = 30) -> ContactProblem:
+    """Constraints ``b.u <= -1`` and ``-b.u <= -1``: no ``u`` satisfies both, no solution."""
+    rng = np.random.default_rng(seed)
+    M = rng.standard_normal((n, n))
+    A = M @ M.T / n + np.eye(n)
+    b = rng.standard_normal(n)
+    B = np.vstack([rng.standard_normal((2, n)), b, -b])
+    G = np.array([1.0, 1.0, -1.0, -1.0])
+    return _problem(A, rng.standard_normal(n), B, G, 0, rng)
+
+
+def _kkt_violations(prob: ContactProblem, res: SolveResult, tol: float = 1e-8) -> list[str]:
+    """KKT conditions of ``A u + B^T lam = F, lam >= 0, B u <= G, lam.(G - B u) = 0``."""
+    u = np.asarray(res.u, dtype=float)[prob.free]
+    lam = np.asarray(res.lam, dtype=float)
+    A, B, F, G = prob.A, prob.B, prob.F, prob.G
+    Au, Btl = A @ u, B.T @ lam
+    out = []
+    eq = np.linalg.norm(Au + Btl - F)
+    eq_scale = max(np.linalg.norm(F), np.linalg.norm(Au), np.linalg.norm(Btl),
+                   np.finfo(float).tiny)
+    if not eq <= tol * eq_scale:
+        out.append(f"equilibrium ||A u + B^T lam - F|| = {eq:.3e} > {tol:g} * {eq_scale:.3e}")
+    lam_scale = max(np.abs(lam).max(initial=0.0), np.finfo(float).tiny)
+    if lam.size and not lam.min() >= -1e-10 * lam_scale:
+        out.append(f"dual feasibility: min lam = {lam.min():.3e} < 0")
+    Bu = B @ u
+    s = G - Bu
+    s_scale = np.abs(G).max(initial=0.0) + np.abs(Bu).max(initial=0.0)
+    if s.size and not s.min() >= -tol * s_scale:
+        out.append(f"primal feasibility: max(B u - G) = {-s.min():.3e} > {tol:g} * {s_scale:.3e}")
+    comp = abs(float(lam @ s))
+    comp_scale = np.linalg.norm(lam) * (np.linalg.norm(G) + np.linalg.norm(Bu))
+    if not comp <= tol * max(comp_scale, np.finfo(float).tiny):
+        out.append(f"complementarity |lam.(G - B u)| = {comp:.3e} > {tol:g} * {comp_scale:.3e}")
+    return out
+
+
+def _call_with_timeout(fn: Callable[[], Any], timeout: float, what: str) -> Any:
+    """Run ``fn`` in a daemon thread; a hang becomes a ContractViolation, not a stuck run."""
+    box: dict[str, Any] = {}
+
+    def target():
+        try:
+            box["value"] = fn()
+        except BaseException as exc:  # noqa: BLE001 - re-raised in the caller
+            box["error"] = exc
+
+    th = threading.Thread(target=target, daemon=True, name=f"rbbench-contract: {what}")
+    th.start()
+    th.join(timeout)
+    if th.is_alive():
+        raise ContractViolation(f"{what}: did not return within {timeout:g} s "
+                                "(solvers must never hang: every return carries a stop reason)")
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+def _check_result(res: Any, prob: ContactProblem, label: str) -> SolveResult:
+    _require(isinstance(res, SolveResult),
+             f"{label}: solve() returned {type(res).__name__}, not a SolveResult")
+    _require(res.stop_reason in STOP_REASONS,
+             f"{label}: stop_reason {res.stop_reason!r} is not one of {STOP_REASONS}")
+    _require(isinstance(res.iterations, (int, np.integer)) and res.iterations >= 0,
+             f"{label}: iterations must be a non-negative int, got {res.iterations!r}")
+    n, m = prob.u_lift.size, prob.B.shape[0]
+    _require(np.shape(res.u) == (n,), f"{label}: u has shape {np.shape(res.u)}, expected "
+             f"({n},) (global dofs, Dirichlet lifting included)")
+    _require(np.shape(res.lam) == (m,), f"{label}: lam has shape {np.shape(res.lam)}, "
+             f"expected ({m},)")
+    _require(isinstance(res.residuals, list), f"{label}: residuals must be a list")
+    return res
+
+
+def check_solver(factory: Callable[..., Any], options: dict | None = None,
+                 name: str | None = None, timeout: float = 20.0, seed: int = 0) -> None:
+    """Contract of the solver role (``factory(**options)`` builds it).
+
+    On a small random well-posed problem the solver converges and the result
+    satisfies the KKT conditions (and keeps the Dirichlet lifting); a warm start
+    from the solution converges to the same ``u``; a problem without contact
+    unknowns gives ``u = A^{-1} F``; an infeasible problem and (when the
+    constructor takes ``max_iter``) ``max_iter=1`` still return, within
+    ``timeout`` seconds, with a stop reason, and never claim a convergence whose
+    KKT conditions fail.
+    """
+    options = dict(options or {})
+    label = f"solver {name or getattr(factory, '__name__', factory)!r}"
+
+    def run(prob, opts=options, warm=None, what="solve"):
+        solver = factory(**opts)
+        res = _call_with_timeout(lambda: solver.solve(prob, warm_start=warm), timeout,
+                                 f"{label}: {what}")
+        return _check_result(res, prob, f"{label}: {what}")
+
+    def kkt(prob, res, what):
+        bad = _kkt_violations(prob, res)
+        _require(not bad, f"{label}: {what}: stop_reason 'converged' but KKT fails: "
+                 + "; ".join(bad))
+
+    # 1. well-posed random problem: converges, KKT, Dirichlet lifting kept
+    prob = random_contact_problem(seed)
+    res = run(prob, what="random problem")
+    _require(res.converged, f"{label}: did not converge on a small well-posed problem "
+             f"(stop_reason {res.stop_reason!r} after {res.iterations} iterations)")
+    kkt(prob, res, "random problem")
+    fixed = np.setdiff1d(np.arange(prob.u_lift.size), prob.free)
+    _require(np.allclose(np.asarray(res.u)[fixed], prob.u_lift[fixed], rtol=0, atol=0),
+             f"{label}: u does not keep the Dirichlet values u_lift on the constrained dofs")
+    lam = np.asarray(res.lam, dtype=float)
+    _require(np.any(lam > 0), f"{label}: no active constraint on a problem built to have some")
+
+    # 2. warm start from the solution
+    res2 = run(prob, warm=lam.copy(), what="warm start from the solution")
+    _require(res2.converged, f"{label}: warm start from the solution did not converge "
+             f"({res2.stop_reason!r})")
+    kkt(prob, res2, "warm start")
+    du = np.linalg.norm(np.asarray(res2.u) - np.asarray(res.u))
+    _require(du <= 1e-6 * np.linalg.norm(res.u),
+             f"{label}: warm start changed the solution (||du|| = {du:.3e})")
+
+    # 3. no contact unknowns: the unconstrained solution
+    p0 = random_contact_problem(seed)
+    p0 = ContactProblem(A=p0.A, F=p0.F, B=sp.csr_matrix((0, p0.A.shape[0])), G=np.zeros(0),
+                        free=p0.free, u_lift=p0.u_lift, X=p0.X, W=sp.csr_matrix((0, 0)))
+    r0 = run(p0, what="problem without contact unknowns")
+    _require(r0.converged, f"{label}: no contact unknowns: stop_reason {r0.stop_reason!r}")
+    u_ref = np.linalg.solve(p0.A.toarray(), p0.F)
+    _require(np.allclose(np.asarray(r0.u)[p0.free], u_ref, rtol=1e-8, atol=1e-12),
+             f"{label}: without contact unknowns u must solve A u = F")
+
+    # 4. infeasible problem: returns, does not claim convergence
+    pinf = infeasible_contact_problem(seed)
+    rinf = run(pinf, what="infeasible problem")
+    _require(rinf.stop_reason != "converged",
+             f"{label}: claims 'converged' on a problem without solution (b.u <= -1 and "
+             "-b.u <= -1)")
+
+    # 5. max_iter = 1: returns with a stop reason
+    try:
+        params = inspect.signature(factory).parameters
+    except (TypeError, ValueError):
+        params = {}
+    if "max_iter" in params:
+        r1 = run(prob, opts={**options, "max_iter": 1}, what="max_iter=1")
+        _require(r1.iterations <= 1, f"{label}: max_iter=1 but {r1.iterations} iterations")
+        if r1.converged:
+            kkt(prob, r1, "max_iter=1")
+
+
+# ---------------------------------------------------------------------------
+# pytest helpers
+# ---------------------------------------------------------------------------
+def component_params(registry: Registry | None = None, roles: tuple[str, ...] | None = None):
+    """``pytest.param(spec, id="role:name")`` for every registered component.
+
+    Components whose modules are missing carry a skip mark whose reason is the
+    install hint from :meth:`Registry.availability`.
+    """
+    import pytest
+
+    reg = registry or default_registry()
+    params = []
+    for spec in reg.specs():
+        if roles is not None and spec.role not in roles:
+            continue
+        ok, why = reg.availability(spec)
+        marks = () if ok else (pytest.mark.skip(reason=why),)
+        params.append(pytest.param(spec, id=f"{spec.role}:{spec.name}", marks=marks))
+    return params
+
+
+def check_component(spec: ComponentSpec, registry: Registry | None = None) -> None:
+    """Declaration check plus the role-specific contract of one registered component.
+
+    Calls ``pytest.skip`` when the component is not installed (reason: the
+    install hint), when its role has no specific contract yet, or when no
+    installed backend can produce the discretizations a formulation needs.
+    """
+    import pytest
+
+    reg = registry or default_registry()
+    ok, why = reg.availability(spec)
+    obj = check_spec(reg, spec)
+    if not ok:
+        pytest.skip(why)
+    if spec.role not in ROLE_CHECKS:
+        pytest.skip("no role-specific contract yet")
+    name = f"{spec.name} ({spec.package or '?'})"
+    if spec.role == "backend":
+        scenes = backend_scenes(spec.capabilities)
+        _require(scenes, f"backend {name}: declares no physics with a reference scene")
+        for scene in scenes:
+            check_backend(obj, scene, name=name)
+    elif spec.role == "formulation":
+        physics = tuple(spec.capabilities.get("physics", _KNOWN_PHYSICS))
+        ran = 0
+        for ph in physics:
+            try:
+                disc = reference_discretization(ph, reg)
+            except LookupError:
+                continue
+            check_formulation(obj, disc, name=name)
+            ran += 1
+        if not ran:
+            pytest.skip(f"no installed backend provides physics {physics}")
+    else:
+        check_solver(obj, name=name)
