@@ -83,6 +83,10 @@ def cmd_plugins(args) -> int:
                      "version": spec.version, "extras": list(spec.extras),
                      "importable": ok, "hint": why, "description": spec.description,
                      "capabilities": spec.capabilities})
+    for ep_name, pkg, msg in reg.broken:
+        rows.append({"role": "?", "name": ep_name, "package": pkg, "version": "", "extras": [],
+                     "importable": False, "hint": msg, "description": "BROKEN plugin",
+                     "capabilities": {}})
     if args.json:
         print(json.dumps(rows, indent=2, default=str))
         return 0
@@ -104,6 +108,16 @@ def cmd_scenes(args) -> int:
     return 0
 
 
+def cmd_hertz_table(args) -> int:
+    from rbbench.studies import hertz_table, markdown
+
+    progress = _Progress(args.quiet)
+    rows = hertz_table(args.scene, tuple(args.loads), tuple(args.levels), args.mu,
+                       tuple(args.set or ()), progress=progress)
+    print(markdown(rows))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rbbench", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -122,6 +136,17 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plugins", help="registered components and whether they are importable")
     pl.add_argument("--json", action="store_true")
     pl.set_defaults(func=cmd_plugins)
+    ht = sub.add_parser("hertz-table",
+                        help="2D Hertz errors against load and mesh level (Markdown table)")
+    ht.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    ht.add_argument("--loads", type=float, nargs="+", default=[0.05, 0.01],
+                    help="imposed displacements d (m)")
+    ht.add_argument("--levels", type=int, nargs="+", default=[0, 1, 2],
+                    help="uniform refinement levels (sizes divided by 2**level)")
+    ht.add_argument("--mu", type=float, default=1.0)
+    ht.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    ht.add_argument("--quiet", action="store_true")
+    ht.set_defaults(func=cmd_hertz_table)
     sc = sub.add_parser("scenes", help="list the scenes in problems/")
     sc.set_defaults(func=cmd_scenes)
     return p
@@ -135,6 +160,9 @@ def main(argv: list[str] | None = None) -> int:
     except (SceneError, UnknownComponentError, NotInstalledError) as exc:
         print(f"rbbench: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # e.g. `rbbench plugins --json | head`
+        sys.stderr.close()
+        return 0
     except KeyboardInterrupt:
         print("rbbench: interrupted", file=sys.stderr)
         return 130

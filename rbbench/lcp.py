@@ -18,6 +18,7 @@ It is also the optimality system of the dual QP
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,19 +84,25 @@ def _solve_active(D: np.ndarray, q: np.ndarray, active: np.ndarray) -> np.ndarra
     if active.any():
         Daa = D[np.ix_(active, active)]
         try:
-            lam[active] = sla.solve(Daa, -q[active], assume_a="pos")
-        except (sla.LinAlgError, ValueError):
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", sla.LinAlgWarning)
+                lam[active] = sla.solve(Daa, -q[active], assume_a="pos")
+        except (sla.LinAlgError, sla.LinAlgWarning, ValueError):
             lam[active] = np.linalg.lstsq(Daa, -q[active], rcond=None)[0]
     return lam
 
 
 def nnls_dual(D: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Exact solution of LCP(q, D) for SPD ``D`` by Lawson-Hanson NNLS.
+    """Solution of LCP(q, D) for SPD ``D`` by Lawson-Hanson NNLS.
 
     ``min_{lam>=0} ||L^T lam + L^{-1} q||^2`` with ``D = L L^T``: the same
-    minimiser as the dual QP.
+    minimiser as the dual QP. A singular ``D`` (redundant constraints) is
+    shifted by ``1e-14 trace(D)/m``; callers check the natural residual.
+    Raises ``numpy.linalg.LinAlgError`` if even the shifted ``D`` is not SPD.
     """
-    L = np.linalg.cholesky(D)
+    m = max(q.size, 1)
+    shift = 1e-14 * max(float(np.trace(D)) / m, np.finfo(float).tiny)
+    L = np.linalg.cholesky(D + shift * np.eye(q.size))
     rhs = -sla.solve_triangular(L, q, lower=True)
     lam, _ = nnls(L.T, rhs, maxiter=50 * max(q.size, 1))
     return lam
@@ -137,7 +144,11 @@ def pdas(D: np.ndarray, q: np.ndarray, lam0: np.ndarray | None = None, max_iter:
         key = new.tobytes()
         if key in seen:
             info["fallback"] = "nnls (active-set cycle)"
-            lam = nnls_dual(D, q)
+            try:
+                lam = nnls_dual(D, q)
+            except (np.linalg.LinAlgError, RuntimeError) as exc:
+                info["why"] = f"nnls fallback failed: {exc}"
+                return lam, it, "stagnation", residuals, info
             res = natural_residual(D, q, lam, c)
             residuals.append(res)
             return lam, it, "converged" if res <= tol else "stagnation", residuals, info

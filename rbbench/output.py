@@ -88,7 +88,7 @@ def write_contact_csv(sol: HFSolution, out: Path) -> Path:
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow([f"{k} ({u})" if u else k for k, u in units.items()])
-        for row in zip(*table.values()):
+        for row in zip(*table.values(), strict=True):
             w.writerow([f"{v:.10g}" for v in row])
     return path
 

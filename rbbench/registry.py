@@ -97,6 +97,9 @@ class Registry:
     def __init__(self) -> None:
         self._specs: dict[tuple[str, str], ComponentSpec] = {}
         self._current_package = ("", "")
+        #: Plugins that failed to load: (entry point, package, message). Shown by
+        #: ``rbbench plugins``; they do not hide the other plugins.
+        self.broken: list[tuple[str, str, str]] = []
 
     # -- declaration -----------------------------------------------------
     def add(self, spec: ComponentSpec) -> None:
@@ -162,11 +165,12 @@ def _plugin_manager() -> pluggy.PluginManager:
     return pm
 
 
-def discover(extra_plugins: tuple[Any, ...] = ()) -> Registry:
+def discover(extra_plugins: tuple[Any, ...] = (), strict: bool = False) -> Registry:
     """Build a registry from every ``rbbench`` entry point (plus ``extra_plugins``).
 
-    A plugin whose module fails to import is reported as an error naming the
-    entry point; it does not hide the others.
+    A plugin whose module fails to import (or declares badly) is recorded in
+    ``registry.broken`` with a message naming the entry point and package; it
+    does not hide the others. With ``strict=True`` the first failure raises.
     """
     registry = Registry()
     pm = _plugin_manager()
@@ -176,21 +180,19 @@ def discover(extra_plugins: tuple[Any, ...] = ()) -> Registry:
         ver = dist.version if dist is not None else ""
         try:
             plugin = ep.load()
+            if getattr(plugin, "rbbench_register", None) is None:
+                raise ImportError("it defines no rbbench_register hook")
+            registry._current_package = (pkg, ver)
+            if pm.is_registered(plugin):
+                continue
+            pm.register(plugin, name=f"{pkg}:{ep.name}")
+            _call_one(pm, plugin, registry)
         except Exception as exc:  # noqa: BLE001 - report, do not hide other plugins
-            raise ImportError(
-                f"rbbench plugin entry point {ep.name!r} = {ep.value!r} (package {pkg}) "
-                f"failed to import: {exc}"
-            ) from exc
-        registry._current_package = (pkg, ver)
-        if pm.is_registered(plugin):
-            continue
-        pm.register(plugin, name=f"{pkg}:{ep.name}")
-        impl = getattr(plugin, "rbbench_register", None)
-        if impl is None:
-            raise ImportError(
-                f"rbbench plugin {ep.value!r} (package {pkg}) defines no rbbench_register hook"
-            )
-        _call_one(pm, plugin, registry)
+            msg = (f"rbbench plugin entry point {ep.name!r} = {ep.value!r} (package {pkg}) "
+                   f"failed to load: {type(exc).__name__}: {exc}")
+            if strict:
+                raise ImportError(msg) from exc
+            registry.broken.append((ep.name, pkg, msg))
     for plugin in extra_plugins:
         registry._current_package = (getattr(plugin, "__name__", "local"), "")
         pm.register(plugin)

@@ -60,6 +60,8 @@ class Field:
                  "bool": "true or false", "pair": "a pair of numbers [a, b] with a < b",
                  "point": "a point [x, y]"}
         text = parts.get(self.kind, self.kind)
+        if self.kind in ("pair", "point") and self.low is not None and self.high is not None:
+            return text + f" with entries in [{self.low:g}, {self.high:g}]"
         rng = []
         if self.low is not None:
             rng.append(f"{'>' if self.low_open else '>='} {self.low:g}")
@@ -159,7 +161,7 @@ _PARAM_FIELDS = {
 # What each geometry kind needs (key -> required)
 _KIND_REQUIRES = {
     "halfdisks": {
-        "geometry": ("upper_radius", "lower_radius"),
+        "geometry": ("upper_radius",),
         "load": ("displacement",),
         "material": ("upper",),
     },
@@ -207,11 +209,12 @@ class Scene:
         """Return ``mu`` as an array, or raise :class:`SceneError` if out of the domain D."""
         arr = np.atleast_1d(np.asarray(mu, dtype=float)).ravel()
         if arr.size != len(self.parameters):
+            domains = ", ".join(f"{p.name} in [{p.low:g}, {p.high:g}]" for p in self.parameters)
             raise SceneError(
                 f"{self.path}: scene {self.name!r} has {len(self.parameters)} parameter(s) "
-                f"({', '.join(self.param_names)}); got {arr.size} value(s): {arr.tolist()}"
+                f"({domains}); got {arr.size} value(s): {arr.tolist()}"
             )
-        for value, p in zip(arr, self.parameters):
+        for value, p in zip(arr, self.parameters, strict=True):
             if not np.isfinite(value) or value < p.low or value > p.high:  # D is closed
                 raise SceneError(
                     f"{self.path}: parameter {p.name} = {float(value):g} is outside its domain "
@@ -220,7 +223,7 @@ class Scene:
         return arr
 
     def mu_dict(self, mu: np.ndarray) -> dict[str, float]:
-        return {p.name: float(v) for p, v in zip(self.parameters, np.atleast_1d(mu))}
+        return {p.name: float(v) for p, v in zip(self.parameters, np.atleast_1d(mu), strict=True)}
 
     # -- values --------------------------------------------------------------
     def get(self, section: str, key: str, default: Any = None) -> Any:
@@ -285,7 +288,8 @@ def parse_override(text: str) -> tuple[list[str], Any]:
     key, raw = text.split("=", 1)
     parts = [p for p in key.strip().split(".") if p]
     if len(parts) < 2:
-        raise SceneError(f"override {text!r}: the key must read section.key (e.g. load.displacement)")
+        raise SceneError(
+            f"override {text!r}: the key must read section.key (e.g. load.displacement)")
     raw = raw.strip()
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
@@ -311,7 +315,12 @@ def load_scene(name_or_path: str | Path, overrides: tuple[str, ...] | list[str] 
             if not isinstance(node, dict):
                 raise SceneError(f"{path}: override {text!r}: {p!r} is not a table")
         node[parts[-1]] = value
-    return validate(data, str(path), tuple(overrides))
+    try:
+        return validate(data, str(path), tuple(overrides))
+    except SceneError as exc:
+        if overrides:
+            raise SceneError(f"{exc} (after overrides: {', '.join(overrides)})") from None
+        raise
 
 
 def _err(path: str, where: str, msg: str) -> SceneError:
@@ -332,7 +341,7 @@ def _check_value(path: str, where: str, f: Field, value: Any, params: dict[str, 
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise _err(path, where, f"expected {f.describe()}, got {value!r}")
         value = float(value)
-        if not math.isfinite(value):
+        if not math.isfinite(value):  # noqa: SIM102
             raise _err(path, where, f"expected a finite number, got {value!r}")
     elif f.kind == "int":
         if isinstance(value, bool) or not isinstance(value, int):
@@ -351,7 +360,8 @@ def _check_value(path: str, where: str, f: Field, value: Any, params: dict[str, 
         value = (float(value[0]), float(value[1]))
         for v in value:
             if (f.low is not None and v < f.low) or (f.high is not None and v > f.high):
-                raise _err(path, where, f"expected values in [{f.low:g}, {f.high:g}], got {value!r}")
+                raise _err(path, where,
+                           f"expected values in [{f.low:g}, {f.high:g}], got {value!r}")
         return value
     elif f.kind == "table":
         if not isinstance(value, dict):
@@ -429,18 +439,27 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
                 raise _unknown(path, f"[material.{body}]", key, list(_ELASTIC))
         for key, f in _ELASTIC.items():
             if key not in mat:
-                raise _err(path, f"[material.{body}] {key}", f"is required; expected {f.describe()}")
+                raise _err(path, f"[material.{body}] {key}",
+                           f"is required; expected {f.describe()}")
             mat[key] = _check_value(path, f"[material.{body}] {key}", f, mat[key], params)
 
     kind = data["geometry"]["kind"]
     for section, keys in _KIND_REQUIRES[kind].items():
         for key in keys:
             if key not in data[section]:
+                what = ("a table with E and nu" if section == "material"
+                        else SCHEMA[section][key].describe())
                 raise _err(path, f"[{section}] {key}",
-                           f"is required for geometry kind {kind!r}")
+                           f"is required for geometry kind {kind!r}; expected {what}")
     if kind == "halfdisks":
-        if data["geometry"]["lower"] == "half_disk" and "lower" not in data["material"]:
-            raise _err(path, "[material.lower]", "is required when geometry.lower = 'half_disk'")
+        if data["geometry"]["lower"] == "half_disk":
+            if "lower" not in data["material"]:
+                raise _err(path, "[material.lower]",
+                           "is required when geometry.lower = 'half_disk' (a table with E and nu)")
+            if "lower_radius" not in data["geometry"]:
+                raise _err(path, "[geometry] lower_radius",
+                           "is required when geometry.lower = 'half_disk'; expected "
+                           + SCHEMA["geometry"]["lower_radius"].describe())
         if data["scene"]["physics"] != "elasticity":
             raise _err(path, "[scene] physics", "geometry kind 'halfdisks' needs 'elasticity'")
     if kind == "unit_square" and data["scene"]["physics"] != "poisson":

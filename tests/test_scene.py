@@ -240,7 +240,7 @@ def test_bad_choice_lists_valid_choices(tmp_path, edit, key, choices):
         (("[material.upper]\nE = 2.0e11\n", "[material.upper]\n"), "[material.upper] E",
          "a number"),
         (("displacement = 0.05\n", ""), "[load] displacement", "halfdisks"),
-        (("lower_radius = 1.0\n", ""), "[geometry] lower_radius", "halfdisks"),
+        (("lower_radius = 1.0\n", ""), "[geometry] lower_radius", "half_disk"),
         (("range = [0.7, 1.3]\n", ""), "[parameters.mu]", "range"),
     ],
     ids=["geometry.kind", "scene.name", "material.upper", "material.lower", "upper.E",
@@ -568,5 +568,5 @@ def test_check_mu_wrong_count(mu):
 
 def test_check_mu_wrong_count_hertz():
     sc = load_scene("hertz_halfdisks")
-    with pytest.raises(SceneError, match=r"1 parameter\(s\) \(mu\); got 2 value"):
+    with pytest.raises(SceneError, match=r"1 parameter\(s\) \(mu in \[0.7, 1.3\]\); got 2 value"):
         sc.check_mu([1.0, 1.0])

@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
+from rbbench_plugins.backends.meshes import graded_half_disk, unit_square
 from skfem import (
     Basis,
     BilinearForm,
@@ -35,7 +36,6 @@ from rbbench.contact_geometry import (
 )
 from rbbench.interfaces import Backend, BodyMesh, ContactOperators, Discretization
 from rbbench.scene import Scene, SceneError
-from rbbench_plugins.backends.meshes import graded_half_disk, unit_square
 
 
 @BilinearForm
@@ -194,10 +194,10 @@ class SkfemBackend(Backend):
     def _geometry(self, mu) -> dict:
         s = self.scene
         r1 = float(s.value("geometry", "upper_radius", mu))
-        r2 = float(s.value("geometry", "lower_radius", mu))
         g0 = float(s.value("geometry", "initial_gap", mu))
+        r2 = None if self.rigid else float(s.value("geometry", "lower_radius", mu))
         top = 0.0 if self.rigid else r2
-        return {"R1": r1, "R2": None if self.rigid else r2, "g0": g0,
+        return {"R1": r1, "R2": r2, "g0": g0,
                 "centre1": np.array([0.0, top + g0 + r1])}
 
     def _mapped(self, body: _Body, geo: dict) -> np.ndarray:
@@ -287,10 +287,11 @@ class SkfemBackend(Backend):
             seg, s2, gap = ray_cast(x, nrm, ma, mb)
             if np.any(seg < 0):
                 bad = x[seg < 0]
+                zone = [float(z) for z in self.scene.data["geometry"]["master_zone"]]
                 raise SceneError(
                     f"{self.scene.path}: [geometry] master_zone: {int(np.sum(seg < 0))} slave "
                     f"quadrature point(s) (e.g. x = {bad[0].round(4).tolist()}) project outside "
-                    f"the master zone {list(np.asarray(self.scene.data['geometry']['master_zone']))}"
+                    f"the master zone {zone}"
                     " (theta/pi); widen it")
             phi2 = facet_shape(s2, self.degree)
             mdofs = lo.facet_dofs(mf, mflip)[seg]

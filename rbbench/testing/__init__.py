@@ -17,6 +17,7 @@ from rbbench.testing.contract import (
     component_params,
     infeasible_contact_problem,
     random_contact_problem,
+    redundant_contact_problem,
     reference_discretization,
 )
 
@@ -33,5 +34,6 @@ __all__ = [
     "component_params",
     "infeasible_contact_problem",
     "random_contact_problem",
+    "redundant_contact_problem",
     "reference_discretization",
 ]

@@ -30,6 +30,7 @@ Reference scenes: ``membrane_obstacle`` (scalar, cheap) for every backend, and
 
 from __future__ import annotations
 
+import copy
 import functools
 import inspect
 import re
@@ -64,6 +65,7 @@ __all__ = [
     "component_params",
     "infeasible_contact_problem",
     "random_contact_problem",
+    "redundant_contact_problem",
     "reference_discretization",
 ]
 
@@ -312,7 +314,7 @@ def _check_rigid_modes(disc: Discretization, label: str) -> None:
     scale = abs(A).max()
     for name, m in modes:
         res = np.abs(A @ m).max()
-        _require(res <= 1e-8 * scale * np.abs(m).max() * 10,
+        _require(res <= 1e-10 * scale * np.abs(m).max(),
                  f"{label}: A does not annihilate the {name} (max|A m| = {res:.3e}): "
                  "A must be the unconstrained operator, Dirichlet dofs given separately")
 
@@ -333,6 +335,28 @@ def _check_bodies(disc: Discretization, label: str) -> None:
                  f"{label}: body {b.name}: vertex_dofs not an integer (n_vertices, k) array")
         _require(vd.min() >= 0 and vd.max() < disc.n_dofs,
                  f"{label}: body {b.name}: vertex_dofs outside [0, n_dofs)")
+
+
+def _check_contact_measure(disc: Discretization, scene: Scene, mu: np.ndarray,
+                           label: str) -> None:
+    """The quadrature weights measure the potential contact set of the mapped geometry.
+
+    Half-disks: the arc ``R1 * pi * (zone[1] - zone[0])`` (to 1 %, polygonal
+    boundary), so the weights follow ``R1(mu)``. Unit square (obstacle
+    problem, nodal weights): at most the area 1 and more than half of it.
+    """
+    total = float(np.sum(disc.contact.weights))
+    kind = scene.data["geometry"]["kind"]
+    if kind == "halfdisks":
+        r1 = float(scene.value("geometry", "upper_radius", mu))
+        z0, z1 = scene.data["geometry"]["contact_zone"]
+        arc = r1 * np.pi * (z1 - z0)
+        _require(abs(total - arc) <= 0.01 * arc,
+                 f"{label}: sum of contact weights {total:.6g} is not the length "
+                 f"{arc:.6g} of the contact arc of radius R1 = {r1:g}")
+    elif kind == "unit_square":
+        _require(0.5 < total <= 1.0 + 1e-12,
+                 f"{label}: sum of contact weights {total:.6g} is not a part of the unit area")
 
 
 def _check_discretization(disc: Any, scene: Scene, mu: np.ndarray, label: str) -> None:
@@ -357,6 +381,7 @@ def _check_discretization(disc: Any, scene: Scene, mu: np.ndarray, label: str) -
     _check_symmetric(X, f"{label}: X")
     _check_spd(X[free][:, free], f"{label}: X on the free dofs")
     _check_contact(disc.contact, n, label)
+    _check_contact_measure(disc, scene, mu, label)
     _check_bodies(disc, label)
     _check_rigid_modes(disc, label)
 
@@ -386,6 +411,7 @@ def check_backend(factory: Callable[..., Any], scene: Scene, name: str | None = 
                  f"{(d.n_dofs, d.contact.n_mult, d.contact.n_quad)} differ from "
                  f"{(n, nm, nq)} at the default mu: counts must not depend on mu")
         _require(np.all(np.isfinite(d.contact.gap)), f"{where}: non-finite gap")
+        _check_contact_measure(d, scene, mu, where)
     outside = hi + (hi - lo) + 1.0
     for bad in (outside, np.append(mu0, 0.0)):
         try:
@@ -410,8 +436,9 @@ def _cached_disc(backend: str, scene_name: str, overrides: tuple[str, ...],
 def reference_discretization(physics: str, registry: Registry | None = None) -> Discretization:
     """A Discretization of the reference scene for ``physics`` from an installed backend.
 
-    Prefers the built-in ``skfem`` backend. Raises ``LookupError`` if no installed
-    backend declares that physics.
+    Prefers the built-in ``skfem`` backend; the result is a copy of a cached
+    discretization. Raises ``LookupError`` if no installed backend declares that
+    physics.
     """
     reg = registry or default_registry()
     names = sorted(reg.names("backend"), key=lambda s: (s != "skfem", s))
@@ -420,7 +447,7 @@ def reference_discretization(physics: str, registry: Registry | None = None) -> 
     for name in names:
         spec = reg.get("backend", name)
         if physics in spec.capabilities.get("physics", ()) and reg.availability(spec)[0]:
-            return _cached_disc(name, scene, overrides, reg)
+            return copy.deepcopy(_cached_disc(name, scene, overrides, reg))
     raise LookupError(f"no installed backend declares physics {physics!r}")
 
 
@@ -429,9 +456,9 @@ def check_formulation(factory: Callable[..., Any], disc: Discretization,
     """Contract of the formulation role on one Discretization (``factory()`` builds it).
 
     ``build(disc)`` returns a :class:`ContactProblem` with consistent shapes,
-    finite data, ``A`` symmetric positive definite, ``free`` a set of dofs
-    holding no Dirichlet dof it does not also lift, and ``expand`` placing the
-    Dirichlet values.
+    finite data, ``A`` symmetric positive definite, ``W`` symmetric, ``free``
+    a set of distinct dofs, and the Dirichlet dofs outside ``free`` carrying
+    their values in ``u_lift`` and in ``expand(u_free)``.
     """
     label = f"formulation {name or getattr(factory, '__name__', factory)!r} on {disc.physics}"
     prob = factory().build(disc)
@@ -456,6 +483,7 @@ def check_formulation(factory: Callable[..., Any], disc: Discretization,
              f"{label}: X has shape {X.shape}, expected square of size n_dofs or n_free")
     W = _as_sparse(prob.W, f"{label}: W")
     _shape(W, (m, m), f"{label}: W (n_mult x n_mult)")
+    _check_symmetric(W, f"{label}: W")
     constrained = np.setdiff1d(np.asarray(disc.dirichlet_dofs), free)
     dvals = dict(zip(np.asarray(disc.dirichlet_dofs).tolist(),
                      np.asarray(disc.dirichlet_values, dtype=float).tolist(), strict=True))
@@ -463,8 +491,8 @@ def check_formulation(factory: Callable[..., Any], disc: Discretization,
     rng = np.random.default_rng(0)
     v = rng.standard_normal(nf)
     u = np.asarray(prob.expand(v))
-    _shape(u.reshape(-1, 1), (n, 1), f"{label}: expand(u_free)")
-    _require(np.allclose(u[free], v, rtol=0, atol=0),
+    _require(u.shape == (n,), f"{label}: expand(u_free) has shape {u.shape}, expected ({n},)")
+    _require(np.array_equal(u[free], v),
              f"{label}: expand() does not place the free values at free dofs")
     _require(np.allclose(u[constrained], want, rtol=1e-12, atol=0)
              and np.allclose(lift[constrained], want, rtol=1e-12, atol=0),
@@ -503,6 +531,18 @@ def random_contact_problem(seed: int = 0, n: int = 30, m: int = 8,
     G = rng.standard_normal(m)
     G[: max(1, m // 3)] = -np.abs(G[: max(1, m // 3)])
     return _problem(A, F, B, G, n_fixed, rng)
+
+
+def redundant_contact_problem(seed: int = 0) -> ContactProblem:
+    """:func:`random_contact_problem` with its first three constraints repeated.
+
+    Still solvable (same ``u``), but the Delassus operator ``B A^{-1} B^T`` is
+    singular and the multipliers are not unique.
+    """
+    p = random_contact_problem(seed)
+    B = sp.vstack([p.B, p.B[:3]]).tocsr()
+    return ContactProblem(A=p.A, F=p.F, B=B, G=np.r_[p.G, p.G[:3]], free=p.free,
+                          u_lift=p.u_lift, X=p.X, W=sp.identity(B.shape[0], format="csr"))
 
 
 def infeasible_contact_problem(seed: int = 0, n: int = 30) -> ContactProblem:
@@ -544,7 +584,11 @@ def _kkt_violations(prob: ContactProblem, res: SolveResult, tol: float = 1e-8) -
 
 
 def _call_with_timeout(fn: Callable[[], Any], timeout: float, what: str) -> Any:
-    """Run ``fn`` in a daemon thread; a hang becomes a ContractViolation, not a stuck run."""
+    """Run ``fn`` in a daemon thread; a hang becomes a ContractViolation, not a stuck run.
+
+    The thread of a hung call is abandoned (it cannot be killed) and keeps running
+    until the process exits.
+    """
     box: dict[str, Any] = {}
 
     def target():
@@ -581,27 +625,43 @@ def _check_result(res: Any, prob: ContactProblem, label: str) -> SolveResult:
 
 
 def check_solver(factory: Callable[..., Any], options: dict | None = None,
-                 name: str | None = None, timeout: float = 20.0, seed: int = 0) -> None:
+                 name: str | None = None, timeout: float = 20.0, seed: int = 0,
+                 n_degenerate: int = 5) -> None:
     """Contract of the solver role (``factory(**options)`` builds it).
 
-    On a small random well-posed problem the solver converges and the result
-    satisfies the KKT conditions (and keeps the Dirichlet lifting); a warm start
-    from the solution converges to the same ``u``; a problem without contact
-    unknowns gives ``u = A^{-1} F``; an infeasible problem and (when the
-    constructor takes ``max_iter``) ``max_iter=1`` still return, within
-    ``timeout`` seconds, with a stop reason, and never claim a convergence whose
-    KKT conditions fail.
+    1. On a small random well-posed problem the solver converges, the result
+       satisfies the KKT conditions and keeps the Dirichlet lifting.
+    2. A warm start from that solution converges to the same ``u``.
+    3. Without contact unknowns, ``u = A^{-1} F``.
+    4. With ``max_iter=1`` (when the constructor takes ``max_iter``) it returns
+       after at most one iteration.
+    5. On degenerate problems (``n_degenerate`` seeds each): redundant
+       constraints (feasible, singular Delassus operator) and infeasible
+       constraints (``b.u <= -1`` and ``-b.u <= -1``), it returns.
+
+    Every solve must return within ``timeout`` seconds, without raising, with a
+    stop reason in :data:`~rbbench.interfaces.STOP_REASONS`; a ``"converged"``
+    result must satisfy the KKT conditions (so none is possible on the
+    infeasible problems).
     """
     options = dict(options or {})
     label = f"solver {name or getattr(factory, '__name__', factory)!r}"
 
     def run(prob, opts=options, warm=None, what="solve"):
         solver = factory(**opts)
-        res = _call_with_timeout(lambda: solver.solve(prob, warm_start=warm), timeout,
-                                 f"{label}: {what}")
-        return _check_result(res, prob, f"{label}: {what}")
+        where = f"{label}: {what}"
+        try:
+            res = _call_with_timeout(lambda: solver.solve(prob, warm_start=warm), timeout, where)
+        except ContractViolation:
+            raise
+        except Exception as exc:  # noqa: BLE001 - any exception breaks the contract
+            raise ContractViolation(f"{where}: solve() raised {type(exc).__name__}: {exc} "
+                                    "instead of returning a stop reason") from exc
+        return _check_result(res, prob, where)
 
     def kkt(prob, res, what):
+        if not res.converged:
+            return
         bad = _kkt_violations(prob, res)
         _require(not bad, f"{label}: {what}: stop_reason 'converged' but KKT fails: "
                  + "; ".join(bad))
@@ -613,7 +673,7 @@ def check_solver(factory: Callable[..., Any], options: dict | None = None,
              f"(stop_reason {res.stop_reason!r} after {res.iterations} iterations)")
     kkt(prob, res, "random problem")
     fixed = np.setdiff1d(np.arange(prob.u_lift.size), prob.free)
-    _require(np.allclose(np.asarray(res.u)[fixed], prob.u_lift[fixed], rtol=0, atol=0),
+    _require(np.array_equal(np.asarray(res.u)[fixed], prob.u_lift[fixed]),
              f"{label}: u does not keep the Dirichlet values u_lift on the constrained dofs")
     lam = np.asarray(res.lam, dtype=float)
     _require(np.any(lam > 0), f"{label}: no active constraint on a problem built to have some")
@@ -628,23 +688,16 @@ def check_solver(factory: Callable[..., Any], options: dict | None = None,
              f"{label}: warm start changed the solution (||du|| = {du:.3e})")
 
     # 3. no contact unknowns: the unconstrained solution
-    p0 = random_contact_problem(seed)
-    p0 = ContactProblem(A=p0.A, F=p0.F, B=sp.csr_matrix((0, p0.A.shape[0])), G=np.zeros(0),
-                        free=p0.free, u_lift=p0.u_lift, X=p0.X, W=sp.csr_matrix((0, 0)))
+    p0 = ContactProblem(A=prob.A, F=prob.F, B=sp.csr_matrix((0, prob.A.shape[0])),
+                        G=np.zeros(0), free=prob.free, u_lift=prob.u_lift, X=prob.X,
+                        W=sp.csr_matrix((0, 0)))
     r0 = run(p0, what="problem without contact unknowns")
     _require(r0.converged, f"{label}: no contact unknowns: stop_reason {r0.stop_reason!r}")
     u_ref = np.linalg.solve(p0.A.toarray(), p0.F)
     _require(np.allclose(np.asarray(r0.u)[p0.free], u_ref, rtol=1e-8, atol=1e-12),
              f"{label}: without contact unknowns u must solve A u = F")
 
-    # 4. infeasible problem: returns, does not claim convergence
-    pinf = infeasible_contact_problem(seed)
-    rinf = run(pinf, what="infeasible problem")
-    _require(rinf.stop_reason != "converged",
-             f"{label}: claims 'converged' on a problem without solution (b.u <= -1 and "
-             "-b.u <= -1)")
-
-    # 5. max_iter = 1: returns with a stop reason
+    # 4. max_iter = 1: returns with a stop reason
     try:
         params = inspect.signature(factory).parameters
     except (TypeError, ValueError):
@@ -652,8 +705,19 @@ def check_solver(factory: Callable[..., Any], options: dict | None = None,
     if "max_iter" in params:
         r1 = run(prob, opts={**options, "max_iter": 1}, what="max_iter=1")
         _require(r1.iterations <= 1, f"{label}: max_iter=1 but {r1.iterations} iterations")
-        if r1.converged:
-            kkt(prob, r1, "max_iter=1")
+        kkt(prob, r1, "max_iter=1")
+
+    # 5. degenerate problems: always return; never a false "converged"
+    for k in range(seed, seed + n_degenerate):
+        pr = redundant_contact_problem(k)
+        rr = run(pr, what=f"redundant constraints (seed {k})")
+        kkt(pr, rr, f"redundant constraints (seed {k})")
+    for k in range(seed, seed + n_degenerate):
+        pinf = infeasible_contact_problem(k)
+        rinf = run(pinf, what=f"infeasible problem (seed {k})")
+        _require(rinf.stop_reason != "converged",
+                 f"{label}: claims 'converged' on a problem without solution "
+                 f"(b.u <= -1 and -b.u <= -1; seed {k})")
 
 
 # ---------------------------------------------------------------------------
