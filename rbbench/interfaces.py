@@ -184,8 +184,10 @@ class Backend(ABC):
     def __init__(self, scene: Any, **options: Any) -> None: ...
 
     @abstractmethod
-    def discretize(self, mu: np.ndarray | float) -> Discretization:
-        """Operators of the scene at ``mu``."""
+    def discretize(self, mu: np.ndarray | float,
+                   needs: frozenset[str] = frozenset()) -> Discretization:
+        """Operators of the scene at ``mu``; optional operators only when in ``needs``
+        (``"tangential"``: ``ContactOperators.Ut``)."""
 
 
 class Formulation(ABC):

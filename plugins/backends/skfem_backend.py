@@ -216,13 +216,24 @@ class SkfemBackend(Backend):
             bases.append(basis)
         return sp.block_diag(blocks).tocsr(), bases
 
-    def discretize(self, mu) -> Discretization:
-        mu = self.scene.check_mu(mu)
-        if self.kind == "unit_square":
-            return self._discretize_square(mu)
-        return self._discretize_halfdisks(mu)
+    def discretize(self, mu, needs: frozenset[str] = frozenset()) -> Discretization:
+        """Operators at ``mu``; ``needs`` may ask for ``"tangential"`` (friction) operators.
 
-    def _discretize_halfdisks(self, mu) -> Discretization:
+        Only what is asked for is built ("model only what a scene requires").
+        """
+        mu = self.scene.check_mu(mu)
+        unknown = set(needs) - {"tangential"}
+        if unknown:
+            raise ValueError(f"skfem backend: unknown needs {sorted(unknown)}; "
+                             "valid: 'tangential'")
+        if self.kind == "unit_square":
+            if needs:
+                raise ValueError("skfem backend: a scalar obstacle problem has no tangential "
+                                 "operators")
+            return self._discretize_square(mu)
+        return self._discretize_halfdisks(mu, needs)
+
+    def _discretize_halfdisks(self, mu, needs=frozenset()) -> Discretization:
         t0 = time.perf_counter()
         geo = self._geometry(mu)
         A, bases = self._elastic_operators(mu)
@@ -240,7 +251,7 @@ class SkfemBackend(Backend):
             vals.append(np.zeros(lo.all().size))
         ddofs = np.concatenate(dofs)
         dvals = np.concatenate(vals)
-        contact = self._contact(geo)
+        contact = self._contact(geo, tangential="tangential" in needs)
         bodies = []
         for body in self._bodies():
             E, nu = self.scene.material(body.name, mu)
@@ -252,8 +263,12 @@ class SkfemBackend(Backend):
                               dirichlet_values=dvals, X=self.inner_product(), contact=contact,
                               bodies=bodies, physics="elasticity", info=info)
 
-    def _contact(self, geo: dict) -> ContactOperators:
-        """GPTS pairing at mu (see :mod:`rbbench.contact_geometry`)."""
+    def _contact(self, geo: dict, tangential: bool = False) -> ContactOperators:
+        """GPTS pairing at mu (see :mod:`rbbench.contact_geometry`).
+
+        ``Un`` evaluates the normal jump ``(u1 - u2 o pi) . n1``; with
+        ``tangential``, ``Ut`` evaluates ``(u1 - u2 o pi) . t1``, ``t1 = (-n_y, n_x)``.
+        """
         facets, flip, inner_hat = self._slave
         up = self.upper
         p1 = self._mapped(up, geo)
@@ -269,12 +284,11 @@ class SkfemBackend(Backend):
         x = a[fq] + sq[:, None] * (b[fq] - a[fq])
         nrm = nrm_f[fq]
         w = np.tile(wg, nf) * np.linalg.norm(b - a, axis=1)[fq]
-        # slave part of the normal jump
         phi = facet_shape(sq, self.degree)  # (nq, k)
         sdofs = up.facet_dofs(facets, flip)[fq]  # (nq, k, 2)
-        rows = [np.repeat(np.arange(x.shape[0]), phi.shape[1] * 2)]
-        cols = [sdofs.reshape(-1)]
-        vals = [(phi[:, :, None] * nrm[:, None, :]).reshape(-1)]
+        nq = x.shape[0]
+        rows = np.repeat(np.arange(nq), phi.shape[1] * 2)
+        master = None
         if self.rigid:
             gap = -x[:, 1] / nrm[:, 1]
         else:
@@ -293,13 +307,21 @@ class SkfemBackend(Backend):
                     f"quadrature point(s) (e.g. x = {bad[0].round(4).tolist()}) project outside "
                     f"the master zone {zone}"
                     " (theta/pi); widen it")
-            phi2 = facet_shape(s2, self.degree)
-            mdofs = lo.facet_dofs(mf, mflip)[seg]
-            rows.append(rows[0])
-            cols.append(mdofs.reshape(-1))
-            vals.append(-(phi2[:, :, None] * nrm[:, None, :]).reshape(-1))
-        Un = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                           shape=(x.shape[0], self.ndofs))
+            master = (facet_shape(s2, self.degree), lo.facet_dofs(mf, mflip)[seg])
+
+        def jump(direction: np.ndarray) -> sp.csr_matrix:
+            """Rows q: (u1(x_q) - u2(pi(x_q))) . direction_q."""
+            r, c, v = [rows], [sdofs.reshape(-1)], [(phi[:, :, None]
+                                                     * direction[:, None, :]).reshape(-1)]
+            if master is not None:
+                r.append(rows)
+                c.append(master[1].reshape(-1))
+                v.append(-(master[0][:, :, None] * direction[:, None, :]).reshape(-1))
+            return sp.csr_matrix((np.concatenate(v), (np.concatenate(r), np.concatenate(c))),
+                                 shape=(nq, self.ndofs))
+
+        Un = jump(nrm)
+        Ut = jump(np.stack([-nrm[:, 1], nrm[:, 0]], axis=1)) if tangential else None
         patch = int(self.scene.data["discretization"]["lac_patch"])
         Mlam = multiplier_basis(self.multiplier, nf, fq, sq, patch)
         mw = np.asarray(Mlam.T @ w).ravel()
@@ -313,7 +335,8 @@ class SkfemBackend(Backend):
         np.minimum.at(ext[:, 0], coo.col, np.minimum(np.minimum(fa, fb), xs))
         np.maximum.at(ext[:, 1], coo.col, np.maximum(np.maximum(fa, fb), xs))
         return ContactOperators(Un=Un, gap=gap, weights=w, points=x, normals=nrm, Mlam=Mlam,
-                                multiplier=self.multiplier, mult_points=mpts, mult_extent=ext)
+                                multiplier=self.multiplier, mult_points=mpts, mult_extent=ext,
+                                Ut=Ut)
 
     def _discretize_square(self, mu) -> Discretization:
         s = self.scene
