@@ -1,0 +1,119 @@
+"""Reduced model: exactness when the bases contain the snapshot, affine decomposition."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+
+from rbbench.hf import make_components, solve_hf
+from rbbench.reduced import (
+    NotAffineError,
+    ReducedBasis,
+    affine_decomposition,
+    build_affine_model,
+    projector,
+)
+from rbbench.scene import load_scene
+
+
+def _x_orthonormal(U, X):
+    """X-orthonormal basis of span(U) (dense, small): independent of rbbench.pod."""
+    G = U.T @ (X @ U)
+    w, V = np.linalg.eigh(G)
+    keep = w > 1e-12 * w.max()
+    return U @ (V[:, keep] / np.sqrt(w[keep]))
+
+
+@pytest.fixture(scope="module")
+def membrane():
+    sc = load_scene("membrane_obstacle", ["discretization.n_cells=8"])
+    comps = make_components(sc)
+    mus = np.array([[h, c] for h in (0.1, 0.25, 0.4) for c in (2.0, 4.0, 6.0)])
+    sols = [solve_hf(sc, mu, components=comps) for mu in mus]
+    U = np.stack([s.result.u[s.problem.free] for s in sols], axis=1)
+    LAM = np.stack([s.result.lam for s in sols], axis=1)
+    Z = _x_orthonormal(U, sols[0].problem.X[sols[0].problem.free][:, sols[0].problem.free])
+    Vg = LAM / np.linalg.norm(LAM, axis=0)
+    b, f, _ = comps
+    model = build_affine_model(projector(lambda mu: f.build(b.discretize(mu)), Z, Vg),
+                               sc.bounds)
+    return sc, comps, mus, sols, Z, Vg, model
+
+
+def test_reduced_equals_hf_when_bases_contain_the_snapshot(membrane):
+    """u_N = u exactly; lam_R is *a* multiplier (Z^T B^T (lam_R - lam) = 0), not
+    necessarily lam: without stabilisation the reduced multiplier need not be unique."""
+    sc, comps, mus, sols, Z, Vg, model = membrane
+    basis = ReducedBasis(Z, Vg)
+    for mu, sol in zip(mus, sols, strict=True):
+        res = model.solve(mu)
+        assert res.stop_reason == "converged"
+        u_n, lam_r = basis.reconstruct(res)
+        u = sol.result.u[sol.problem.free]
+        assert np.linalg.norm(u_n - u) <= 1e-9 * np.linalg.norm(u)
+        B = sol.problem.B
+        r = Z.T @ (B.T @ (lam_r - sol.result.lam))
+        assert np.linalg.norm(r) <= 1e-9 * np.linalg.norm(Z.T @ (B.T @ sol.result.lam))
+
+
+def test_supremizers_make_the_multiplier_exact(membrane):
+    """With Z enriched by the supremizers X^{-1} B^T Vg (seed: "Enhancement by
+    supremizers") the reduced problem is inf-sup stable, so lam_R = lam exactly."""
+    import scipy.sparse.linalg as spla
+
+    sc, comps, mus, sols, Z, Vg, _ = membrane
+    p = sols[0].problem
+    X = p.X[p.free][:, p.free]
+    T = spla.splu(X.tocsc()).solve(np.asarray(p.B.T @ Vg))
+    Zs = _x_orthonormal(np.hstack([Z, T]), X)
+    b, f, _ = comps
+    model = build_affine_model(projector(lambda mu: f.build(b.discretize(mu)), Zs, Vg),
+                               sc.bounds)
+    basis = ReducedBasis(Zs, Vg)
+    for mu, sol in zip(mus, sols, strict=True):
+        u_n, lam_r = basis.reconstruct(model.solve(mu))
+        assert np.linalg.norm(lam_r - sol.result.lam) <= 1e-8 * np.linalg.norm(sol.result.lam)
+
+
+def test_reduced_model_pickles_and_is_small(membrane):
+    *_, model = membrane
+    blob = pickle.dumps(model)
+    assert len(blob) < 200_000
+    again = pickle.loads(blob)
+    mu = np.array([0.3, 3.0])
+    assert np.allclose(again.solve(mu).c, model.solve(mu).c)
+
+
+def test_reduced_solution_is_feasible_off_training(membrane):
+    sc, comps, *_, Z, Vg, model = membrane
+    mu = np.array([0.33, 4.7])
+    res = model.solve(mu)
+    A, F, B, G = model.arrays(mu)
+    assert res.alpha.min() >= 0
+    assert (G - B @ res.c).min() >= -1e-10 * np.abs(G).max()
+    hf = solve_hf(sc, mu, components=comps)
+    u = hf.result.u[hf.problem.free]
+    err = np.linalg.norm(Z @ res.c - u) / np.linalg.norm(u)
+    assert err < 0.05  # 9 snapshots, 2 parameters: a coarse but real approximation
+
+
+def test_affine_decomposition_detects_non_affine():
+    bounds = np.array([[0.0, 1.0], [1.0, 2.0]])
+    terms = affine_decomposition(lambda mu: np.array([1 + 2 * mu[0], 3 * mu[1] - mu[0]]), bounds)
+    assert np.allclose(terms, [[1, 0], [2, -1], [0, 3]])
+    with pytest.raises(NotAffineError, match="deviation"):
+        affine_decomposition(lambda mu: np.array([mu[0] ** 2, mu[1]]), bounds)
+
+
+def test_hertz_contact_operators_are_not_affine():
+    """B(mu) of the half-disks depends non-affinely on mu: exact-affine must refuse."""
+    sc = load_scene("hertz_halfdisks", ["discretization.h_contact=0.04",
+                                        "discretization.h_max=0.3"])
+    b, f, _ = make_components(sc)
+    p0 = f.build(b.discretize(1.0))
+    Z = np.asarray(p0.B[:3].T.todense())  # primal directions that touch the contact zone
+    Vg = np.eye(p0.B.shape[0])[:, :4]
+    with pytest.raises(NotAffineError, match="reduced B"):
+        build_affine_model(projector(lambda mu: f.build(b.discretize(mu)), Z, Vg), sc.bounds)
