@@ -1,0 +1,482 @@
+"""HF snapshots ``(u(mu_p), lam(mu_p))``, computed once and cached on disk.
+
+Seed 000, "Finite training set and snapshots": every compressor and stabiliser
+works on the same snapshots, so they are computed once per *content* and reused.
+
+Cache layout::
+
+    <cache_dir>/<key>/key.json                  what the key stands for
+    <cache_dir>/<key>/mu_<repr(mu_1)>_<...>.npz  one file per parameter value
+
+``key`` (:func:`snapshot_key`) is a sha256 over everything that determines a
+snapshot: the scene content (its validated data minus the parts that cannot
+change a solution: ``[sampling]``, ``[reference]`` and ``scene.description``;
+overrides are covered because they change the content), the backend,
+formulation and solver names, the solver options and the rbbench version. The
+parameter value is in the file name with full (round-trip) precision. Files
+are written atomically (temporary file + :func:`os.replace`), so an
+interrupted run loses nothing that finished and never leaves a partial file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing
+import os
+import tempfile
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import rbbench
+from rbbench.hf import make_components, solve_hf
+from rbbench.registry import default_registry
+
+__all__ = ["Snapshot", "SnapshotError", "SnapshotSet", "cache_path", "compute_snapshots",
+           "limit_blas_threads", "load_snapshot", "save_snapshot", "snapshot_key"]
+
+#: Parts of the scene data that cannot change a snapshot (excluded from the key).
+_NOT_IN_KEY = ("sampling", "reference")
+
+
+class SnapshotError(RuntimeError):
+    """Some snapshots did not converge (or raised); ``failed`` lists ``(mu, reason)``."""
+
+    def __init__(self, message: str, failed: list[tuple[np.ndarray, str]],
+                 snapshots: SnapshotSet | None = None):
+        super().__init__(message)
+        self.failed = failed
+        self.snapshots = snapshots
+
+
+@dataclass
+class Snapshot:
+    """One HF solution: free-dof displacement ``u`` and multipliers ``lam`` at ``mu``."""
+
+    mu: np.ndarray
+    u: np.ndarray
+    lam: np.ndarray
+    iterations: int
+    stop_reason: str
+    time_s: float
+    free: np.ndarray | None = None
+    n_dofs: int = 0
+    error: str = ""  # exception text when the solve raised (then u, lam are empty)
+
+    @property
+    def converged(self) -> bool:
+        return self.stop_reason == "converged"
+
+
+@dataclass
+class SnapshotSet:
+    """Snapshots of a parameter set, column ``p`` for ``mus[p]``.
+
+    Attributes
+    ----------
+    mus : (P, p)
+    U : (n_free, P)
+        Free-dof displacements (``problem.free`` gives their global numbers); a
+        column is NaN where the solve raised.
+    LAM : (m, P)
+        Contact multipliers.
+    stop_reasons : list of str
+        One of :data:`rbbench.interfaces.STOP_REASONS` per column, or ``"error"``.
+    iterations, times : (P,)
+        Solver iterations and HF time (discretise + formulate + solve, s).
+    n_dofs : int
+        Number of HF dofs (all, including Dirichlet).
+    free : (n_free,) int
+        Global dof numbers of the rows of ``U``.
+    key, cache_dir
+        Cache key and directory (``cache_dir / key`` holds the files).
+    n_computed : int
+        How many snapshots this call computed (the rest came from the cache).
+    errors : dict
+        Column -> exception text for solves that raised.
+    """
+
+    mus: np.ndarray
+    U: np.ndarray
+    LAM: np.ndarray
+    stop_reasons: list[str]
+    iterations: np.ndarray
+    times: np.ndarray
+    n_dofs: int
+    free: np.ndarray
+    key: str
+    cache_dir: Path
+    n_computed: int = 0
+    errors: dict[int, str] = field(default_factory=dict)
+
+    @property
+    def P(self) -> int:
+        return int(self.mus.shape[0])
+
+    @property
+    def n_free(self) -> int:
+        return int(self.U.shape[0])
+
+    @property
+    def converged(self) -> np.ndarray:
+        """Boolean mask of the converged columns."""
+        return np.array([r == "converged" for r in self.stop_reasons], dtype=bool)
+
+
+# ---------------------------------------------------------------------------
+# cache key and files
+# ---------------------------------------------------------------------------
+def _key_payload(scene: Any, backend: str, formulation: str, solver: str,
+                 solver_options: dict | None) -> dict[str, Any]:
+    data = {k: v for k, v in scene.data.items() if k not in _NOT_IN_KEY}
+    if "scene" in data:
+        data["scene"] = {k: v for k, v in data["scene"].items() if k != "description"}
+    return {"scene": data, "backend": backend, "formulation": formulation, "solver": solver,
+            "solver_options": dict(sorted((solver_options or {}).items())),
+            "rbbench": rbbench.__version__}
+
+
+def snapshot_key(scene: Any, backend: str = "skfem", formulation: str = "mixed",
+                 solver: str = "ssn", solver_options: dict | None = None) -> str:
+    """sha256 (hex, 24 characters) of everything that determines a snapshot.
+
+    Unlike :meth:`Scene.fingerprint`, the ``[sampling]`` and ``[reference]`` tables and
+    the scene description are left out: changing the training set size or seed must
+    reuse the snapshots already computed.
+    """
+    blob = json.dumps(_key_payload(scene, backend, formulation, solver, solver_options),
+                      sort_keys=True, default=str).encode()
+    return hashlib.sha256(blob).hexdigest()[:24]
+
+
+def _mu_name(mu: np.ndarray) -> str:
+    # repr of a Python float is the shortest string that round-trips exactly
+    return "mu_" + "_".join(repr(float(x)) for x in np.atleast_1d(mu)) + ".npz"
+
+
+def cache_path(cache_dir: Path | str, key: str, mu: np.ndarray) -> Path:
+    """The cache file of ``mu`` under ``cache_dir / key``."""
+    return Path(cache_dir) / key / _mu_name(mu)
+
+
+def _atomic_write(path: Path, write) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def save_snapshot(path: Path, snap: Snapshot) -> None:
+    """Write ``snap`` to ``path`` atomically (``np.savez``)."""
+
+    def write(fh):
+        np.savez(fh, mu=np.asarray(snap.mu, dtype=float), u=np.asarray(snap.u, dtype=float),
+                 lam=np.asarray(snap.lam, dtype=float), iterations=np.int64(snap.iterations),
+                 stop_reason=np.str_(snap.stop_reason), time_s=np.float64(snap.time_s),
+                 free=np.asarray(snap.free if snap.free is not None else [], dtype=np.int64),
+                 n_dofs=np.int64(snap.n_dofs))
+
+    _atomic_write(path, write)
+
+
+def load_snapshot(path: Path) -> Snapshot:
+    """Read a snapshot file written by :func:`save_snapshot`."""
+    with np.load(path, allow_pickle=False) as z:
+        return Snapshot(mu=z["mu"], u=z["u"], lam=z["lam"], iterations=int(z["iterations"]),
+                        stop_reason=str(z["stop_reason"]), time_s=float(z["time_s"]),
+                        free=z["free"], n_dofs=int(z["n_dofs"]))
+
+
+def _try_load(path: Path, mu: np.ndarray) -> Snapshot | None:
+    if not path.exists():
+        return None
+    try:
+        snap = load_snapshot(path)
+    except Exception:  # unreadable (e.g. written by an incompatible version): recompute
+        return None
+    return snap if np.array_equal(snap.mu, mu) else None
+
+
+# ---------------------------------------------------------------------------
+# solving
+# ---------------------------------------------------------------------------
+def _solve_one(scene: Any, mu: np.ndarray, names: tuple[str, str, str], components,
+               path: Path) -> Snapshot:
+    """Solve at ``mu``; store the result unless the solve raised."""
+    backend, formulation, solver = names
+    t0 = time.perf_counter()
+    try:
+        sol = solve_hf(scene, mu, backend=backend, formulation=formulation, solver=solver,
+                       components=components)
+    except Exception as exc:  # one failing mu must not lose the others
+        return Snapshot(mu=mu, u=np.empty(0), lam=np.empty(0), iterations=0,
+                        stop_reason="error", time_s=time.perf_counter() - t0,
+                        error=f"{type(exc).__name__}: {exc}")
+    res, prob = sol.result, sol.problem
+    snap = Snapshot(mu=np.asarray(mu, dtype=float),
+                    u=np.asarray(res.u, dtype=float)[prob.free].copy(),
+                    lam=np.asarray(res.lam, dtype=float).copy(), iterations=int(res.iterations),
+                    stop_reason=str(res.stop_reason), time_s=float(sol.times["total_s"]),
+                    free=np.asarray(prob.free, dtype=np.int64), n_dofs=int(sol.disc.n_dofs))
+    save_snapshot(path, snap)  # non-converged solves are deterministic: cached too
+    return snap
+
+
+# one set of components per worker process: meshing happens once per process
+_WORKER: dict[str, Any] = {}
+
+_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+               "BLIS_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+
+
+def limit_blas_threads(n: int) -> str:
+    """Cap the BLAS / OpenMP thread pools of this process at ``n`` threads.
+
+    Several worker processes each running a multithreaded BLAS oversubscribe the
+    cores (measured on 2 cores, Hertz scene, 2 workers: 34 s against 2.5 s with one
+    thread each). Uses ``threadpoolctl`` when installed, otherwise calls the
+    ``*openblas_set_num_threads*`` entry points of the OpenBLAS libraries already
+    loaded (the ones numpy and scipy bundle; Linux only). Returns what it did.
+    """
+    for var in _THREAD_ENV:  # for libraries loaded later
+        os.environ[var] = str(n)
+    import scipy.linalg  # noqa: F401  (load scipy's BLAS before capping it)
+    import scipy.sparse.linalg  # noqa: F401
+
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        pass
+    else:
+        _WORKER["threadpool_limits"] = threadpool_limits(limits=n)
+        return "threadpoolctl"
+    import ctypes
+
+    done = []
+    try:
+        with open("/proc/self/maps") as fh:
+            libs = {line.split()[-1] for line in fh if "openblas" in line.lower()}
+    except OSError:
+        return "none"
+    for path in sorted(libs):
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for sym in ("openblas_set_num_threads", "scipy_openblas_set_num_threads",
+                    "openblas_set_num_threads64_", "scipy_openblas_set_num_threads64_"):
+            fn = getattr(lib, sym, None)
+            if fn is not None:
+                fn(ctypes.c_int(n))
+                done.append(os.path.basename(path))
+                break
+    return "ctypes: " + ", ".join(done) if done else "none"
+
+
+def _init_worker(scene: Any, names: tuple[str, str, str], solver_options: dict | None,
+                 threads: int | None) -> None:
+    _WORKER.clear()
+    _WORKER.update(scene=scene, names=names, solver_options=solver_options, components=None)
+    if threads:
+        _WORKER["thread_limit"] = limit_blas_threads(threads)
+
+
+def _worker_task(mu: np.ndarray, path: Path) -> Snapshot:
+    if _WORKER.get("components") is None:
+        scene, names = _WORKER["scene"], _WORKER["names"]
+        try:
+            _WORKER["components"] = make_components(
+                scene, *names, solver_options=_WORKER["solver_options"])
+        except Exception as exc:
+            return Snapshot(mu=mu, u=np.empty(0), lam=np.empty(0), iterations=0,
+                            stop_reason="error", time_s=0.0,
+                            error=f"building components: {type(exc).__name__}: {exc}")
+    return _solve_one(_WORKER["scene"], mu, _WORKER["names"], _WORKER["components"], path)
+
+
+def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "skfem",
+                      formulation: str = "mixed", solver: str = "ssn",
+                      cache_dir: Path | str = Path(".rbbench_cache"), n_jobs: int | None = None,
+                      progress: bool = True, strict: bool = True,
+                      solver_options: dict | None = None,
+                      mp_context: str | None = None,
+                      blas_threads: int | None = None) -> SnapshotSet:
+    """HF snapshots at every row of ``mus``, from the cache where present.
+
+    Parameters
+    ----------
+    scene : Scene
+    mus : (P, p) array_like
+        Parameter values (checked against the domain). A 1-D array is read as one
+        value per row when the scene has one parameter.
+    backend, formulation, solver : str
+        Registered component names.
+    cache_dir : path
+        Root of the cache; the files go to ``cache_dir / snapshot_key(...)``.
+    n_jobs : int, optional
+        Local worker processes (default: the CPUs available); ``1`` solves in this
+        process. Each worker builds (meshes) the components once, at its first task.
+    progress : bool
+        Show a tqdm progress bar.
+    strict : bool
+        If true (default), raise :class:`SnapshotError` after all solves finished when
+        any snapshot did not converge: a reduced basis on a non-converged snapshot is
+        wrong. Finished snapshots are cached either way.
+    solver_options : dict, optional
+        Passed to the solver; part of the cache key.
+    mp_context : {"fork", "forkserver", "spawn"}, optional
+        Start method of the worker processes (default: the platform's).
+    blas_threads : int, optional
+        BLAS threads per worker process (default ``cpu_count // n_jobs``, at least 1;
+        see :func:`limit_blas_threads`); ``0`` leaves them alone. Not applied with
+        ``n_jobs = 1``.
+
+    Returns
+    -------
+    SnapshotSet
+    """
+    mus = np.asarray(mus, dtype=float)
+    if mus.size == 0:
+        mus = mus.reshape(0, len(scene.parameters))
+    elif mus.ndim == 1:
+        mus = mus.reshape(-1, 1) if len(scene.parameters) == 1 else mus.reshape(1, -1)
+    mus = np.array([scene.check_mu(m) for m in mus]).reshape(len(mus), len(scene.parameters))
+    names = (backend, formulation, solver)
+    key = snapshot_key(scene, backend, formulation, solver, solver_options)
+    root = Path(cache_dir)
+    _write_key_file(root / key, scene, backend, formulation, solver, solver_options)
+    paths = [cache_path(root, key, mu) for mu in mus]
+
+    snaps: list[Snapshot | None] = [_try_load(p, mu) for p, mu in zip(paths, mus, strict=True)]
+    todo = [i for i, s in enumerate(snaps) if s is None]
+    n_jobs = _n_cpus() if n_jobs is None else int(n_jobs)
+    n_jobs = max(1, min(n_jobs, len(todo)))
+    if todo:  # unknown component names fail here, not once per parameter in the workers
+        reg = default_registry()
+        for role, name in zip(("backend", "formulation", "solver"), names, strict=True):
+            reg.get(role, name)
+
+    bar = None
+    try:
+        if todo and n_jobs == 1:
+            bar = _progress_bar(progress, scene.name, len(mus), len(todo))
+            components = make_components(scene, *names, solver_options=solver_options)
+            for i in todo:
+                snaps[i] = _solve_one(scene, mus[i], names, components, paths[i])
+                if bar is not None:
+                    bar.update()
+        elif todo:
+            ctx = multiprocessing.get_context(mp_context) if mp_context else None
+            threads = max(1, _n_cpus() // n_jobs) if blas_threads is None \
+                else int(blas_threads)
+            with ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
+                                     initargs=(scene, names, solver_options, threads)) as pool:
+                futures = {pool.submit(_worker_task, mus[i], paths[i]): i for i in todo}
+                # the bar only after the workers started: no fork with extra threads alive
+                bar = _progress_bar(progress, scene.name, len(mus), len(todo))
+                try:
+                    for fut in as_completed(futures):
+                        i = futures[fut]
+                        try:
+                            snaps[i] = fut.result()
+                        except BrokenProcessPool as exc:  # a worker died (e.g. killed)
+                            snaps[i] = Snapshot(mu=mus[i], u=np.empty(0), lam=np.empty(0),
+                                                iterations=0, stop_reason="error", time_s=0.0,
+                                                error=f"worker process died: {exc}")
+                        if bar is not None:
+                            bar.update()
+                except BaseException:
+                    pool.shutdown(wait=True, cancel_futures=True)
+                    raise
+    finally:
+        if bar is not None:
+            bar.close()
+
+    out = _assemble(mus, snaps, key, root, n_computed=len(todo))
+    failed = [(mus[i], s.error or s.stop_reason) for i, s in enumerate(snaps)
+              if s is not None and not s.converged]
+    if strict and failed:
+        lines = "\n".join(f"  mu = {m.tolist()}: {why}" for m, why in failed)
+        raise SnapshotError(
+            f"{len(failed)} of {len(mus)} HF snapshots did not converge (scene "
+            f"{scene.name!r}, {backend}/{formulation}/{solver}); every solve that returned is "
+            f"cached under {root / key}. Pass strict=False to get the set anyway.\n{lines}",
+            failed, out)
+    return out
+
+
+def _n_cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))  # the CPUs this process may use
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
+
+
+def _progress_bar(progress: bool, name: str, total: int, todo: int):
+    if not progress:
+        return None
+    from tqdm.auto import tqdm
+
+    class _Bar(tqdm):  # no monitor thread: worker processes may be forked later
+        monitor_interval = 0
+
+    return _Bar(total=total, initial=total - todo, unit="snapshot", desc=f"HF snapshots {name}")
+
+
+def _write_key_file(folder: Path, scene: Any, backend: str, formulation: str, solver: str,
+                    solver_options: dict | None) -> None:
+    path = folder / "key.json"
+    if path.exists():
+        return
+    payload = _key_payload(scene, backend, formulation, solver, solver_options)
+    payload["scene_path"] = str(scene.path)
+    payload["overrides"] = list(scene.overrides)
+    text = json.dumps(payload, sort_keys=True, indent=1, default=str).encode()
+    _atomic_write(path, lambda fh: fh.write(text))
+
+
+def _assemble(mus: np.ndarray, snaps: list[Snapshot | None], key: str, root: Path,
+              n_computed: int) -> SnapshotSet:
+    ok = [s for s in snaps if s is not None and s.stop_reason != "error"]
+    n_free = ok[0].u.size if ok else 0
+    m = ok[0].lam.size if ok else 0
+    free = ok[0].free if ok else np.empty(0, dtype=np.int64)
+    for s in ok:
+        if s.u.size != n_free or s.lam.size != m or not np.array_equal(s.free, free):
+            raise ValueError(
+                f"snapshot at mu = {s.mu.tolist()} has {s.u.size} free dofs and {s.lam.size} "
+                f"multipliers, the first one {n_free} and {m}: sizes must not depend on mu")
+    P = len(snaps)
+    U = np.full((n_free, P), np.nan)
+    LAM = np.full((m, P), np.nan)
+    errors: dict[int, str] = {}
+    for j, s in enumerate(snaps):
+        assert s is not None
+        if s.stop_reason == "error":
+            errors[j] = s.error
+            continue
+        U[:, j] = s.u
+        LAM[:, j] = s.lam
+    return SnapshotSet(
+        mus=mus, U=U, LAM=LAM, stop_reasons=[s.stop_reason for s in snaps],  # type: ignore[union-attr]
+        iterations=np.array([s.iterations for s in snaps], dtype=int),  # type: ignore[union-attr]
+        times=np.array([s.time_s for s in snaps], dtype=float),  # type: ignore[union-attr]
+        n_dofs=ok[0].n_dofs if ok else 0, free=free, key=key, cache_dir=root,
+        n_computed=n_computed, errors=errors)
