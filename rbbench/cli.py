@@ -108,6 +108,39 @@ def cmd_scenes(args) -> int:
     return 0
 
 
+def cmd_reduce(args) -> int:
+    from rbbench.output import _jsonable, provenance
+    from rbbench.rb_pipeline import ReduceConfig, reduce
+
+    scene = load_scene(args.scene, overrides=args.set or [])
+    try:
+        cfg = ReduceConfig(primal=args.primal, dual=args.dual, stabilizer=args.stabilizer,
+                           hyper=args.hyper, N=args.N, R=args.R, n_train=args.n_train,
+                           n_valid=args.n_valid, n_jobs=args.jobs, solver=args.solver,
+                           backend=args.backend, formulation=args.formulation)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    progress = _Progress(args.quiet)
+    res = reduce(scene, cfg, progress=progress, snapshot_progress=not args.quiet)
+    s = res.summary()
+    out = Path(args.out) if args.out else Path("results") / "reduce" / (
+        f"{scene.name}_{args.dual}_{args.stabilizer}")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "result.json").write_text(json.dumps(_jsonable({**s, "provenance": provenance()}),
+                                                indent=2) + "\n")
+    keys = ["N", "R", "K_pga", "hyper", "n_train", "n_valid", "n_hf_dofs", "err_u_max",
+            "err_u_mean", "err_lam_max", "err_lam_mean", "penetration_max",
+            "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min", "beta_kind",
+            "t_offline_s", "t_online_median_s", "t_hf_median_s", "speedup"]
+    for k in keys:
+        if k in s:
+            print(f"  {k:<20} {_fmt(s[k])}")
+    print("  (errors: relative, u in the X norm, lam in the W norm, max/mean over the "
+          "validation set; beta: min over the validation set, see result.json definitions)")
+    print(f"wrote: {out / 'result.json'}")
+    return 0
+
+
 def cmd_hertz_table(args) -> int:
     from rbbench.studies import hertz_table, markdown
 
@@ -136,6 +169,25 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plugins", help="registered components and whether they are importable")
     pl.add_argument("--json", action="store_true")
     pl.set_defaults(func=cmd_plugins)
+    rd = sub.add_parser("reduce", help="offline RB stage + online validation (mixed "
+                        "formulation): errors, inf-sup constants, timings -> result.json")
+    rd.add_argument("scene")
+    rd.add_argument("--primal", default="pod")
+    rd.add_argument("--dual", default="mcpg", help="pod, cpg, mcpg, eng, nnmf")
+    rd.add_argument("--stabilizer", default="pga", help="none, supremizer, pga")
+    rd.add_argument("--hyper", default="auto", help="auto, affine (exact), none (plain)")
+    rd.add_argument("-N", type=int, default=None, help="primal size (default: POD tolerance)")
+    rd.add_argument("-R", type=int, default=None, help="max dual size (default: tolerance)")
+    rd.add_argument("--n-train", type=int, default=None)
+    rd.add_argument("--n-valid", type=int, default=None)
+    rd.add_argument("--jobs", type=int, default=None, help="processes for HF snapshots")
+    rd.add_argument("--backend", default="skfem")
+    rd.add_argument("--formulation", default="mixed")
+    rd.add_argument("--solver", default="ssn")
+    rd.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    rd.add_argument("--out")
+    rd.add_argument("--quiet", action="store_true")
+    rd.set_defaults(func=cmd_reduce)
     ht = sub.add_parser("hertz-table",
                         help="2D Hertz errors against load and mesh level (Markdown table)")
     ht.add_argument("scene", nargs="?", default="hertz_halfdisks")

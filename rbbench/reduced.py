@@ -97,6 +97,21 @@ class OnlineResult:
     time_s: float
 
 
+def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
+                  warm_start: np.ndarray | None = None, max_iter: int = 100) -> OnlineResult:
+    """Solve the reduced saddle point: dense Cholesky of A_N, R x R LCP by PDAS."""
+    t0 = time.perf_counter()
+    cho = sla.cho_factor(A)
+    c0 = sla.cho_solve(cho, F)
+    AinvBt = sla.cho_solve(cho, B.T)
+    D = B @ AinvBt
+    D = 0.5 * (D + D.T)
+    q = G - B @ c0
+    alpha, it, reason, _, _ = lcp.pdas(D, q, warm_start, max_iter=max_iter)
+    c = c0 - AinvBt @ alpha
+    return OnlineResult(c, alpha, it, reason, time.perf_counter() - t0)
+
+
 @dataclass
 class ReducedModel:
     """Small dense arrays and a coefficient map: ``solve(mu)`` never touches HF data.
@@ -135,18 +150,11 @@ class ReducedModel:
 
     def solve(self, mu: np.ndarray, warm_start: np.ndarray | None = None,
               max_iter: int = 100) -> OnlineResult:
-        """Online solve: assemble, condense with a dense Cholesky, solve the R x R LCP."""
+        """Online solve: assemble the reduced arrays, then :func:`solve_reduced`."""
         t0 = time.perf_counter()
-        A, F, B, G = self.arrays(mu)
-        cho = sla.cho_factor(A)
-        c0 = sla.cho_solve(cho, F)
-        AinvBt = sla.cho_solve(cho, B.T)
-        D = B @ AinvBt
-        D = 0.5 * (D + D.T)
-        q = G - B @ c0
-        alpha, it, reason, _, _ = lcp.pdas(D, q, warm_start, max_iter=max_iter)
-        c = c0 - AinvBt @ alpha
-        return OnlineResult(c, alpha, it, reason, time.perf_counter() - t0)
+        res = solve_reduced(*self.arrays(mu), warm_start=warm_start, max_iter=max_iter)
+        res.time_s = time.perf_counter() - t0
+        return res
 
 
 @dataclass

@@ -1,0 +1,332 @@
+"""The offline / online RB pipeline for the mixed formulation (``rbbench reduce``).
+
+scene -> training / validation sets -> HF snapshots (cached) -> primal POD ->
+dual compressor (cone) -> stabiliser (none / online supremizers / PGA) ->
+reduced model (exact-affine, or "plain": HF assembly projected online) ->
+validation metrics and inf-sup constants, each labelled with what it is.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rbbench import infsup as inf
+from rbbench.cones import DUAL_COMPRESSORS
+from rbbench.hf import make_components
+from rbbench.pga import pga as run_pga
+from rbbench.pga import supremizers, x_orthonormalize
+from rbbench.pod import pod
+from rbbench.reduced import (
+    NotAffineError,
+    build_affine_model,
+    projector,
+    solve_reduced,
+)
+from rbbench.sampling import parameter_set
+from rbbench.scene import Scene
+from rbbench.snapshots import compute_snapshots
+
+STABILIZERS = ("none", "supremizer", "pga")
+HYPER = ("auto", "affine", "none")
+
+
+@dataclass
+class ReduceConfig:
+    """Choices of one reduction (CLI ``rbbench reduce``)."""
+
+    primal: str = "pod"
+    dual: str = "mcpg"
+    stabilizer: str = "pga"
+    hyper: str = "auto"
+    N: int | None = None
+    R: int | None = None
+    tol_pod: float = 1e-4
+    tol_dual: float = 1e-3
+    delta_pga: float | None = None  # default: 0.5 * min beta_HF / c_HF over the train set
+    n_train: int | None = None
+    n_valid: int | None = None
+    backend: str = "skfem"
+    formulation: str = "mixed"
+    solver: str = "ssn"
+    n_jobs: int | None = None
+    cache_dir: str = ".rbbench_cache"
+    online_repeats: int = 20
+    exact_max_r: int = 10
+
+    def __post_init__(self) -> None:
+        if self.primal != "pod":
+            raise ValueError(f"primal compressor {self.primal!r}: valid: 'pod'")
+        if self.dual not in DUAL_COMPRESSORS:
+            raise ValueError(f"dual compressor {self.dual!r}: valid: "
+                             f"{', '.join(sorted(DUAL_COMPRESSORS))}")
+        if self.stabilizer not in STABILIZERS:
+            raise ValueError(f"stabilizer {self.stabilizer!r}: valid: {', '.join(STABILIZERS)}")
+        if self.hyper not in HYPER:
+            raise ValueError(f"hyper {self.hyper!r}: valid: {', '.join(HYPER)}")
+
+
+@dataclass
+class ReduceResult:
+    """Everything ``rbbench reduce`` reports (``result.json``)."""
+
+    scene: str
+    config: dict
+    N: int
+    R: int
+    K_pga: int
+    hyper: str
+    n_train: int
+    n_valid: int
+    n_hf_dofs: int
+    n_contact: int
+    err_u: list[float]
+    err_lam: list[float]
+    penetration: list[float]
+    energy_err: list[float]
+    beta: dict[str, list]
+    t_online: list[float]
+    t_hf: list[float]
+    timings: dict[str, float]
+    histories: dict[str, Any] = field(default_factory=dict)
+    definitions: dict[str, str] = field(default_factory=dict)
+
+    def summary(self) -> dict[str, Any]:
+        def mx(v):
+            v = [x for x in v if x is not None and np.isfinite(x)]
+            return float(np.max(v)) if v else None
+
+        def mean(v):
+            v = [x for x in v if x is not None and np.isfinite(x)]
+            return float(np.mean(v)) if v else None
+
+        def mn(v):
+            v = [x for x in v if x is not None and np.isfinite(x)]
+            return float(np.min(v)) if v else None
+
+        t_on = float(np.median(self.t_online))
+        t_hf = float(np.median(self.t_hf))
+        out = {
+            "scene": self.scene, "N": self.N, "R": self.R, "K_pga": self.K_pga,
+            "dim_primal_online": self.N + (self.K_pga if self.config["stabilizer"] == "pga"
+                                           else 0),
+            "hyper": self.hyper, "n_train": self.n_train, "n_valid": self.n_valid,
+            "n_hf_dofs": self.n_hf_dofs, "n_contact": self.n_contact,
+            "err_u_max": mx(self.err_u), "err_u_mean": mean(self.err_u),
+            "err_lam_max": mx(self.err_lam), "err_lam_mean": mean(self.err_lam),
+            "penetration_max": mx(self.penetration), "energy_err_max": mx(self.energy_err),
+            "beta_kind": {k: v[0]["kind"] if v else None for k, v in self.beta.items()},
+            "t_offline_s": self.timings.get("offline_s"),
+            "t_online_median_s": t_on,
+            "t_online_iqr_s": float(np.subtract(*np.percentile(self.t_online, [75, 25]))),
+            "t_hf_median_s": t_hf, "speedup": t_hf / t_on if t_on > 0 else None,
+        }
+        for name, rows in self.beta.items():
+            out[f"beta_{name}_min"] = mn([r["value"] for r in rows])
+            out[f"beta_{name}_span_min"] = mn([r["span"] for r in rows])
+            out[f"beta_{name}_zero_any"] = bool(any(r["is_zero"] for r in rows))
+        out["config"] = self.config
+        out["timings"] = self.timings
+        out["histories"] = self.histories
+        out["per_mu"] = {"err_u": self.err_u, "err_lam": self.err_lam,
+                         "penetration": self.penetration, "beta": self.beta}
+        out["definitions"] = self.definitions
+        return out
+
+
+DEFINITIONS = {
+    "err_u": "relative error ||u - u_N||_X / ||u||_X per validation mu (X: the scene's V inner "
+             "product on free dofs); *_max / *_mean: max / mean over the validation set",
+    "err_lam": "relative error ||lam - lam_R||_W / ||lam||_W per validation mu (W: multiplier "
+               "Gram matrix at that mu)",
+    "penetration": "max over HF contact quadrature points of (Un u_N - gap)_+ (m), at each "
+                   "validation mu, for the reconstructed displacement",
+    "energy_err": "|J(u_N) - J(u)| / |J(u)|, J = 1/2 a(u,u) - f(u) on free dofs (lifted)",
+    "beta": "inf-sup constants per validation mu: 'value' is the cone value (kind "
+            "'cone-exact': face enumeration; 'cone-upper': best local minimum, an UPPER "
+            "estimate), 'span' the inf-sup over span(generators), a LOWER bound of the cone "
+            "value; 'is_zero' the exact LP test for beta = 0. hf: whole V against the dual "
+            "cone; dec: V_N; on: V_N + S_R(mu) (online supremizers); off: V_N + S_PGA",
+    "t_online": "wall time of one online solve (assemble reduced arrays + R x R LCP), "
+                "seconds; median and inter-quartile range over validation mus x repeats. "
+                "With hyper = 'none' the HF assembly is NOT included (reported apart as "
+                "t_online_hf_assembly_s): the plain RB model is not HF-size independent",
+    "speedup": "median HF solve time / median online time",
+    "e_proj": "dual compressor: relative max projection error of the multiplier snapshots on "
+              "the cone after r generators (seed 000, mCPG (4/4))",
+    "e_orth": "normalised distance of each new generator from the previous cone",
+    "sigma_max": "PGA: max over the training set of sigma_S(mu) before each addition",
+}
+
+
+def _progress(msg: str) -> None:
+    return None
+
+
+def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] = _progress,
+           snapshot_progress: bool = False) -> ReduceResult:
+    """Run the offline stage on the training set and validate online."""
+    t0 = time.perf_counter()
+    timings: dict[str, float] = {}
+    mus_train = parameter_set(scene, "train", config.n_train)
+    mus_valid = parameter_set(scene, "valid", config.n_valid)
+    snap_kw = dict(backend=config.backend, formulation=config.formulation, solver=config.solver,
+                   cache_dir=Path(config.cache_dir), n_jobs=config.n_jobs,
+                   progress=snapshot_progress)
+    progress(f"HF snapshots: {len(mus_train)} training, {len(mus_valid)} validation")
+    train = compute_snapshots(scene, mus_train, **snap_kw)
+    valid = compute_snapshots(scene, mus_valid, **snap_kw)
+    timings["snapshots_s"] = time.perf_counter() - t0
+
+    b, f, _ = make_components(scene, config.backend, config.formulation, config.solver)
+    problem_cache: dict[bytes, Any] = {}
+
+    def problem_at(mu):
+        key = np.asarray(mu, float).tobytes()
+        if key not in problem_cache:
+            problem_cache[key] = f.build(b.discretize(mu))
+        return problem_cache[key]
+
+    p_ref = problem_at(scene.default_mu)
+    X = p_ref.X[p_ref.free][:, p_ref.free].tocsr()
+    x_solve = inf.make_solver(X)
+    W_ref = p_ref.W
+
+    t1 = time.perf_counter()
+    progress("primal POD")
+    pr = pod(train.U, X, tol=None if config.N else config.tol_pod, n=config.N)
+    Z = pr.Z
+    timings["primal_s"] = time.perf_counter() - t1
+
+    t1 = time.perf_counter()
+    progress(f"dual compressor {config.dual}")
+    dual = DUAL_COMPRESSORS[config.dual](train.LAM, W_ref, tol=config.tol_dual,
+                                         r_max=config.R)
+    Vg = dual.generators
+    timings["dual_s"] = time.perf_counter() - t1
+
+    # stabiliser
+    t1 = time.perf_counter()
+    K = 0
+    histories: dict[str, Any] = {"pod_singular_values": pr.s.tolist(),
+                                 "e_proj": list(dual.e_proj), "e_orth": list(dual.e_orth)}
+    Z_off = Z
+    if config.stabilizer == "pga":
+        progress("PGA (supremizers on the training set)")
+        T_list = [supremizers(problem_at(mu).B, x_solve, Vg) for mu in mus_train]
+        delta = config.delta_pga
+        if delta is None:
+            ratios = []
+            for mu in mus_train[:: max(1, len(mus_train) // 5)]:
+                S, M = inf.quotient_matrices(problem_at(mu).B, x_solve, Vg, problem_at(mu).W)
+                ratios.append(inf.infsup_span(S, M) / inf.boundedness_constant(S, M))
+            delta = 0.5 * float(min(ratios))
+        res = run_pga(T_list, Z, X, delta)
+        K = res.dim
+        Z_off = np.hstack([Z, res.basis])
+        histories["sigma_max"] = res.sigma_max.tolist()
+        histories["pga_delta"] = delta
+        histories["pga_stop"] = res.stop_reason
+    timings["stabilizer_s"] = time.perf_counter() - t1
+
+    # hyper-reduction / reduced model
+    t1 = time.perf_counter()
+    hyper = config.hyper
+    model = None
+    if config.stabilizer != "supremizer" and hyper in ("auto", "affine"):
+        progress("exact affine decomposition (verified by probing)")
+        try:
+            model = build_affine_model(projector(problem_at, Z_off, Vg), scene.bounds,
+                                       is_cone=dual.is_cone)
+            hyper = "affine"
+        except NotAffineError as exc:
+            if hyper == "affine":
+                raise
+            histories["affine_refused"] = str(exc)
+            hyper = "none"
+    elif hyper == "auto":
+        hyper = "none"
+    timings["hyper_s"] = time.perf_counter() - t1
+    timings["offline_s"] = time.perf_counter() - t0
+
+    # online validation
+    progress("online validation")
+    err_u, err_lam, pen, e_en, t_on, t_asm = [], [], [], [], [], []
+    beta: dict[str, list] = {"hf": [], "dec": [], "on": [], "off": []}
+    for j, mu in enumerate(valid.mus):
+        p = problem_at(mu)
+        u = valid.U[:, j]
+        lam = valid.LAM[:, j]
+        if model is not None:
+            Zu = Z_off
+            arrays = model.arrays(mu)
+            runs = []
+            for _ in range(config.online_repeats):
+                res = model.solve(mu)
+                runs.append(res.time_s)
+        else:
+            ta = time.perf_counter()
+            Zu = Z_off
+            if config.stabilizer == "supremizer":
+                Zu, _ = x_orthonormalize(np.hstack([Z, supremizers(p.B, x_solve, Vg)]), X)
+            arrays = projector(lambda _mu, p=p: p, Zu, Vg)(mu)
+            t_asm.append(time.perf_counter() - ta)
+            runs = []
+            for _ in range(config.online_repeats):
+                res = solve_reduced(*arrays)
+                runs.append(res.time_s)
+        t_on.extend(runs)
+        u_n = Zu @ res.c
+        lam_r = Vg @ res.alpha
+        err_u.append(float(np.sqrt(_xn(X, u - u_n) / _xn(X, u))))
+        err_lam.append(float(np.sqrt(_xn(p.W, lam - lam_r) / _xn(p.W, lam))))
+        u_full = p.expand(u_n)
+        disc_gap = p.G - p.B @ u_n  # weighted, per multiplier
+        pen.append(float(max(0.0, -(disc_gap / np.asarray(p.W.sum(axis=1)).ravel()).min())))
+        J = _energy(p, u)
+        e_en.append(abs(_energy(p, u_n) - J) / abs(J) if J != 0 else float("nan"))
+        del u_full
+        # inf-sup constants
+        B, Wm = p.B, p.W
+        S, M = inf.quotient_matrices(B, x_solve, Vg, Wm)
+        beta["hf"].append(_labelled(inf.infsup_cone(S, M, exact_max_r=config.exact_max_r)))
+        S, M = inf.quotient_matrices(B, X, Vg, Wm, Z=Z)
+        beta["dec"].append(_labelled(inf.infsup_cone(
+            S, M, C=(Z.T @ (B.T @ Vg)), exact_max_r=config.exact_max_r)))
+        Zon, _ = x_orthonormalize(np.hstack([Z, supremizers(B, x_solve, Vg)]), X)
+        S, M = inf.quotient_matrices(B, X, Vg, Wm, Z=Zon)
+        beta["on"].append(_labelled(inf.infsup_cone(S, M, exact_max_r=config.exact_max_r)))
+        if config.stabilizer == "pga":
+            S, M = inf.quotient_matrices(B, X, Vg, Wm, Z=Z_off)
+            beta["off"].append(_labelled(inf.infsup_cone(
+                S, M, C=(Z_off.T @ (B.T @ Vg)), exact_max_r=config.exact_max_r)))
+    if config.stabilizer != "pga":
+        beta.pop("off")
+    if t_asm:
+        timings["t_online_hf_assembly_s"] = float(np.median(t_asm))
+    timings["total_s"] = time.perf_counter() - t0
+    return ReduceResult(
+        scene=scene.name, config=asdict(config), N=int(Z.shape[1]), R=int(Vg.shape[1]),
+        K_pga=K, hyper=hyper, n_train=len(mus_train), n_valid=len(mus_valid),
+        n_hf_dofs=int(train.n_dofs), n_contact=int(train.LAM.shape[0]),
+        err_u=err_u, err_lam=err_lam, penetration=pen, energy_err=e_en, beta=beta,
+        t_online=t_on, t_hf=[float(t) for t in np.concatenate([train.times, valid.times])],
+        timings=timings, histories=histories, definitions=DEFINITIONS)
+
+
+def _xn(X, v: np.ndarray) -> float:
+    return float(v @ (X @ v))
+
+
+def _energy(p, u_free: np.ndarray) -> float:
+    return float(0.5 * u_free @ (p.A @ u_free) - p.F @ u_free)
+
+
+def _labelled(r: inf.InfSup) -> dict[str, Any]:
+    return {"value": float(r.value), "kind": r.kind, "span": float(r.span),
+            "is_zero": bool(r.is_zero)}

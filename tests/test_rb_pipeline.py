@@ -1,0 +1,69 @@
+"""The RB pipeline end to end on the cheap membrane scene (seconds)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from rbbench.cli import main
+from rbbench.rb_pipeline import ReduceConfig, reduce
+from rbbench.scene import load_scene
+
+FAST = ["discretization.n_cells=8"]
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return load_scene("membrane_obstacle", FAST)
+
+
+@pytest.mark.parametrize("dual,stab", [("mcpg", "pga"), ("cpg", "none"), ("eng", "supremizer")])
+def test_pipeline_runs_and_is_accurate(scene, tmp_path_factory, dual, stab):
+    cache = tmp_path_factory.getbasetemp() / "cache"
+    r = reduce(scene, ReduceConfig(dual=dual, stabilizer=stab, n_jobs=1, n_valid=6,
+                                   cache_dir=str(cache), online_repeats=3))
+    s = r.summary()
+    assert s["n_valid"] == 6 and len(r.err_u) == 6
+    assert s["err_u_max"] < 0.1  # 25 snapshots, 2 parameters, 49 dofs of contact
+    # cone methods keep the multiplier non-negative, so penetration stays small
+    assert s["penetration_max"] < 0.05
+    # the online supremizer space contains V_N: beta_on >= beta_dec (a property)
+    for on, dec in zip(r.beta["on"], r.beta["dec"], strict=True):
+        assert on["value"] >= dec["value"] * (1 - 1e-9)
+        assert on["span"] <= on["value"] * (1 + 1e-9)
+    if stab == "pga":
+        sig = s["histories"]["sigma_max"]
+        assert all(a >= b - 1e-12 for a, b in zip(sig, sig[1:], strict=False))
+        assert s["beta_off_min"] > 0
+
+
+def test_cones_beat_pod_of_multipliers(scene, tmp_path_factory):
+    """Plain POD of lam (not a cone) loses positivity: larger errors than mCPG."""
+    cache = tmp_path_factory.getbasetemp() / "cache"
+    kw = dict(stabilizer="none", n_jobs=1, n_valid=6, cache_dir=str(cache), online_repeats=1)
+    e_pod = reduce(scene, ReduceConfig(dual="pod", **kw)).summary()["err_u_max"]
+    e_cone = reduce(scene, ReduceConfig(dual="mcpg", **kw)).summary()["err_u_max"]
+    assert e_cone < e_pod
+
+
+def test_reduce_cli_writes_result_json(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the snapshot cache goes to ./.rbbench_cache
+    out = tmp_path / "red"
+    code = main(["reduce", "membrane_obstacle", "--set", FAST[0], "--n-valid", "4",
+                 "--jobs", "1", "--out", str(out), "--quiet"])
+    assert code == 0
+    res = json.loads((out / "result.json").read_text())
+    for key in ["N", "R", "err_u_max", "err_u_mean", "err_lam_max", "err_lam_mean",
+                "penetration_max", "beta_hf_min", "beta_dec_min", "beta_on_min",
+                "beta_off_min", "beta_kind", "t_offline_s", "t_online_median_s",
+                "t_hf_median_s", "speedup", "histories", "definitions"]:
+        assert key in res, key
+    assert np.isfinite(res["err_u_max"])
+    assert "e_proj" in res["histories"] and "sigma_max" in res["histories"]
+
+
+def test_reduce_cli_rejects_unknown_compressor(capsys):
+    assert main(["reduce", "membrane_obstacle", "--dual", "nope", "--quiet"]) == 2
+    assert "valid" in capsys.readouterr().err
