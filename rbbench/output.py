@@ -74,9 +74,10 @@ def contact_table(sol: HFSolution) -> dict[str, np.ndarray]:
     """Per-multiplier table: position, pressure, initial and final mean gaps."""
     c = sol.disc.contact
     support = np.asarray(c.Mlam.T @ c.weights).ravel()
-    s_final = c.G() - c.B() @ sol.result.u
+    G = c.G()
+    s_final = G - c.B() @ sol.result.u
     return {"x": c.mult_points[:, 0], "y": c.mult_points[:, 1], "pressure": sol.result.lam,
-            "gap_initial": c.G() / support, "gap": s_final / support}
+            "gap_initial": G / support, "gap": s_final / support}
 
 
 def write_contact_csv(sol: HFSolution, out: Path) -> Path:

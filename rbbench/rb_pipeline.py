@@ -97,17 +97,13 @@ class ReduceResult:
     definitions: dict[str, str] = field(default_factory=dict)
 
     def summary(self) -> dict[str, Any]:
-        def mx(v):
-            v = [x for x in v if x is not None and np.isfinite(x)]
-            return float(np.max(v)) if v else None
+        def finite(reduce_):
+            def f(v):
+                v = [x for x in v if x is not None and np.isfinite(x)]
+                return float(reduce_(v)) if v else None
+            return f
 
-        def mean(v):
-            v = [x for x in v if x is not None and np.isfinite(x)]
-            return float(np.mean(v)) if v else None
-
-        def mn(v):
-            v = [x for x in v if x is not None and np.isfinite(x)]
-            return float(np.min(v)) if v else None
+        mx, mean, mn = finite(np.max), finite(np.mean), finite(np.min)
 
         t_on = float(np.median(self.t_online))
         t_hf = float(np.median(self.t_hf))
@@ -285,12 +281,10 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         lam_r = Vg @ res.alpha
         err_u.append(float(np.sqrt(_xn(X, u - u_n) / _xn(X, u))))
         err_lam.append(float(np.sqrt(_xn(p.W, lam - lam_r) / _xn(p.W, lam))))
-        u_full = p.expand(u_n)
         disc_gap = p.G - p.B @ u_n  # weighted, per multiplier
         pen.append(float(max(0.0, -(disc_gap / np.asarray(p.W.sum(axis=1)).ravel()).min())))
         J = _energy(p, u)
         e_en.append(abs(_energy(p, u_n) - J) / abs(J) if J != 0 else float("nan"))
-        del u_full
         # inf-sup constants
         B, Wm = p.B, p.W
         S, M = inf.quotient_matrices(B, x_solve, Vg, Wm)

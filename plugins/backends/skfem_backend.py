@@ -178,7 +178,7 @@ class SkfemBackend(Backend):
         if self._X is None:
             which = self.scene.data["discretization"]["inner_product"]
             if self.kind == "unit_square":
-                self._X = self.A_lap + (self.M if which == "h1" else 0 * self.M)
+                self._X = self.A_lap + self.M if which == "h1" else self.A_lap
             else:
                 mu0 = self.scene.default_mu
                 if which == "energy":
