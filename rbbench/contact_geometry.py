@@ -11,8 +11,12 @@ weakly against the multiplier space, ``int (u_n - d^n) eta <= 0`` for
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
+
 import numpy as np
 import scipy.sparse as sp
+
+from rbbench.interfaces import ContactOperators
 
 
 def gauss_legendre_01(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -45,26 +49,37 @@ def outward_normals(a: np.ndarray, b: np.ndarray, inner: np.ndarray) -> np.ndarr
 
 
 def ray_cast(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
-             tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+             tol: float = 1e-10, candidates: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Project points ``x`` along directions ``n`` onto segments ``[a_j, b_j]``.
 
     Returns ``(segment, s, t)`` with ``x + t n = a + s (b - a)``; among the hits
     the one with the smallest ``|t|`` is kept. ``segment = -1`` where no
-    segment is hit.
+    segment is hit. ``candidates`` (n_points, K), padded with -1, restricts the
+    segments tried for each point (the hyper-reduced evaluator's windows);
+    ``None`` tries every segment.
     """
-    d = b - a  # (m, 2)
+    nx = x.shape[0]
+    if candidates is None:
+        idx = np.broadcast_to(np.arange(a.shape[0]), (nx, a.shape[0]))
+        valid = np.ones(idx.shape, dtype=bool)
+        A, D = a[None, :, :], (b - a)[None, :, :]
+    else:
+        valid = candidates >= 0
+        idx = np.where(valid, candidates, 0)
+        A, D = a[idx], (b - a)[idx]
     # Solve [n, -d] [t, s]^T = a - x for every (point, segment) pair.
-    det = n[:, None, 0] * (-d[None, :, 1]) - n[:, None, 1] * (-d[None, :, 0])
-    r = a[None, :, :] - x[:, None, :]
+    det = n[:, None, 0] * (-D[..., 1]) - n[:, None, 1] * (-D[..., 0])
+    r = A - x[:, None, :]
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = (r[..., 0] * (-d[None, :, 1]) - r[..., 1] * (-d[None, :, 0])) / det
+        t = (r[..., 0] * (-D[..., 1]) - r[..., 1] * (-D[..., 0])) / det
         s = (n[:, None, 0] * r[..., 1] - n[:, None, 1] * r[..., 0]) / det
-    ok = (np.abs(det) > 1e-14) & (s >= -tol) & (s <= 1 + tol)
+    ok = valid & (np.abs(det) > 1e-14) & (s >= -tol) & (s <= 1 + tol)
     score = np.where(ok, np.abs(t), np.inf)
     j = np.argmin(score, axis=1)
-    rows = np.arange(x.shape[0])
+    rows = np.arange(nx)
     hit = np.isfinite(score[rows, j])
-    seg = np.where(hit, j, -1)
+    seg = np.where(hit, idx[rows, j], -1)
     return seg, np.clip(s[rows, j], 0.0, 1.0), np.where(hit, t[rows, j], np.nan)
 
 
@@ -91,3 +106,213 @@ def multiplier_basis(kind: str, n_facets: int, facet_of_q: np.ndarray, s_q: np.n
         return sp.csr_matrix((vals, (np.concatenate([rows, rows]), cols)),
                              shape=(nq, n_facets + 1))
     raise ValueError(f"multiplier space {kind!r} is not one of 'lac', 'p0', 'p1'")
+
+
+# ---------------------------------------------------------------------------
+# contact layout: the reference contact data of a scene, mapped by mu
+# ---------------------------------------------------------------------------
+class PairingError(ValueError):
+    """A slave quadrature point found no master facet along its normal."""
+
+    def __init__(self, n_missed: int, example: np.ndarray):
+        self.n_missed = n_missed
+        self.example = np.asarray(example, dtype=float)
+        super().__init__(f"{n_missed} slave quadrature point(s) (e.g. x = "
+                         f"{self.example.round(4).tolist()}) hit no master facet")
+
+
+@dataclass
+class AffineMap:
+    """Similarity map ``x = s(mu) x_hat + c(mu)`` of a reference body.
+
+    ``s`` and ``c`` are affine in mu (scene values are constants or ``"mu.NAME"``),
+    stored as coefficients on ``theta(mu) = [1, mu_1, ..., mu_p]``: ``scale``
+    (p + 1,), ``shift`` (2, p + 1).
+    """
+
+    scale: np.ndarray
+    shift: np.ndarray
+
+    def at(self, mu: np.ndarray) -> tuple[float, np.ndarray]:
+        th = np.concatenate([[1.0], np.atleast_1d(np.asarray(mu, dtype=float))])
+        return float(self.scale @ th), self.shift @ th
+
+    def __call__(self, mu: np.ndarray, x_hat: np.ndarray) -> np.ndarray:
+        """Mapped points (n, 2) from reference points (n, 2)."""
+        s, c = self.at(mu)
+        return s * x_hat + c
+
+
+@dataclass
+class FacetChain:
+    """Facets of one body's potential contact boundary, ordered along it (reference coords).
+
+    Attributes
+    ----------
+    a, b : (nf, 2)
+        Start and end vertices (the order of the chain).
+    inner : (nf, 2)
+        A point inside the body next to each facet (orients the normals).
+    dofs : (nf, degree + 1, 2)
+        Global dofs of the facet's trace: [start, end, (midpoint)] x component.
+    map : AffineMap
+        The body's map from the reference configuration at mu.
+    ids : (nf,)
+        Position of each facet in the full chain (a subset keeps its ids).
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    inner: np.ndarray
+    dofs: np.ndarray
+    map: AffineMap
+    ids: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.a.shape[0])
+
+    def subset(self, idx: np.ndarray) -> FacetChain:
+        idx = np.asarray(idx, dtype=np.int64)
+        return replace(self, a=self.a[idx], b=self.b[idx], inner=self.inner[idx],
+                       dofs=self.dofs[idx], ids=self.ids[idx])
+
+
+@dataclass
+class ContactLayout:
+    """Everything the GPTS pairing needs, in reference coordinates (small arrays only).
+
+    A backend that provides it (``Backend.contact_layout()``) lets the core
+    evaluate the contact operators at any mu, or only some of their rows
+    (hyper-reduction), without the backend.
+
+    Attributes
+    ----------
+    slave, master : FacetChain
+        ``master = None`` is the rigid plane ``y = 0`` (outward normal ``+y``).
+    degree : int
+        Displacement degree on the facets (1 or 2).
+    n_gauss : int
+        Gauss points per slave facet.
+    multiplier, patch : str, int
+        Multiplier space (see :func:`multiplier_basis`) and LAC patch size.
+    n_facets : int
+        Number of facets of the full slave chain (fixes the multiplier numbering).
+    n_dofs : int
+        Global number of displacement dofs.
+    """
+
+    slave: FacetChain
+    master: FacetChain | None
+    degree: int
+    n_gauss: int
+    multiplier: str
+    patch: int
+    n_facets: int
+    n_dofs: int
+
+    @property
+    def n_mult(self) -> int:
+        return int(multiplier_basis(self.multiplier, self.n_facets, np.zeros(1, dtype=int),
+                                    np.zeros(1), self.patch).shape[1])
+
+    def facets_of_rows(self, rows: np.ndarray) -> np.ndarray:
+        """Slave-chain positions of the facets in the support of multipliers ``rows``."""
+        ids = np.arange(self.n_facets)
+        s = np.full(ids.size, 0.5)
+        M = multiplier_basis(self.multiplier, self.n_facets, ids, s, self.patch).tocsc()
+        return np.unique(M[:, np.asarray(rows)].tocoo().row)
+
+
+@dataclass
+class Pairing:
+    """Quadrature points of some slave facets at mu and their master projections."""
+
+    x: np.ndarray  # (nq, 2) physical points
+    nrm: np.ndarray  # (nq, 2) slave outward normals
+    w: np.ndarray  # (nq,) weights
+    fq: np.ndarray  # (nq,) local facet of each point
+    sq: np.ndarray  # (nq,) local coordinate on the facet
+    gap: np.ndarray  # (nq,)
+    slave_phi: np.ndarray  # (nq, k)
+    slave_dofs: np.ndarray  # (nq, k, 2)
+    master_seg: np.ndarray | None  # (nq,) master facet (index into the chain given)
+    master_phi: np.ndarray | None  # (nq, k)
+    master_dofs: np.ndarray | None  # (nq, k, 2)
+    a: np.ndarray  # (nf, 2) mapped slave facet starts
+    b: np.ndarray  # (nf, 2) mapped slave facet ends
+
+    def jump(self, direction: np.ndarray, n_dofs: int) -> sp.csr_matrix:
+        """Rows q: ``(u1(x_q) - u2(pi(x_q))) . direction_q`` (nq x n_dofs)."""
+        nq, k = self.slave_phi.shape
+        rows = np.repeat(np.arange(nq), k * 2)
+        r = [rows]
+        c = [self.slave_dofs.reshape(-1)]
+        v = [(self.slave_phi[:, :, None] * direction[:, None, :]).reshape(-1)]
+        if self.master_phi is not None:
+            r.append(rows)
+            c.append(self.master_dofs.reshape(-1))
+            v.append(-(self.master_phi[:, :, None] * direction[:, None, :]).reshape(-1))
+        return sp.csr_matrix((np.concatenate(v), (np.concatenate(r), np.concatenate(c))),
+                             shape=(nq, n_dofs))
+
+
+def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,
+         master: FacetChain | None = None, candidates: np.ndarray | None = None) -> Pairing:
+    """Gauss-point-to-segment pairing at mu (module docstring).
+
+    ``slave`` / ``master`` default to the layout's chains; a subset chain and
+    per-point ``candidates`` (indices into ``master``) restrict the work to
+    some rows (hyper-reduction). Raises :class:`PairingError` when a point
+    hits no master facet.
+    """
+    slave = layout.slave if slave is None else slave
+    master = layout.master if master is None else master
+    a, b = slave.map(mu, slave.a), slave.map(mu, slave.b)
+    nrm_f = outward_normals(a, b, slave.map(mu, slave.inner))
+    sg, wg = gauss_legendre_01(layout.n_gauss)
+    nf, ng = slave.n, sg.size
+    fq = np.repeat(np.arange(nf), ng)
+    sq = np.tile(sg, nf)
+    x = a[fq] + sq[:, None] * (b[fq] - a[fq])
+    nrm = nrm_f[fq]
+    w = np.tile(wg, nf) * np.linalg.norm(b - a, axis=1)[fq]
+    phi = facet_shape(sq, layout.degree)
+    sdofs = slave.dofs[fq]
+    if master is None:  # rigid plane y = 0
+        return Pairing(x, nrm, w, fq, sq, -x[:, 1] / nrm[:, 1], phi, sdofs, None, None, None,
+                       a, b)
+    ma, mb = master.map(mu, master.a), master.map(mu, master.b)
+    seg, s2, gap = ray_cast(x, nrm, ma, mb, candidates=candidates)
+    if np.any(seg < 0):
+        raise PairingError(int(np.sum(seg < 0)), x[seg < 0][0])
+    return Pairing(x, nrm, w, fq, sq, gap, phi, sdofs, seg, facet_shape(s2, layout.degree),
+                   master.dofs[seg], a, b)
+
+
+def contact_operators(layout: ContactLayout, mu: np.ndarray,
+                      tangential: bool = False) -> ContactOperators:
+    """The full contact operators at mu (``Un``, gap, weights, multipliers; ``Ut`` on request).
+
+    ``Un`` evaluates the normal jump ``(u1 - u2 o pi) . n1``; with
+    ``tangential``, ``Ut`` evaluates ``(u1 - u2 o pi) . t1``, ``t1 = (-n_y, n_x)``.
+    """
+    p = pair(layout, mu)
+    Un = p.jump(p.nrm, layout.n_dofs)
+    Ut = (p.jump(np.stack([-p.nrm[:, 1], p.nrm[:, 0]], axis=1), layout.n_dofs)
+          if tangential else None)
+    Mlam = multiplier_basis(layout.multiplier, layout.n_facets, layout.slave.ids[p.fq], p.sq,
+                            layout.patch)
+    mw = np.asarray(Mlam.T @ p.w).ravel()
+    mpts = np.asarray(Mlam.T @ (p.w[:, None] * p.x)) / mw[:, None]
+    # horizontal extent of each multiplier's support
+    ext = np.zeros((Mlam.shape[1], 2))
+    coo = Mlam.tocoo()
+    xs = p.x[coo.row, 0]
+    ext[:, 0], ext[:, 1] = np.inf, -np.inf
+    fa, fb = p.a[p.fq][coo.row, 0], p.b[p.fq][coo.row, 0]
+    np.minimum.at(ext[:, 0], coo.col, np.minimum(np.minimum(fa, fb), xs))
+    np.maximum.at(ext[:, 1], coo.col, np.maximum(np.maximum(fa, fb), xs))
+    return ContactOperators(Un=Un, gap=p.gap, weights=p.w, points=p.x, normals=p.nrm,
+                            Mlam=Mlam, multiplier=layout.multiplier, mult_points=mpts,
+                            mult_extent=ext, Ut=Ut)

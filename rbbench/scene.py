@@ -241,6 +241,20 @@ class Scene:
             return float(mu[self.param_names.index(name)])
         return raw
 
+    def affine_coefficients(self, section: str, key: str) -> np.ndarray:
+        """A scalar scene value as coefficients on ``theta = [1, mu_1, ..., mu_p]``.
+
+        Scene values are constants or ``"mu.NAME"`` references, so each is
+        affine in mu; ``value(mu) == coefficients @ [1, *mu]``.
+        """
+        raw = self.get(section, key)
+        coef = np.zeros(1 + len(self.parameters))
+        if isinstance(raw, str) and raw.startswith("mu."):
+            coef[1 + self.param_names.index(raw[3:])] = 1.0
+        else:
+            coef[0] = float(raw)
+        return coef
+
     def is_parametric(self, section: str, key: str) -> bool:
         raw = self.get(section, key)
         return isinstance(raw, str) and raw.startswith("mu.")

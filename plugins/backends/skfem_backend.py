@@ -28,11 +28,11 @@ from skfem.helpers import dot, grad
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
 from rbbench.contact_geometry import (
-    facet_shape,
-    gauss_legendre_01,
-    multiplier_basis,
-    outward_normals,
-    ray_cast,
+    AffineMap,
+    ContactLayout,
+    FacetChain,
+    PairingError,
+    contact_operators,
 )
 from rbbench.interfaces import Backend, BodyMesh, ContactOperators, Discretization
 from rbbench.scene import Scene, SceneError
@@ -138,9 +138,7 @@ class SkfemBackend(Backend):
             self.lower = _Body("lower", mesh_lo, self.degree, self.upper.ndofs)
             self.master_zone = mzone
         self.ndofs = self.upper.ndofs + (self.lower.ndofs if self.lower else 0)
-        self._slave = self._zone_facets(self.upper.mesh_hat, self.zone)
-        if self.lower is not None:
-            self._master = self._zone_facets(self.lower.mesh_hat, tuple(self.master_zone))
+        self._layout = None
 
     @staticmethod
     def _zone_facets(mesh, zone) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -251,92 +249,66 @@ class SkfemBackend(Backend):
             vals.append(np.zeros(lo.all().size))
         ddofs = np.concatenate(dofs)
         dvals = np.concatenate(vals)
-        contact = self._contact(geo, tangential="tangential" in needs)
+        contact = self._contact(mu, tangential="tangential" in needs)
         bodies = []
         for body in self._bodies():
             E, nu = self.scene.material(body.name, mu)
             bodies.append(BodyMesh(body.name, self._mapped(body, geo).T.copy(),
                                    body.mesh_hat.t.T.copy(), body.vertex_dofs(), E, nu))
-        info = {"geometry": geo, "t_assemble_s": t_asm, "n_facets_slave": int(self._slave[0].size),
+        info = {"geometry": geo, "t_assemble_s": t_asm,
+                "n_facets_slave": self.contact_layout().slave.n,
                 "h_contact": self.h_contact, "degree": self.degree, "backend": self.name}
         return Discretization(mu=mu, A=A, F=np.zeros(self.ndofs), dirichlet_dofs=ddofs,
                               dirichlet_values=dvals, X=self.inner_product(), contact=contact,
                               bodies=bodies, physics="elasticity", info=info)
 
-    def _contact(self, geo: dict, tangential: bool = False) -> ContactOperators:
-        """GPTS pairing at mu (see :mod:`rbbench.contact_geometry`).
+    def contact_layout(self) -> ContactLayout:
+        """Reference contact data and the mu-maps (see :mod:`rbbench.contact_geometry`)."""
+        if self.kind != "halfdisks":
+            raise NotImplementedError("skfem backend: a contact layout exists for two-body "
+                                      "(halfdisks) scenes only")
+        if self._layout is None:
+            self._layout = self._build_layout()
+        return self._layout
 
-        ``Un`` evaluates the normal jump ``(u1 - u2 o pi) . n1``; with
-        ``tangential``, ``Ut`` evaluates ``(u1 - u2 o pi) . t1``, ``t1 = (-n_y, n_x)``.
-        """
-        facets, flip, inner_hat = self._slave
-        up = self.upper
-        p1 = self._mapped(up, geo)
-        n0 = np.where(flip, up.mesh_hat.facets[1, facets], up.mesh_hat.facets[0, facets])
-        n1 = np.where(flip, up.mesh_hat.facets[0, facets], up.mesh_hat.facets[1, facets])
-        a, b = p1[:, n0].T, p1[:, n1].T
-        inner = geo["R1"] * inner_hat + geo["centre1"]
-        nrm_f = outward_normals(a, b, inner)
-        sg, wg = gauss_legendre_01(self.n_gauss)
-        nf, ng = facets.size, sg.size
-        fq = np.repeat(np.arange(nf), ng)
-        sq = np.tile(sg, nf)
-        x = a[fq] + sq[:, None] * (b[fq] - a[fq])
-        nrm = nrm_f[fq]
-        w = np.tile(wg, nf) * np.linalg.norm(b - a, axis=1)[fq]
-        phi = facet_shape(sq, self.degree)  # (nq, k)
-        sdofs = up.facet_dofs(facets, flip)[fq]  # (nq, k, 2)
-        nq = x.shape[0]
-        rows = np.repeat(np.arange(nq), phi.shape[1] * 2)
+    def _chain(self, body: _Body, zone: tuple, amap: AffineMap) -> FacetChain:
+        facets, flip, inner = self._zone_facets(body.mesh_hat, zone)
+        f = body.mesh_hat.facets
+        n0 = np.where(flip, f[1, facets], f[0, facets])
+        n1 = np.where(flip, f[0, facets], f[1, facets])
+        p = body.mesh_hat.p
+        return FacetChain(a=p[:, n0].T.copy(), b=p[:, n1].T.copy(), inner=inner,
+                          dofs=body.facet_dofs(facets, flip), map=amap,
+                          ids=np.arange(facets.size))
+
+    def _build_layout(self) -> ContactLayout:
+        s = self.scene
+        coef = s.affine_coefficients
+        r1 = coef("geometry", "upper_radius")
+        top = np.zeros_like(r1) if self.rigid else coef("geometry", "lower_radius")
+        up_map = AffineMap(r1, np.stack([np.zeros_like(r1),
+                                         top + coef("geometry", "initial_gap") + r1]))
+        slave = self._chain(self.upper, self.zone, up_map)
         master = None
-        if self.rigid:
-            gap = -x[:, 1] / nrm[:, 1]
-        else:
-            lo = self.lower
-            mf, mflip, _ = self._master
-            p2 = self._mapped(lo, geo)
-            m0 = np.where(mflip, lo.mesh_hat.facets[1, mf], lo.mesh_hat.facets[0, mf])
-            m1 = np.where(mflip, lo.mesh_hat.facets[0, mf], lo.mesh_hat.facets[1, mf])
-            ma, mb = p2[:, m0].T, p2[:, m1].T
-            seg, s2, gap = ray_cast(x, nrm, ma, mb)
-            if np.any(seg < 0):
-                bad = x[seg < 0]
-                zone = [float(z) for z in self.scene.data["geometry"]["master_zone"]]
-                raise SceneError(
-                    f"{self.scene.path}: [geometry] master_zone: {int(np.sum(seg < 0))} slave "
-                    f"quadrature point(s) (e.g. x = {bad[0].round(4).tolist()}) project outside "
-                    f"the master zone {zone}"
-                    " (theta/pi); widen it")
-            master = (facet_shape(s2, self.degree), lo.facet_dofs(mf, mflip)[seg])
+        if not self.rigid:
+            r2 = coef("geometry", "lower_radius")
+            master = self._chain(self.lower, tuple(self.master_zone),
+                                 AffineMap(r2, np.zeros((2, r2.size))))
+        return ContactLayout(slave=slave, master=master, degree=self.degree,
+                             n_gauss=self.n_gauss, multiplier=self.multiplier,
+                             patch=int(s.data["discretization"]["lac_patch"]),
+                             n_facets=slave.n, n_dofs=self.ndofs)
 
-        def jump(direction: np.ndarray) -> sp.csr_matrix:
-            """Rows q: (u1(x_q) - u2(pi(x_q))) . direction_q."""
-            r, c, v = [rows], [sdofs.reshape(-1)], [(phi[:, :, None]
-                                                     * direction[:, None, :]).reshape(-1)]
-            if master is not None:
-                r.append(rows)
-                c.append(master[1].reshape(-1))
-                v.append(-(master[0][:, :, None] * direction[:, None, :]).reshape(-1))
-            return sp.csr_matrix((np.concatenate(v), (np.concatenate(r), np.concatenate(c))),
-                                 shape=(nq, self.ndofs))
-
-        Un = jump(nrm)
-        Ut = jump(np.stack([-nrm[:, 1], nrm[:, 0]], axis=1)) if tangential else None
-        patch = int(self.scene.data["discretization"]["lac_patch"])
-        Mlam = multiplier_basis(self.multiplier, nf, fq, sq, patch)
-        mw = np.asarray(Mlam.T @ w).ravel()
-        mpts = np.asarray(Mlam.T @ (w[:, None] * x)) / mw[:, None]
-        # horizontal extent of each multiplier's support
-        ext = np.zeros((Mlam.shape[1], 2))
-        coo = Mlam.tocoo()
-        xs = x[coo.row, 0]
-        ext[:, 0], ext[:, 1] = np.inf, -np.inf
-        fa, fb = a[fq][coo.row, 0], b[fq][coo.row, 0]
-        np.minimum.at(ext[:, 0], coo.col, np.minimum(np.minimum(fa, fb), xs))
-        np.maximum.at(ext[:, 1], coo.col, np.maximum(np.maximum(fa, fb), xs))
-        return ContactOperators(Un=Un, gap=gap, weights=w, points=x, normals=nrm, Mlam=Mlam,
-                                multiplier=self.multiplier, mult_points=mpts, mult_extent=ext,
-                                Ut=Ut)
+    def _contact(self, mu, tangential: bool = False) -> ContactOperators:
+        """GPTS pairing at mu: :func:`rbbench.contact_geometry.contact_operators`."""
+        try:
+            return contact_operators(self.contact_layout(), mu, tangential)
+        except PairingError as exc:
+            zone = [float(z) for z in self.scene.data["geometry"]["master_zone"]]
+            raise SceneError(
+                f"{self.scene.path}: [geometry] master_zone: {exc.n_missed} slave "
+                f"quadrature point(s) (e.g. x = {exc.example.round(4).tolist()}) project "
+                f"outside the master zone {zone} (theta/pi); widen it") from None
 
     def _discretize_square(self, mu) -> Discretization:
         s = self.scene
