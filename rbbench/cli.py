@@ -117,7 +117,8 @@ def cmd_reduce(args) -> int:
         cfg = ReduceConfig(primal=args.primal, dual=args.dual, stabilizer=args.stabilizer,
                            hyper=args.hyper, N=args.N, R=args.R, n_train=args.n_train,
                            n_valid=args.n_valid, n_jobs=args.jobs, solver=args.solver,
-                           backend=args.backend, formulation=args.formulation)
+                           backend=args.backend, formulation=args.formulation,
+                           tol_eim=args.tol_eim, delta_pga=args.delta_pga)
     except ValueError as exc:
         raise SceneError(str(exc)) from None
     progress = _Progress(args.quiet)
@@ -128,7 +129,7 @@ def cmd_reduce(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     (out / "result.json").write_text(json.dumps(_jsonable({**s, "provenance": provenance()}),
                                                 indent=2) + "\n")
-    keys = ["N", "R", "K_pga", "hyper", "n_train", "n_valid", "n_hf_dofs", "err_u_max",
+    keys = ["N", "R", "K_pga", "hyper", "M_eim", "n_train", "n_valid", "n_hf_dofs", "err_u_max",
             "err_u_mean", "err_lam_max", "err_lam_mean", "penetration_max",
             "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min", "beta_kind",
             "t_offline_s", "t_online_median_s", "t_hf_median_s", "speedup"]
@@ -175,7 +176,13 @@ def build_parser() -> argparse.ArgumentParser:
     rd.add_argument("--primal", default="pod")
     rd.add_argument("--dual", default="mcpg", help="pod, cpg, mcpg, eng, nnmf")
     rd.add_argument("--stabilizer", default="pga", help="none, supremizer, pga")
-    rd.add_argument("--hyper", default="auto", help="auto, affine (exact), none (plain)")
+    rd.add_argument("--hyper", default="auto",
+                    help="auto (affine if exact, else eim), affine (exact), eim (EIM on the "
+                         "contact rows), none (plain: HF assembly projected online)")
+    rd.add_argument("--tol-eim", type=float, default=1e-8,
+                    help="EIM tolerance (relative max-norm training error)")
+    rd.add_argument("--delta-pga", type=float, default=None,
+                    help="PGA tolerance on sigma_max (default: see result.json pga_delta)")
     rd.add_argument("-N", type=int, default=None, help="primal size (default: POD tolerance)")
     rd.add_argument("-R", type=int, default=None, help="max dual size (default: tolerance)")
     rd.add_argument("--n-train", type=int, default=None)

@@ -12,6 +12,7 @@ weakly against the multiplier space, ``int (u_n - d^n) eta <= 0`` for
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
@@ -19,10 +20,18 @@ import scipy.sparse as sp
 from rbbench.interfaces import ContactOperators
 
 
-def gauss_legendre_01(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Legendre points and weights on [0, 1]."""
+@lru_cache(maxsize=16)
+def _gauss_legendre_01(n: int) -> tuple[np.ndarray, np.ndarray]:
     x, w = np.polynomial.legendre.leggauss(n)
-    return 0.5 * (x + 1.0), 0.5 * w
+    x, w = 0.5 * (x + 1.0), 0.5 * w
+    x.setflags(write=False)
+    w.setflags(write=False)
+    return x, w
+
+
+def gauss_legendre_01(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre points and weights on [0, 1] (cached, read-only arrays)."""
+    return _gauss_legendre_01(int(n))
 
 
 def facet_shape(s: np.ndarray, degree: int) -> np.ndarray:
@@ -81,6 +90,45 @@ def ray_cast(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
     hit = np.isfinite(score[rows, j])
     seg = np.where(hit, idx[rows, j], -1)
     return seg, np.clip(s[rows, j], 0.0, 1.0), np.where(hit, t[rows, j], np.nan)
+
+
+def ray_cast_window(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
+                    lo: np.ndarray, hi: np.ndarray, tol: float = 1e-10
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`ray_cast` of each point against its window of chain facets ``lo .. hi``.
+
+    ``a``, ``b`` form an ordered chain (``b[j] == a[j + 1]``). The side of each
+    chain vertex relative to the ray line, ``cross(n, P_j - x)``, changes sign at
+    the hit facet; it is found by bisection in ``O(log(hi - lo))``, then
+    confirmed by an exact ray cast on that facet and its two neighbours. Points
+    where the side function is not monotone over the window (no sign change,
+    or no confirmed hit) fall back to the brute-force cast over their window,
+    so the result always equals :func:`ray_cast` restricted to the window.
+    """
+    verts = np.vstack([a, b[-1:]])  # chain vertices 0 .. n_facets
+
+    def side(j: np.ndarray) -> np.ndarray:
+        d = verts[j] - x
+        return n[:, 0] * d[:, 1] - n[:, 1] * d[:, 0]
+
+    left, right = lo.astype(np.int64).copy(), hi.astype(np.int64) + 1  # vertex indices
+    f_left = np.sign(side(left))
+    for _ in range(int(np.ceil(np.log2(max(int((right - left).max()), 1)))) + 1):
+        mid = (left + right) // 2
+        f_mid = np.sign(side(mid))
+        same = f_mid == f_left
+        left = np.where(same, mid, left)
+        right = np.where(same, right, mid)
+    cand = left[:, None] + np.arange(-1, 2)[None, :]
+    cand = np.where((cand >= lo[:, None]) & (cand <= hi[:, None]), cand, -1)
+    seg, s, t = ray_cast(x, n, a, b, tol, candidates=cand)
+    bad = np.flatnonzero(seg < 0)
+    if bad.size:
+        width = int((hi[bad] - lo[bad]).max()) + 1
+        full = lo[bad, None] + np.arange(width)[None, :]
+        full = np.where(full <= hi[bad, None], full, -1)
+        seg[bad], s[bad], t[bad] = ray_cast(x[bad], n[bad], a, b, tol, candidates=full)
+    return seg, s, t
 
 
 def multiplier_basis(kind: str, n_facets: int, facet_of_q: np.ndarray, s_q: np.ndarray,
@@ -258,13 +306,15 @@ class Pairing:
 
 
 def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,
-         master: FacetChain | None = None, candidates: np.ndarray | None = None) -> Pairing:
+         master: FacetChain | None = None,
+         windows: tuple[np.ndarray, np.ndarray] | None = None) -> Pairing:
     """Gauss-point-to-segment pairing at mu (module docstring).
 
     ``slave`` / ``master`` default to the layout's chains; a subset chain and
-    per-point ``candidates`` (indices into ``master``) restrict the work to
-    some rows (hyper-reduction). Raises :class:`PairingError` when a point
-    hits no master facet.
+    per-point ``windows = (lo, hi)`` of master facets (indices into an ordered
+    ``master`` chain, :func:`ray_cast_window`) restrict the work to some rows
+    (hyper-reduction). Raises :class:`PairingError` when a point hits no
+    master facet.
     """
     slave = layout.slave if slave is None else slave
     master = layout.master if master is None else master
@@ -283,7 +333,10 @@ def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,
         return Pairing(x, nrm, w, fq, sq, -x[:, 1] / nrm[:, 1], phi, sdofs, None, None, None,
                        a, b)
     ma, mb = master.map(mu, master.a), master.map(mu, master.b)
-    seg, s2, gap = ray_cast(x, nrm, ma, mb, candidates=candidates)
+    if windows is None:
+        seg, s2, gap = ray_cast(x, nrm, ma, mb)
+    else:
+        seg, s2, gap = ray_cast_window(x, nrm, ma, mb, *windows)
     if np.any(seg < 0):
         raise PairingError(int(np.sum(seg < 0)), x[seg < 0][0])
     return Pairing(x, nrm, w, fq, sq, gap, phi, sdofs, seg, facet_shape(s2, layout.degree),

@@ -33,7 +33,7 @@ from rbbench.scene import Scene
 from rbbench.snapshots import compute_snapshots
 
 STABILIZERS = ("none", "supremizer", "pga")
-HYPER = ("auto", "affine", "none")
+HYPER = ("auto", "affine", "eim", "none")
 
 
 @dataclass
@@ -48,7 +48,7 @@ class ReduceConfig:
     R: int | None = None
     tol_pod: float = 1e-4
     tol_dual: float = 1e-3
-    delta_pga: float | None = None  # default: 0.5 * min beta_HF / c_HF over the train set
+    delta_pga: float | None = None  # default: max beta / c over a training subset (seed rule)
     n_train: int | None = None
     n_valid: int | None = None
     backend: str = "skfem"
@@ -58,6 +58,8 @@ class ReduceConfig:
     cache_dir: str = ".rbbench_cache"
     online_repeats: int = 20
     exact_max_r: int = 10
+    tol_eim: float = 1e-8
+    m_eim: int | None = None
 
     def __post_init__(self) -> None:
         if self.primal != "pod":
@@ -69,9 +71,9 @@ class ReduceConfig:
             raise ValueError(f"stabilizer {self.stabilizer!r}: valid: {', '.join(STABILIZERS)}")
         if self.hyper not in HYPER:
             raise ValueError(f"hyper {self.hyper!r}: valid: {', '.join(HYPER)}")
-        if self.stabilizer == "supremizer" and self.hyper == "affine":
+        if self.stabilizer == "supremizer" and self.hyper in ("affine", "eim"):
             raise ValueError("stabilizer 'supremizer' builds V_N + S_R(mu) online from the HF "
-                             "B(mu): use hyper 'none' or 'auto', not 'affine'")
+                             f"B(mu): use hyper 'none' or 'auto', not {self.hyper!r}")
 
 
 @dataclass
@@ -114,7 +116,8 @@ class ReduceResult:
             "scene": self.scene, "N": self.N, "R": self.R, "K_pga": self.K_pga,
             "dim_primal_online": self.N + (self.K_pga if self.config["stabilizer"] == "pga"
                                            else 0),
-            "hyper": self.hyper, "n_train": self.n_train, "n_valid": self.n_valid,
+            "hyper": self.hyper, "M_eim": self.histories.get("eim", {}).get("rows"),
+            "n_train": self.n_train, "n_valid": self.n_valid,
             "n_hf_dofs": self.n_hf_dofs, "n_contact": self.n_contact,
             "err_u_max": mx(self.err_u), "err_u_mean": mean(self.err_u),
             "err_lam_max": mx(self.err_lam), "err_lam_mean": mean(self.err_lam),
@@ -163,6 +166,14 @@ DEFINITIONS = {
               "the cone after r generators (seed 000, mCPG (4/4))",
     "e_orth": "normalised distance of each new generator from the previous cone",
     "sigma_max": "PGA: max over the training set of sigma_S(mu) before each addition",
+    "pga_delta": "PGA tolerance on sigma_max; default: the seed's rule delta = sup_mu beta/c "
+                 "over a training subset, beta the inf-sup over span(generators) in whole V "
+                 "(a lower bound of beta_on), c the boundedness constant",
+    "eim_error": "hyper 'eim': relative max-norm EIM training error of the contact rows "
+                 "B(mu) Z_off after each magic row (seed 'EIM errors' definition, ratio of "
+                 "maxima over the training set); eim_error_G the same for G(mu); "
+                 "eim.e_eim_valid_BN / _GN: the resulting error of B_N, G_N over the validation "
+                 "set; eim_entrywise: the seed's entrywise EIM of B(mu) for comparison",
 }
 
 
@@ -227,7 +238,9 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
             for mu in mus_train[:: max(1, len(mus_train) // 5)]:
                 S, M = inf.quotient_matrices(problem_at(mu).B, x_solve, Vg, problem_at(mu).W)
                 ratios.append(inf.infsup_span(S, M) / inf.boundedness_constant(S, M))
-            delta = 0.5 * float(min(ratios))
+            # the seed's rule (friction example: delta_PGA = sup beta_HF / c_HF = 0.072),
+            # with beta the span value over the reduced cone (a lower bound)
+            delta = float(max(ratios))
         res = run_pga(T_list, Z, X, delta)
         K = res.dim
         Z_off = np.hstack([Z, res.basis])
@@ -240,17 +253,24 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     t1 = time.perf_counter()
     hyper = config.hyper
     model = None
-    if config.stabilizer != "supremizer" and hyper in ("auto", "affine"):
-        progress("exact affine decomposition (verified by probing)")
-        try:
-            model = build_affine_model(projector(problem_at, Z_off, Vg), scene.bounds,
-                                       is_cone=dual.is_cone)
-            hyper = "affine"
-        except NotAffineError as exc:
-            if hyper == "affine":
-                raise
-            histories["affine_refused"] = str(exc)
-            hyper = "none"
+    if config.stabilizer != "supremizer" and hyper in ("auto", "affine", "eim"):
+        reduced_ops = projector(problem_at, Z_off, Vg)
+        if hyper in ("auto", "affine"):
+            progress("exact affine decomposition (verified by probing)")
+            try:
+                model = build_affine_model(reduced_ops, scene.bounds, is_cone=dual.is_cone)
+                hyper = "affine"
+            except NotAffineError as exc:
+                if hyper == "affine":
+                    raise
+                histories["affine_refused"] = str(exc)
+                hyper = "eim" if hasattr(b, "contact_layout") else "none"
+        if hyper == "eim":
+            progress("EIM on the contact rows (B(mu) Z, G(mu))")
+            constraint = _contact_eim(b, scene, config, problem_at, mus_train, valid.mus,
+                                       Z_off, Vg, histories)
+            model = build_affine_model(reduced_ops, scene.bounds, is_cone=dual.is_cone,
+                                       constraint=constraint)
     elif hyper == "auto":
         hyper = "none"
     timings["hyper_s"] = time.perf_counter() - t1
@@ -324,6 +344,39 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         err_u=err_u, err_lam=err_lam, penetration=pen, energy_err=e_en, beta=beta,
         t_online=t_on, t_hf=[float(t) for t in np.concatenate([train.times, valid.times])],
         timings=timings, histories=histories, definitions=DEFINITIONS)
+
+
+def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_train,
+                  mus_valid, Z: np.ndarray, Vg: np.ndarray, histories: dict):
+    """hyper = "eim": :func:`rbbench.hyper.contact_eim`, its error curves and validation."""
+    from rbbench.hyper import contact_eim, entrywise_eim_error
+
+    if not hasattr(backend, "contact_layout"):
+        raise ValueError(f"hyper 'eim': backend {config.backend!r} provides no contact layout "
+                         "(Backend.contact_layout); use hyper 'none'")
+    layout = backend.contact_layout()
+    probs = [problem_at(mu) for mu in mus_train]
+    lo, hi = scene.bounds[:, 0], scene.bounds[:, 1]
+    grid = np.linspace(0.0, 1.0, 4 * len(mus_train) + 1)
+    sample = np.vstack([np.asarray(mus_train), lo + grid[:, None] * (hi - lo)])
+    deim = contact_eim(layout, [p.B for p in probs], np.stack([p.G for p in probs], axis=1),
+                        Z, Vg, probs[0].free, sample, tol=config.tol_eim, m_max=config.m_eim)
+    # validation e_EIM of the reduced constraint (seed's ratio of maxima over the set)
+    num_b = den_b = num_g = den_g = 0.0
+    for mu in mus_valid:
+        p = problem_at(mu)
+        Bn, Gn = Vg.T @ (p.B @ Z), Vg.T @ p.G
+        Be, Ge = deim(mu)
+        num_b, den_b = max(num_b, np.abs(Bn - Be).max()), max(den_b, np.abs(Bn).max())
+        num_g, den_g = max(num_g, np.abs(Gn - Ge).max()), max(den_g, np.abs(Gn).max())
+    histories["eim_error"] = deim.info["errors_B"]
+    histories["eim_error_G"] = deim.info["errors_G"]
+    histories["eim"] = {k: v for k, v in deim.info.items() if not k.startswith("errors")}
+    histories["eim"]["e_eim_valid_BN"] = float(num_b / den_b)
+    histories["eim"]["e_eim_valid_GN"] = float(num_g / den_g)
+    histories["eim_entrywise"] = entrywise_eim_error(
+        [p.B for p in probs], [problem_at(mu).B for mu in mus_valid], tol=config.tol_eim)
+    return deim
 
 
 def _xn(X, v: np.ndarray) -> float:

@@ -7,11 +7,13 @@ primal basis Z (n x N) and a dual cone W_R^+ = Span+(Vg) (Vg: m x R),
     A_N c + B_N^T alpha = F_N,   alpha >= 0,   B_N c <= G_N,   alpha . (G_N - B_N c) = 0
 
 with ``A_N = Z^T A Z``, ``B_N = Vg^T B Z``, ``F_N = Z^T F``, ``G_N = Vg^T G``.
-Each of them is an :class:`AffineOperator` ``sum_k theta_k(mu) M_k``; the
-coefficients ``theta(mu)`` come from a picklable coefficient map (exact
-affine in mu, or EIM). Online, ``c = A_N^{-1}(F_N - B_N^T alpha)`` condenses
-the problem to an R x R LCP solved by the primal-dual active set of
-:mod:`rbbench.lcp` (warm-startable). Nothing here depends on the HF size.
+``A_N`` and ``F_N`` are :class:`AffineOperator` ``sum_k theta_k(mu) M_k`` with
+a picklable coefficient map; the constraint pair ``(B_N, G_N)`` is either
+affine too (:class:`AffineConstraint`) or hyper-reduced by DEIM on the
+contact rows (:class:`rbbench.hyper.ContactEIM`). Online,
+``c = A_N^{-1}(F_N - B_N^T alpha)`` condenses the problem to an R x R LCP
+solved by the primal-dual active set of :mod:`rbbench.lcp` (warm-startable).
+Nothing here depends on the HF size.
 """
 
 from __future__ import annotations
@@ -113,15 +115,35 @@ def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
 
 
 @dataclass
+class AffineConstraint:
+    """Reduced constraint ``(B_N(mu), G_N(mu))`` from affine terms and a coefficient map."""
+
+    B: AffineOperator  # (K, R, N)
+    G: AffineOperator  # (K, R)
+    coefficients: Callable[[np.ndarray], np.ndarray]
+
+    def __call__(self, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        th = self.coefficients(mu)
+        return self.B(th), self.G(th)
+
+    @property
+    def R(self) -> int:
+        return int(self.B.terms.shape[1])
+
+
+@dataclass
 class ReducedModel:
-    """Small dense arrays and a coefficient map: ``solve(mu)`` never touches HF data.
+    """Small dense arrays and picklable maps: ``solve(mu)`` never touches HF data.
 
     Attributes
     ----------
-    A, F, B, G : AffineOperator
-        Reduced stiffness (N x N), load (N), constraint (R x N), gap (R).
+    A, F : AffineOperator
+        Reduced stiffness (N x N) and load (N).
     coefficients : callable
-        ``theta(mu)``, picklable (e.g. :class:`LinearInMu`).
+        ``theta(mu)`` for A and F, picklable (e.g. :class:`LinearInMu`).
+    constraint : callable
+        ``mu -> (B_N (R x N), G_N (R,))``: :class:`AffineConstraint` (exact affine)
+        or a hyper-reduced evaluator (:class:`rbbench.hyper.ContactEIM`).
     is_cone : bool
         True when the dual space is a cone (alpha >= 0 is the right constraint).
     info : dict
@@ -130,9 +152,8 @@ class ReducedModel:
 
     A: AffineOperator
     F: AffineOperator
-    B: AffineOperator
-    G: AffineOperator
     coefficients: Callable[[np.ndarray], np.ndarray]
+    constraint: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
     is_cone: bool = True
     info: dict = field(default_factory=dict)
 
@@ -142,11 +163,12 @@ class ReducedModel:
 
     @property
     def R(self) -> int:
-        return int(self.B.terms.shape[1])
+        return int(self.constraint.R)
 
     def arrays(self, mu: np.ndarray) -> tuple[np.ndarray, ...]:
         th = self.coefficients(mu)
-        return self.A(th), self.F(th), self.B(th), self.G(th)
+        B, G = self.constraint(mu)
+        return self.A(th), self.F(th), B, G
 
     def solve(self, mu: np.ndarray, warm_start: np.ndarray | None = None,
               max_iter: int = 100) -> OnlineResult:
@@ -182,14 +204,16 @@ def project_affine(terms_full: list, left: np.ndarray | None, right: np.ndarray 
 
 
 def build_affine_model(reduced_operators: Callable[[np.ndarray], tuple], bounds: np.ndarray,
-                       is_cone: bool = True, rtol: float = 1e-10, info: dict | None = None
-                       ) -> ReducedModel:
+                       is_cone: bool = True, rtol: float = 1e-10, info: dict | None = None,
+                       constraint: Callable | None = None) -> ReducedModel:
     """Reduced model with the exact affine decomposition in mu ("exact-affine" hyper-reducer).
 
     ``reduced_operators(mu)`` returns the projected ``(A_N, F_N, B_N, G_N)`` at
     mu (one HF assembly each); each is decomposed by
     :func:`affine_decomposition`, which raises :class:`NotAffineError` when the
-    scene has no affine decomposition (then EIM is needed).
+    scene has no affine decomposition (then EIM is needed). With a given
+    ``constraint`` (a hyper-reduced ``mu -> (B_N, G_N)``), only A and F are
+    decomposed.
     """
     cache: dict[bytes, tuple] = {}
 
@@ -199,7 +223,7 @@ def build_affine_model(reduced_operators: Callable[[np.ndarray], tuple], bounds:
             cache[key] = tuple(np.asarray(x, dtype=float) for x in reduced_operators(mu))
         return cache[key]
 
-    names = ("A", "F", "B", "G")
+    names = ("A", "F", "B", "G") if constraint is None else ("A", "F")
     ops = {}
     for k, name in enumerate(names):
         try:
@@ -207,7 +231,10 @@ def build_affine_model(reduced_operators: Callable[[np.ndarray], tuple], bounds:
                                                             rtol=rtol))
         except NotAffineError as exc:
             raise NotAffineError(f"reduced {name}(mu) is {exc}") from None
-    return ReducedModel(coefficients=LinearInMu(np.asarray(bounds).shape[0]), is_cone=is_cone,
+    theta = LinearInMu(np.asarray(bounds).shape[0])
+    if constraint is None:
+        constraint = AffineConstraint(ops.pop("B"), ops.pop("G"), theta)
+    return ReducedModel(coefficients=theta, constraint=constraint, is_cone=is_cone,
                         info=info or {}, **ops)
 
 

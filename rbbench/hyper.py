@@ -1,0 +1,274 @@
+"""Hyper-reduction of the contact constraint: EIM of ``B(mu) Z`` and ``G(mu)`` (``hyper = "eim"``).
+
+Why not the entries of ``B(mu)``. On a parametrised geometry (seed 000,
+"Affine parametric decomposition") ``B(mu)`` is not affine: every slave
+quadrature point slides along the master polygon as mu changes, so each
+*entry* of ``B(mu)`` is a hat-shaped function of mu, and the entrywise EIM
+of the seed generalises badly (its ``e_EIM`` is still reported, see
+:func:`entrywise_eim_error`: on ``hertz_halfdisks`` with 21 training
+parameters it interpolates the training set and misses the validation set
+by 69 %). Interpolating the columns of ``C(mu) = B(mu) Z`` over the multiplier
+index (a row DEIM) needed about 190 of the 256 rows for a 1e-6 error (the
+PGA modes make those columns rich), so its online cost grows with the mesh.
+
+What the reduced model needs is ``B_N(mu) = Vg^T C(mu)`` and
+``G_N(mu) = Vg^T G(mu)``, and ``C(mu)`` (the normal jump of the primal modes,
+integrated against each multiplier) and ``G(mu)`` are smooth in mu. So the
+greedy EIM of Barrault-Maday-Nguyen-Patera (:func:`rbbench.eim.deim`) is
+applied to the *matrices* ``C(mu)`` (entries of the dense m x N matrix) and
+to the vectors ``G(mu)``::
+
+    C(mu) ~ sum_k theta_k(mu) C_k,  theta from C(mu) at M_B magic entries (i_k, n_k)
+    G(mu) ~ sum_k eta_k(mu) G_k,    eta from G(mu) at M_G magic rows
+
+so ``B_N(mu) = sum_k theta_k(mu) Vg^T C_k`` with the ``Vg^T C_k`` precomputed.
+Online, only the few magic rows of ``B(mu)`` and ``G(mu)`` are computed:
+:class:`RowEvaluator` pairs the slave facets of those rows against a
+window of master facets, from a restricted
+:class:`~rbbench.contact_geometry.ContactLayout` (small arrays, no backend).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from rbbench.contact_geometry import (
+    ContactLayout,
+    FacetChain,
+    multiplier_basis,
+    pair,
+)
+from rbbench.eim import deim, eim_error, matrix_eim
+
+__all__ = ["ContactEIM", "HyperReductionError", "RowEvaluator", "build_row_evaluator",
+           "contact_eim", "entrywise_eim_error"]
+
+
+class HyperReductionError(ValueError):
+    """The hyper-reduced evaluator cannot represent this case (the message says why)."""
+
+
+@dataclass
+class RowEvaluator:
+    """Rows ``rows`` of ``B(mu)`` (on the local dofs) and of ``G(mu)``, HF-size independent.
+
+    Attributes
+    ----------
+    layout : ContactLayout
+        Restricted: the slave facets of the rows, the master facets of their
+        windows, dofs renumbered to ``0 .. n_local - 1``.
+    rows : (M,)
+        Global multiplier indices.
+    windows : (lo, hi) or None
+        Per quadrature point, the range of master facets (indices into the
+        contiguous chain ``layout.master``) hit over a dense sample of D,
+        widened by a margin; searched by bisection
+        (:func:`~rbbench.contact_geometry.ray_cast_window`).
+    local_dofs : (n_local,)
+        Global dofs behind the local numbering.
+    Mrows : (M, nq)
+        Multiplier basis of the rows at the quadrature points (mu-independent).
+    """
+
+    layout: ContactLayout
+    rows: np.ndarray
+    windows: tuple[np.ndarray, np.ndarray] | None
+    local_dofs: np.ndarray
+    Mrows: np.ndarray
+
+    def _pair(self, mu: np.ndarray):
+        try:
+            return pair(self.layout, mu, windows=self.windows)
+        except ValueError as exc:
+            raise HyperReductionError(
+                f"mu = {np.atleast_1d(mu).tolist()}: a magic row's quadrature point left the "
+                f"master window sampled offline ({exc})") from None
+
+    def __call__(self, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(B(mu)[rows][:, local_dofs] (M x n_local) dense, G(mu)[rows] (M,))``."""
+        p = self._pair(mu)
+        Mw = self.Mrows * p.w
+        return Mw @ p.jump(p.nrm, self.n_local).toarray(), Mw @ p.gap
+
+    def project(self, mu: np.ndarray, Z_loc: np.ndarray, pos_B: np.ndarray,
+                pos_G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(B(mu)[rows[pos_B]] Z, G(mu)[rows[pos_G]])`` from the local basis ``Z_loc``.
+
+        Never forms the rows: gathers ``Z_loc`` at the facet dofs of each point.
+        """
+        p = self._pair(mu)
+        nq = p.w.size
+
+        def trace(phi: np.ndarray, dofs: np.ndarray) -> np.ndarray:  # (nq, N)
+            coef = (phi[:, :, None] * p.nrm[:, None, :]).reshape(nq, 1, -1)
+            return np.matmul(coef, Z_loc[dofs.reshape(nq, -1)])[:, 0]
+
+        JZ = trace(p.slave_phi, p.slave_dofs)
+        if p.master_phi is not None:
+            JZ -= trace(p.master_phi, p.master_dofs)
+        return (self.Mrows[pos_B] * p.w) @ JZ, (self.Mrows[pos_G] * p.w) @ p.gap
+
+    @property
+    def n_local(self) -> int:
+        return int(self.local_dofs.size)
+
+
+def build_row_evaluator(layout: ContactLayout, rows: np.ndarray, mus: np.ndarray,
+                        margin: int = 2) -> RowEvaluator:
+    """Restrict ``layout`` to the multiplier ``rows``.
+
+    The master window of each quadrature point is the range of master facets
+    it hits over ``mus`` (a dense sample of D, including its corners),
+    widened by ``margin`` facets each side; online, a point leaving its
+    window raises :class:`HyperReductionError` rather than pairing wrongly.
+    """
+    rows = np.unique(np.asarray(rows, dtype=np.int64))
+    facets = layout.facets_of_rows(rows)
+    slave = layout.slave.subset(facets)
+    master = None
+    windows = None
+    if layout.master is not None:
+        segs = np.stack([pair(layout, mu, slave=slave).master_seg for mu in mus])
+        lo = np.maximum(segs.min(axis=0) - margin, 0)
+        hi = np.minimum(segs.max(axis=0) + margin, layout.master.n - 1)
+        first = int(lo.min())
+        master = layout.master.subset(np.arange(first, int(hi.max()) + 1))  # contiguous chain
+        windows = (lo - first, hi - first)
+    dofs = [slave.dofs.reshape(-1)] + ([master.dofs.reshape(-1)] if master else [])
+    local = np.unique(np.concatenate(dofs))
+
+    def renumber(chain: FacetChain | None) -> FacetChain | None:
+        if chain is None:
+            return None
+        out = chain.subset(np.arange(chain.n))
+        out.dofs = np.searchsorted(local, chain.dofs)
+        return out
+
+    small = ContactLayout(slave=renumber(slave), master=renumber(master), degree=layout.degree,
+                          n_gauss=layout.n_gauss, multiplier=layout.multiplier,
+                          patch=layout.patch, n_facets=layout.n_facets, n_dofs=local.size)
+    p = pair(small, mus[0], windows=windows)
+    M = multiplier_basis(layout.multiplier, layout.n_facets, small.slave.ids[p.fq], p.sq,
+                         layout.patch).tocsc()
+    Mrows = M[:, rows].T.toarray()
+    return RowEvaluator(small, rows, windows, local, Mrows)
+
+
+@dataclass
+class ContactEIM:
+    """Hyper-reduced constraint ``mu -> (B_N(mu), G_N(mu))`` (module docstring).
+
+    Attributes
+    ----------
+    evaluator : RowEvaluator
+        The magic rows of ``B(mu)`` and ``G(mu)``.
+    pos_B : (n_rows_B,)
+        Positions in ``evaluator.rows`` of the rows holding C's magic entries.
+    entry_row, entry_col : (M_B,)
+        Each magic entry of C as (index into ``pos_B``, column of Z).
+    pos_G : (M_G,)
+        Positions in ``evaluator.rows`` of G's magic rows.
+    Z_loc : (n_local, N)
+        The primal basis on the local dofs.
+    lu_B, lu_G : LU factors of ``Q[magic]`` (unit lower triangular for the greedy EIM).
+    T_B : (M_B, R, N)
+        ``Vg^T C_k``.
+    T_G : (M_G, R)
+        ``Vg^T G_k``.
+    info : dict
+        Sizes, EIM training errors and tolerances.
+    """
+
+    evaluator: RowEvaluator
+    pos_B: np.ndarray
+    entry_row: np.ndarray
+    entry_col: np.ndarray
+    pos_G: np.ndarray
+    Z_loc: np.ndarray
+    lu_B: tuple
+    lu_G: tuple
+    T_B: np.ndarray
+    T_G: np.ndarray
+    info: dict = field(default_factory=dict)
+
+    def __call__(self, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        C, g = self.evaluator.project(mu, self.Z_loc, self.pos_B, self.pos_G)
+        theta = sla.lu_solve(self.lu_B, C[self.entry_row, self.entry_col])
+        eta = sla.lu_solve(self.lu_G, g)
+        return np.tensordot(theta, self.T_B, axes=1), eta @ self.T_G
+
+    @property
+    def R(self) -> int:
+        return int(self.T_G.shape[1])
+
+
+def contact_eim(layout: ContactLayout, B_train: list, G_train: np.ndarray, Z: np.ndarray,
+                Vg: np.ndarray, free: np.ndarray, mus_sample: np.ndarray,
+                tol: float = 1e-8, m_max: int | None = None) -> ContactEIM:
+    """Build :class:`ContactEIM` from the training constraint operators.
+
+    Parameters
+    ----------
+    layout : ContactLayout
+        The backend's reference contact data.
+    B_train : list of (m, n_free) sparse
+        ``B(mu)`` on the free dofs (the formulation's), one per training mu.
+    G_train : (m, P)
+        ``G(mu)`` (the formulation's, lifted).
+    Z : (n_free, N)
+        Primal basis (after stabilisation).
+    Vg : (m, R)
+        Dual generators.
+    free : (n_free,)
+        Global dof of each free dof.
+    mus_sample : (S, p)
+        Dense sample of D for the master windows (:func:`build_row_evaluator`).
+    tol, m_max
+        EIM stopping: relative max-norm training error, and largest size.
+    """
+    m, N = B_train[0].shape[0], Z.shape[1]
+    S = np.stack([np.asarray(B @ Z).ravel() for B in B_train], axis=1)  # (m N, P)
+    res_B = deim(S, tol=tol, m_max=m_max)
+    res_G = deim(np.asarray(G_train), tol=tol, m_max=m_max)
+    if res_B.m == 0 or res_G.m == 0:
+        raise HyperReductionError("EIM found no term: the training B(mu) Z or G(mu) is zero")
+    e_row, e_col = np.divmod(res_B.magic, N)
+    rows_B = np.unique(e_row)
+    ev = build_row_evaluator(layout, np.concatenate([rows_B, res_G.magic]), mus_sample)
+    pos = {int(r): i for i, r in enumerate(ev.rows)}
+    free_of = np.full(layout.n_dofs, -1, dtype=np.int64)
+    free_of[free] = np.arange(free.size)
+    loc = free_of[ev.local_dofs]
+    if np.any(loc < 0):
+        raise HyperReductionError(
+            f"{int(np.sum(loc < 0))} dof(s) of the magic contact rows are Dirichlet dofs; "
+            "the contact EIM assumes the contact zone is away from the Dirichlet boundary")
+    T_B = np.stack([Vg.T @ res_B.Q[:, k].reshape(m, N) for k in range(res_B.m)])
+    T_G = (Vg.T @ res_G.Q).T
+    info = {"M_B": res_B.m, "M_G": res_G.m, "rows": int(ev.rows.size),
+            "n_local_dofs": ev.n_local, "tol": tol,
+            "errors_B": res_B.errors.tolist(), "errors_G": res_G.errors.tolist(),
+            "window_max_width": (0 if ev.windows is None
+                                 else int((ev.windows[1] - ev.windows[0]).max()) + 1),
+            "master_facets": 0 if ev.layout.master is None else ev.layout.master.n}
+    return ContactEIM(ev, np.array([pos[int(r)] for r in rows_B], dtype=np.int64),
+                      np.searchsorted(rows_B, e_row), e_col,
+                      np.array([pos[int(r)] for r in res_G.magic], dtype=np.int64),
+                      np.ascontiguousarray(Z[loc]), sla.lu_factor(res_B.Q[res_B.magic]),
+                      sla.lu_factor(res_G.Q[res_G.magic]), T_B, T_G, info)
+
+
+def entrywise_eim_error(B_train: list, B_valid: list, tol: float = 1e-8,
+                        m_max: int | None = None) -> dict:
+    """The seed's entrywise EIM of ``B(mu)`` (slide "EIM errors"), for comparison.
+
+    Returns the training error curve and the validation ``e_EIM`` at the
+    final size (ratio of maxima over the validation set).
+    """
+    res = matrix_eim([sp.csr_matrix(B) for B in B_train], tol=tol, m_max=m_max)
+    return {"M": res.m, "errors_train": res.errors.tolist(),
+            "e_eim_valid": eim_error(res, B_valid)}

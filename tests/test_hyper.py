@@ -1,0 +1,138 @@
+"""Hyper-reduction of the contact rows (rbbench.hyper) against the HF operators."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rbbench.contact_geometry import ray_cast, ray_cast_window
+from rbbench.hf import make_components
+from rbbench.hyper import HyperReductionError, build_row_evaluator, contact_eim
+from rbbench.rb_pipeline import ReduceConfig, reduce
+from rbbench.scene import load_scene
+
+COARSE = ["discretization.h_contact=0.02", "discretization.h_max=0.2"]
+
+
+def _components(extra=()):
+    sc = load_scene("hertz_halfdisks", COARSE + list(extra))
+    return sc, make_components(sc, "skfem", "mixed", "ssn")
+
+
+@pytest.mark.parametrize("extra", [(), ('geometry.lower="rigid_flat"',),
+                                   ("discretization.degree=2", 'discretization.multiplier="p1"')])
+def test_row_evaluator_reproduces_hf_rows(extra):
+    sc, (b, f, _) = _components(extra)
+    layout = b.contact_layout()
+    rng = np.random.default_rng(1)
+    rows = np.sort(rng.choice(layout.n_mult, min(7, layout.n_mult), replace=False))
+    ev = build_row_evaluator(layout, rows, np.linspace(0.7, 1.3, 13)[:, None])
+    for mu in [0.7, 1.3, *rng.uniform(0.7, 1.3, 3)]:
+        c = b.discretize(mu).contact
+        B, G = c.B(), c.G()
+        Br, Gr = ev(mu)
+        # every nonzero of those rows lives on the local dofs, and the values match
+        assert abs(B[ev.rows]).sum() == pytest.approx(np.abs(Br).sum(), rel=1e-12)
+        np.testing.assert_allclose(Br, B[ev.rows][:, ev.local_dofs].toarray(),
+                                   atol=1e-14 * abs(B).max())
+        np.testing.assert_allclose(Gr, G[ev.rows], atol=1e-14 * np.abs(G).max())
+        Z = rng.standard_normal((ev.n_local, 3))
+        C, g = ev.project(mu, Z, np.arange(ev.rows.size), np.arange(ev.rows.size))
+        np.testing.assert_allclose(C, Br @ Z, atol=1e-13 * np.abs(Br @ Z).max())
+
+
+def test_row_evaluator_refuses_a_point_outside_its_window():
+    sc, (b, _, _) = _components()
+    layout = b.contact_layout()
+    ev = build_row_evaluator(layout, [0], np.array([[0.99], [1.0]]), margin=0)
+    with pytest.raises(HyperReductionError, match="window"):
+        ev(0.7)
+
+
+@st.composite
+def chains(draw):
+    n = draw(st.integers(3, 40))
+    theta = np.sort(draw(st.lists(st.floats(0.3, 2.8), min_size=n + 1, max_size=n + 1,
+                                  unique=True)))
+    r = 1.0 + draw(st.floats(0.0, 0.2)) * np.sin(draw(st.integers(1, 9)) * theta)
+    verts = np.stack([r * np.cos(theta), r * np.sin(theta)], axis=1)
+    k = draw(st.integers(1, 8))
+    x = np.stack([np.array(draw(st.lists(st.floats(-1.0, 1.0), min_size=k, max_size=k))),
+                  np.full(k, 1.6)], axis=1)
+    ang = np.array(draw(st.lists(st.floats(-0.6, 0.6), min_size=k, max_size=k)))
+    nrm = np.stack([np.sin(ang), -np.cos(ang)], axis=1)
+    lo = np.array(draw(st.lists(st.integers(0, n - 1), min_size=k, max_size=k)))
+    hi = np.minimum(lo + np.array(draw(st.lists(st.integers(0, n), min_size=k,
+                                                max_size=k))), n - 1)
+    return verts[:-1], verts[1:], x, nrm, lo, hi
+
+
+@settings(max_examples=150, deadline=None)
+@given(chains())
+def test_windowed_ray_cast_equals_brute_force_on_the_window(data):
+    """Bisection + local check equals the brute-force cast, also on wavy (non-monotone) chains."""
+    a, b, x, nrm, lo, hi = data
+    width = int((hi - lo).max()) + 1
+    cand = lo[:, None] + np.arange(width)[None, :]
+    cand = np.where(cand <= hi[:, None], cand, -1)
+    seg0, s0, t0 = ray_cast(x, nrm, a, b, candidates=cand)
+    seg1, s1, t1 = ray_cast_window(x, nrm, a, b, lo, hi)
+    hit = seg0 >= 0
+    np.testing.assert_array_equal(seg1 >= 0, hit)
+    # the same distance |t| (ties between facets sharing a vertex may pick either)
+    np.testing.assert_allclose(np.abs(t1[hit]), np.abs(t0[hit]), rtol=1e-9, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def hertz_train():
+    sc, (b, f, _) = _components()
+    mus = np.linspace(0.7, 1.3, 7)[:, None]
+    probs = [f.build(b.discretize(mu)) for mu in mus]
+    return sc, b, f, mus, probs
+
+
+def test_contact_eim_is_exact_at_its_magic_rows_and_on_training(hertz_train):
+    sc, b, f, mus, probs = hertz_train
+    rng = np.random.default_rng(2)
+    n = probs[0].A.shape[0]
+    Z = np.linalg.qr(rng.standard_normal((n, 4)))[0]
+    Vg = np.abs(rng.standard_normal((probs[0].B.shape[0], 3)))
+    deim = contact_eim(b.contact_layout(), [p.B for p in probs],
+                        np.stack([p.G for p in probs], axis=1), Z, Vg, probs[0].free,
+                        mus, tol=1e-12)
+    for p, mu in zip(probs, mus, strict=True):  # training: reproduced to rounding
+        Bn, Gn = deim(mu)
+        np.testing.assert_allclose(Bn, Vg.T @ (p.B @ Z), atol=1e-9 * np.abs(Bn).max())
+        np.testing.assert_allclose(Gn, Vg.T @ p.G, atol=1e-9 * np.abs(Gn).max())
+    # off training: the interpolant matches C(mu) = B(mu) Z exactly at the magic rows
+    ev = deim.evaluator
+    p = f.build(b.discretize(0.93))
+    C = p.B @ Z
+    rows_B = ev.rows[deim.pos_B]
+    Cp, _ = ev.project(0.93, deim.Z_loc, deim.pos_B, deim.pos_G)
+    np.testing.assert_allclose(Cp, C[rows_B], atol=1e-13 * np.abs(C).max())
+    assert pickle.loads(pickle.dumps(deim)).R == 3
+
+
+def test_pipeline_with_eim_matches_the_plain_reduced_model(tmp_path):
+    """On the training parameters (validation = training grid) the EIM reproduces B_N and
+    G_N, so hyper 'eim' and hyper 'none' solve the same reduced problems."""
+    sc = load_scene("hertz_halfdisks", COARSE + ['sampling.valid="uniform"'])
+    common = dict(dual="mcpg", stabilizer="none", N=6, R=5, n_train=7, n_valid=7, n_jobs=1,
+                  cache_dir=str(tmp_path), online_repeats=2)
+    r_eim = reduce(sc, ReduceConfig(hyper="eim", tol_eim=0.0, **common))
+    r_none = reduce(sc, ReduceConfig(hyper="none", **common))
+    assert r_eim.hyper == "eim" and r_none.hyper == "none"
+    np.testing.assert_allclose(r_eim.err_u, r_none.err_u, rtol=1e-6)
+    np.testing.assert_allclose(r_eim.err_lam, r_none.err_lam, rtol=1e-6)
+    h = r_eim.histories
+    assert h["eim"]["e_eim_valid_BN"] < 1e-10
+    assert h["eim_error"] and all(e >= 0 for e in h["eim_error"])
+    assert "eim_entrywise" in h
+    # auto picks eim on Hertz (B(mu) is not affine) when the backend has a layout
+    r_auto = reduce(sc, ReduceConfig(hyper="auto", tol_eim=1e-6, **common))
+    assert r_auto.hyper == "eim" and "affine_refused" in r_auto.histories
