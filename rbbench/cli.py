@@ -108,19 +108,37 @@ def cmd_scenes(args) -> int:
     return 0
 
 
-def cmd_reduce(args) -> int:
-    from rbbench.output import _jsonable, provenance
-    from rbbench.rb_pipeline import ReduceConfig, reduce
+def _reduce_config(args):
+    from rbbench.rb_pipeline import ReduceConfig
 
-    scene = load_scene(args.scene, overrides=args.set or [])
     try:
-        cfg = ReduceConfig(primal=args.primal, dual=args.dual, stabilizer=args.stabilizer,
-                           hyper=args.hyper, N=args.N, R=args.R, n_train=args.n_train,
-                           n_valid=args.n_valid, n_jobs=args.jobs, solver=args.solver,
-                           backend=args.backend, formulation=args.formulation,
-                           tol_eim=args.tol_eim, delta_pga=args.delta_pga)
+        return ReduceConfig(primal=args.primal, dual=args.dual, stabilizer=args.stabilizer,
+                            hyper=args.hyper, N=args.N, R=args.R, n_train=args.n_train,
+                            n_valid=args.n_valid, n_jobs=args.jobs, solver=args.solver,
+                            backend=args.backend, formulation=args.formulation,
+                            tol_eim=args.tol_eim, delta_pga=args.delta_pga)
     except ValueError as exc:
         raise SceneError(str(exc)) from None
+
+
+def cmd_online_scaling(args) -> int:
+    from rbbench.studies import online_scaling, scaling_markdown
+
+    rows = online_scaling(args.scene, _reduce_config(args), tuple(args.levels),
+                          tuple(args.set or ()), repeats=args.repeats,
+                          progress=_Progress(args.quiet))
+    print(scaling_markdown(rows))
+    print("(online time: one reduced solve incl. the EIM evaluation; median and IQR over "
+          "validation mus x repeats, models interleaved; ratio: median / first level's)")
+    return 0
+
+
+def cmd_reduce(args) -> int:
+    from rbbench.output import _jsonable, provenance
+    from rbbench.rb_pipeline import reduce
+
+    scene = load_scene(args.scene, overrides=args.set or [])
+    cfg = _reduce_config(args)
     progress = _Progress(args.quiet)
     res = reduce(scene, cfg, progress=progress, snapshot_progress=not args.quiet)
     s = res.summary()
@@ -152,6 +170,28 @@ def cmd_hertz_table(args) -> int:
     return 0
 
 
+def _add_reduce_args(rd) -> None:
+    rd.add_argument("--primal", default="pod")
+    rd.add_argument("--dual", default="mcpg", help="pod, cpg, mcpg, eng, nnmf")
+    rd.add_argument("--stabilizer", default="pga", help="none, supremizer, pga")
+    rd.add_argument("--hyper", default="auto",
+                    help="auto (affine if exact, else eim), affine (exact), eim (EIM of "
+                         "B(mu) Z and G(mu)), none (plain: HF assembly projected online)")
+    rd.add_argument("--tol-eim", type=float, default=1e-4,
+                    help="EIM tolerance (relative max-norm training error)")
+    rd.add_argument("--delta-pga", type=float, default=None,
+                    help="PGA tolerance on sigma_max (default: see result.json pga_delta)")
+    rd.add_argument("-N", type=int, default=None, help="primal size (default: POD tolerance)")
+    rd.add_argument("-R", type=int, default=None, help="max dual size (default: tolerance)")
+    rd.add_argument("--n-train", type=int, default=None)
+    rd.add_argument("--n-valid", type=int, default=None)
+    rd.add_argument("--jobs", type=int, default=None, help="processes for HF snapshots")
+    rd.add_argument("--backend", default="skfem")
+    rd.add_argument("--formulation", default="mixed")
+    rd.add_argument("--solver", default="ssn")
+    rd.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rbbench", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -173,25 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
     rd = sub.add_parser("reduce", help="offline RB stage + online validation (mixed "
                         "formulation): errors, inf-sup constants, timings -> result.json")
     rd.add_argument("scene")
-    rd.add_argument("--primal", default="pod")
-    rd.add_argument("--dual", default="mcpg", help="pod, cpg, mcpg, eng, nnmf")
-    rd.add_argument("--stabilizer", default="pga", help="none, supremizer, pga")
-    rd.add_argument("--hyper", default="auto",
-                    help="auto (affine if exact, else eim), affine (exact), eim (EIM on the "
-                         "contact rows), none (plain: HF assembly projected online)")
-    rd.add_argument("--tol-eim", type=float, default=1e-8,
-                    help="EIM tolerance (relative max-norm training error)")
-    rd.add_argument("--delta-pga", type=float, default=None,
-                    help="PGA tolerance on sigma_max (default: see result.json pga_delta)")
-    rd.add_argument("-N", type=int, default=None, help="primal size (default: POD tolerance)")
-    rd.add_argument("-R", type=int, default=None, help="max dual size (default: tolerance)")
-    rd.add_argument("--n-train", type=int, default=None)
-    rd.add_argument("--n-valid", type=int, default=None)
-    rd.add_argument("--jobs", type=int, default=None, help="processes for HF snapshots")
-    rd.add_argument("--backend", default="skfem")
-    rd.add_argument("--formulation", default="mixed")
-    rd.add_argument("--solver", default="ssn")
-    rd.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    _add_reduce_args(rd)
     rd.add_argument("--out")
     rd.add_argument("--quiet", action="store_true")
     rd.set_defaults(func=cmd_reduce)
@@ -206,6 +228,15 @@ def build_parser() -> argparse.ArgumentParser:
     ht.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
     ht.add_argument("--quiet", action="store_true")
     ht.set_defaults(func=cmd_hertz_table)
+    osc = sub.add_parser("online-scaling",
+                         help="online time of one reduction at several mesh levels, timed "
+                              "side by side (is it flat in the HF size?)")
+    osc.add_argument("scene")
+    _add_reduce_args(osc)
+    osc.add_argument("--levels", type=int, nargs="+", default=[0, 1])
+    osc.add_argument("--repeats", type=int, default=30)
+    osc.add_argument("--quiet", action="store_true")
+    osc.set_defaults(func=cmd_online_scaling, hyper="eim")
     sc = sub.add_parser("scenes", help="list the scenes in problems/")
     sc.set_defaults(func=cmd_scenes)
     return p

@@ -100,10 +100,14 @@ class OnlineResult:
 
 
 def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
-                  warm_start: np.ndarray | None = None, max_iter: int = 100) -> OnlineResult:
-    """Solve the reduced saddle point: dense Cholesky of A_N, R x R LCP by PDAS."""
+                  warm_start: np.ndarray | None = None, max_iter: int = 100,
+                  cho: tuple | None = None) -> OnlineResult:
+    """Solve the reduced saddle point: dense Cholesky of A_N, R x R LCP by PDAS.
+
+    ``cho``: a Cholesky factor of ``A`` computed once (A_N independent of mu).
+    """
     t0 = time.perf_counter()
-    cho = sla.cho_factor(A)
+    cho = sla.cho_factor(A) if cho is None else cho
     c0 = sla.cho_solve(cho, F)
     AinvBt = sla.cho_solve(cho, B.T)
     D = B @ AinvBt
@@ -157,6 +161,14 @@ class ReducedModel:
     is_cone: bool = True
     info: dict = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        # A_N independent of mu (e.g. a dilation, which leaves 2D stiffness invariant):
+        # factorise it once. The test is on the decomposition's own terms.
+        t = self.A.terms
+        scale = np.abs(t[0]).max() if t.size else 0.0
+        const = t.shape[0] == 1 or np.abs(t[1:]).max() <= 1e-12 * scale
+        self._cho = sla.cho_factor(t[0]) if const and scale > 0 else None
+
     @property
     def N(self) -> int:
         return int(self.A.terms.shape[-1])
@@ -174,7 +186,8 @@ class ReducedModel:
               max_iter: int = 100) -> OnlineResult:
         """Online solve: assemble the reduced arrays, then :func:`solve_reduced`."""
         t0 = time.perf_counter()
-        res = solve_reduced(*self.arrays(mu), warm_start=warm_start, max_iter=max_iter)
+        res = solve_reduced(*self.arrays(mu), warm_start=warm_start, max_iter=max_iter,
+                            cho=self._cho)
         res.time_s = time.perf_counter() - t0
         return res
 

@@ -136,3 +136,17 @@ def test_pipeline_with_eim_matches_the_plain_reduced_model(tmp_path):
     # auto picks eim on Hertz (B(mu) is not affine) when the backend has a layout
     r_auto = reduce(sc, ReduceConfig(hyper="auto", tol_eim=1e-6, **common))
     assert r_auto.hyper == "eim" and "affine_refused" in r_auto.histories
+
+
+def test_online_scaling_study_runs_on_two_levels(tmp_path, monkeypatch):
+    from rbbench.studies import online_scaling, scaling_markdown
+
+    monkeypatch.chdir(tmp_path)
+    cfg = ReduceConfig(dual="mcpg", stabilizer="none", hyper="eim", N=4, R=4, n_train=5,
+                       n_valid=2, n_jobs=1, cache_dir=str(tmp_path), online_repeats=1)
+    rows = online_scaling("hertz_halfdisks", cfg, levels=(0, 1), overrides=COARSE, repeats=2,
+                          progress=lambda _m: None)
+    assert [r["level"] for r in rows] == [0, 1]
+    assert rows[1]["n_hf_dofs"] > rows[0]["n_hf_dofs"]
+    assert rows[0]["ratio_to_first"] == 1.0 and rows[1]["t_online_median_s"] > 0
+    assert "| 1 |" in scaling_markdown(rows)
