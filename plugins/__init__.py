@@ -8,6 +8,21 @@ from rbbench.hookspecs import hookimpl
 from rbbench.registry import ComponentSpec
 
 _ALL_PHYSICS = ("elasticity", "poisson")
+_COMP = "rbbench.compressors"
+
+#: Dual compressors: (name, class, is a cone, nested in R, modules, description).
+_DUALS = (
+    ("pod", "PODLam", False, True, (),
+     "POD of the multipliers: a linear span, NOT a cone (baseline: positivity lost)"),
+    ("cpg", "CPG", True, True, (),
+     "Cone Projected Greedy: normalised selected snapshots (seed 000, CPG algorithm)"),
+    ("mcpg", "MCPG", True, True, ("daqp",),
+     "modified CPG: generators peeled of the previous cone by a QP (seed 000, mCPG)"),
+    ("eng", "ENG", True, True, ("daqp",),
+     "Enlarged Nonnegative Greedy (our design): mCPG peeling of every generator"),
+    ("nnmf", "NNMF", True, False, (),
+     "non-negative matrix factorisation (HALS) baseline, refitted per rank"),
+)
 
 
 @hookimpl
@@ -38,4 +53,39 @@ def rbbench_register(registry):
         target="rbbench_plugins.solvers.condensed:UzawaSolver",
         capabilities={"formulations": ("mixed",)},
         description="Uzawa projected dual iteration (seed 000 baseline), condensed",
+    ))
+
+    # primal compressors: V_N from displacement snapshots
+    add(ComponentSpec(
+        name="pod", role="primal", target=f"{_COMP}:PODPrimal",
+        capabilities={"tol": "energy", "nested": True},
+        description="POD in the X inner product, energy tolerance (seed 000, Method 1)",
+    ))
+    add(ComponentSpec(
+        name="greedy", role="primal", target=f"{_COMP}:GreedyPrimal",
+        capabilities={"tol": "max", "nested": True},
+        description="ideal greedy on the training snapshots (true projection error), "
+                    "max tolerance (seed 000, Method 2)",
+    ))
+    # dual compressors: W_R+ from multiplier snapshots
+    for name, cls, cone, nested, modules, text in _DUALS:
+        add(ComponentSpec(
+            name=name, role="dual", target=f"{_COMP}:{cls}", modules=modules,
+            capabilities={"cone": cone, "nested": nested}, description=text,
+        ))
+    # stabilisers: inf-sup stable primal space over the reduced cone
+    add(ComponentSpec(
+        name="none", role="stabilizer", target=f"{_COMP}:NoStabilizer",
+        capabilities={"online_hf": False, "inf_sup": "not guaranteed"},
+        description="decorrelated V_N x W_R+: beta_dec may vanish",
+    ))
+    add(ComponentSpec(
+        name="supremizer", role="stabilizer", target=f"{_COMP}:SupremizerStabilizer",
+        capabilities={"online_hf": True, "inf_sup": "every mu"},
+        description="online supremizers V_N + S_R(mu): needs the HF B(mu) online",
+    ))
+    add(ComponentSpec(
+        name="pga", role="stabilizer", target=f"{_COMP}:PGAStabilizer",
+        capabilities={"online_hf": False, "inf_sup": "training set"},
+        description="Projected Greedy Algorithm: V_N + S_R^red built offline (seed 000)",
     ))

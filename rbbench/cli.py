@@ -90,10 +90,11 @@ def cmd_plugins(args) -> int:
     if args.json:
         print(json.dumps(rows, indent=2, default=str))
         return 0
-    print(f"{'role':<12}{'name':<10}{'package':<22}{'extras':<10}{'importable':<11}description")
+    w = max([len(r["name"]) for r in rows] + [4]) + 2
+    print(f"{'role':<12}{'name':<{w}}{'package':<22}{'extras':<10}{'importable':<11}description")
     for r in rows:
         pkg = f"{r['package']} {r['version']}".strip()
-        print(f"{r['role']:<12}{r['name']:<10}{pkg:<22}{','.join(r['extras']) or '-':<10}"
+        print(f"{r['role']:<12}{r['name']:<{w}}{pkg:<22}{','.join(r['extras']) or '-':<10}"
               f"{'yes' if r['importable'] else 'NO':<11}{r['description']}")
         if not r["importable"]:
             print(f"{'':<12}-> {r['hint']}")

@@ -55,25 +55,33 @@ from rbbench.scene import SCHEMA, Scene, SceneError, load_scene
 __all__ = [
     "ContractViolation",
     "HERTZ_COARSE",
+    "PRIMAL_TOL_KINDS",
     "ROLE_CHECKS",
+    "STABILIZER_GUARANTEES",
     "backend_scenes",
     "check_backend",
     "check_component",
+    "check_dual",
     "check_formulation",
+    "check_primal",
     "check_solver",
     "check_spec",
+    "check_stabilizer",
     "component_params",
+    "dual_test_data",
     "infeasible_contact_problem",
+    "primal_test_data",
     "random_contact_problem",
     "redundant_contact_problem",
     "reference_discretization",
+    "stabilizer_test_data",
 ]
 
 #: Overrides making ``hertz_halfdisks`` cheap enough for a contract run.
 HERTZ_COARSE = ("discretization.h_contact=0.02", "discretization.h_max=0.2")
 
 #: Roles with a role-specific contract (the others get the declaration check only).
-ROLE_CHECKS = ("backend", "formulation", "solver")
+ROLE_CHECKS = ("backend", "formulation", "solver", "primal", "dual", "stabilizer")
 
 _KNOWN_PHYSICS = SCHEMA["scene"]["physics"].choices
 _KNOWN_MULTIPLIERS = SCHEMA["discretization"]["multiplier"].choices
@@ -170,7 +178,8 @@ def _shape(M: Any, shape: tuple[int, int], what: str) -> None:
 # ---------------------------------------------------------------------------
 # declaration
 # ---------------------------------------------------------------------------
-_ROLE_METHOD = {"backend": "discretize", "formulation": "build", "solver": "solve"}
+_ROLE_METHOD = {"backend": "discretize", "formulation": "build", "solver": "solve",
+                "primal": "__call__", "dual": "__call__", "stabilizer": "offline"}
 
 
 def check_spec(registry: Registry, spec: ComponentSpec) -> Any:
@@ -217,7 +226,9 @@ def check_spec(registry: Registry, spec: ComponentSpec) -> Any:
     _require(callable(obj), f"{label}: target {spec.target!r} is not callable")
     method = _ROLE_METHOD.get(spec.role)
     if method and isinstance(obj, type):
-        _require(callable(getattr(obj, method, None)),
+        # vars() along the MRO: every class object is callable through its metaclass
+        _require(callable(getattr(obj, method, None))
+                 and any(method in vars(c) for c in obj.__mro__),
                  f"{label}: class {obj.__name__} has no {method}() method")
     return obj
 
@@ -721,6 +732,370 @@ def check_solver(factory: Callable[..., Any], options: dict | None = None,
 
 
 # ---------------------------------------------------------------------------
+# primal compressor, dual compressor, stabiliser (rbbench.compressors protocols)
+# ---------------------------------------------------------------------------
+#: ``capabilities["tol"]`` of a primal compressor: what its ``tol`` bounds.
+PRIMAL_TOL_KINDS = ("energy", "max")
+#: ``capabilities["inf_sup"]`` of a stabiliser: where its primal space is inf-sup stable.
+STABILIZER_GUARANTEES = ("not guaranteed", "every mu", "training set")
+_ORTH_TOL = 1e-10  # max |Z^T X Z - I| of an X-orthonormal basis
+_EXACT_RTOL = 1e-8  # relative projection error of a vector inside a space
+
+
+def _tridiag_gram(n: int) -> sp.csr_matrix:
+    """SPD, non-diagonal Gram matrix (a 1-D H1-like product): X-orthonormality != orthonormality."""
+    return sp.diags([-np.ones(n - 1), 2.5 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1]).tocsr()
+
+
+def primal_test_data(seed: int = 0, n: int = 40, P: int = 12,
+                     rank: int = 6) -> tuple[np.ndarray, sp.csr_matrix, int]:
+    """Snapshots ``U`` (n x P) of exact rank ``rank`` (graded 1 .. 1e-4), SPD ``X``."""
+    rng = np.random.default_rng(seed)
+    U = (rng.standard_normal((n, rank)) * np.logspace(0, -4, rank)) @ rng.standard_normal(
+        (rank, P))
+    return U, _tridiag_gram(n), rank
+
+
+def dual_test_data(seed: int = 0, n: int = 40, Q: int = 12) -> tuple[np.ndarray, sp.csr_matrix]:
+    """Non-negative bump snapshots ``Theta`` (n x Q), overlapping supports, and a diagonal ``W``."""
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0.0, 1.0, n)
+    c = rng.uniform(0.2, 0.8, Q)
+    w = rng.uniform(0.1, 0.3, Q)
+    Theta = np.clip(1.0 - ((x[:, None] - c) / w) ** 2, 0.0, None) * rng.uniform(0.5, 2.0, Q)
+    return Theta, sp.diags(rng.uniform(0.5, 1.5, n)).tocsr()
+
+
+def _xorth_errors(Z: np.ndarray, X: Any) -> float:
+    G = Z.T @ (X @ Z)
+    return float(np.abs(G - np.eye(Z.shape[1])).max(initial=0.0))
+
+
+def _proj_residual(U: np.ndarray, Z: np.ndarray, X: Any) -> np.ndarray:
+    """X-norms of ``(I - Pi_Z) u_p`` for an X-orthonormal ``Z``."""
+    R = U - Z @ (Z.T @ (X @ U)) if Z.shape[1] else U
+    return np.sqrt(np.clip(np.einsum("ij,ij->j", R, X @ R), 0.0, None))
+
+
+def _json_ok(obj: Any, what: str) -> None:
+    import json
+
+    try:
+        json.dumps(obj)
+    except (TypeError, ValueError) as exc:
+        raise ContractViolation(f"{what}: not JSON-serialisable ({exc}): use lists and "
+                                "floats (histories go to result.json)") from None
+
+
+def _unchanged(before: np.ndarray, after: Any, what: str) -> None:
+    _require(np.array_equal(before, np.asarray(after)), f"{what}: the input was modified")
+
+
+def _bool_capability(caps: dict, key: str, label: str) -> bool:
+    _require(isinstance(caps.get(key), bool),
+             f"{label}: capabilities[{key!r}] must be declared True or False, got "
+             f"{caps.get(key)!r}")
+    return caps[key]
+
+
+def _instantiate(factory: Callable[..., Any], label: str) -> Any:
+    try:
+        return factory()
+    except Exception as exc:  # noqa: BLE001 - any failure to build breaks the contract
+        raise ContractViolation(f"{label}: factory() raised {type(exc).__name__}: {exc} (the "
+                                "target must build the component without arguments)") from exc
+
+
+def check_primal(factory: Callable[..., Any], capabilities: dict | None = None,
+                 name: str | None = None, seed: int = 0) -> None:
+    """Contract of the primal-compressor role (``factory()`` builds it).
+
+    On snapshots of exact rank ``r`` (:func:`primal_test_data`) and a non-diagonal SPD
+    ``X``, ``compressor(U, X, tol=..., n=...)`` returns a
+    :class:`~rbbench.compressors.PrimalBasis` whose ``Z`` is X-orthonormal, spans a
+    subspace of the snapshots, and:
+
+    1. without ``tol`` and ``n``: ``N = r`` and every snapshot is reproduced;
+    2. with ``n = k``: ``N = min(k, r)``;
+    3. with ``tol``: the declared guarantee ``capabilities["tol"]`` holds (``"energy"``:
+       relative Frobenius error of the snapshot set; ``"max"``: largest error relative to
+       the largest snapshot) and, if ``capabilities["nested"]``, ``N`` is the first size
+       meeting it (``Z[:, :N-1]`` does not);
+    4. ``capabilities["nested"]``: the snapshot-set error is non-increasing in ``n``.
+
+    The history is JSON-serialisable and the snapshots are not modified.
+    """
+    caps = dict(capabilities or {})
+    label = f"primal compressor {name or getattr(factory, '__name__', factory)!r}"
+    kind = caps.get("tol")
+    _require(kind in PRIMAL_TOL_KINDS, f"{label}: capabilities['tol'] = {kind!r}; declare "
+             f"what tol bounds, one of {PRIMAL_TOL_KINDS}")
+    nested = _bool_capability(caps, "nested", label)
+    comp = _instantiate(factory, label)
+    _require(callable(comp), f"{label}: factory() returned a non-callable {type(comp).__name__}")
+    U, X, rank = primal_test_data(seed)
+    U0 = U.copy()
+    unorm = _proj_residual(U, np.zeros((U.shape[0], 0)), X)
+    span_U = np.linalg.svd(U, full_matrices=False)[0][:, :rank]
+
+    def run(what: str, **kw) -> np.ndarray:
+        from rbbench.compressors import PrimalBasis
+
+        res = comp(U, X, **kw)
+        where = f"{label}: {what}"
+        _unchanged(U0, U, where)
+        _require(isinstance(res, PrimalBasis),
+                 f"{where}: returned {type(res).__name__}, not a PrimalBasis")
+        Z = np.asarray(res.Z)
+        _require(Z.ndim == 2 and Z.shape[0] == U.shape[0] and np.all(np.isfinite(Z)),
+                 f"{where}: Z must be a finite ({U.shape[0]}, N) array, got shape {Z.shape}")
+        err = _xorth_errors(Z, X)
+        _require(err <= _ORTH_TOL, f"{where}: Z is not X-orthonormal: max|Z^T X Z - I| = "
+                 f"{err:.3e}")
+        out = np.abs(Z - span_U @ (span_U.T @ Z)).max(initial=0.0)
+        _require(out <= _EXACT_RTOL * max(np.abs(Z).max(initial=0.0), 1e-300),
+                 f"{where}: Z leaves the span of the snapshots (max deviation {out:.3e})")
+        _require(isinstance(res.history, dict), f"{where}: history must be a dict")
+        _json_ok(res.history, f"{where}: history")
+        return Z
+
+    Z = run("no tol, no n")
+    _require(Z.shape[1] == rank, f"{label}: without tol and n, N = {Z.shape[1]}, expected the "
+             f"numerical rank {rank} of the snapshots")
+    e = _proj_residual(U, Z, X).max()
+    _require(e <= _EXACT_RTOL * unorm.max(), f"{label}: with N = rank the snapshots are not "
+             f"reproduced (max relative error {e / unorm.max():.3e})")
+    errs = []
+    for k in (1, 2, 3, rank, rank + 3):
+        Z = run(f"n={k}", n=k)
+        _require(Z.shape[1] == min(k, rank), f"{label}: requested n = {k}, got N = "
+                 f"{Z.shape[1]} (expected min(n, rank) = {min(k, rank)})")
+        errs.append(float(np.linalg.norm(_proj_residual(U, Z, X))))
+    if nested:
+        _require(bool(np.all(np.diff(errs) <= 1e-12 * np.asarray(errs[:-1]) + 1e-14)),
+                 f"{label}: declared nested, but the snapshot-set error is not non-increasing "
+                 f"in n: {errs}")
+
+    def measure(Zk: np.ndarray) -> float:
+        r = _proj_residual(U, Zk, X)
+        if kind == "energy":
+            return float(np.linalg.norm(r) / np.linalg.norm(unorm))
+        return float(r.max() / unorm.max())
+
+    for tol in (0.3, 1e-2, 1e-3):
+        Z = run(f"tol={tol:g}", tol=tol)
+        got = measure(Z)
+        _require(got <= tol * (1 + 1e-9), f"{label}: tol = {tol:g} ({kind}) not met: "
+                 f"error {got:.3e} with N = {Z.shape[1]}")
+        if nested and Z.shape[1] > 0:
+            prev = measure(Z[:, :-1])
+            _require(prev > tol, f"{label}: tol = {tol:g}: N = {Z.shape[1]} is not the first "
+                     f"size meeting the tolerance (N - 1 vectors give {prev:.3e})")
+
+
+def check_dual(factory: Callable[..., Any], capabilities: dict | None = None,
+               name: str | None = None, seed: int = 0) -> None:
+    """Contract of the dual-compressor role (``factory()`` builds it).
+
+    On non-negative snapshots ``Theta`` and a diagonal SPD ``W`` (:func:`dual_test_data`),
+    ``compressor(Theta, W, tol=..., r_max=...)`` returns a
+    :class:`~rbbench.cones.DualBasis` with:
+
+    * ``1 <= R <= r_max`` finite generators of unit W-norm, shape ``(n, R)``;
+    * ``is_cone == capabilities["cone"]``; a cone's generators are non-negative (the
+      reduced cone lies in ``W+``);
+    * ``e_proj`` and ``e_orth`` of length ``R`` with values in ``[0, 1]``; ``e_proj[-1]``
+      equal to an independent recomputation (NNLS on the cone, least squares on a span) of
+      ``max_q ||theta_q - Pi theta_q||_W / max_q ||theta_q||_W`` (seed 000, slide "mCPG
+      algorithm (4/4)");
+    * ``capabilities["nested"]``: ``e_proj`` non-increasing (to ``1e-12``);
+    * with ``tol``: ``R`` is the first size with ``e_proj <= tol`` (``e_proj[:-1] > tol``);
+    * the snapshots are not modified.
+    """
+    from scipy.optimize import nnls
+
+    from rbbench.cones import DualBasis
+
+    caps = dict(capabilities or {})
+    label = f"dual compressor {name or getattr(factory, '__name__', factory)!r}"
+    cone = _bool_capability(caps, "cone", label)
+    nested = _bool_capability(caps, "nested", label)
+    comp = _instantiate(factory, label)
+    _require(callable(comp), f"{label}: factory() returned a non-callable {type(comp).__name__}")
+    Theta, W = dual_test_data(seed)
+    T0 = Theta.copy()
+    sw = np.sqrt(W.diagonal())
+    CT = sw[:, None] * Theta
+    scale = float(np.linalg.norm(CT, axis=0).max())
+
+    def proj_error(V: np.ndarray, is_cone: bool) -> float:
+        CV = sw[:, None] * V
+        if is_cone:
+            errs = [nnls(CV, CT[:, q])[1] for q in range(CT.shape[1])]
+        else:
+            c = np.linalg.lstsq(CV, CT, rcond=None)[0]
+            errs = np.linalg.norm(CT - CV @ c, axis=0)
+        return float(np.max(errs)) / scale
+
+    def run(what: str, tol: float, r_max: int | None) -> DualBasis:
+        b = comp(Theta, W, tol=tol, r_max=r_max)
+        where = f"{label}: {what}"
+        _unchanged(T0, Theta, where)
+        _require(isinstance(b, DualBasis), f"{where}: returned {type(b).__name__}, "
+                 "not a DualBasis")
+        V = np.asarray(b.generators)
+        R = V.shape[1] if V.ndim == 2 else -1
+        _require(V.ndim == 2 and V.shape[0] == Theta.shape[0] and np.all(np.isfinite(V)),
+                 f"{where}: generators must be a finite ({Theta.shape[0]}, R) array, got "
+                 f"shape {V.shape}")
+        _require(R >= 1, f"{where}: no generators")
+        _require(r_max is None or R <= r_max, f"{where}: R = {R} > r_max = {r_max}")
+        nrm = np.linalg.norm(sw[:, None] * V, axis=0)
+        _require(np.allclose(nrm, 1.0, rtol=0, atol=1e-8),
+                 f"{where}: generators must have unit W-norm, got {nrm.min():.6g} .. "
+                 f"{nrm.max():.6g}")
+        _require(bool(b.is_cone) == cone,
+                 f"{where}: is_cone = {b.is_cone}, but capabilities['cone'] = {cone}")
+        if b.is_cone:
+            _require(V.min() >= -1e-14 * np.abs(V).max(), f"{where}: a cone generator has a "
+                     f"negative entry ({V.min():.3e}): the reduced cone must lie in W+")
+        ep, eo = np.asarray(b.e_proj, dtype=float), np.asarray(b.e_orth, dtype=float)
+        _require(ep.shape == (R,) and eo.shape == (R,),
+                 f"{where}: e_proj and e_orth need one entry per generator (R = {R}), got "
+                 f"{ep.shape[0]} and {eo.shape[0]}")
+        _require(np.all(np.isfinite(ep)) and ep.min() >= 0 and ep.max() <= 1 + 1e-12,
+                 f"{where}: e_proj must be finite and in [0, 1], got {ep.tolist()}")
+        _require(np.all(np.isfinite(eo)) and eo.min() >= -1e-12 and eo.max() <= 1 + 1e-12,
+                 f"{where}: e_orth must be finite and in [0, 1], got {eo.tolist()}")
+        true = proj_error(V, b.is_cone)
+        _require(abs(ep[-1] - true) <= 1e-6 * true + 1e-10,
+                 f"{where}: e_proj[-1] = {ep[-1]:.6e} does not match the recomputed "
+                 f"projection error {true:.6e}")
+        if nested:
+            _require(np.all(np.diff(ep) <= 1e-12), f"{where}: declared nested, but e_proj "
+                     f"increases: {ep.tolist()}")
+        return b
+
+    run("tol=0, r_max=6", tol=0.0, r_max=6)
+    for tol in (0.3, 0.05):
+        b = run(f"tol={tol:g}", tol=tol, r_max=None)
+        ep = np.asarray(b.e_proj)
+        _require(ep[-1] <= tol, f"{label}: tol = {tol:g} not met: e_proj(R = {b.R}) = "
+                 f"{ep[-1]:.3e}")
+        _require(np.all(ep[:-1] > tol), f"{label}: tol = {tol:g}: R = {b.R} is not the first "
+                 f"size meeting the tolerance (e_proj = {ep.tolist()})")
+
+
+def stabilizer_test_data(seed: int = 0, n: int = 30, m: int = 6, R: int = 3, N: int = 2,
+                         P: int = 4) -> dict[str, Any]:
+    """A small saddle-point family with ``N < R``, so that ``beta_dec = 0`` on ``span(Vg)``.
+
+    Keys: ``X`` (sparse SPD), ``x_solve``, ``W`` (identity), ``Vg`` (m x R, non-negative),
+    ``Z`` (n x N, X-orthonormal), ``B_train`` (P matrices m x n), ``B_new`` (one more).
+    """
+    import scipy.linalg as sla
+
+    rng = np.random.default_rng(seed)
+    X = _tridiag_gram(n)
+    cho = sla.cho_factor(X.toarray())
+    Z = rng.standard_normal((n, N))
+    L = np.linalg.cholesky(Z.T @ (X @ Z))
+    Z = sla.solve_triangular(L, Z.T, lower=True).T
+    Bs = [sp.csr_matrix(rng.standard_normal((m, n))) for _ in range(P + 1)]
+    return {"X": X, "x_solve": lambda rhs: sla.cho_solve(cho, rhs),
+            "W": sp.identity(m, format="csr"), "Vg": rng.uniform(0.0, 1.0, (m, R)),
+            "Z": Z, "B_train": Bs[:P], "B_new": Bs[P]}
+
+
+def _beta_span(Y: np.ndarray | None, B: Any, d: dict) -> float:
+    """Inf-sup of ``eta^T B v`` over ``span(Vg) x span(Y)`` (``Y`` X-orthonormal; None: all)."""
+    import scipy.linalg as sla
+
+    BtV = np.asarray(B.T @ d["Vg"])
+    S = BtV.T @ d["x_solve"](BtV) if Y is None else (Y.T @ BtV).T @ (Y.T @ BtV)
+    M = d["Vg"].T @ (d["W"] @ d["Vg"])
+    return float(np.sqrt(max(sla.eigh(0.5 * (S + S.T), M, eigvals_only=True)[0], 0.0)))
+
+
+def check_stabilizer(factory: Callable[..., Any], capabilities: dict | None = None,
+                     name: str | None = None, seed: int = 0, delta: float = 0.3) -> None:
+    """Contract of the stabiliser role (``factory()`` builds it).
+
+    On :func:`stabilizer_test_data` (``N < R``: the decorrelated model is not inf-sup
+    stable), ``offline(Z, Vg, X, x_solve, B_train, delta)`` returns ``(Z_off, history)``:
+
+    * ``Z_off`` finite, X-orthonormal, containing ``span Z``; ``history`` a JSON-serialisable
+      dict; the inputs are not modified;
+    * ``online`` is a bool equal to ``capabilities["online_hf"]``;
+      ``online_basis(Z_off, Vg, X, x_solve, B)`` is X-orthonormal and contains ``Z_off``,
+      and spans exactly ``Z_off`` when ``online`` is False;
+    * the declared guarantee ``capabilities["inf_sup"]`` holds, with the span inf-sup
+      ``beta`` of ``b(mu; v, eta) = eta^T B(mu) v`` (a lower bound of the cone value, and
+      what the seed's proofs bound): ``"every mu"``: ``beta = beta_on`` (whole primal
+      space) on the training matrices and on a new one (seed 000, "Parameter-dependent
+      context"); ``"training set"``: ``beta >= sqrt(1 - delta^2) beta_on > 0`` on the
+      training matrices (seed 000 "Main result"; the sharper Riesz form of
+      :func:`rbbench.pga.riesz_lower_bound`); ``"not guaranteed"``: nothing.
+    """
+    caps = dict(capabilities or {})
+    label = f"stabilizer {name or getattr(factory, '__name__', factory)!r}"
+    online_hf = _bool_capability(caps, "online_hf", label)
+    guarantee = caps.get("inf_sup")
+    _require(guarantee in STABILIZER_GUARANTEES, f"{label}: capabilities['inf_sup'] = "
+             f"{guarantee!r}; declare one of {STABILIZER_GUARANTEES}")
+    stab = _instantiate(factory, label)
+    online = getattr(stab, "online", None)
+    _require(isinstance(online, bool), f"{label}: attribute 'online' must be a bool, got "
+             f"{online!r}")
+    _require(online == online_hf, f"{label}: online = {online} but capabilities['online_hf'] "
+             f"= {online_hf}")
+    d = stabilizer_test_data(seed)
+    X, Z, Vg = d["X"], d["Z"], d["Vg"]
+    Z0, V0 = Z.copy(), Vg.copy()
+    out = stab.offline(Z, Vg, X, d["x_solve"], list(d["B_train"]), delta)
+    _require(isinstance(out, tuple) and len(out) == 2,
+             f"{label}: offline() must return (Z_off, history)")
+    Z_off, hist = np.asarray(out[0]), out[1]
+    _require(Z_off.ndim == 2 and Z_off.shape[0] == Z.shape[0] and np.all(np.isfinite(Z_off)),
+             f"{label}: Z_off must be a finite ({Z.shape[0]}, k) array, got {Z_off.shape}")
+    _require(isinstance(hist, dict), f"{label}: the offline history must be a dict")
+    _json_ok(hist, f"{label}: offline history")
+    _unchanged(Z0, Z, f"{label}: offline() (Z)")
+    _unchanged(V0, Vg, f"{label}: offline() (Vg)")
+
+    def check_space(Y: np.ndarray, inner: np.ndarray, what: str) -> None:
+        err = _xorth_errors(Y, X)
+        _require(err <= _ORTH_TOL, f"{label}: {what} is not X-orthonormal: "
+                 f"max|Y^T X Y - I| = {err:.3e}")
+        miss = _proj_residual(inner, Y, X).max(initial=0.0)
+        _require(miss <= _EXACT_RTOL, f"{label}: {what} does not contain the space it must "
+                 f"enrich (relative residual {miss:.3e})")
+
+    check_space(Z_off, Z, "Z_off (offline)")
+    n_train = len(d["B_train"])
+    for i, B in enumerate(list(d["B_train"]) + [d["B_new"]]):
+        Y = np.asarray(stab.online_basis(Z_off, Vg, X, d["x_solve"], B))
+        where = f"online_basis at matrix {i}"
+        _require(Y.ndim == 2 and Y.shape[0] == Z.shape[0] and np.all(np.isfinite(Y)),
+                 f"{label}: {where} must be a finite ({Z.shape[0]}, k) array")
+        check_space(Y, Z_off, where)
+        if not online:
+            _require(Y.shape[1] == Z_off.shape[1], f"{label}: online = False, but {where} "
+                     f"has {Y.shape[1]} vectors instead of the {Z_off.shape[1]} of Z_off")
+        if guarantee == "not guaranteed" or (guarantee == "training set" and i >= n_train):
+            continue
+        b_on, b = _beta_span(None, B, d), _beta_span(Y, B, d)
+        if guarantee == "every mu":
+            _require(abs(b - b_on) <= 1e-8 * b_on, f"{label}: declares 'every mu', but "
+                     f"beta = {b:.6e} != beta_on = {b_on:.6e} at matrix {i}")
+        else:
+            bound = np.sqrt(1.0 - delta**2) * b_on
+            _require(b >= bound * (1 - 1e-9), f"{label}: declares 'training set', but the "
+                     f"inf-sup {b:.3e} < sqrt(1 - delta^2) beta_on = {bound:.3e} at training "
+                     f"matrix {i} (delta = {delta:g})")
+
+
+# ---------------------------------------------------------------------------
 # pytest helpers
 # ---------------------------------------------------------------------------
 def component_params(registry: Registry | None = None, roles: tuple[str, ...] | None = None):
@@ -776,5 +1151,8 @@ def check_component(spec: ComponentSpec, registry: Registry | None = None) -> No
             ran += 1
         if not ran:
             pytest.skip(f"no installed backend provides physics {physics}")
-    else:
+    elif spec.role == "solver":
         check_solver(obj, name=name)
+    else:
+        check = {"primal": check_primal, "dual": check_dual, "stabilizer": check_stabilizer}
+        check[spec.role](obj, spec.capabilities, name=name)
