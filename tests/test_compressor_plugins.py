@@ -18,7 +18,7 @@ from rbbench.cli import main
 from rbbench.cones import DUAL_COMPRESSORS, pod_dual
 from rbbench.pga import pga, supremizers, x_orthonormalize
 from rbbench.pod import pod, weak_greedy
-from rbbench.registry import default_registry
+from rbbench.registry import ComponentSpec, Registry, default_registry
 from rbbench.testing import (
     ContractViolation,
     check_dual,
@@ -57,6 +57,16 @@ def test_registered_targets(role):
     for name, cls in EXPECTED[role].items():
         assert reg.load(role, name) is cls
         assert check_spec(reg, reg.get(role, name)) is cls
+
+
+def test_spec_check_requires_the_role_method():
+    reg = Registry()
+    for role, target, method in (("primal", "rbbench.compressors:PrimalBasis", "__call__"),
+                                 ("dual", "rbbench.cones:WMetric", "__call__"),
+                                 ("stabilizer", "rbbench.compressors:PODPrimal", "offline")):
+        reg.add(ComponentSpec(name="x", role=role, target=target, description="d"))
+        with pytest.raises(ContractViolation, match=f"no {method}\\(\\) method"):
+            check_spec(reg, reg.get(role, "x"))
 
 
 def test_dual_names_are_the_cli_names_and_capabilities_tell_cones():
@@ -250,7 +260,14 @@ class _IgnoresDualTol(comp.CPG):
         return super().__call__(LAM, W, tol=0.0, r_max=r_max)
 
 
+class _MutatesLam(comp.CPG):
+    def __call__(self, LAM, W, *, tol=1e-3, r_max=None):
+        LAM *= 2.0
+        return super().__call__(LAM, W, tol=tol, r_max=r_max)
+
+
 @pytest.mark.parametrize("factory, caps, match", [
+    (_MutatesLam, CONE_CAPS, "input was modified"),
     (_PODClaimsCone, CONE_CAPS, "negative entry"),
     (_cpg_patched(e_proj=lambda b: [0.5 * e for e in b.e_proj]), CONE_CAPS, "does not match"),
     (_cpg_patched(e_proj=lambda b: [0.0] + b.e_proj[1:]), CONE_CAPS, "e_proj increases"),
