@@ -321,8 +321,11 @@ class PGAStabilizer(NoStabilizer):
 
 
 def pga_default_delta(B_train: Iterable[Any], W_train: Iterable[Any], x_solve: XSolve,
-                      Vg: np.ndarray, fraction: float = 0.5) -> float:
+                      Vg: np.ndarray, fraction: float = 0.5, over: str = "min") -> float:
     """``fraction * min_mu beta_span(mu) / c(mu)`` over the given parameters.
+
+    ``over="max"`` with ``fraction=1`` is the seed's own rule (the sup), used by
+    :func:`rbbench.rb_pipeline.reduce`.
 
     The seed's choice is ``delta_PGA = sup_train beta_HF / c_HF`` (slide "Projected Greedy
     Algorithm (PGA)", 0.072 there). Computable stand-in, as in :func:`rbbench.rb_pipeline.
@@ -343,4 +346,6 @@ def pga_default_delta(B_train: Iterable[Any], W_train: Iterable[Any], x_solve: X
         ratios.append(inf.infsup_span(S, M) / inf.boundedness_constant(S, M))
     if not ratios:
         raise ValueError("pga_default_delta: no parameters given")
-    return fraction * float(min(ratios))
+    if over not in ("min", "max"):
+        raise ValueError(f"pga_default_delta: over = {over!r}: 'min' or 'max'")
+    return fraction * float(min(ratios) if over == "min" else max(ratios))

@@ -290,19 +290,28 @@ class Pairing:
     a: np.ndarray  # (nf, 2) mapped slave facet starts
     b: np.ndarray  # (nf, 2) mapped slave facet ends
 
+    def jump_terms(self, direction: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """``(coefficients, dofs)``, each (nq, 2 k), of the jump ``(u1 - u2 o pi) . direction``.
+
+        Row q of the jump is ``sum_j coefficients[q, j] u[dofs[q, j]]`` summed over the
+        slave term and (with a master) the master term.
+        """
+        nq = self.w.size
+        terms = [((self.slave_phi[:, :, None] * direction[:, None, :]).reshape(nq, -1),
+                  self.slave_dofs.reshape(nq, -1))]
+        if self.master_phi is not None:
+            terms.append((-(self.master_phi[:, :, None] * direction[:, None, :]).reshape(nq, -1),
+                          self.master_dofs.reshape(nq, -1)))
+        return terms
+
     def jump(self, direction: np.ndarray, n_dofs: int) -> sp.csr_matrix:
         """Rows q: ``(u1(x_q) - u2(pi(x_q))) . direction_q`` (nq x n_dofs)."""
-        nq, k = self.slave_phi.shape
-        rows = np.repeat(np.arange(nq), k * 2)
-        r = [rows]
-        c = [self.slave_dofs.reshape(-1)]
-        v = [(self.slave_phi[:, :, None] * direction[:, None, :]).reshape(-1)]
-        if self.master_phi is not None:
-            r.append(rows)
-            c.append(self.master_dofs.reshape(-1))
-            v.append(-(self.master_phi[:, :, None] * direction[:, None, :]).reshape(-1))
-        return sp.csr_matrix((np.concatenate(v), (np.concatenate(r), np.concatenate(c))),
-                             shape=(nq, n_dofs))
+        terms = self.jump_terms(direction)
+        rows = np.repeat(np.arange(self.w.size), terms[0][0].shape[1])
+        return sp.csr_matrix((np.concatenate([c.ravel() for c, _ in terms]),
+                              (np.tile(rows, len(terms)),
+                               np.concatenate([d.ravel() for _, d in terms]))),
+                             shape=(self.w.size, n_dofs))
 
 
 def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,

@@ -52,6 +52,28 @@ def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mi
     return b, f, s
 
 
+class ProblemCache:
+    """``mu -> ContactProblem``, built once per mu (backend discretize + formulation build).
+
+    Also gives the V inner product on the free dofs, ``X_free`` (parameter-independent).
+    """
+
+    def __init__(self, backend: Any, formulation: Any):
+        self.backend, self.formulation = backend, formulation
+        self._problems: dict[bytes, ContactProblem] = {}
+
+    def __call__(self, mu: Any) -> ContactProblem:
+        key = np.asarray(mu, float).tobytes()
+        if key not in self._problems:
+            self._problems[key] = self.formulation.build(self.backend.discretize(mu))
+        return self._problems[key]
+
+    def X_free(self, mu: Any) -> Any:
+        """``X`` restricted to the free dofs of the problem at ``mu``."""
+        p = self(mu)
+        return p.X[p.free][:, p.free].tocsr()
+
+
 def solve_hf(scene: Scene, mu: Any = None, backend: str = "skfem", formulation: str = "mixed",
              solver: str = "ssn", registry: Registry | None = None,
              solver_options: dict | None = None,

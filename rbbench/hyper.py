@@ -30,7 +30,7 @@ window of master facets, from a restricted
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg as sla
@@ -101,15 +101,7 @@ class RowEvaluator:
         Never forms the rows: gathers ``Z_loc`` at the facet dofs of each point.
         """
         p = self._pair(mu)
-        nq = p.w.size
-
-        def trace(phi: np.ndarray, dofs: np.ndarray) -> np.ndarray:  # (nq, N)
-            coef = (phi[:, :, None] * p.nrm[:, None, :]).reshape(nq, 1, -1)
-            return np.matmul(coef, Z_loc[dofs.reshape(nq, -1)])[:, 0]
-
-        JZ = trace(p.slave_phi, p.slave_dofs)
-        if p.master_phi is not None:
-            JZ -= trace(p.master_phi, p.master_dofs)
+        JZ = sum(np.matmul(c[:, None, :], Z_loc[d])[:, 0] for c, d in p.jump_terms(p.nrm))
         return (self.Mrows[pos_B] * p.w) @ JZ, (self.Mrows[pos_G] * p.w) @ p.gap
 
     @property
@@ -142,11 +134,7 @@ def build_row_evaluator(layout: ContactLayout, rows: np.ndarray, mus: np.ndarray
     local = np.unique(np.concatenate(dofs))
 
     def renumber(chain: FacetChain | None) -> FacetChain | None:
-        if chain is None:
-            return None
-        out = chain.subset(np.arange(chain.n))
-        out.dofs = np.searchsorted(local, chain.dofs)
-        return out
+        return None if chain is None else replace(chain, dofs=np.searchsorted(local, chain.dofs))
 
     small = ContactLayout(slave=renumber(slave), master=renumber(master), degree=layout.degree,
                           n_gauss=layout.n_gauss, multiplier=layout.multiplier,
@@ -239,7 +227,6 @@ def contact_eim(layout: ContactLayout, B_train: list, G_train: np.ndarray, Z: np
     e_row, e_col = np.divmod(res_B.magic, N)
     rows_B = np.unique(e_row)
     ev = build_row_evaluator(layout, np.concatenate([rows_B, res_G.magic]), mus_sample)
-    pos = {int(r): i for i, r in enumerate(ev.rows)}
     free_of = np.full(layout.n_dofs, -1, dtype=np.int64)
     free_of[free] = np.arange(free.size)
     loc = free_of[ev.local_dofs]
@@ -255,9 +242,9 @@ def contact_eim(layout: ContactLayout, B_train: list, G_train: np.ndarray, Z: np
             "window_max_width": (0 if ev.windows is None
                                  else int((ev.windows[1] - ev.windows[0]).max()) + 1),
             "master_facets": 0 if ev.layout.master is None else ev.layout.master.n}
-    return ContactEIM(ev, np.array([pos[int(r)] for r in rows_B], dtype=np.int64),
+    return ContactEIM(ev, np.searchsorted(ev.rows, rows_B),  # ev.rows: sorted, unique
                       np.searchsorted(rows_B, e_row), e_col,
-                      np.array([pos[int(r)] for r in res_G.magic], dtype=np.int64),
+                      np.searchsorted(ev.rows, res_G.magic),
                       np.ascontiguousarray(Z[loc]), sla.lu_factor(res_B.Q[res_B.magic]),
                       sla.lu_factor(res_G.Q[res_G.magic]), T_B, T_G, info)
 

@@ -17,8 +17,9 @@ from typing import Any
 import numpy as np
 
 from rbbench import infsup as inf
+from rbbench.compressors import pga_default_delta
 from rbbench.cones import DUAL_COMPRESSORS
-from rbbench.hf import make_components
+from rbbench.hf import ProblemCache, make_components
 from rbbench.pga import pga as run_pga
 from rbbench.pga import supremizers, x_orthonormalize
 from rbbench.pod import pod
@@ -200,18 +201,10 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     timings["snapshots_s"] = time.perf_counter() - t0
 
     b, f, _ = make_components(scene, config.backend, config.formulation, config.solver)
-    problem_cache: dict[bytes, Any] = {}
-
-    def problem_at(mu):
-        key = np.asarray(mu, float).tobytes()
-        if key not in problem_cache:
-            problem_cache[key] = f.build(b.discretize(mu))
-        return problem_cache[key]
-
-    p_ref = problem_at(scene.default_mu)
-    X = p_ref.X[p_ref.free][:, p_ref.free].tocsr()
+    problem_at = ProblemCache(b, f)
+    X = problem_at.X_free(scene.default_mu)
     x_solve = inf.make_solver(X)
-    W_ref = p_ref.W
+    W_ref = problem_at(scene.default_mu).W
 
     t1 = time.perf_counter()
     progress("primal POD")
@@ -237,13 +230,11 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         T_list = [supremizers(problem_at(mu).B, x_solve, Vg) for mu in mus_train]
         delta = config.delta_pga
         if delta is None:
-            ratios = []
-            for mu in mus_train[:: max(1, len(mus_train) // 5)]:
-                S, M = inf.quotient_matrices(problem_at(mu).B, x_solve, Vg, problem_at(mu).W)
-                ratios.append(inf.infsup_span(S, M) / inf.boundedness_constant(S, M))
             # the seed's rule (friction example: delta_PGA = sup beta_HF / c_HF = 0.072),
             # with beta the span value over the reduced cone (a lower bound)
-            delta = float(max(ratios))
+            probe = [problem_at(mu) for mu in mus_train[:: max(1, len(mus_train) // 5)]]
+            delta = pga_default_delta([p.B for p in probe], [p.W for p in probe], x_solve,
+                                      Vg, fraction=1.0, over="max")
         res = run_pga(T_list, Z, X, delta)
         K = res.dim
         Z_off = np.hstack([Z, res.basis])
@@ -378,26 +369,26 @@ def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_tr
                              "EIM assumes the contact zone is away from the Dirichlet boundary")
         B_eim.append(Bfull[:, p0.free])
         G_eim.append(c.G())
-    deim = contact_eim(layout, B_eim, np.stack(G_eim, axis=1), Z, Vg, p0.free, mus_eim,
+    ceim = contact_eim(layout, B_eim, np.stack(G_eim, axis=1), Z, Vg, p0.free, mus_eim,
                        tol=config.tol_eim, m_max=config.m_eim)
-    deim.info["n_eim_train"] = len(mus_eim)
+    ceim.info["n_eim_train"] = len(mus_eim)
     # validation e_EIM of the reduced constraint (seed's ratio of maxima over the set)
     num_b = den_b = num_g = den_g = 0.0
     for mu in mus_valid:
         p = problem_at(mu)
         Bn, Gn = Vg.T @ (p.B @ Z), Vg.T @ p.G
-        Be, Ge = deim(mu)
+        Be, Ge = ceim(mu)
         num_b, den_b = max(num_b, np.abs(Bn - Be).max()), max(den_b, np.abs(Bn).max())
         num_g, den_g = max(num_g, np.abs(Gn - Ge).max()), max(den_g, np.abs(Gn).max())
-    histories["eim_error"] = deim.info["errors_B"]
-    histories["eim_error_G"] = deim.info["errors_G"]
-    histories["eim"] = {k: v for k, v in deim.info.items() if not k.startswith("errors")}
+    histories["eim_error"] = ceim.info["errors_B"]
+    histories["eim_error_G"] = ceim.info["errors_G"]
+    histories["eim"] = {k: v for k, v in ceim.info.items() if not k.startswith("errors")}
     histories["eim"]["e_eim_valid_BN"] = float(num_b / den_b)
     histories["eim"]["e_eim_valid_GN"] = float(num_g / den_g)
     histories["eim_entrywise"] = entrywise_eim_error(
         [problem_at(mu).B for mu in mus_train], [problem_at(mu).B for mu in mus_valid],
         tol=config.tol_eim)
-    return deim
+    return ceim
 
 
 def _xn(X, v: np.ndarray) -> float:

@@ -39,7 +39,7 @@ import numpy as np
 
 from rbbench import infsup as inf
 from rbbench.compressors import pga_default_delta
-from rbbench.hf import make_components
+from rbbench.hf import ProblemCache, make_components
 from rbbench.pga import pga, supremizers
 from rbbench.registry import default_registry
 from rbbench.sampling import parameter_set
@@ -168,16 +168,8 @@ def beta_dec_study(scene: Scene | str, dual: str = "mcpg", R: int | Sequence[int
     timings["snapshots_s"] = time.perf_counter() - t0
 
     b, f, _ = make_components(scene, backend, formulation, solver)
-    problems: dict[bytes, Any] = {}
-
-    def problem_at(mu: np.ndarray) -> Any:
-        key = np.asarray(mu, float).tobytes()
-        if key not in problems:
-            problems[key] = f.build(b.discretize(mu))
-        return problems[key]
-
-    p_ref = problem_at(scene.default_mu)
-    X = p_ref.X[p_ref.free][:, p_ref.free].tocsr()
+    problem_at = ProblemCache(b, f)
+    X = problem_at.X_free(scene.default_mu)
     x_solve = inf.make_solver(X)
 
     t1 = time.perf_counter()
@@ -211,7 +203,8 @@ def beta_dec_study(scene: Scene | str, dual: str = "mcpg", R: int | Sequence[int
     for R_req in R_list:
         t1 = time.perf_counter()
         say(f"dual compressor {dual}, R = {R_req}")
-        Vg = reg.create("dual", dual)(train.LAM, p_ref.W, tol=0.0, r_max=R_req).generators
+        Vg = reg.create("dual", dual)(train.LAM, problem_at(scene.default_mu).W, tol=0.0,
+                                      r_max=R_req).generators
         Rg = int(Vg.shape[1])
         R_actual[R_req] = Rg
         Ns = [N for N in (N_list if N_list is not None else range(1, R_req + 1))

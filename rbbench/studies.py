@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
 import numpy as np
 
@@ -66,7 +65,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
     for level in levels:
         sc = load_scene(scene, [*overrides, f"discretization.level={level}"])
         progress(f"level {level}: offline")
-        res = reduce(sc, replace(config))
+        res = reduce(sc, config)
         if res.model is None:
             raise ValueError(f"hyper {res.hyper!r} builds no HF-independent model; use 'eim' "
                              "or 'affine'")

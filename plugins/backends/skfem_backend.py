@@ -139,6 +139,7 @@ class SkfemBackend(Backend):
             self.master_zone = mzone
         self.ndofs = self.upper.ndofs + (self.lower.ndofs if self.lower else 0)
         self._layout = None
+        self._maps = None
 
     @staticmethod
     def _zone_facets(mesh, zone) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -189,26 +190,35 @@ class SkfemBackend(Backend):
     def _bodies(self) -> list[_Body]:
         return [self.upper] + ([self.lower] if self.lower is not None else [])
 
-    def _geometry(self, mu) -> dict:
-        s = self.scene
-        r1 = float(s.value("geometry", "upper_radius", mu))
-        g0 = float(s.value("geometry", "initial_gap", mu))
-        r2 = None if self.rigid else float(s.value("geometry", "lower_radius", mu))
-        top = 0.0 if self.rigid else r2
-        return {"R1": r1, "R2": r2, "g0": g0,
-                "centre1": np.array([0.0, top + g0 + r1])}
+    def _body_maps(self) -> dict[str, AffineMap]:
+        """The mu-map of each body, the one source of the geometry: the upper half-disk is
+        ``R1 x_hat + (0, top + g0 + R1)``, the lower one ``R2 x_hat``."""
+        if self._maps is None:
+            coef = self.scene.affine_coefficients
+            r1 = coef("geometry", "upper_radius")
+            top = np.zeros_like(r1) if self.rigid else coef("geometry", "lower_radius")
+            self._maps = {"upper": AffineMap(r1, np.stack([
+                np.zeros_like(r1), top + coef("geometry", "initial_gap") + r1]))}
+            if not self.rigid:
+                r2 = coef("geometry", "lower_radius")
+                self._maps["lower"] = AffineMap(r2, np.zeros((2, r2.size)))
+        return self._maps
 
-    def _mapped(self, body: _Body, geo: dict) -> np.ndarray:
-        if body.name == "upper":
-            return geo["R1"] * body.mesh_hat.p + geo["centre1"][:, None]
-        return geo["R2"] * body.mesh_hat.p
+    def _geometry(self, mu) -> dict:
+        maps = self._body_maps()
+        r1, centre1 = maps["upper"].at(mu)
+        r2 = None if self.rigid else maps["lower"].at(mu)[0]
+        return {"R1": r1, "R2": r2, "g0": float(self.scene.value("geometry", "initial_gap", mu)),
+                "centre1": centre1}
+
+    def _mapped(self, body: _Body, mu) -> np.ndarray:
+        return self._body_maps()[body.name](mu, body.mesh_hat.p.T).T
 
     def _elastic_operators(self, mu) -> tuple[sp.csr_matrix, list]:
-        geo = self._geometry(mu)
         blocks, bases = [], []
         for body in self._bodies():
             E, nu = self.scene.material(body.name, mu)
-            mesh = type(body.mesh_hat)(self._mapped(body, geo), body.mesh_hat.t)
+            mesh = type(body.mesh_hat)(self._mapped(body, mu), body.mesh_hat.t)
             basis = Basis(mesh, ElementVector(_element(self.degree)))
             blocks.append(asm(linear_elasticity(*lame_parameters(E, nu)), basis))
             bases.append(basis)
@@ -253,7 +263,7 @@ class SkfemBackend(Backend):
         bodies = []
         for body in self._bodies():
             E, nu = self.scene.material(body.name, mu)
-            bodies.append(BodyMesh(body.name, self._mapped(body, geo).T.copy(),
+            bodies.append(BodyMesh(body.name, self._mapped(body, mu).T.copy(),
                                    body.mesh_hat.t.T.copy(), body.vertex_dofs(), E, nu))
         info = {"geometry": geo, "t_assemble_s": t_asm,
                 "n_facets_slave": self.contact_layout().slave.n,
@@ -282,21 +292,14 @@ class SkfemBackend(Backend):
                           ids=np.arange(facets.size))
 
     def _build_layout(self) -> ContactLayout:
-        s = self.scene
-        coef = s.affine_coefficients
-        r1 = coef("geometry", "upper_radius")
-        top = np.zeros_like(r1) if self.rigid else coef("geometry", "lower_radius")
-        up_map = AffineMap(r1, np.stack([np.zeros_like(r1),
-                                         top + coef("geometry", "initial_gap") + r1]))
-        slave = self._chain(self.upper, self.zone, up_map)
+        maps = self._body_maps()
+        slave = self._chain(self.upper, self.zone, maps["upper"])
         master = None
         if not self.rigid:
-            r2 = coef("geometry", "lower_radius")
-            master = self._chain(self.lower, tuple(self.master_zone),
-                                 AffineMap(r2, np.zeros((2, r2.size))))
+            master = self._chain(self.lower, tuple(self.master_zone), maps["lower"])
         return ContactLayout(slave=slave, master=master, degree=self.degree,
                              n_gauss=self.n_gauss, multiplier=self.multiplier,
-                             patch=int(s.data["discretization"]["lac_patch"]),
+                             patch=int(self.scene.data["discretization"]["lac_patch"]),
                              n_facets=slave.n, n_dofs=self.ndofs)
 
     def _contact(self, mu, tangential: bool = False) -> ContactOperators:
