@@ -37,6 +37,15 @@ def rbbench_register(registry):
         description="scikit-fem: graded triangle meshes, P1/P2, GPTS contact pairing",
     ))
     add(ComponentSpec(
+        name="ngsolve", role="backend",
+        target="rbbench_plugins.backends.ngsolve_backend:NGSolveBackend",
+        extras=("ngsolve",), modules=("ngsolve",),
+        capabilities={"physics": _ALL_PHYSICS, "degree": (1, 2),
+                      "multiplier": ("lac", "p0", "p1", "nodal"), "friction": ("none",)},
+        description="NGSolve: Netgen meshes (or arrays), P1/P2, sparse Cholesky, "
+                    "GPTS contact pairing",
+    ))
+    add(ComponentSpec(
         name="mixed", role="formulation",
         target="rbbench_plugins.formulations.mixed:MixedFormulation",
         capabilities={"physics": _ALL_PHYSICS, "solvers": ("ssn", "uzawa")},
@@ -53,6 +62,21 @@ def rbbench_register(registry):
         target="rbbench_plugins.solvers.condensed:UzawaSolver",
         capabilities={"formulations": ("mixed",)},
         description="Uzawa projected dual iteration (seed 000 baseline), condensed",
+    ))
+    add(ComponentSpec(
+        name="petsc-vi", role="solver",
+        target="rbbench_plugins.solvers.petsc_solvers:PetscVISolver",
+        extras=("petsc",), modules=("petsc4py",),
+        capabilities={"formulations": ("mixed",)},
+        description="PETSc SNES VI (vinewtonrsls, reduced-space active set) on the "
+                    "sparse KKT system as a mixed complementarity problem",
+    ))
+    add(ComponentSpec(
+        name="petsc-tao", role="solver",
+        target="rbbench_plugins.solvers.petsc_solvers:PetscTaoSolver",
+        extras=("petsc",), modules=("petsc4py",),
+        capabilities={"formulations": ("mixed",)},
+        description="PETSc TAO bound-constrained QP (tron) on the condensed dual problem",
     ))
 
     # primal compressors: V_N from displacement snapshots
