@@ -117,7 +117,8 @@ def _reduce_config(args):
                             hyper=args.hyper, N=args.N, R=args.R, n_train=args.n_train,
                             n_valid=args.n_valid, n_jobs=args.jobs, solver=args.solver,
                             backend=args.backend, formulation=args.formulation,
-                            tol_eim=args.tol_eim, delta_pga=args.delta_pga)
+                            tol_eim=args.tol_eim, delta_pga=args.delta_pga,
+                            k_pga_max=args.k_pga_max)
     except ValueError as exc:
         raise SceneError(str(exc)) from None
 
@@ -182,6 +183,8 @@ def _add_reduce_args(rd) -> None:
                     help="EIM tolerance (relative max-norm training error)")
     rd.add_argument("--delta-pga", type=float, default=None,
                     help="PGA tolerance on sigma_max (default: see result.json pga_delta)")
+    rd.add_argument("--k-max", type=int, default=None, dest="k_pga_max",
+                    help="cap on the PGA dimension K (online primal size N + K)")
     rd.add_argument("-N", type=int, default=None, help="primal size (default: POD tolerance)")
     rd.add_argument("-R", type=int, default=None, help="max dual size (default: tolerance)")
     rd.add_argument("--n-train", type=int, default=None)

@@ -94,15 +94,33 @@ class RowEvaluator:
         Mw = self.Mrows * p.w
         return Mw @ p.jump(p.nrm, self.n_local).toarray(), Mw @ p.gap
 
-    def project(self, mu: np.ndarray, Z_loc: np.ndarray, pos_B: np.ndarray,
-                pos_G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(B(mu)[rows[pos_B]] Z, G(mu)[rows[pos_G]])`` from the local basis ``Z_loc``.
+    def support(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Quadrature points of the rows ``rows[pos]``, padded: ``(points, values)``, each
+        (len(pos), P), with ``values`` the multiplier basis there (0 on padding)."""
+        M = self.Mrows[np.asarray(pos)]
+        P = max(int((M != 0).sum(axis=1).max()), 1) if M.size else 1
+        pts = np.zeros((M.shape[0], P), dtype=np.int64)
+        vals = np.zeros((M.shape[0], P))
+        for i, row in enumerate(M):
+            nz = np.flatnonzero(row)
+            pts[i, :nz.size], vals[i, :nz.size] = nz, row[nz]
+        return pts, vals
 
-        Never forms the rows: gathers ``Z_loc`` at the facet dofs of each point.
+    def entries(self, mu: np.ndarray, Z_loc: np.ndarray, pts: np.ndarray, vals: np.ndarray,
+                cols: np.ndarray, pos_G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Entries ``(B(mu) Z)[rows_e, cols_e]`` and ``G(mu)[rows[pos_G]]``, from the local
+        basis ``Z_loc``.
+
+        Entry ``e`` is ``sum_q vals[e, q] w_q sum_j coef[q, j] Z_loc[dof[q, j], cols[e]]``
+        over its row's points ``pts[e]`` (:meth:`support`): O(entries x points x dofs
+        per point) work, neither the rows nor the full ``B(mu) Z`` is formed.
         """
         p = self._pair(mu)
-        JZ = sum(np.matmul(c[:, None, :], Z_loc[d])[:, 0] for c, d in p.jump_terms(p.nrm))
-        return (self.Mrows[pos_B] * p.w) @ JZ, (self.Mrows[pos_G] * p.w) @ p.gap
+        col = np.asarray(cols)[:, None, None]
+        acc = np.zeros(pts.shape)
+        for c, d in p.jump_terms(p.nrm):
+            acc += np.einsum("epj,epj->ep", c[pts], Z_loc[d[pts], col])
+        return np.einsum("ep,ep->e", vals * p.w[pts], acc), (self.Mrows[pos_G] * p.w) @ p.gap
 
     @property
     def n_local(self) -> int:
@@ -183,9 +201,13 @@ class ContactEIM:
     T_G: np.ndarray
     info: dict = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        self._support = self.evaluator.support(self.pos_B[self.entry_row])
+
     def __call__(self, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        C, g = self.evaluator.project(mu, self.Z_loc, self.pos_B, self.pos_G)
-        theta = sla.lu_solve(self.lu_B, C[self.entry_row, self.entry_col])
+        C, g = self.evaluator.entries(mu, self.Z_loc, *self._support, self.entry_col,
+                                      self.pos_G)
+        theta = sla.lu_solve(self.lu_B, C)
         eta = sla.lu_solve(self.lu_G, g)
         return np.tensordot(theta, self.T_B, axes=1), eta @ self.T_G
 

@@ -50,6 +50,7 @@ class ReduceConfig:
     tol_pod: float = 1e-4
     tol_dual: float = 1e-3
     delta_pga: float | None = None  # default: max beta / c over a training subset (seed rule)
+    k_pga_max: int | None = None  # cap on dim S_PGA (the online size is N + K)
     n_train: int | None = None
     n_valid: int | None = None
     backend: str = "skfem"
@@ -58,6 +59,7 @@ class ReduceConfig:
     n_jobs: int | None = None
     cache_dir: str = ".rbbench_cache"
     online_repeats: int = 20
+    online_method: str = "daqp"  # reduced saddle-point solver: daqp (QP) or pdas (LCP)
     exact_max_r: int = 10
     tol_eim: float = 1e-4
     m_eim: int | None = None
@@ -235,7 +237,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
             probe = [problem_at(mu) for mu in mus_train[:: max(1, len(mus_train) // 5)]]
             delta = pga_default_delta([p.B for p in probe], [p.W for p in probe], x_solve,
                                       Vg, fraction=1.0, over="max")
-        res = run_pga(T_list, Z, X, delta)
+        res = run_pga(T_list, Z, X, delta, max_dim=config.k_pga_max)
         K = res.dim
         Z_off = np.hstack([Z, res.basis])
         histories["sigma_max"] = res.sigma_max.tolist()
@@ -283,7 +285,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
             arrays = model.arrays(mu)
             runs = []
             for _ in range(config.online_repeats):
-                res = model.solve(mu)
+                res = model.solve(mu, method=config.online_method)
                 runs.append(res.time_s)
         else:
             ta = time.perf_counter()
@@ -294,7 +296,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
             t_asm.append(time.perf_counter() - ta)
             runs = []
             for _ in range(config.online_repeats):
-                res = solve_reduced(*arrays)
+                res = solve_reduced(*arrays, method=config.online_method)
                 runs.append(res.time_s)
         t_on.extend(runs)
         u_n = Zu @ res.c

@@ -41,8 +41,10 @@ def test_row_evaluator_reproduces_hf_rows(extra):
                                    atol=1e-14 * abs(B).max())
         np.testing.assert_allclose(Gr, G[ev.rows], atol=1e-14 * np.abs(G).max())
         Z = rng.standard_normal((ev.n_local, 3))
-        C, g = ev.project(mu, Z, np.arange(ev.rows.size), np.arange(ev.rows.size))
-        np.testing.assert_allclose(C, Br @ Z, atol=1e-13 * np.abs(Br @ Z).max())
+        e_row, e_col = np.divmod(np.arange(ev.rows.size * 3), 3)  # every entry of B_r Z
+        C, g = ev.entries(mu, Z, *ev.support(e_row), e_col, np.arange(ev.rows.size))
+        np.testing.assert_allclose(C, (Br @ Z).ravel(), atol=1e-13 * np.abs(Br @ Z).max())
+        np.testing.assert_allclose(g, Gr, atol=1e-14 * np.abs(G).max())
 
 
 def test_row_evaluator_refuses_a_point_outside_its_window():
@@ -113,8 +115,9 @@ def test_contact_eim_is_exact_at_its_magic_rows_and_on_training(hertz_train):
     p = f.build(b.discretize(0.93))
     C = p.B @ Z
     rows_B = ev.rows[deim.pos_B]
-    Cp, _ = ev.project(0.93, deim.Z_loc, deim.pos_B, deim.pos_G)
-    np.testing.assert_allclose(Cp, C[rows_B], atol=1e-13 * np.abs(C).max())
+    e_row, e_col = np.divmod(np.arange(rows_B.size * Z.shape[1]), Z.shape[1])
+    Cp, _ = ev.entries(0.93, deim.Z_loc, *ev.support(deim.pos_B[e_row]), e_col, deim.pos_G)
+    np.testing.assert_allclose(Cp, C[rows_B].ravel(), atol=1e-13 * np.abs(C).max())
     assert pickle.loads(pickle.dumps(deim)).R == 3
 
 

@@ -1,0 +1,182 @@
+"""The results table: every column of a run-matrix row, defined once.
+
+One row per case x repetition (``rbbench run``). Every column says what it
+holds (unit, and for errors: relative, which norm, max or mean over which
+set); :func:`column_definitions` is written beside every results table in
+``manifest.json``, and ``rbbench report`` / ``rbbench compare`` read only
+the columns declared here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["COLUMNS", "STATUSES", "Column", "column_definitions", "empty_row", "names",
+           "normalise_row"]
+
+#: Status of a row. ``ok``: the case ran and its numbers are valid; ``skip``: pruned
+#: (incompatible components, from declared capabilities, nothing imported);
+#: ``error``: an exception (reason + traceback); ``timeout``: killed at the per-case
+#: limit; ``diverged``: a solve did not converge or produced NaN; ``not_installed``:
+#: a component's extra is missing (reason = the install hint).
+STATUSES = ("ok", "skip", "error", "timeout", "diverged", "not_installed")
+
+
+@dataclass(frozen=True)
+class Column:
+    """One results column: name, type (``str``, ``int``, ``float``, ``bool``), group,
+    unit and meaning."""
+
+    name: str
+    dtype: str
+    group: str
+    unit: str
+    doc: str
+
+
+def _c(name: str, dtype: str, group: str, unit: str, doc: str) -> Column:
+    return Column(name, dtype, group, unit, doc)
+
+
+_VALID = "over the validation set"
+_ERR_U = "relative error ||u - u_N||_X / ||u||_X (X: the scene's V inner product, free dofs)"
+_ERR_L = "relative error ||lam - lam_R||_W / ||lam||_W (W: multiplier Gram matrix at mu)"
+_BETA = ("inf-sup constant, min over the validation set (dimensional, X = the V inner "
+         "product); its kind column says span lower bound, exact cone value or cone upper "
+         "estimate")
+
+COLUMNS: tuple[Column, ...] = (
+    # identity
+    _c("run_id", "str", "identity", "", "name of the run (its output directory)"),
+    _c("case_id", "str", "identity", "", "hash of everything that determines the case "
+       "(scene content and overrides, components and their parameters, sizes, repetition)"),
+    _c("repetition", "int", "identity", "", "repetition index, 0-based"),
+    _c("seed", "int", "identity", "", "seed of the random parameter sets"),
+    # components
+    _c("scene", "str", "components", "", "scene name"),
+    _c("scene_overrides", "str", "components", "", "scene --set overrides, JSON"),
+    _c("backend", "str", "components", "", "HF backend"),
+    _c("formulation", "str", "components", "", "formulation"),
+    _c("solver", "str", "components", "", "HF VI solver"),
+    _c("primal", "str", "components", "", "primal compressor"),
+    _c("dual", "str", "components", "", "dual compressor"),
+    _c("stabilizer", "str", "components", "", "stabiliser"),
+    _c("hyper", "str", "components", "", "hyper-reducer asked for (auto picks)"),
+    _c("hyper_used", "str", "components", "", "hyper-reducer actually used (affine / eim / "
+       "none)"),
+    _c("executor", "str", "components", "", "executor that ran the case"),
+    _c("params", "str", "components", "", "component parameters of the case, JSON"),
+    # status
+    _c("status", "str", "status", "", "one of " + ", ".join(STATUSES)),
+    _c("reason", "str", "status", "", "why the status is not ok (or a note)"),
+    _c("traceback", "str", "status", "", "traceback of an error"),
+    # sizes
+    _c("n_hf_dofs", "int", "sizes", "", "HF displacement dofs"),
+    _c("n_contact", "int", "sizes", "", "HF contact unknowns (multipliers)"),
+    _c("n_train", "int", "sizes", "", "training parameters (HF snapshots)"),
+    _c("n_valid", "int", "sizes", "", "validation parameters"),
+    _c("N_req", "int", "sizes", "", "primal size asked for (matrix value)"),
+    _c("R_req", "int", "sizes", "", "dual size asked for (matrix value)"),
+    _c("N", "int", "sizes", "", "primal RB size obtained"),
+    _c("R", "int", "sizes", "", "dual size obtained (cone generators)"),
+    _c("S", "int", "sizes", "", "stabiliser size: PGA vectors K (0 for none; R per mu for "
+       "online supremizers)"),
+    _c("M_eim", "int", "sizes", "", "EIM magic rows evaluated online (hyper eim)"),
+    # accuracy
+    _c("err_u_max", "float", "accuracy", "1", _ERR_U + ", max " + _VALID),
+    _c("err_u_mean", "float", "accuracy", "1", _ERR_U + ", mean " + _VALID),
+    _c("err_lam_max", "float", "accuracy", "1", _ERR_L + ", max " + _VALID),
+    _c("err_lam_mean", "float", "accuracy", "1", _ERR_L + ", mean " + _VALID),
+    _c("penetration_max", "float", "accuracy", "m", "largest mean penetration over one HF "
+       "multiplier's support of the reconstructed u_N, max " + _VALID),
+    _c("complementarity_max", "float", "accuracy", "1", "|lam_R . (G - B u_N)| / "
+       "(||lam_R|| ||G||) at the HF rows, max " + _VALID),
+    _c("energy_err_max", "float", "accuracy", "1", "|J(u_N) - J(u)| / |J(u)|, max " + _VALID),
+    # stability
+    _c("beta_hf_min", "float", "stability", "", _BETA + "; whole V against the HF cone"),
+    _c("beta_hf_kind", "str", "stability", "", "kind of beta_hf_min"),
+    _c("beta_dec_min", "float", "stability", "", _BETA + "; V_N against the reduced cone"),
+    _c("beta_dec_kind", "str", "stability", "", "kind of beta_dec_min"),
+    _c("beta_dec_zero_any", "bool", "stability", "", "exact LP test: beta_dec = 0 at some "
+       "validation mu"),
+    _c("beta_on_min", "float", "stability", "", _BETA + "; V_N + S_R(mu) (online "
+       "supremizers)"),
+    _c("beta_on_kind", "str", "stability", "", "kind of beta_on_min"),
+    _c("beta_off_min", "float", "stability", "", _BETA + "; V_N + S_PGA (offline)"),
+    _c("beta_off_kind", "str", "stability", "", "kind of beta_off_min"),
+    # timings
+    _c("t_snapshots_s", "float", "timings", "s", "HF snapshots (wall; 0 when all came from "
+       "the cache)"),
+    _c("t_primal_s", "float", "timings", "s", "primal compression"),
+    _c("t_dual_s", "float", "timings", "s", "dual compression"),
+    _c("t_stabilizer_s", "float", "timings", "s", "stabilisation (PGA)"),
+    _c("t_hyper_s", "float", "timings", "s", "hyper-reduction (affine probe / EIM)"),
+    _c("t_offline_s", "float", "timings", "s", "offline total, snapshots included"),
+    _c("t_online_median_s", "float", "timings", "s", "one online solve (reduced arrays + "
+       "reduced LCP), median over validation mus x repeats"),
+    _c("t_online_iqr_s", "float", "timings", "s", "inter-quartile range of the online time"),
+    _c("t_hf_median_s", "float", "timings", "s", "one HF solve, median over all snapshots"),
+    _c("speedup", "float", "timings", "1", "t_hf_median_s / t_online_median_s"),
+    _c("t_case_s", "float", "timings", "s", "wall time of the whole case"),
+    # memory
+    _c("peak_rss_mb", "float", "memory", "MiB", "peak resident memory of the process that "
+       "ran the case (its own process for the processes / dask executors; for serial, the "
+       "run's peak so far)"),
+    # provenance
+    _c("rbbench_version", "str", "provenance", "", "rbbench version"),
+    _c("git_sha", "str", "provenance", "", "git commit of the rbbench source ('' if none)"),
+    _c("versions", "str", "provenance", "", "versions of the numerical libraries, JSON"),
+    _c("machine", "str", "provenance", "", "host name, CPU and core count"),
+    _c("threads", "str", "provenance", "", "BLAS / OpenMP thread settings, JSON"),
+    _c("started_at", "str", "provenance", "", "UTC start time, ISO 8601"),
+)
+
+_BY_NAME = {c.name: c for c in COLUMNS}
+_CAST = {"str": str, "int": int, "float": float, "bool": bool}
+
+
+def names() -> list[str]:
+    """Column names, in table order."""
+    return [c.name for c in COLUMNS]
+
+
+def empty_row() -> dict[str, Any]:
+    """A row with every column present and empty (None)."""
+    return dict.fromkeys(names())
+
+
+def normalise_row(row: dict[str, Any]) -> dict[str, Any]:
+    """Every declared column, cast to its type (None stays None); unknown keys refused.
+
+    Raises
+    ------
+    KeyError
+        For a key that is not a declared column (names the key).
+    ValueError
+        For a status outside :data:`STATUSES`.
+    """
+    unknown = set(row) - set(_BY_NAME)
+    if unknown:
+        raise KeyError(f"results row: unknown column(s) {sorted(unknown)}; columns are "
+                       "declared in rbbench/schema.py")
+    out = empty_row()
+    for k, v in row.items():
+        if v is None:
+            continue
+        cast = _CAST[_BY_NAME[k].dtype]
+        if cast is float:
+            v = float(v)
+            out[k] = None if math.isnan(v) else v
+        else:
+            out[k] = cast(v)
+    if out["status"] is not None and out["status"] not in STATUSES:
+        raise ValueError(f"results row: status {out['status']!r}; valid: {', '.join(STATUSES)}")
+    return out
+
+
+def column_definitions() -> dict[str, dict[str, str]]:
+    """``{name: {dtype, group, unit, doc}}`` for the manifest."""
+    return {c.name: {"dtype": c.dtype, "group": c.group, "unit": c.unit, "doc": c.doc}
+            for c in COLUMNS}
