@@ -18,22 +18,19 @@ import numpy as np
 
 from rbbench import infsup as inf
 from rbbench.compressors import pga_default_delta
-from rbbench.cones import DUAL_COMPRESSORS
 from rbbench.hf import ProblemCache, make_components
-from rbbench.pga import pga as run_pga
-from rbbench.pga import supremizers, x_orthonormalize
-from rbbench.pod import pod
 from rbbench.reduced import (
+    ONLINE_METHODS,
     NotAffineError,
     build_affine_model,
     projector,
     solve_reduced,
 )
+from rbbench.registry import Registry, default_registry
 from rbbench.sampling import parameter_set
 from rbbench.scene import Scene
 from rbbench.snapshots import compute_snapshots
 
-STABILIZERS = ("none", "supremizer", "pga")
 HYPER = ("auto", "affine", "eim", "none")
 
 
@@ -66,15 +63,13 @@ class ReduceConfig:
     n_eim_train: int | None = None  # default: 4 (n_train - 1) + 1 grid points (+ training)
 
     def __post_init__(self) -> None:
-        if self.primal != "pod":
-            raise ValueError(f"primal compressor {self.primal!r}: valid: 'pod'")
-        if self.dual not in DUAL_COMPRESSORS:
-            raise ValueError(f"dual compressor {self.dual!r}: valid: "
-                             f"{', '.join(sorted(DUAL_COMPRESSORS))}")
-        if self.stabilizer not in STABILIZERS:
-            raise ValueError(f"stabilizer {self.stabilizer!r}: valid: {', '.join(STABILIZERS)}")
+        # component names are checked against the registry in reduce(); here only what
+        # does not depend on which plugins are installed
         if self.hyper not in HYPER:
             raise ValueError(f"hyper {self.hyper!r}: valid: {', '.join(HYPER)}")
+        if self.online_method not in ONLINE_METHODS:
+            raise ValueError(f"online method {self.online_method!r}: valid: "
+                             f"{', '.join(ONLINE_METHODS)}")
         if self.stabilizer == "supremizer" and self.hyper in ("affine", "eim"):
             raise ValueError("stabilizer 'supremizer' builds V_N + S_R(mu) online from the HF "
                              f"B(mu): use hyper 'none' or 'auto', not {self.hyper!r}")
@@ -188,8 +183,15 @@ def _progress(msg: str) -> None:
 
 
 def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] = _progress,
-           snapshot_progress: bool = False) -> ReduceResult:
-    """Run the offline stage on the training set and validate online."""
+           snapshot_progress: bool = False, registry: Registry | None = None) -> ReduceResult:
+    """Run the offline stage on the training set and validate online.
+
+    The primal and dual compressors and the stabiliser are the registered plugins named in
+    ``config`` (``registry``: default, the discovered plugins).
+    """
+    reg = registry or default_registry()
+    for role in ("primal", "dual", "stabilizer"):
+        reg.get(role, getattr(config, role))  # unknown names fail before any HF work
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
     mus_train = parameter_set(scene, "train", config.n_train)
@@ -202,34 +204,40 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     valid = compute_snapshots(scene, mus_valid, **snap_kw)
     timings["snapshots_s"] = time.perf_counter() - t0
 
-    b, f, _ = make_components(scene, config.backend, config.formulation, config.solver)
+    b, f, _ = make_components(scene, config.backend, config.formulation, config.solver,
+                              registry=reg)
     problem_at = ProblemCache(b, f)
     X = problem_at.X_free(scene.default_mu)
     x_solve = inf.make_solver(X)
     W_ref = problem_at(scene.default_mu).W
 
     t1 = time.perf_counter()
-    progress("primal POD")
-    pr = pod(train.U, X, tol=None if config.N else config.tol_pod, n=config.N)
-    Z = pr.Z
+    progress(f"primal {config.primal}")
+    primal = reg.create("primal", config.primal)(
+        train.U, X, tol=None if config.N else config.tol_pod, n=config.N)
+    Z = primal.Z
     timings["primal_s"] = time.perf_counter() - t1
 
     t1 = time.perf_counter()
     progress(f"dual compressor {config.dual}")
-    dual = DUAL_COMPRESSORS[config.dual](train.LAM, W_ref, tol=config.tol_dual,
-                                         r_max=config.R)
+    dual = reg.create("dual", config.dual)(train.LAM, W_ref, tol=config.tol_dual, r_max=config.R)
     Vg = dual.generators
     timings["dual_s"] = time.perf_counter() - t1
 
     # stabiliser
     t1 = time.perf_counter()
-    K = 0
-    histories: dict[str, Any] = {"pod_singular_values": pr.s.tolist(),
-                                 "e_proj": list(dual.e_proj), "e_orth": list(dual.e_orth)}
-    Z_off = Z
+    stab_opts = {"max_dim": config.k_pga_max} if config.stabilizer == "pga" else {}
+    stabilizer = reg.create("stabilizer", config.stabilizer, **stab_opts)
+    if stabilizer.online and config.hyper in ("affine", "eim"):
+        raise ValueError(f"stabilizer {config.stabilizer!r} builds its space online from the HF "
+                         f"B(mu): use hyper 'none' or 'auto', not {config.hyper!r}")
+    histories: dict[str, Any] = {
+        "pod_singular_values": primal.history.get("singular_values", []),
+        "primal": {k: v for k, v in primal.history.items() if k != "singular_values"},
+        "e_proj": list(dual.e_proj), "e_orth": list(dual.e_orth)}
+    delta = None
     if config.stabilizer == "pga":
         progress("PGA (supremizers on the training set)")
-        T_list = [supremizers(problem_at(mu).B, x_solve, Vg) for mu in mus_train]
         delta = config.delta_pga
         if delta is None:
             # the seed's rule (friction example: delta_PGA = sup beta_HF / c_HF = 0.072),
@@ -237,19 +245,18 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
             probe = [problem_at(mu) for mu in mus_train[:: max(1, len(mus_train) // 5)]]
             delta = pga_default_delta([p.B for p in probe], [p.W for p in probe], x_solve,
                                       Vg, fraction=1.0, over="max")
-        res = run_pga(T_list, Z, X, delta, max_dim=config.k_pga_max)
-        K = res.dim
-        Z_off = np.hstack([Z, res.basis])
-        histories["sigma_max"] = res.sigma_max.tolist()
-        histories["pga_delta"] = delta
-        histories["pga_stop"] = res.stop_reason
+    Z_off, stab_hist = stabilizer.offline(Z, Vg, X, x_solve,
+                                          (problem_at(mu).B for mu in mus_train), delta)
+    K = int(Z_off.shape[1] - Z.shape[1])
+    offline_stab = not stabilizer.online and config.stabilizer != "none"  # beta_off applies
+    histories.update({k: v for k, v in stab_hist.items() if k != "K"})
     timings["stabilizer_s"] = time.perf_counter() - t1
 
     # hyper-reduction / reduced model
     t1 = time.perf_counter()
     hyper = config.hyper
     model = None
-    if config.stabilizer != "supremizer" and hyper in ("auto", "affine", "eim"):
+    if not stabilizer.online and hyper in ("auto", "affine", "eim"):
         reduced_ops = projector(problem_at, Z_off, Vg)
         if hyper in ("auto", "affine"):
             progress("exact affine decomposition (verified by probing)")
@@ -290,8 +297,8 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         else:
             ta = time.perf_counter()
             Zu = Z_off
-            if config.stabilizer == "supremizer":
-                Zu, _ = x_orthonormalize(np.hstack([Z, supremizers(p.B, x_solve, Vg)]), X)
+            if stabilizer.online:
+                Zu = stabilizer.online_basis(Z_off, Vg, X, x_solve, p.B)
             arrays = projector(lambda _mu, p=p: p, Zu, Vg)(mu)
             t_asm.append(time.perf_counter() - ta)
             runs = []
@@ -324,11 +331,11 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         C_on = inf.cone_coupling(H, Vg)
         beta["on"].append(_labelled(inf.infsup_cone(
             C_on.T @ C_on, Vg.T @ (Wm @ Vg), C=C_on, exact_max_r=config.exact_max_r)))
-        if config.stabilizer == "pga":
+        if offline_stab:
             S, M = inf.quotient_matrices(B, X, Vg, Wm, Z=Z_off)
             beta["off"].append(_labelled(inf.infsup_cone(
                 S, M, C=(Z_off.T @ (B.T @ Vg)), exact_max_r=config.exact_max_r)))
-    if config.stabilizer != "pga":
+    if not offline_stab:
         beta.pop("off")
     if t_asm:
         timings["t_online_hf_assembly_s"] = float(np.median(t_asm))
