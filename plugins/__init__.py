@@ -79,6 +79,24 @@ def rbbench_register(registry):
         description="PETSc TAO bound-constrained QP (tron) on the condensed dual problem",
     ))
 
+    # executors: where the cases of a run matrix run
+    add(ComponentSpec(
+        name="serial", role="executor", target="rbbench_plugins.executors:SerialExecutor",
+        capabilities={"isolation": False, "timeout": "sigalrm"},
+        description="one case after the other in this process (debugging)",
+    ))
+    add(ComponentSpec(
+        name="processes", role="executor", target="rbbench_plugins.executors:ProcessExecutor",
+        capabilities={"isolation": True, "timeout": "kill"},
+        description="local processes, one per case, jobs at a time (default)",
+    ))
+    add(ComponentSpec(
+        name="dask", role="executor", target="rbbench_plugins.executors:DaskExecutor",
+        extras=("dask",), modules=("dask", "distributed"),
+        capabilities={"isolation": True, "timeout": "kill"},
+        description="Dask distributed: a LocalCluster, or a scheduler address for a cluster",
+    ))
+
     # primal compressors: V_N from displacement snapshots
     add(ComponentSpec(
         name="pod", role="primal", target=f"{_COMP}:PODPrimal",

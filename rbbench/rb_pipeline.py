@@ -92,6 +92,7 @@ class ReduceResult:
     err_u: list[float]
     err_lam: list[float]
     penetration: list[float]
+    complementarity: list[float]
     energy_err: list[float]
     beta: dict[str, list]
     t_online: list[float]
@@ -123,6 +124,8 @@ class ReduceResult:
             "err_u_max": mx(self.err_u), "err_u_mean": mean(self.err_u),
             "err_lam_max": mx(self.err_lam), "err_lam_mean": mean(self.err_lam),
             "penetration_max": mx(self.penetration), "energy_err_max": mx(self.energy_err),
+            "complementarity_max": mx(self.complementarity),
+            "online_stops": self.histories.get("online_stops", {}),
             "beta_kind": {k: v[0]["kind"] if v else None for k, v in self.beta.items()},
             "t_offline_s": self.timings.get("offline_s"),
             "t_online_median_s": t_on,
@@ -137,7 +140,8 @@ class ReduceResult:
         out["timings"] = self.timings
         out["histories"] = self.histories
         out["per_mu"] = {"err_u": self.err_u, "err_lam": self.err_lam,
-                         "penetration": self.penetration, "beta": self.beta}
+                         "penetration": self.penetration,
+                         "complementarity": self.complementarity, "beta": self.beta}
         out["definitions"] = self.definitions
         return out
 
@@ -150,6 +154,10 @@ DEFINITIONS = {
     "penetration": "largest mean penetration over one HF multiplier's support, "
                    "max_i (B u_N - G)_i / int phi_i clipped at 0 (m), at each validation mu, "
                    "for the reconstructed displacement",
+    "complementarity": "|lam_R . (G - B u_N)| / (||lam_R||_2 ||G||_2) at the HF rows, per "
+                       "validation mu (0: the reconstruction is complementary)",
+    "online_stops": "stop reasons of the online solves of the last repeat per validation "
+                    "mu, counted",
     "energy_err": "|J(u_N) - J(u)| / |J(u)|, J = 1/2 a(u,u) - f(u) on free dofs (lifted)",
     "beta": "inf-sup constants per validation mu: 'value' is the cone value (kind "
             "'cone-exact': face enumeration; 'cone-upper': best local minimum, an UPPER "
@@ -282,6 +290,8 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     # online validation
     progress("online validation")
     err_u, err_lam, pen, e_en, t_on, t_asm = [], [], [], [], [], []
+    compl: list[float] = []
+    stops: dict[str, int] = {}
     beta: dict[str, list] = {"hf": [], "dec": [], "on": [], "off": []}
     for j, mu in enumerate(valid.mus):
         p = problem_at(mu)
@@ -312,6 +322,9 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         err_lam.append(float(np.sqrt(_xn(p.W, lam - lam_r) / _xn(p.W, lam))))
         disc_gap = p.G - p.B @ u_n  # weighted, per multiplier
         pen.append(float(max(0.0, -(disc_gap / np.asarray(p.W.sum(axis=1)).ravel()).min())))
+        den = np.linalg.norm(lam_r) * np.linalg.norm(p.G)
+        compl.append(float(abs(lam_r @ disc_gap) / den) if den > 0 else 0.0)
+        stops[res.stop_reason] = stops.get(res.stop_reason, 0) + 1
         J = _energy(p, u)
         e_en.append(abs(_energy(p, u_n) - J) / abs(J) if J != 0 else float("nan"))
         # inf-sup constants; H H^T = B X^{-1} B^T (m solves), computed once per mu
@@ -337,6 +350,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
                 S, M, C=(Z_off.T @ (B.T @ Vg)), exact_max_r=config.exact_max_r)))
     if not offline_stab:
         beta.pop("off")
+    histories["online_stops"] = stops
     if t_asm:
         timings["t_online_hf_assembly_s"] = float(np.median(t_asm))
     timings["total_s"] = time.perf_counter() - t0
@@ -344,7 +358,8 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         scene=scene.name, config=asdict(config), N=int(Z.shape[1]), R=int(Vg.shape[1]),
         K_pga=K, hyper=hyper, n_train=len(mus_train), n_valid=len(mus_valid),
         n_hf_dofs=int(train.n_dofs), n_contact=int(train.LAM.shape[0]),
-        err_u=err_u, err_lam=err_lam, penetration=pen, energy_err=e_en, beta=beta,
+        err_u=err_u, err_lam=err_lam, penetration=pen, complementarity=compl,
+        energy_err=e_en, beta=beta,
         t_online=t_on, t_hf=[float(t) for t in np.concatenate([train.times, valid.times])],
         timings=timings, histories=histories, definitions=DEFINITIONS, model=model,
         valid_mus=np.asarray(valid.mus))

@@ -1,0 +1,362 @@
+"""Run-matrix files (``problems/matrices/*.toml``) and the cases they expand to.
+
+A matrix is the product scenes x components x sizes x component parameters x
+repetitions. Example (every table but ``[matrix]`` is optional)::
+
+    [matrix]
+    name = "quick"
+    scenes = ["membrane_obstacle", "hertz_halfdisks"]
+    repetitions = 1
+    timeout_s = 300            # per case, enforced (the case's process is killed)
+    seed = 0                   # of the random parameter sets (default: each scene's)
+
+    [components]               # lists; defaults: the built-in defaults
+    dual = ["cpg", "mcpg", "eng"]
+    stabilizer = ["none", "supremizer", "pga"]
+
+    [sizes]
+    pairs = [[10, 10], [20, 20]]   # (N, R) pairs; or N = [...] and R = [...] (product)
+
+    [reduce]                   # rbbench.rb_pipeline.ReduceConfig fields for every case
+    n_train = 21
+    n_valid = 10
+
+    [scene_overrides]          # --set overrides per scene
+    hertz_halfdisks = ["discretization.level=-1"]
+
+    [params.stabilizer.pga]    # per-component parameter grid (product), ReduceConfig fields
+    k_pga_max = [20, 40]
+
+Selectors (``-s role=a,b``, globs allowed, ``scene`` too) narrow the matrix;
+``--set`` overrides ``[reduce]`` fields (``--set n_valid=5``). Every error
+names the file and the field and says what would be valid.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from rbbench.registry import Registry
+from rbbench.scene import PROBLEMS_DIR, Scene, load_scene, tomllib
+
+__all__ = ["COMPONENT_ROLES", "Case", "Matrix", "MatrixError", "compatibility", "load_matrix"]
+
+#: The component axes of a case, in table order, with the built-in default of each.
+COMPONENT_ROLES = {"backend": "skfem", "formulation": "mixed", "solver": "ssn",
+                   "primal": "pod", "dual": "mcpg", "stabilizer": "pga", "hyper": "auto"}
+#: Registry role of each axis ("hyper" is a pipeline choice, not a registered role yet).
+_REGISTRY_ROLE = {"backend": "backend", "formulation": "formulation", "solver": "solver",
+                  "primal": "primal", "dual": "dual", "stabilizer": "stabilizer"}
+_HYPER = ("auto", "affine", "eim", "none")
+_TOP = {"matrix", "components", "sizes", "reduce", "scene_overrides", "params"}
+_MATRIX_KEYS = {"name", "description", "scenes", "repetitions", "timeout_s", "seed"}
+#: ReduceConfig fields a matrix may not set (they belong to the case's components or
+#: to the runner).
+_RESERVED = {"backend", "formulation", "solver", "primal", "dual", "stabilizer", "hyper", "N",
+             "R", "cache_dir", "n_jobs"}
+
+
+class MatrixError(ValueError):
+    """A run-matrix file or selector is invalid; the message names the file and field."""
+
+
+@dataclass(frozen=True)
+class Case:
+    """One case of a matrix (one results row per repetition)."""
+
+    scene: str
+    overrides: tuple[str, ...]
+    components: dict[str, str]
+    N: int | None
+    R: int | None
+    params: dict[str, Any]  # ReduceConfig fields from [reduce], --set and [params.*]
+    repetition: int
+    seed: int
+    timeout_s: float
+    scene_fingerprint: str = ""
+    status: str = "run"  # "run", or a pre-decided "skip" / "not_installed"
+    reason: str = ""
+    extras: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def case_id(self) -> str:
+        """Hash of everything that determines the case's numbers (not the repetition)."""
+        ident = {"scene": self.scene, "fingerprint": self.scene_fingerprint,
+                 "overrides": list(self.overrides), "components": self.components,
+                 "N": self.N, "R": self.R, "params": self.params, "seed": self.seed}
+        return hashlib.sha256(json.dumps(ident, sort_keys=True, default=str).encode()
+                              ).hexdigest()[:16]
+
+    @property
+    def key(self) -> str:
+        """File stem of the case's row: ``<case_id>-r<repetition>``."""
+        return f"{self.case_id}-r{self.repetition}"
+
+    @property
+    def label(self) -> str:
+        c = self.components
+        return (f"{self.scene} {c['dual']}+{c['stabilizer']}+{c['hyper']} N={self.N} R={self.R}"
+                + (f" rep {self.repetition}" if self.repetition else ""))
+
+    def reduce_config(self, cache_dir: str) -> Any:
+        """The :class:`~rbbench.rb_pipeline.ReduceConfig` of this case."""
+        from rbbench.rb_pipeline import ReduceConfig
+
+        return ReduceConfig(**self.components, N=self.N, R=self.R, cache_dir=cache_dir,
+                            n_jobs=1, **self.params)
+
+
+@dataclass
+class Matrix:
+    """A loaded, expanded matrix."""
+
+    name: str
+    path: str
+    data: dict[str, Any]
+    cases: list[Case]
+
+    @property
+    def timeout_s(self) -> float:
+        return float(self.data["matrix"].get("timeout_s", 600))
+
+
+def _reduce_fields() -> dict[str, Any]:
+    from rbbench.rb_pipeline import ReduceConfig
+
+    return {f.name: f for f in fields(ReduceConfig)}
+
+
+def _as_list(v: Any, where: str) -> list:
+    if isinstance(v, list):
+        if not v:
+            raise MatrixError(f"{where}: empty list; give at least one value")
+        return v
+    return [v]
+
+
+def _check_keys(d: dict, allowed: set, where: str) -> None:
+    bad = sorted(set(d) - allowed)
+    if bad:
+        raise MatrixError(f"{where}: unknown key(s) {bad}; valid: {sorted(allowed)}")
+
+
+def _parse_value(text: str) -> Any:
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text
+
+
+def _selectors(selectors: list[str] | tuple[str, ...]) -> dict[str, list[str]]:
+    out: dict[str, list[str]] = {}
+    valid = ["scene", *COMPONENT_ROLES, "N", "R"]
+    for sel in selectors:
+        if "=" not in sel:
+            raise MatrixError(f"selector {sel!r}: write ROLE=NAME[,NAME...] (globs allowed); "
+                              f"roles: {', '.join(valid)}")
+        role, names = sel.split("=", 1)
+        role = role.strip()
+        if role not in valid:
+            raise MatrixError(f"selector {sel!r}: unknown role {role!r}; valid: "
+                              f"{', '.join(valid)}")
+        out.setdefault(role, []).extend(n.strip() for n in names.split(",") if n.strip())
+    return out
+
+
+def _selected(value: Any, patterns: list[str] | None) -> bool:
+    return patterns is None or any(fnmatch.fnmatchcase(str(value), p) for p in patterns)
+
+
+def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
+                sets: list[str] | tuple[str, ...] = (),
+                registry: Registry | None = None) -> Matrix:
+    """Read, validate and expand a matrix file (see the module docstring).
+
+    ``registry`` is used to check component names and prune incompatible
+    combinations from declared capabilities (nothing is imported).
+    """
+    path = _find_matrix(path)
+    where = str(path)
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:  # noqa: BLE001 - any parse error becomes a named one
+        raise MatrixError(f"{where}: not valid TOML: {exc}") from None
+    _check_keys(data, _TOP, where)
+    if "matrix" not in data:
+        raise MatrixError(f"{where}: missing the [matrix] table (name, scenes)")
+    mtab = data["matrix"]
+    _check_keys(mtab, _MATRIX_KEYS, f"{where}: [matrix]")
+    name = str(mtab.get("name", path.stem))
+    scenes = _as_list(mtab.get("scenes", []) or [], f"{where}: [matrix] scenes")
+    reps = int(mtab.get("repetitions", 1))
+    if reps < 1:
+        raise MatrixError(f"{where}: [matrix] repetitions = {reps}; give an integer >= 1")
+    seed = int(mtab.get("seed", 0))
+    timeout = float(mtab.get("timeout_s", 600))
+    if timeout <= 0:
+        raise MatrixError(f"{where}: [matrix] timeout_s = {timeout}; give seconds > 0")
+
+    comps = data.get("components", {})
+    _check_keys(comps, set(COMPONENT_ROLES), f"{where}: [components]")
+    axes = {role: [str(x) for x in _as_list(comps.get(role, default),
+                                             f"{where}: [components] {role}")]
+            for role, default in COMPONENT_ROLES.items()}
+    for h in axes["hyper"]:
+        if h not in _HYPER:
+            raise MatrixError(f"{where}: [components] hyper: {h!r}; valid: {', '.join(_HYPER)}")
+    if registry is not None:
+        for role, reg_role in _REGISTRY_ROLE.items():
+            valid = registry.names(reg_role)
+            for n in axes[role]:
+                if n not in valid:
+                    raise MatrixError(f"{where}: [components] {role}: unknown {role} {n!r}; "
+                                      f"valid: {', '.join(valid)}")
+
+    sizes = data.get("sizes", {})
+    _check_keys(sizes, {"pairs", "N", "R"}, f"{where}: [sizes]")
+    if "pairs" in sizes:
+        if "N" in sizes or "R" in sizes:
+            raise MatrixError(f"{where}: [sizes]: give either pairs or N / R lists, not both")
+        pairs = []
+        for p in _as_list(sizes["pairs"], f"{where}: [sizes] pairs"):
+            if not (isinstance(p, list) and len(p) == 2):
+                raise MatrixError(f"{where}: [sizes] pairs: {p!r}; each pair is [N, R]")
+            pairs.append((_size(p[0], where, "N"), _size(p[1], where, "R")))
+    else:
+        Ns = [_size(v, where, "N") for v in _as_list(sizes.get("N", [None]), f"{where}: N")]
+        Rs = [_size(v, where, "R") for v in _as_list(sizes.get("R", [None]), f"{where}: R")]
+        pairs = list(itertools.product(Ns, Rs))
+
+    rfields = _reduce_fields()
+    base = dict(data.get("reduce", {}))
+    for s in sets:
+        if "=" not in s:
+            raise MatrixError(f"--set {s!r}: write FIELD=VALUE (a [reduce] field)")
+        k, v = s.split("=", 1)
+        base[k.strip()] = _parse_value(v.strip())
+    _check_params(base, rfields, f"{where}: [reduce] / --set")
+
+    params = data.get("params", {})
+    _check_keys(params, set(COMPONENT_ROLES), f"{where}: [params]")
+    grids: dict[tuple[str, str], list[dict]] = {}
+    for role, per_name in params.items():
+        for cname, grid in per_name.items():
+            w = f"{where}: [params.{role}.{cname}]"
+            if cname not in axes[role]:
+                raise MatrixError(f"{w}: {cname!r} is not in [components] {role} "
+                                  f"{axes[role]}")
+            _check_params(grid, rfields, w)
+            keys = sorted(grid)
+            vals = [_as_list(grid[k], f"{w} {k}") for k in keys]
+            grids[(role, cname)] = [dict(zip(keys, combo, strict=True))
+                                    for combo in itertools.product(*vals)]
+
+    overrides = data.get("scene_overrides", {})
+    for sname, ov in overrides.items():
+        if sname not in scenes:
+            raise MatrixError(f"{where}: [scene_overrides] {sname!r} is not in [matrix] scenes "
+                              f"{scenes}")
+        if not isinstance(ov, list) or not all(isinstance(x, str) for x in ov):
+            raise MatrixError(f"{where}: [scene_overrides] {sname}: give a list of "
+                              "'section.key=value' strings")
+
+    sel = _selectors(selectors)
+    loaded: dict[str, Scene] = {}
+    cases: list[Case] = []
+    for sname in scenes:
+        if not _selected(sname, sel.get("scene")):
+            continue
+        ov = tuple(overrides.get(sname, ()))
+        if "seed" in mtab:
+            ov = (*ov, f"sampling.seed={seed}")
+        try:
+            scene = loaded.setdefault(sname, load_scene(sname, ov))
+        except Exception as exc:  # noqa: BLE001 - name the matrix too
+            raise MatrixError(f"{where}: [matrix] scenes: {sname!r}: {exc}") from None
+        for combo in itertools.product(*axes.values()):
+            comp = dict(zip(axes, combo, strict=True))
+            if not all(_selected(comp[r], sel.get(r)) for r in COMPONENT_ROLES):
+                continue
+            option_sets = [grids.get((r, comp[r]), [{}]) for r in COMPONENT_ROLES]
+            for N, R in pairs:
+                if not (_selected(N, sel.get("N")) and _selected(R, sel.get("R"))):
+                    continue
+                for opts in itertools.product(*option_sets):
+                    p = dict(base)
+                    for o in opts:
+                        p.update(o)
+                    status, reason = compatibility(scene, comp, registry)
+                    for rep in range(reps):
+                        cases.append(Case(sname, ov, comp, N, R, p, rep,
+                                          int(scene.data["sampling"]["seed"]), timeout,
+                                          scene.fingerprint(), status, reason))
+    if not cases:
+        raise MatrixError(f"{where}: no case left after the selectors {list(selectors)}")
+    return Matrix(name, str(path), data, cases)
+
+
+def _size(v: Any, where: str, what: str) -> int | None:
+    if v is None:
+        return None
+    if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+        raise MatrixError(f"{where}: [sizes] {what} = {v!r}; give integers >= 1")
+    return int(v)
+
+
+def _check_params(d: dict, rfields: dict, where: str) -> None:
+    for k in d:
+        if k in _RESERVED or k not in rfields:
+            valid = sorted(set(rfields) - _RESERVED)
+            raise MatrixError(f"{where}: unknown field {k!r}; valid: {', '.join(valid)}")
+
+
+def _find_matrix(path: str | Path) -> Path:
+    p = Path(path)
+    if p.is_file():
+        return p
+    cand = PROBLEMS_DIR / "matrices" / (p.name if p.suffix == ".toml" else f"{p.name}.toml")
+    if cand.is_file():
+        return cand
+    avail = sorted(x.stem for x in (PROBLEMS_DIR / "matrices").glob("*.toml"))
+    raise MatrixError(f"run matrix {str(path)!r} not found (not a file, nor in "
+                      f"{PROBLEMS_DIR / 'matrices'}: {', '.join(avail) or 'none'})")
+
+
+def compatibility(scene: Scene, comp: dict[str, str],
+                  registry: Registry | None) -> tuple[str, str]:
+    """``("run" | "skip" | "not_installed", reason)`` from declared capabilities only.
+
+    Nothing is imported: the physics a backend and a formulation declare, the
+    formulations a solver declares, online stabilisers against HF-free hyper-reducers,
+    and whether each component's modules are importable (``find_spec``).
+    """
+    stab_online = comp["stabilizer"] == "supremizer"
+    if registry is not None:
+        caps = {r: registry.get(rr, comp[r]).capabilities for r, rr in _REGISTRY_ROLE.items()}
+        physics = scene.data["scene"]["physics"]
+        for r in ("backend", "formulation"):
+            ok = caps[r].get("physics")
+            if ok is not None and physics not in ok:
+                return "skip", f"{r} {comp[r]!r} does not support {physics} (supports {ok})"
+        forms = caps["solver"].get("formulations")
+        if forms is not None and comp["formulation"] not in forms:
+            return "skip", (f"solver {comp['solver']!r} does not solve the "
+                            f"{comp['formulation']!r} formulation (solves {forms})")
+        stab_online = bool(caps["stabilizer"].get("online_hf", stab_online))
+    if stab_online and comp["hyper"] in ("affine", "eim"):
+        return "skip", (f"stabilizer {comp['stabilizer']!r} needs the HF B(mu) online: "
+                        f"incompatible with hyper {comp['hyper']!r}")
+    if registry is not None:
+        for r, rr in _REGISTRY_ROLE.items():
+            ok, why = registry.availability(registry.get(rr, comp[r]))
+            if not ok:
+                return "not_installed", f"{r} {comp[r]!r}: {why}"
+    return "run", ""
+
