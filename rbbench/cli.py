@@ -2,7 +2,9 @@
 
 ``rbbench solve SCENE``: one HF solve with summary and files;
 ``rbbench plugins``: every registered component and whether it is importable;
-``rbbench scenes``: the scenes in ``problems/``.
+``rbbench scenes``: the scenes in ``problems/``;
+``rbbench run MATRIX``: a run matrix, one results row per case;
+``rbbench report DIR`` / ``rbbench compare A B``: plots, tables, regressions.
 Bad input exits with status 2 and a message naming what is wrong.
 """
 
@@ -56,15 +58,55 @@ def print_summary(m: dict, mu: dict) -> None:
         print("  WARNING: the contact patch reaches the edge of the potential contact zone")
 
 
+def _backend_options(items: list[str] | None) -> dict:
+    """``--backend-option KEY=VALUE`` pairs; a value is a TOML literal, else a string."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+
+    options = {}
+    for text in items or ():
+        key, sep, raw = text.partition("=")
+        key, raw = key.strip(), raw.strip()
+        if not sep or not key.isidentifier():
+            raise SceneError(f"--backend-option {text!r}: expected KEY=VALUE, e.g. mesh=skfem")
+        try:
+            options[key] = tomllib.loads(f"v = {raw}")["v"]
+        except tomllib.TOMLDecodeError:
+            options[key] = raw
+    return options
+
+
+def _solve_components(scene, args, options: dict):
+    """Backend (with ``options``), formulation and solver for ``rbbench solve``."""
+    reg = default_registry()
+    for role, name in (("backend", args.backend), ("formulation", args.formulation),
+                       ("solver", args.solver)):
+        reg.get(role, name)  # unknown names fail here, before any meshing
+    try:
+        backend = reg.create("backend", args.backend, scene=scene, **options)
+    except SceneError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise SceneError(f"--backend-option: {exc}") from None
+    return backend, reg.create("formulation", args.formulation), reg.create("solver", args.solver)
+
+
 def cmd_solve(args) -> int:
     scene = load_scene(args.scene, overrides=args.set or [])
     mu = scene.check_mu(args.mu) if args.mu is not None else scene.default_mu
+    options = _backend_options(args.backend_option)
     progress = _Progress(args.quiet)
     from rbbench.hf import solve_hf
     from rbbench.output import write_all
 
+    components = None
+    if options:
+        progress("meshing the reference configuration")
+        components = _solve_components(scene, args, options)
     sol = solve_hf(scene, mu, backend=args.backend, formulation=args.formulation,
-                   solver=args.solver, progress=progress)
+                   solver=args.solver, progress=progress, components=components)
     mu_txt = "_".join(f"{k}{v:g}" for k, v in scene.mu_dict(mu).items())
     out = Path(args.out) if args.out else Path("results") / "solve" / f"{scene.name}_{mu_txt}"
     progress(f"writing {out}")
@@ -172,6 +214,94 @@ def cmd_hertz_table(args) -> int:
     return 0
 
 
+def cmd_run(args) -> int:
+    from rbbench.matrix import MatrixError, load_matrix
+    from rbbench.runner import run_matrix
+
+    reg = default_registry()
+    try:
+        matrix = load_matrix(args.matrix, selectors=args.select or (), sets=args.set or (),
+                             registry=reg)
+    except MatrixError as exc:
+        raise SceneError(str(exc)) from None
+    if args.dry_run:
+        counts: dict[str, int] = {}
+        for c in matrix.cases:
+            print(f"{c.key}  {c.status:<13} {c.label}" + (f"  ({c.reason})" if c.reason else ""))
+            counts[c.status] = counts.get(c.status, 0) + 1
+        print(f"{len(matrix.cases)} cases: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
+        return 0
+    out = Path(args.out) if args.out else Path("results") / matrix.name
+    opts = {"address": args.scheduler} if args.scheduler else {}
+    retry = [x for x in (args.retry or "").split(",") if x]
+    try:
+        summary = run_matrix(matrix, out, executor=args.executor, jobs=args.jobs, registry=reg,
+                             retry=retry, csv=args.csv, cache_dir=args.cache_dir,
+                             progress=not args.quiet, executor_options=opts)
+    except KeyboardInterrupt:
+        print(f"interrupted: finished cases are kept in {out}; rerun the same command to "
+              "resume", file=sys.stderr)
+        return 130
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    print(f"{len(summary.computed)} computed, {len(summary.kept)} kept from before; "
+          + ", ".join(f"{v} {k}" for k, v in sorted(summary.counts.items()))
+          + f"; {summary.wall_s:.0f} s")
+    print(f"wrote: {out / 'results.parquet'} (report: rbbench report {out})")
+    return 0
+
+
+def cmd_report(args) -> int:
+    from rbbench.report import report
+
+    res = report(args.run_dir, out_dir=args.out, formats=tuple(args.format))
+    print(f"wrote: {res}")
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from rbbench.report import compare, format_compare
+
+    res = compare(args.a, args.b, threshold=args.threshold, time_threshold=args.time_threshold)
+    print(format_compare(res))
+    return 1 if res.n_regressions else 0
+
+
+def _add_run_parsers(sub) -> None:
+    r = sub.add_parser("run", help="run a matrix of cases (problems/matrices/*.toml): one "
+                                   "results row per case, resumable")
+    r.add_argument("matrix", help="matrix file, or a name in problems/matrices/")
+    r.add_argument("-s", "--select", action="append", metavar="ROLE=NAME[,NAME]",
+                   help="keep only these (globs allowed; roles: scene, backend, formulation, "
+                        "solver, primal, dual, stabilizer, hyper, N, R); repeatable")
+    r.add_argument("--set", action="append", metavar="FIELD=VALUE",
+                   help="override a [reduce] field for every case (repeatable)")
+    r.add_argument("--dry-run", action="store_true", help="list the cases and exit")
+    r.add_argument("--executor", default="processes", help="serial, processes, dask")
+    r.add_argument("--jobs", type=int, default=None, help="concurrent cases (default: CPUs)")
+    r.add_argument("--scheduler", help="dask scheduler address (executor dask)")
+    r.add_argument("--out", help="run directory (default results/<matrix name>)")
+    r.add_argument("--retry", help="recompute finished cases with these statuses, e.g. "
+                                   "error,timeout")
+    r.add_argument("--csv", action="store_true", help="also write results.csv")
+    r.add_argument("--cache-dir", default=".rbbench_cache", help="HF snapshot cache")
+    r.add_argument("--quiet", action="store_true")
+    r.set_defaults(func=cmd_run)
+    rp = sub.add_parser("report", help="plots and HTML / Markdown tables of a run directory")
+    rp.add_argument("run_dir")
+    rp.add_argument("--out", help="output directory (default RUN_DIR/report)")
+    rp.add_argument("--format", nargs="+", default=["png", "svg"], choices=["png", "svg"])
+    rp.set_defaults(func=cmd_report)
+    cp = sub.add_parser("compare", help="compare two runs; exit code 1 on a regression")
+    cp.add_argument("a", help="baseline run directory or results.parquet")
+    cp.add_argument("b", help="new run directory or results.parquet")
+    cp.add_argument("--threshold", type=float, default=0.1,
+                    help="relative growth of an error / drop of a beta counted as a regression")
+    cp.add_argument("--time-threshold", type=float, default=0.5,
+                    help="relative growth of a time counted as a regression")
+    cp.set_defaults(func=cmd_compare)
+
+
 def _add_reduce_args(rd) -> None:
     rd.add_argument("--primal", default="pod")
     rd.add_argument("--dual", default="mcpg", help="pod, cpg, mcpg, eng, nnmf")
@@ -203,6 +333,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scene", help="scene name in problems/ or path to a .toml file")
     s.add_argument("--mu", type=float, nargs="+", help="parameter value(s) (default: scene's)")
     s.add_argument("--backend", default="skfem")
+    s.add_argument("--backend-option", action="append", metavar="KEY=VALUE",
+                   help="keyword option of the backend constructor (repeatable), e.g. "
+                        "mesh=skfem for --backend ngsolve; VALUE is a TOML literal or a string")
     s.add_argument("--formulation", default="mixed")
     s.add_argument("--solver", default="ssn")
     s.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE",
@@ -241,6 +374,7 @@ def build_parser() -> argparse.ArgumentParser:
     osc.add_argument("--repeats", type=int, default=30)
     osc.add_argument("--quiet", action="store_true")
     osc.set_defaults(func=cmd_online_scaling, hyper="eim")
+    _add_run_parsers(sub)
     sc = sub.add_parser("scenes", help="list the scenes in problems/")
     sc.set_defaults(func=cmd_scenes)
     return p

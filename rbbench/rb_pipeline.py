@@ -34,6 +34,15 @@ from rbbench.snapshots import compute_snapshots
 HYPER = ("auto", "affine", "eim", "none")
 
 
+class DivergedError(RuntimeError):
+    """A stage produced non-finite numbers (the runner's ``diverged`` status)."""
+
+
+def _check_finite(what: str, a: np.ndarray) -> None:
+    if not np.all(np.isfinite(a)):
+        raise DivergedError(f"{what} has {int(np.sum(~np.isfinite(a)))} non-finite entries")
+
+
 @dataclass
 class ReduceConfig:
     """Choices of one reduction (CLI ``rbbench reduce``)."""
@@ -224,12 +233,14 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     primal = reg.create("primal", config.primal)(
         train.U, X, tol=None if config.N else config.tol_pod, n=config.N)
     Z = primal.Z
+    _check_finite(f"primal compressor {config.primal!r}: the basis", Z)
     timings["primal_s"] = time.perf_counter() - t1
 
     t1 = time.perf_counter()
     progress(f"dual compressor {config.dual}")
     dual = reg.create("dual", config.dual)(train.LAM, W_ref, tol=config.tol_dual, r_max=config.R)
     Vg = dual.generators
+    _check_finite(f"dual compressor {config.dual!r}: the generators", Vg)
     timings["dual_s"] = time.perf_counter() - t1
 
     # stabiliser
@@ -255,6 +266,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
                                       Vg, fraction=1.0, over="max")
     Z_off, stab_hist = stabilizer.offline(Z, Vg, X, x_solve,
                                           (problem_at(mu).B for mu in mus_train), delta)
+    _check_finite(f"stabilizer {config.stabilizer!r}: the offline basis", Z_off)
     K = int(Z_off.shape[1] - Z.shape[1])
     offline_stab = not stabilizer.online and config.stabilizer != "none"  # beta_off applies
     histories.update({k: v for k, v in stab_hist.items() if k != "K"})

@@ -136,7 +136,7 @@ def execute_case(case: Case, run_id: str, cache_dir: str, executor: str = "seria
     missing); ``timeout`` (:class:`CaseTimeout`); ``error`` (any other exception,
     with its traceback).
     """
-    from rbbench.rb_pipeline import reduce
+    from rbbench.rb_pipeline import DivergedError, reduce
     from rbbench.scene import load_scene
     from rbbench.snapshots import SnapshotError
 
@@ -167,6 +167,8 @@ def execute_case(case: Case, run_id: str, cache_dir: str, executor: str = "seria
         row.update(status="not_installed", reason=str(exc))
     except SnapshotError as exc:
         row.update(status="diverged", reason=f"HF snapshots: {exc}")
+    except DivergedError as exc:
+        row.update(status="diverged", reason=str(exc))
     except Exception as exc:  # noqa: BLE001 - a failing case is a row, never a lost run
         row.update(status="error", reason=f"{type(exc).__name__}: {exc}",
                    traceback=traceback.format_exc())
