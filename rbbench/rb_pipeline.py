@@ -135,7 +135,7 @@ class ReduceResult:
             "penetration_max": mx(self.penetration), "energy_err_max": mx(self.energy_err),
             "complementarity_max": mx(self.complementarity),
             "online_stops": self.histories.get("online_stops", {}),
-            "beta_kind": {k: v[0]["kind"] if v else None for k, v in self.beta.items()},
+            "beta_kind": {k: _kind_at_min(v) for k, v in self.beta.items()},
             "t_offline_s": self.timings.get("offline_s"),
             "t_online_median_s": t_on,
             "t_online_iqr_s": float(np.subtract(*np.percentile(self.t_online, [75, 25]))),
@@ -425,6 +425,12 @@ def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_tr
         [problem_at(mu).B for mu in mus_train], [problem_at(mu).B for mu in mus_valid],
         tol=config.tol_eim)
     return ceim
+
+
+def _kind_at_min(rows: list[dict]) -> str | None:
+    """Kind of the beta value at which the minimum over the validation set is reached."""
+    ok = [r for r in rows if r["value"] is not None and np.isfinite(r["value"])]
+    return min(ok, key=lambda r: r["value"])["kind"] if ok else None
 
 
 def _xn(X, v: np.ndarray) -> float:

@@ -112,6 +112,7 @@ def _fill(row: dict, s: dict) -> None:
         row[k] = s.get(k)
     for col, key in _TIMINGS.items():
         row[col] = s["timings"].get(key)
+    row["t_online_hf_assembly_s"] = s["timings"].get("t_online_hf_assembly_s")
     row["hyper_used"] = s["hyper"]
     row["S"] = s["K_pga"] if s["config"]["stabilizer"] != "supremizer" else s["R"]
     for b in ("hf", "dec", "on", "off"):

@@ -44,14 +44,15 @@ _VALID = "over the validation set"
 _ERR_U = "relative error ||u - u_N||_X / ||u||_X (X: the scene's V inner product, free dofs)"
 _ERR_L = "relative error ||lam - lam_R||_W / ||lam||_W (W: multiplier Gram matrix at mu)"
 _BETA = ("inf-sup constant, min over the validation set (dimensional, X = the V inner "
-         "product); its kind column says span lower bound, exact cone value or cone upper "
-         "estimate")
+         "product); its kind column says, at the minimising mu, span lower bound, exact cone "
+         "value or cone upper estimate")
 
 COLUMNS: tuple[Column, ...] = (
     # identity
     _c("run_id", "str", "identity", "", "name of the run (its output directory)"),
-    _c("case_id", "str", "identity", "", "hash of everything that determines the case "
-       "(scene content and overrides, components and their parameters, sizes, repetition)"),
+    _c("case_id", "str", "identity", "", "hash of everything that determines the case's "
+       "numbers (scene content and overrides, components and their parameters, sizes, seed); "
+       "the repetitions of a case share it"),
     _c("repetition", "int", "identity", "", "repetition index, 0-based"),
     _c("seed", "int", "identity", "", "seed of the random parameter sets"),
     # components
@@ -115,7 +116,11 @@ COLUMNS: tuple[Column, ...] = (
     _c("t_hyper_s", "float", "timings", "s", "hyper-reduction (affine probe / EIM)"),
     _c("t_offline_s", "float", "timings", "s", "offline total, snapshots included"),
     _c("t_online_median_s", "float", "timings", "s", "one online solve (reduced arrays + "
-       "reduced LCP), median over validation mus x repeats"),
+       "reduced saddle-point solve), median over validation mus x repeats; with hyper_used "
+       "= none (e.g. online supremizers) the HF assembly and projection of B(mu) is NOT "
+       "included (see t_online_hf_assembly_s): such a model is not HF-size independent"),
+    _c("t_online_hf_assembly_s", "float", "timings", "s", "hyper_used = none only: median "
+       "time to assemble and project the HF B(mu) online (excluded from t_online_median_s)"),
     _c("t_online_iqr_s", "float", "timings", "s", "inter-quartile range of the online time"),
     _c("t_hf_median_s", "float", "timings", "s", "one HF solve, median over all snapshots"),
     _c("speedup", "float", "timings", "1", "t_hf_median_s / t_online_median_s"),

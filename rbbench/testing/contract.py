@@ -81,7 +81,8 @@ __all__ = [
 HERTZ_COARSE = ("discretization.h_contact=0.02", "discretization.h_max=0.2")
 
 #: Roles with a role-specific contract (the others get the declaration check only).
-ROLE_CHECKS = ("backend", "formulation", "solver", "primal", "dual", "stabilizer")
+ROLE_CHECKS = ("backend", "formulation", "solver", "primal", "dual", "stabilizer",
+               "executor")
 
 _KNOWN_PHYSICS = SCHEMA["scene"]["physics"].choices
 _KNOWN_MULTIPLIERS = SCHEMA["discretization"]["multiplier"].choices
@@ -1153,6 +1154,59 @@ def check_component(spec: ComponentSpec, registry: Registry | None = None) -> No
             pytest.skip(f"no installed backend provides physics {physics}")
     elif spec.role == "solver":
         check_solver(obj, name=name)
+    elif spec.role == "executor":
+        check_executor(obj, name=name)
     else:
         check = {"primal": check_primal, "dual": check_dual, "stabilizer": check_stabilizer}
         check[spec.role](obj, spec.capabilities, name=name)
+
+
+def check_executor(factory: Callable[..., Any], name: str | None = None) -> None:
+    """Executor contract: every case reported once, as a valid results row.
+
+    Two tiny membrane cases, one of which uses a dual compressor that raises
+    (:mod:`rbbench.testing.faulty`): ``run`` must call ``on_result`` exactly
+    once per case, with a row of :mod:`rbbench.schema` whose identity matches
+    the case; the good case is ``ok``, the failing one ``error`` with its
+    traceback; ``on_stage`` receives strings only.
+    """
+    import tempfile
+
+    from rbbench import schema
+    from rbbench.matrix import Case
+    from rbbench.registry import discover
+    from rbbench.testing import faulty
+
+    label = f"executor {name or getattr(factory, '__name__', '?')}"
+    reg = discover(extra_plugins=(faulty,))
+    sc = load_scene("membrane_obstacle", ["discretization.n_cells=6"])
+    params = {"n_train": 4, "n_valid": 2, "online_repeats": 1, "exact_max_r": 3}
+    cases = [Case("membrane_obstacle", ("discretization.n_cells=6",),
+                  {"backend": "skfem", "formulation": "mixed", "solver": "ssn",
+                   "primal": "pod", "dual": d, "stabilizer": "none", "hyper": "auto"},
+                  2, 2, params, 0, 0, 120.0, sc.fingerprint()) for d in ("cpg", "faulty-raise")]
+    got: list[tuple[Any, dict]] = []
+    stages: list[Any] = []
+    ex = _instantiate(lambda: factory(jobs=2), label)
+    with tempfile.TemporaryDirectory() as tmp:
+        ex.run(cases, run_id="contract", cache_dir=tmp, registry=reg,
+               on_result=lambda c, r: got.append((c, r)), on_stage=stages.append)
+    _require(sorted(c.key for c, _ in got) == sorted(c.key for c in cases),
+             f"{label}: on_result must be called once per case (got "
+             f"{[c.key for c, _ in got]})")
+    for case, rec in got:
+        _require(isinstance(rec, dict) and "row" in rec, f"{label}: a record is "
+                 "{'row': ..., 'details': ...}")
+        try:
+            row = schema.normalise_row(rec["row"])
+        except (KeyError, ValueError) as exc:
+            raise ContractViolation(f"{label}: invalid results row: {exc}") from None
+        _require(row["case_id"] == case.case_id and row["run_id"] == "contract",
+                 f"{label}: the row's identity does not match its case")
+        want = "ok" if case.components["dual"] == "cpg" else "error"
+        _require(row["status"] == want, f"{label}: case with dual "
+                 f"{case.components['dual']!r}: status {row['status']!r}, expected {want!r} "
+                 f"({row['reason']})")
+        if want == "error":
+            _require(bool(row["traceback"]), f"{label}: an error row carries its traceback")
+    _require(all(isinstance(m, str) for m in stages), f"{label}: on_stage takes strings")

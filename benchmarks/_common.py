@@ -1,0 +1,89 @@
+"""Settings shared by the asv suites: the cases, and how each is loaded and reduced.
+
+Every suite goes through the entry points of the CLI (``rbbench solve``:
+:func:`rbbench.hf.solve_hf`; ``rbbench reduce``: :func:`rbbench.rb_pipeline.reduce`
+and the stage functions it calls) on small settings, so that ``asv run --quick``
+takes a few minutes on two cores.
+
+Cases (the ``scene`` parameter of the suites):
+
+* ``membrane_obstacle``: the scene as shipped (289 dofs, 225 multipliers, 2 parameters);
+* ``hertz_coarse``: ``hertz_halfdisks`` with :data:`rbbench.testing.HERTZ_COARSE`
+  (the contract suite's coarse mesh: 8888 dofs, 64 multipliers);
+* ``hertz_default``: ``hertz_halfdisks`` on its default mesh (36910 dofs; HF solve only).
+
+This module holds no benchmark (no ``time_`` / ``track_`` / ``peakmem_`` names).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+from rbbench.scene import Scene, load_scene
+from rbbench.testing import HERTZ_COARSE
+
+#: case -> (scene name, overrides as for ``rbbench ... --set``)
+CASES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "membrane_obstacle": ("membrane_obstacle", ()),
+    "hertz_coarse": ("hertz_halfdisks", tuple(HERTZ_COARSE)),
+    "hertz_default": ("hertz_halfdisks", ()),
+}
+
+#: the cases of the reduced-basis suites (small training / validation sets)
+RB_CASES = ["membrane_obstacle", "hertz_coarse"]
+
+#: ``rbbench reduce`` options per RB case; everything else is the CLI default
+#: (POD, mCPG, PGA, hyper auto: exact-affine on the membrane, EIM on Hertz).
+RB_OPTIONS: dict[str, dict] = {
+    "membrane_obstacle": {"n_train": 16, "n_valid": 5},  # 4 x 4 training grid
+    "hertz_coarse": {"n_train": 11, "n_valid": 5},
+}
+
+#: Timeout (s) of one benchmark and of a setup_cache; generous against a loaded machine.
+TIMEOUT = 300.0
+
+
+def scene(case: str) -> Scene:
+    """The scene of ``case``, overrides applied (validated as ``rbbench`` does)."""
+    name, overrides = CASES[case]
+    return load_scene(name, overrides=list(overrides))
+
+
+def reduce_config(case: str, cache_dir: str | None = None, **changes):
+    """The :class:`~rbbench.rb_pipeline.ReduceConfig` of ``case``.
+
+    Snapshots in ``cache_dir`` (give a temporary directory whenever snapshots are
+    computed) and in this process (``n_jobs = 1``: no process pool inside a benchmark);
+    ``changes`` override any field (the tests use tiny sets).
+    """
+    from rbbench.rb_pipeline import ReduceConfig
+
+    cfg = ReduceConfig(n_jobs=1, online_repeats=3, **RB_OPTIONS[case])
+    if cache_dir is not None:
+        changes = {"cache_dir": str(cache_dir), **changes}
+    return replace(cfg, **changes) if changes else cfg
+
+
+def reduced_case(case: str, cache_dir: str, **changes) -> dict:
+    """Run ``rbbench reduce`` on ``case``; keep what the online suites need (picklable).
+
+    Returns ``{"model": ReducedModel, "mu": default mu, "summary": {...}}`` where
+    ``summary`` holds the scalar results of :meth:`ReduceResult.summary`.
+    """
+    from rbbench.rb_pipeline import reduce
+
+    sc = scene(case)
+    res = reduce(sc, reduce_config(case, cache_dir, **changes))
+    if res.model is None:
+        raise RuntimeError(f"{case}: reduce() built no ReducedModel (hyper {res.hyper!r})")
+    summary = {k: v for k, v in res.summary().items()
+               if v is None or isinstance(v, (int, float, str, bool))}
+    return {"model": res.model, "mu": sc.default_mu, "summary": summary}
+
+
+def finite(value, what: str) -> float:
+    """``float(value)``, or raise (a failing benchmark) when it is None or not finite."""
+    if value is None or not math.isfinite(float(value)):
+        raise ValueError(f"{what} is {value!r}: not a finite number")
+    return float(value)

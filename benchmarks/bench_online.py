@@ -1,0 +1,96 @@
+"""asv: the online stage and the accuracy of one ``rbbench reduce`` per case.
+
+``setup_cache`` (module level, shared by both classes) runs
+:func:`rbbench.rb_pipeline.reduce` once per RB case (CLI defaults: POD, mCPG, PGA, hyper
+auto, i.e. exact-affine on the membrane and EIM on coarse Hertz; training / validation
+sizes of :data:`benchmarks._common.RB_OPTIONS`) and keeps the
+:class:`~rbbench.reduced.ReducedModel` (small dense arrays, pickled by asv) and the
+scalar results. The online benchmarks therefore run without any HF data.
+"""
+
+import math
+import tempfile
+
+from ._common import RB_CASES, TIMEOUT, finite, reduced_case
+
+#: ``-log10(beta_off)`` is capped here when ``beta_off`` is zero to machine precision
+NEG_LOG10_CAP = 16.0
+
+
+def setup_cache():
+    """One reduction per RB case: ``{case: {"model", "mu", "summary"}}``."""
+    with tempfile.TemporaryDirectory(prefix="rbbench-asv-") as d:
+        return {case: reduced_case(case, d) for case in RB_CASES}
+
+
+setup_cache.timeout = TIMEOUT
+
+
+class OnlineSolve:
+    """One online solve of the reduced model at the scene's default mu.
+
+    :meth:`ReducedModel.solve`: evaluate the reduced arrays at mu (affine sums; on Hertz
+    the EIM magic rows of ``B(mu)``, ``G(mu)``), Cholesky of ``A_N`` unless it is constant,
+    and the ``R x R`` LCP.
+    """
+
+    params = (RB_CASES,)
+    param_names = ["scene"]
+    timeout = TIMEOUT
+
+    def setup(self, cache, case):
+        self.model = cache[case]["model"]
+        self.mu = cache[case]["mu"]
+
+    def time_online_solve(self, cache, case):
+        """Wall time (s) of one online solve (reduced assembly + LCP)."""
+        res = self.model.solve(self.mu)
+        if res.stop_reason != "converged":
+            raise RuntimeError(f"{case}: online solve stopped: {res.stop_reason}")
+
+    def peakmem_online_solve(self, cache, case):
+        """Peak resident memory (bytes) of the process doing online solves.
+
+        asv's measure: the process maximum, imports and the unpickled model included
+        (no HF data is loaded); its change along the history is what matters.
+        """
+        self.model.solve(self.mu)
+
+
+class Accuracy:
+    """Validation accuracy and stability of the reduction (lower is better for all three).
+
+    Errors: max over the validation set of the relative error, u in the X norm and lam
+    in the W(mu) norm (``result.json`` ``err_u_max``, ``err_lam_max``). Stability:
+    ``beta_off_min``, the min over the validation set of the inf-sup constant of
+    ``V_N + S_PGA`` against the reduced cone.
+    """
+
+    params = (RB_CASES,)
+    param_names = ["scene"]
+    timeout = TIMEOUT
+
+    def track_err_u_max(self, cache, case):
+        """max_valid ||u - u_N||_X / ||u||_X (relative; lower is better)."""
+        return finite(cache[case]["summary"].get("err_u_max"), f"{case} err_u_max")
+
+    def track_err_lam_max(self, cache, case):
+        """max_valid ||lam - lam_R||_W / ||lam||_W (relative; lower is better)."""
+        return finite(cache[case]["summary"].get("err_lam_max"), f"{case} err_lam_max")
+
+    def track_neg_log10_beta_off(self, cache, case):
+        """-log10(beta_off_min): oriented so that LOWER is better (a more stable model).
+
+        beta_off_min is the min over the validation set of the offline-stabilised inf-sup
+        constant (its kind, exact cone value or upper estimate, is in ``result.json``).
+        A value below 10**-NEG_LOG10_CAP (zero to machine precision) gives the cap, 16.
+        Unit: decades (-log10 of a dimensionless constant).
+        """
+        beta = finite(cache[case]["summary"].get("beta_off_min"), f"{case} beta_off_min")
+        if beta <= 10.0 ** -NEG_LOG10_CAP:
+            return NEG_LOG10_CAP
+        return -math.log10(beta)
+
+    track_err_u_max.unit = "relative"
+    track_err_lam_max.unit = "relative"
+    track_neg_log10_beta_off.unit = "-log10(beta_off)"

@@ -1,0 +1,136 @@
+"""The asv suites in ``benchmarks/`` import, are well formed, and run on tiny settings.
+
+The full suites run under asv (``asv check``, ``asv run --quick``: see the README); here
+only what is cheap: every module imports, every ``time_`` / ``peakmem_`` / ``track_``
+benchmark is callable with a docstring, parameters are consistent, and the tracked
+accuracy of one tiny membrane reduction is a finite float.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import math
+import pkgutil
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PREFIXES = ("time_", "timeraw_", "peakmem_", "mem_", "track_")
+
+#: benchmarks the suites promise (module, name)
+EXPECTED = {
+    ("bench_hf", "HFSolve.time_hf_solve"),
+    ("bench_hf", "HFSolve.peakmem_hf_solve"),
+    ("bench_hf", "HertzAccuracy.track_a_rel_error"),
+    ("bench_offline", "Snapshots.time_snapshots"),
+    ("bench_offline", "PrimalPOD.time_primal_pod"),
+    ("bench_offline", "DualCompressor.time_dual_compressor"),
+    ("bench_offline", "PGA.time_pga"),
+    ("bench_offline", "EIM.time_eim_build"),
+    ("bench_offline", "EIM.time_eim_operators"),
+    ("bench_online", "OnlineSolve.time_online_solve"),
+    ("bench_online", "OnlineSolve.peakmem_online_solve"),
+    ("bench_online", "Accuracy.track_err_u_max"),
+    ("bench_online", "Accuracy.track_err_lam_max"),
+    ("bench_online", "Accuracy.track_neg_log10_beta_off"),
+}
+
+
+@pytest.fixture(scope="module")
+def bench_pkg():
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    try:
+        yield importlib.import_module("benchmarks")
+    finally:
+        if sys.path and sys.path[0] == str(ROOT):
+            sys.path.pop(0)
+
+
+@pytest.fixture(scope="module")
+def modules(bench_pkg):
+    names = sorted(m.name for m in pkgutil.iter_modules(bench_pkg.__path__))
+    assert names, "no module in benchmarks/"
+    return {n: importlib.import_module(f"benchmarks.{n}") for n in names}
+
+
+def _benchmarks(module):
+    """(qualified name, function, owning class or None), as asv finds them."""
+    out = []
+    for name, obj in vars(module).items():
+        if name.startswith("_"):
+            continue
+        if inspect.isclass(obj) and obj.__module__ == module.__name__:
+            for attr, fn in inspect.getmembers(obj):
+                if attr.startswith(PREFIXES):
+                    out.append((f"{name}.{attr}", fn, obj))
+        elif inspect.isfunction(obj) and name.startswith(PREFIXES):
+            out.append((name, obj, None))
+    return out
+
+
+def test_every_module_imports_and_benchmarks_are_callable(modules):
+    found = set()
+    for mname, module in modules.items():
+        assert module.__doc__, f"benchmarks/{mname}.py: no module docstring"
+        for qual, fn, cls in _benchmarks(module):
+            found.add((mname, qual))
+            assert callable(fn), f"{mname}.{qual} is not callable"
+            assert fn.__doc__ or (cls is not None and cls.__doc__), \
+                f"{mname}.{qual}: no docstring saying what it measures"
+            if qual.split(".")[-1].startswith("track_"):
+                assert isinstance(getattr(fn, "unit", None), str), f"{mname}.{qual}: no unit"
+            if cls is not None and hasattr(cls, "params"):
+                params, names = cls.params, cls.param_names
+                params = params if isinstance(params, (list, tuple)) and params and \
+                    isinstance(params[0], (list, tuple)) else [params]
+                assert len(params) == len(names), f"{mname}.{qual}: params / param_names"
+                n_args = len(inspect.signature(fn).parameters) - 1  # self
+                has_cache = getattr(cls, "setup_cache", None) or \
+                    getattr(module, "setup_cache", None)
+                assert n_args == len(names) + (1 if has_cache else 0), \
+                    f"{mname}.{qual}: takes {n_args} arguments"
+    missing = EXPECTED - found
+    assert not missing, f"benchmarks missing: {sorted(missing)}"
+
+
+def test_asv_discovers_the_same_benchmarks(bench_pkg, modules):
+    discovery = pytest.importorskip("asv_runner.discovery")
+    names = {b.name for b in discovery.disc_benchmarks(str(ROOT / "benchmarks"))}
+    ours = {f"{m}.{q}" for m, mod in modules.items() for q, _, _ in _benchmarks(mod)}
+    assert names == ours
+
+
+def test_hf_benchmark_runs_on_the_membrane(modules):
+    bench = modules["bench_hf"].HFSolve()
+    bench.setup("membrane_obstacle", "ssn")
+    bench.time_hf_solve("membrane_obstacle", "ssn")
+
+
+def test_online_and_tracked_accuracy_on_a_tiny_reduction(modules, tmp_path):
+    from benchmarks._common import reduced_case
+
+    online = modules["bench_online"]
+    case = "membrane_obstacle"
+    cache = {case: reduced_case(case, str(tmp_path), n_train=4, n_valid=2)}
+    acc = online.Accuracy()
+    for name in ("track_err_u_max", "track_err_lam_max", "track_neg_log10_beta_off"):
+        value = getattr(acc, name)(cache, case)
+        assert isinstance(value, float) and math.isfinite(value), (name, value)
+        assert value >= 0.0, (name, value)
+    bench = online.OnlineSolve()
+    bench.setup(cache, case)
+    bench.time_online_solve(cache, case)
+
+
+def test_tracked_values_fail_instead_of_recording_nan(modules):
+    acc = modules["bench_online"].Accuracy()
+    for bad in (None, float("nan"), float("inf")):
+        cache = {"c": {"summary": {"err_u_max": bad}}}
+        with pytest.raises(ValueError, match="not a finite number"):
+            acc.track_err_u_max(cache, "c")
+    cache = {"c": {"summary": {"beta_off_min": 0.0}}}
+    assert acc.track_neg_log10_beta_off(cache, "c") == modules["bench_online"].NEG_LOG10_CAP
