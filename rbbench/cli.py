@@ -192,7 +192,7 @@ def cmd_reduce(args) -> int:
     (out / "result.json").write_text(json.dumps(_jsonable({**s, "provenance": provenance()}),
                                                 indent=2) + "\n")
     keys = ["N", "R", "K_pga", "hyper", "M_eim", "n_train", "n_valid", "n_hf_dofs", "err_u_max",
-            "err_u_mean", "err_lam_max", "err_lam_mean", "penetration_max",
+            "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
             "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min", "beta_kind",
             "t_offline_s", "t_online_median_s", "t_hf_median_s", "speedup"]
     for k in keys:

@@ -134,6 +134,7 @@ class ReduceResult:
             "err_lam_max": mx(self.err_lam), "err_lam_mean": mean(self.err_lam),
             "penetration_max": mx(self.penetration), "energy_err_max": mx(self.energy_err),
             "complementarity_max": mx(self.complementarity),
+            "lam_best_max": mx(self.histories.get("lam_best_valid", [])),
             "online_stops": self.histories.get("online_stops", {}),
             "beta_kind": {k: _kind_at_min(v) for k, v in self.beta.items()},
             "t_offline_s": self.timings.get("offline_s"),
@@ -165,6 +166,9 @@ DEFINITIONS = {
                    "for the reconstructed displacement",
     "complementarity": "|lam_R . (G - B u_N)| / (||lam_R||_2 ||G||_2) at the HF rows, per "
                        "validation mu (0: the reconstruction is complementary)",
+    "lam_best_valid": "per validation mu: ||lam - Pi lam||_W / ||lam||_W, Pi the W-projection "
+                      "onto the reduced cone (span for a non-cone dual): the best err_lam any "
+                      "reduced model on this dual space can reach; lam_best_max: its max",
     "online_stops": "stop reasons of the online solves of the last repeat per validation "
                     "mu, counted",
     "energy_err": "|J(u_N) - J(u)| / |J(u)|, J = 1/2 a(u,u) - f(u) on free dofs (lifted)",
@@ -305,6 +309,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     progress("online validation")
     err_u, err_lam, pen, e_en, t_on, t_asm = [], [], [], [], [], []
     compl: list[float] = []
+    lam_floor: list[float] = []
     stops: dict[str, int] = {}
     beta: dict[str, list] = {"hf": [], "dec": [], "on": [], "off": []}
     for j, mu in enumerate(valid.mus):
@@ -337,6 +342,8 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         lam_r = Vg @ res.alpha
         err_u.append(float(np.sqrt(_xn(X, u - u_n) / _xn(X, u))))
         err_lam.append(float(np.sqrt(_xn(p.W, lam - lam_r) / _xn(p.W, lam))))
+        # the floor: best approximation of lam in the reduced cone (W-projection)
+        lam_floor.append(float(dual.project(lam, p.W)[2]) / np.sqrt(_xn(p.W, lam)))
         disc_gap = p.G - p.B @ u_n  # weighted, per multiplier
         pen.append(float(max(0.0, -(disc_gap / np.asarray(p.W.sum(axis=1)).ravel()).min())))
         den = np.linalg.norm(lam_r) * np.linalg.norm(p.G)
@@ -368,6 +375,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     if not offline_stab:
         beta.pop("off")
     histories["online_stops"] = stops
+    histories["lam_best_valid"] = lam_floor
     if t_asm:
         timings["t_online_hf_assembly_s"] = float(np.median(t_asm))
     timings["total_s"] = time.perf_counter() - t0

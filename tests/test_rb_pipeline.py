@@ -33,6 +33,9 @@ def test_pipeline_runs_and_is_accurate(scene, tmp_path_factory, dual, stab):
     for on, dec in zip(r.beta["on"], r.beta["dec"], strict=True):
         assert on["value"] >= dec["value"] * (1 - 1e-9)
         assert on["span"] <= on["value"] * (1 + 1e-9)
+    # the reduced multiplier lies in the cone: it cannot beat the cone's best approximation
+    best = s["histories"]["lam_best_valid"]
+    assert all(e >= b * (1 - 1e-9) for e, b in zip(r.err_lam, best, strict=True))
     if stab == "pga":
         sig = s["histories"]["sigma_max"]
         assert all(a >= b - 1e-12 for a, b in zip(sig, sig[1:], strict=False))
