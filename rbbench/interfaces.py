@@ -13,6 +13,7 @@ boundary, so formulations and solvers are backend-agnostic.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,6 +22,10 @@ import scipy.sparse as sp
 
 #: Why an iterative solve stopped. Every solver reports exactly one of these.
 STOP_REASONS = ("converged", "max_iterations", "stagnation", "nan", "diverged")
+
+#: A direct solver: ``factorize(A)`` factorises a sparse SPD matrix once and returns
+#: ``solve(b)`` for right-hand sides ``b`` of shape (n,) or (n, k).
+Factorize = Callable[[sp.csr_matrix], Callable[[np.ndarray], np.ndarray]]
 
 
 @dataclass
@@ -115,6 +120,9 @@ class Discretization:
     ``A u = F`` on all dofs; Dirichlet dofs and values are given separately
     (the formulation eliminates them). ``X`` is the V inner product
     (parameter-independent: assembled on the reference configuration).
+    ``factorize`` optionally supplies the backend's own direct solver
+    (:data:`Factorize`) for stiffness matrices of this discretization, e.g. on
+    the free dofs; ``None`` leaves the choice to the solver (scipy).
     """
 
     mu: np.ndarray
@@ -127,6 +135,7 @@ class Discretization:
     bodies: list[BodyMesh]
     physics: str
     info: dict[str, Any] = field(default_factory=dict)
+    factorize: Factorize | None = None
 
     @property
     def n_dofs(self) -> int:
@@ -139,7 +148,8 @@ class ContactProblem:
 
     Find ``u, lam`` with ``A u + B^T lam = F``, ``lam >= 0``, ``B u <= G``,
     ``lam . (G - B u) = 0``. ``free`` maps free to global dofs; ``u_lift``
-    is the global Dirichlet lifting.
+    is the global Dirichlet lifting. ``factorize``: the backend's direct solver
+    for ``A`` (:data:`Factorize`, from ``Discretization.factorize``), or ``None``.
     """
 
     A: sp.csr_matrix
@@ -150,6 +160,7 @@ class ContactProblem:
     u_lift: np.ndarray
     X: sp.csr_matrix
     W: sp.csr_matrix
+    factorize: Factorize | None = None
 
     def expand(self, u_free: np.ndarray) -> np.ndarray:
         """Global displacement from free-dof values."""

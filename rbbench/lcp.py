@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,14 +50,25 @@ def factorize(A: sp.spmatrix):
                      options={"SymmetricMode": True})
 
 
-def condense(A: sp.spmatrix, F: np.ndarray, B: sp.spmatrix, G: np.ndarray) -> Condensed:
-    """Factorise ``A`` once and form the Delassus operator ``D = B A^{-1} B^T``."""
+def _scipy_solver(A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
+    return factorize(A).solve
+
+
+def condense(A: sp.spmatrix, F: np.ndarray, B: sp.spmatrix, G: np.ndarray,
+             factorize: Callable[[sp.spmatrix], Callable[[np.ndarray], np.ndarray]]
+             | None = None) -> Condensed:
+    """Factorise ``A`` once and form the Delassus operator ``D = B A^{-1} B^T``.
+
+    ``factorize(A)`` returns ``solve(b)`` for ``b`` of shape (n,) or (n, k): a
+    backend's direct solver (``ContactProblem.factorize``); ``None`` uses
+    SuperLU (:func:`factorize`).
+    """
     t0 = time.perf_counter()
-    lu = factorize(A)
+    solve = (factorize or _scipy_solver)(A)
     t1 = time.perf_counter()
-    u0 = lu.solve(np.asarray(F, dtype=float))
+    u0 = solve(np.asarray(F, dtype=float))
     Bt = np.asarray(sp.csr_matrix(B).T.toarray())
-    AinvBt = lu.solve(Bt) if Bt.shape[1] else np.zeros((A.shape[0], 0))
+    AinvBt = solve(Bt) if Bt.shape[1] else np.zeros((A.shape[0], 0))
     D = np.asarray(B @ AinvBt)
     D = 0.5 * (D + D.T)
     q = np.asarray(G - B @ u0).ravel()

@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
+from rbbench_plugins.backends import common
 from rbbench_plugins.backends.meshes import graded_half_disk, unit_square
 from skfem import (
     Basis,
@@ -27,15 +28,9 @@ from skfem import (
 from skfem.helpers import dot, grad
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-from rbbench.contact_geometry import (
-    AffineMap,
-    ContactLayout,
-    FacetChain,
-    PairingError,
-    contact_operators,
-)
+from rbbench.contact_geometry import AffineMap, ContactLayout, FacetChain
 from rbbench.interfaces import Backend, BodyMesh, ContactOperators, Discretization
-from rbbench.scene import Scene, SceneError
+from rbbench.scene import Scene
 
 
 @BilinearForm
@@ -65,11 +60,13 @@ def _element(degree: int):
 class _Body:
     """One elastic body: reference mesh, basis factory and facet dof maps."""
 
-    def __init__(self, name: str, mesh_hat, degree: int, offset: int):
+    def __init__(self, name: str, mesh_hat, degree: int, offset: int,
+                 chain_zone: tuple[float, float] = (0.0, 0.0)):
         self.name = name
         self.mesh_hat = mesh_hat
         self.degree = degree
         self.offset = offset
+        self.chain_zone = chain_zone
         self.basis_hat = Basis(mesh_hat, ElementVector(_element(degree)))
         self.ndofs = self.basis_hat.N
 
@@ -85,6 +82,12 @@ class _Body:
 
     def vertex_dofs(self) -> np.ndarray:
         return self.basis_hat.nodal_dofs.T + self.offset
+
+    def flat_facets(self) -> np.ndarray:
+        """Boundary facets on the flat face (Dirichlet), sorted."""
+        m = self.mesh_hat
+        bf = m.boundary_facets()
+        return bf[common.flat_facets(m.p.T, m.facets[:, bf].T)]
 
 
 class SkfemBackend(Backend):
@@ -121,45 +124,24 @@ class SkfemBackend(Backend):
 
     # ------------------------------------------------------------------ setup
     def _init_halfdisks(self) -> None:
-        g = self.scene.data["geometry"]
-        if self.multiplier == "nodal":
-            raise SceneError(f"{self.scene.path}: [discretization] multiplier: 'nodal' is for "
-                             "obstacle problems; use 'lac', 'p0' or 'p1' for two-body contact")
-        self.zone = tuple(np.pi * np.asarray(g["contact_zone"]))
-        mesh_up = graded_half_disk(self.zone, self.h_contact, self.h_max, self.grading)
-        self.upper = _Body("upper", mesh_up, self.degree, 0)
-        self.rigid = g["lower"] == "rigid_flat"
-        self.lower = None
-        if not self.rigid:
-            mzone = np.pi * np.asarray(g["master_zone"])
-            mesh_lo = graded_half_disk((-mzone[1], -mzone[0]), self.h_contact, self.h_max,
-                                       self.grading)
-            mesh_lo = type(mesh_lo)(mesh_lo.p * np.array([[1.0], [-1.0]]), mesh_lo.t[[0, 2, 1]])
-            self.lower = _Body("lower", mesh_lo, self.degree, self.upper.ndofs)
-            self.master_zone = mzone
-        self.ndofs = self.upper.ndofs + (self.lower.ndofs if self.lower else 0)
+        common.check_multiplier(self.scene)
+        self.rigid = common.is_rigid(self.scene)
+        self.upper, self.lower = None, None
+        offset = 0
+        for spec in common.halfdisk_bodies(self.scene):
+            mesh = graded_half_disk(spec.mesh_zone, self.h_contact, self.h_max, self.grading)
+            if spec.mirrored:
+                p, t = common.mirror_y(mesh.p.T, mesh.t.T)
+                mesh = type(mesh)(p.T, t.T)
+            body = _Body(spec.name, mesh, self.degree, offset, spec.chain_zone)
+            setattr(self, spec.name, body)
+            offset += body.ndofs
+        self.zone = self.upper.chain_zone
+        if self.lower is not None:
+            self.master_zone = np.asarray(self.lower.chain_zone)
+        self.ndofs = offset
         self._layout = None
         self._maps = None
-
-    @staticmethod
-    def _zone_facets(mesh, zone) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Boundary facets whose midpoint angle lies in ``zone``, ordered by angle.
-
-        Returns (facets, flip, inner) where ``flip`` orders each facet's
-        vertices by increasing angle and ``inner`` is the adjacent element's centroid
-        (reference coordinates).
-        """
-        bf = mesh.boundary_facets()
-        mid = mesh.p[:, mesh.facets[:, bf]].mean(axis=1)
-        ang = np.arctan2(mid[1], mid[0])
-        on_arc = np.abs(np.linalg.norm(mid, axis=0) - 1.0) < 0.1
-        keep = on_arc & (ang >= zone[0]) & (ang <= zone[1])
-        facets = bf[keep][np.argsort(ang[keep])]
-        a0 = np.arctan2(*mesh.p[::-1, mesh.facets[0, facets]])
-        a1 = np.arctan2(*mesh.p[::-1, mesh.facets[1, facets]])
-        flip = a0 > a1
-        inner = mesh.p[:, mesh.t[:, mesh.f2t[0, facets]]].mean(axis=1).T
-        return facets, flip, inner
 
     def _init_square(self) -> None:
         n = int(self.scene.data["discretization"]["n_cells"]) * 2 ** int(
@@ -191,25 +173,13 @@ class SkfemBackend(Backend):
         return [self.upper] + ([self.lower] if self.lower is not None else [])
 
     def _body_maps(self) -> dict[str, AffineMap]:
-        """The mu-map of each body, the one source of the geometry: the upper half-disk is
-        ``R1 x_hat + (0, top + g0 + R1)``, the lower one ``R2 x_hat``."""
+        """The mu-map of each body (:func:`rbbench_plugins.backends.common.body_maps`)."""
         if self._maps is None:
-            coef = self.scene.affine_coefficients
-            r1 = coef("geometry", "upper_radius")
-            top = np.zeros_like(r1) if self.rigid else coef("geometry", "lower_radius")
-            self._maps = {"upper": AffineMap(r1, np.stack([
-                np.zeros_like(r1), top + coef("geometry", "initial_gap") + r1]))}
-            if not self.rigid:
-                r2 = coef("geometry", "lower_radius")
-                self._maps["lower"] = AffineMap(r2, np.zeros((2, r2.size)))
+            self._maps = common.body_maps(self.scene)
         return self._maps
 
     def _geometry(self, mu) -> dict:
-        maps = self._body_maps()
-        r1, centre1 = maps["upper"].at(mu)
-        r2 = None if self.rigid else maps["lower"].at(mu)[0]
-        return {"R1": r1, "R2": r2, "g0": float(self.scene.value("geometry", "initial_gap", mu)),
-                "centre1": centre1}
+        return common.halfdisk_geometry(self.scene, self._body_maps(), mu)
 
     def _mapped(self, body: _Body, mu) -> np.ndarray:
         return self._body_maps()[body.name](mu, body.mesh_hat.p.T).T
@@ -230,14 +200,8 @@ class SkfemBackend(Backend):
         Only what is asked for is built ("model only what a scene requires").
         """
         mu = self.scene.check_mu(mu)
-        unknown = set(needs) - {"tangential"}
-        if unknown:
-            raise ValueError(f"skfem backend: unknown needs {sorted(unknown)}; "
-                             "valid: 'tangential'")
+        common.check_needs(self.name, self.scene, needs)
         if self.kind == "unit_square":
-            if needs:
-                raise ValueError("skfem backend: a scalar obstacle problem has no tangential "
-                                 "operators")
             return self._discretize_square(mu)
         return self._discretize_halfdisks(mu, needs)
 
@@ -248,13 +212,11 @@ class SkfemBackend(Backend):
         t_asm = time.perf_counter() - t0
         d = float(self.scene.value("load", "displacement", mu))
         # Dirichlet: upper flat face moves by (0, -d); lower flat face clamped.
-        b_up = bases[0]
-        y_face = geo["centre1"][1]
-        up = b_up.get_dofs(lambda x: np.abs(x[1] - y_face) < 1e-9 * geo["R1"])
+        up = bases[0].get_dofs(facets=self.upper.flat_facets())
         dofs = [up.all("u^1"), up.all("u^2")]
         vals = [np.zeros(up.all("u^1").size), np.full(up.all("u^2").size, -d)]
         if self.lower is not None:
-            lo = bases[1].get_dofs(lambda x: np.abs(x[1]) < 1e-9 * geo["R2"])
+            lo = bases[1].get_dofs(facets=self.lower.flat_facets())
             dofs.append(lo.all() + self.lower.offset)
             vals.append(np.zeros(lo.all().size))
         ddofs = np.concatenate(dofs)
@@ -281,56 +243,32 @@ class SkfemBackend(Backend):
             self._layout = self._build_layout()
         return self._layout
 
-    def _chain(self, body: _Body, zone: tuple, amap: AffineMap) -> FacetChain:
-        facets, flip, inner = self._zone_facets(body.mesh_hat, zone)
-        f = body.mesh_hat.facets
-        n0 = np.where(flip, f[1, facets], f[0, facets])
-        n1 = np.where(flip, f[0, facets], f[1, facets])
-        p = body.mesh_hat.p
-        return FacetChain(a=p[:, n0].T.copy(), b=p[:, n1].T.copy(), inner=inner,
-                          dofs=body.facet_dofs(facets, flip), map=amap,
-                          ids=np.arange(facets.size))
+    def _chain(self, body: _Body, amap: AffineMap) -> FacetChain:
+        m = body.mesh_hat
+        bf = m.boundary_facets()
+        return common.facet_chain(m.p.T, m.t.T, m.facets[:, bf].T, m.f2t[0, bf],
+                                  body.chain_zone,
+                                  lambda rows, flip: body.facet_dofs(bf[rows], flip), amap)
 
     def _build_layout(self) -> ContactLayout:
         maps = self._body_maps()
-        slave = self._chain(self.upper, self.zone, maps["upper"])
-        master = None
-        if not self.rigid:
-            master = self._chain(self.lower, tuple(self.master_zone), maps["lower"])
-        return ContactLayout(slave=slave, master=master, degree=self.degree,
-                             n_gauss=self.n_gauss, multiplier=self.multiplier,
-                             patch=int(self.scene.data["discretization"]["lac_patch"]),
-                             n_facets=slave.n, n_dofs=self.ndofs)
+        slave = self._chain(self.upper, maps["upper"])
+        master = None if self.lower is None else self._chain(self.lower, maps["lower"])
+        return common.halfdisk_layout(self.scene, slave, master, self.degree, self.n_gauss,
+                                      self.ndofs)
 
     def _contact(self, mu, tangential: bool = False) -> ContactOperators:
-        """GPTS pairing at mu: :func:`rbbench.contact_geometry.contact_operators`."""
-        try:
-            return contact_operators(self.contact_layout(), mu, tangential)
-        except PairingError as exc:
-            zone = [float(z) for z in self.scene.data["geometry"]["master_zone"]]
-            raise SceneError(
-                f"{self.scene.path}: [geometry] master_zone: {exc.n_missed} slave "
-                f"quadrature point(s) (e.g. x = {exc.example.round(4).tolist()}) project "
-                f"outside the master zone {zone} (theta/pi); widen it") from None
+        """GPTS pairing at mu (:func:`rbbench_plugins.backends.common.halfdisk_contact`)."""
+        return common.halfdisk_contact(self.scene, self.contact_layout(), mu, tangential)
 
     def _discretize_square(self, mu) -> Discretization:
-        s = self.scene
-        f = float(s.value("load", "source", mu))
-        h = float(s.value("obstacle", "height", mu))
-        c = float(s.value("obstacle", "curvature", mu))
-        x0 = np.asarray(s.data["obstacle"]["centre"])
+        f = float(self.scene.value("load", "source", mu))
         m, b = self.mesh, self.basis
         bnd = self.mesh.boundary_nodes() if self.degree == 1 else b.get_dofs().all()
         free_nodes = np.setdiff1d(np.arange(b.N), bnd)
         xy = b.doflocs[:, free_nodes].T
-        psi = h - c * np.sum((xy - x0) ** 2, axis=1)
         lumped = np.asarray(self.M.sum(axis=1)).ravel()[free_nodes]
-        nq = free_nodes.size
-        Un = sp.csr_matrix((-np.ones(nq), (np.arange(nq), free_nodes)), shape=(nq, b.N))
-        contact = ContactOperators(
-            Un=Un, gap=-psi, weights=lumped, points=xy, normals=np.tile([0.0, -1.0], (nq, 1)),
-            Mlam=sp.identity(nq, format="csr"), multiplier="nodal", mult_points=xy,
-            mult_extent=np.stack([xy[:, 0], xy[:, 0]], axis=1))
+        contact = common.obstacle_contact(self.scene, mu, xy, free_nodes, lumped, b.N)
         body = BodyMesh("membrane", m.p.T.copy(), m.t.T.copy(), np.arange(m.nvertices)[:, None])
         return Discretization(mu=mu, A=self.A_lap, F=f * self.load_vec,
                               dirichlet_dofs=bnd, dirichlet_values=np.zeros(bnd.size),

@@ -28,4 +28,5 @@ class MixedFormulation(Formulation):
         F = disc.F[free] - A[free] @ u_lift
         G = disc.contact.G() - Bfull @ u_lift
         return ContactProblem(A=A[free][:, free].tocsr(), F=F, B=Bfull[:, free].tocsr(), G=G,
-                              free=free, u_lift=u_lift, X=disc.X, W=disc.contact.W())
+                              free=free, u_lift=u_lift, X=disc.X, W=disc.contact.W(),
+                              factorize=disc.factorize)

@@ -19,7 +19,8 @@ class _CondensedSolver(Solver):
         raise NotImplementedError
 
     def solve(self, problem: ContactProblem, warm_start: np.ndarray | None = None) -> SolveResult:
-        cond = lcp.condense(problem.A, problem.F, problem.B, problem.G)
+        cond = lcp.condense(problem.A, problem.F, problem.B, problem.G,
+                            factorize=getattr(problem, "factorize", None))
         t0 = time.perf_counter()
         lam, it, reason, res, info = self._run(cond.D, cond.q, warm_start)
         t_solve = time.perf_counter() - t0

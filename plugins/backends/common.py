@@ -1,0 +1,306 @@
+"""Backend-neutral pieces of the built-in HF backends (numpy only, no FEM library).
+
+What every backend of the built-in scenes computes the same way, whatever its
+mesh and dof numbering:
+
+* the reference bodies of a ``halfdisks`` scene and their mu-maps
+  (:func:`halfdisk_bodies`, :func:`body_maps`, :func:`halfdisk_geometry`);
+* boundary facets of a triangle mesh given as arrays, the facets of a potential
+  contact zone ordered along the arc (:func:`zone_facets`), the facets of the
+  flat (Dirichlet) face (:func:`flat_facets`), and the
+  :class:`~rbbench.contact_geometry.FacetChain` built from them
+  (:func:`facet_chain`);
+* the GPTS contact operators at mu with the scene-level error message
+  (:func:`halfdisk_contact`), and the collocation operators of the scalar
+  obstacle problem (:func:`obstacle_contact`);
+* the plane-strain Lame parameters (:func:`lame_parameters`).
+
+Meshes are arrays: ``points`` (n, 2) in reference coordinates, ``facets``
+(n_f, 2) vertex indices of edges, ``triangles`` (n_t, 3).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from rbbench.contact_geometry import (
+    AffineMap,
+    ContactLayout,
+    FacetChain,
+    PairingError,
+    contact_operators,
+)
+from rbbench.interfaces import ContactOperators
+from rbbench.scene import Scene, SceneError
+
+#: Relative tolerance (to the unit reference radius) of the flat-face test.
+FLAT_TOL = 1e-9
+
+
+# ---------------------------------------------------------------------------
+# halfdisks scenes: reference bodies and their mu-maps
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class HalfDiskBody:
+    """One reference body of a ``halfdisks`` scene.
+
+    Attributes
+    ----------
+    name : str
+        ``"upper"`` or ``"lower"`` (the material table and map of the body).
+    mesh_zone : (float, float)
+        Angular zone (radians) on the unit *lower* half-disk toward which its
+        mesh is graded (the potential contact arc).
+    chain_zone : (float, float)
+        Angular zone (radians) of the contact chain in the body's own
+        reference coordinates.
+    mirrored : bool
+        The body is the mirror image ``y -> -y`` of the graded lower half-disk
+        (the lower body, curved side up); triangles are reoriented.
+    """
+
+    name: str
+    mesh_zone: tuple[float, float]
+    chain_zone: tuple[float, float]
+    mirrored: bool
+
+
+def is_rigid(scene: Scene) -> bool:
+    """The lower body is the rigid plane ``y = 0`` (``geometry.lower = "rigid_flat"``)."""
+    return scene.data["geometry"]["lower"] == "rigid_flat"
+
+
+def halfdisk_bodies(scene: Scene) -> list[HalfDiskBody]:
+    """The reference bodies of a ``halfdisks`` scene: the upper one, then the lower one.
+
+    Upper: the unit lower half-disk graded toward ``contact_zone``. Lower (absent
+    on a rigid flat): the unit upper half-disk, the mirror of a lower half-disk
+    graded toward the mirrored ``master_zone``.
+    """
+    g = scene.data["geometry"]
+    zone = tuple(np.pi * np.asarray(g["contact_zone"]))
+    bodies = [HalfDiskBody("upper", zone, zone, False)]
+    if not is_rigid(scene):
+        mzone = np.pi * np.asarray(g["master_zone"])
+        bodies.append(HalfDiskBody("lower", (-mzone[1], -mzone[0]), tuple(mzone), True))
+    return bodies
+
+
+def mirror_y(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mirror image ``y -> -y`` of a mesh ``(points (n, 2), triangles (m, 3))``,
+    triangles reoriented (vertex order 0, 2, 1)."""
+    return points * np.array([1.0, -1.0]), triangles[:, [0, 2, 1]]
+
+
+def body_maps(scene: Scene) -> dict[str, AffineMap]:
+    """The mu-map of each body, the one source of the geometry of a ``halfdisks`` scene.
+
+    The upper half-disk is ``R1 x_hat + (0, top + g0 + R1)`` with ``top = R2``
+    (two bodies) or ``0`` (rigid flat), the lower one ``R2 x_hat``. Coefficients
+    on ``theta(mu) = [1, mu]`` (:meth:`rbbench.scene.Scene.affine_coefficients`).
+    """
+    coef = scene.affine_coefficients
+    rigid = is_rigid(scene)
+    r1 = coef("geometry", "upper_radius")
+    top = np.zeros_like(r1) if rigid else coef("geometry", "lower_radius")
+    maps = {"upper": AffineMap(r1, np.stack([
+        np.zeros_like(r1), top + coef("geometry", "initial_gap") + r1]))}
+    if not rigid:
+        r2 = coef("geometry", "lower_radius")
+        maps["lower"] = AffineMap(r2, np.zeros((2, r2.size)))
+    return maps
+
+
+def halfdisk_geometry(scene: Scene, maps: dict[str, AffineMap], mu: np.ndarray) -> dict:
+    """Radii, initial gap and upper centre at mu (``Discretization.info["geometry"]``)."""
+    r1, centre1 = maps["upper"].at(mu)
+    r2 = maps["lower"].at(mu)[0] if "lower" in maps else None
+    return {"R1": r1, "R2": r2, "g0": float(scene.value("geometry", "initial_gap", mu)),
+            "centre1": centre1}
+
+
+# ---------------------------------------------------------------------------
+# facets from arrays
+# ---------------------------------------------------------------------------
+def boundary_facets(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Boundary edges of a triangle mesh: ``(facets (n_b, 2), element (n_b,))``.
+
+    Each boundary edge keeps the vertex order of its triangle (counter-clockwise
+    triangles give the domain on the left); ``element`` is the adjacent triangle.
+    Sorted by (smaller, larger) vertex index.
+    """
+    t = np.asarray(triangles)
+    local = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    elem = np.tile(np.arange(t.shape[0]), 3)
+    key = np.sort(local, axis=1)
+    _, first, inverse, count = np.unique(key, axis=0, return_index=True,
+                                         return_inverse=True, return_counts=True)
+    once = np.flatnonzero(count == 1)
+    idx = first[once]
+    return local[idx], elem[idx]
+
+
+def zone_facets(points: np.ndarray, facets: np.ndarray, zone: tuple[float, float]
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Boundary facets of a unit (half-)circle arc whose midpoint angle lies in ``zone``.
+
+    Parameters
+    ----------
+    points : (n, 2)
+        Reference vertex coordinates (unit radius, centre at the origin).
+    facets : (n_f, 2)
+        Vertex indices of the boundary facets.
+    zone : (float, float)
+        Angular interval (radians).
+
+    Returns
+    -------
+    order : (n_z,) int
+        Rows of ``facets`` in the zone, ordered by increasing midpoint angle.
+    flip : (n_z,) bool
+        Whether ``facets[order, 1]`` (not ``[order, 0]``) is the vertex of smaller
+        angle, i.e. the start of the facet along the chain.
+
+    Midpoints are tested on the angle and on ``|r - 1| < 0.1`` (chord midpoints
+    of a polygonal circle lie strictly inside it: pitfalls.md, scikit-fem).
+    """
+    mid = points[facets].mean(axis=1).T
+    ang = np.arctan2(mid[1], mid[0])
+    on_arc = np.abs(np.linalg.norm(mid, axis=0) - 1.0) < 0.1
+    keep = on_arc & (ang >= zone[0]) & (ang <= zone[1])
+    order = np.flatnonzero(keep)[np.argsort(ang[keep])]
+    a0 = np.arctan2(*points[facets[order, 0]].T[::-1])
+    a1 = np.arctan2(*points[facets[order, 1]].T[::-1])
+    return order, a0 > a1
+
+
+def flat_facets(points: np.ndarray, facets: np.ndarray, y: float = 0.0) -> np.ndarray:
+    """Rows of ``facets`` whose midpoint lies on the line ``y`` (reference coordinates).
+
+    The flat face of a reference half-disk is ``y = 0``: the Dirichlet boundary
+    of both bodies (the test of the scikit-fem backend on the mapped face,
+    ``|y - y_face| < 1e-9 R``, pulled back to the unit reference body).
+    """
+    mid_y = points[facets, 1].mean(axis=1)
+    return np.flatnonzero(np.abs(mid_y - y) < FLAT_TOL)
+
+
+def facet_chain(points: np.ndarray, triangles: np.ndarray, facets: np.ndarray,
+                elements: np.ndarray, zone: tuple[float, float],
+                facet_dofs: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                amap: AffineMap) -> FacetChain:
+    """The :class:`~rbbench.contact_geometry.FacetChain` of the boundary facets in ``zone``.
+
+    Parameters
+    ----------
+    points, triangles : (n, 2), (n_t, 3)
+        The body's reference mesh.
+    facets, elements : (n_f, 2), (n_f,)
+        Its boundary facets (vertex indices) and their adjacent triangles.
+    zone : (float, float)
+        Angular zone (radians), see :func:`zone_facets`.
+    facet_dofs : callable
+        ``facet_dofs(rows, flip)`` -> (n_z, degree + 1, 2) global dofs of the facets
+        ``facets[rows]``, ``[start, end, (mid)] x component`` with the start vertex
+        ``facets[rows, 1]`` where ``flip`` (the backend's dof numbering).
+    amap : AffineMap
+        The body's mu-map.
+
+    ``a``, ``b`` are the facet ends by increasing angle; ``inner`` the centroid of
+    the adjacent triangle.
+    """
+    rows, flip = zone_facets(points, facets, zone)
+    f = facets[rows]
+    n0 = np.where(flip, f[:, 1], f[:, 0])
+    n1 = np.where(flip, f[:, 0], f[:, 1])
+    inner = points[triangles[elements[rows]]].mean(axis=1)
+    return FacetChain(a=points[n0], b=points[n1], inner=inner, dofs=facet_dofs(rows, flip),
+                      map=amap, ids=np.arange(rows.size))
+
+
+def halfdisk_layout(scene: Scene, slave: FacetChain, master: FacetChain | None,
+                    degree: int, n_gauss: int, n_dofs: int) -> ContactLayout:
+    """The :class:`~rbbench.contact_geometry.ContactLayout` of a ``halfdisks`` scene."""
+    disc = scene.data["discretization"]
+    return ContactLayout(slave=slave, master=master, degree=degree, n_gauss=n_gauss,
+                         multiplier=disc["multiplier"], patch=int(disc["lac_patch"]),
+                         n_facets=slave.n, n_dofs=n_dofs)
+
+
+def check_multiplier(scene: Scene) -> None:
+    """``nodal`` multipliers are for obstacle problems: raise :class:`SceneError` otherwise."""
+    if scene.data["discretization"]["multiplier"] == "nodal":
+        raise SceneError(f"{scene.path}: [discretization] multiplier: 'nodal' is for "
+                         "obstacle problems; use 'lac', 'p0' or 'p1' for two-body contact")
+
+
+def check_needs(backend: str, scene: Scene, needs: frozenset[str]) -> None:
+    """Validate ``needs`` of ``Backend.discretize`` (only ``"tangential"`` is known)."""
+    unknown = set(needs) - {"tangential"}
+    if unknown:
+        raise ValueError(f"{backend} backend: unknown needs {sorted(unknown)}; "
+                         "valid: 'tangential'")
+    if needs and scene.data["geometry"]["kind"] == "unit_square":
+        raise ValueError(f"{backend} backend: a scalar obstacle problem has no tangential "
+                         "operators")
+
+
+def halfdisk_contact(scene: Scene, layout: ContactLayout, mu: np.ndarray,
+                     tangential: bool = False) -> ContactOperators:
+    """GPTS pairing at mu (:func:`rbbench.contact_geometry.contact_operators`).
+
+    A slave point missing the master zone becomes a :class:`SceneError` naming
+    ``[geometry] master_zone``.
+    """
+    try:
+        return contact_operators(layout, mu, tangential)
+    except PairingError as exc:
+        zone = [float(z) for z in scene.data["geometry"]["master_zone"]]
+        raise SceneError(
+            f"{scene.path}: [geometry] master_zone: {exc.n_missed} slave "
+            f"quadrature point(s) (e.g. x = {exc.example.round(4).tolist()}) project "
+            f"outside the master zone {zone} (theta/pi); widen it") from None
+
+
+# ---------------------------------------------------------------------------
+# obstacle problem and materials
+# ---------------------------------------------------------------------------
+def obstacle_contact(scene: Scene, mu: np.ndarray, xy: np.ndarray, free: np.ndarray,
+                     lumped: np.ndarray, n_dofs: int) -> ContactOperators:
+    """Collocation contact operators of the scalar obstacle problem at mu.
+
+    One nodal multiplier per free dof: ``Un = -u(x_i)``, gap ``-psi(x_i)`` with the
+    paraboloid ``psi = height - curvature |x - centre|^2``, weights the lumped
+    mass ``lumped`` (row sums of the mass matrix at the free dofs).
+
+    Parameters
+    ----------
+    xy : (n_free, 2)
+        Coordinates of the free dofs.
+    free : (n_free,)
+        Their global numbers.
+    """
+    h = float(scene.value("obstacle", "height", mu))
+    c = float(scene.value("obstacle", "curvature", mu))
+    x0 = np.asarray(scene.data["obstacle"]["centre"])
+    psi = h - c * np.sum((xy - x0) ** 2, axis=1)
+    nq = free.size
+    Un = sp.csr_matrix((-np.ones(nq), (np.arange(nq), free)), shape=(nq, n_dofs))
+    return ContactOperators(
+        Un=Un, gap=-psi, weights=lumped, points=xy, normals=np.tile([0.0, -1.0], (nq, 1)),
+        Mlam=sp.identity(nq, format="csr"), multiplier="nodal", mult_points=xy,
+        mult_extent=np.stack([xy[:, 0], xy[:, 0]], axis=1))
+
+
+def lame_parameters(E: float, nu: float) -> tuple[float, float]:
+    """Plane-strain Lame parameters ``(lambda, mu)`` from Young's modulus and Poisson's ratio.
+
+    ``lambda = E nu / ((1 + nu)(1 - 2 nu))``, ``mu = E / (2 (1 + nu))``: the same
+    expressions, in the same floating-point order, as
+    ``skfem.models.elasticity.lame_parameters``.
+    """
+    return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
