@@ -27,6 +27,12 @@ repetitions. Example (every table but ``[matrix]`` is optional)::
     [params.stabilizer.pga]    # per-component parameter grid (product), ReduceConfig fields
     k_pga_max = [20, 40]
 
+A scene entry ``name@variant`` is the scene ``name`` under its own
+``[scene_overrides]`` entry (e.g. two mesh sizes: ``hertz_halfdisks@fine``).
+``[matrix] mode = "hf"`` makes each case an HF solve only (components
+backend, formulation, solver; ``[hf] repeats`` solves at the scene's default
+mu, timed without meshing): the backend x solver timing tables.
+
 Selectors (``-s role=a,b``, globs allowed, ``scene`` too) narrow the matrix;
 ``--set`` overrides ``[reduce]`` fields (``--set n_valid=5``). Every error
 names the file and the field and says what would be valid.
@@ -54,8 +60,10 @@ COMPONENT_ROLES = {"backend": "skfem", "formulation": "mixed", "solver": "ssn",
 _REGISTRY_ROLE = {"backend": "backend", "formulation": "formulation", "solver": "solver",
                   "primal": "primal", "dual": "dual", "stabilizer": "stabilizer"}
 _HYPER = ("auto", "affine", "eim", "none")
-_TOP = {"matrix", "components", "sizes", "reduce", "scene_overrides", "params"}
-_MATRIX_KEYS = {"name", "description", "scenes", "repetitions", "timeout_s", "seed"}
+_TOP = {"matrix", "components", "sizes", "reduce", "scene_overrides", "params", "hf"}
+_MATRIX_KEYS = {"name", "description", "scenes", "repetitions", "timeout_s", "seed", "mode"}
+MODES = ("rb", "hf")
+_HF_ROLES = ("backend", "formulation", "solver")
 #: ReduceConfig fields a matrix may not set (they belong to the case's components or
 #: to the runner).
 _RESERVED = {"backend", "formulation", "solver", "primal", "dual", "stabilizer", "hyper", "N",
@@ -80,6 +88,7 @@ class Case:
     seed: int
     timeout_s: float
     scene_fingerprint: str = ""
+    mode: str = "rb"
     status: str = "run"  # "run", or a pre-decided "skip" / "not_installed"
     reason: str = ""
     extras: dict[str, Any] = field(default_factory=dict)
@@ -88,6 +97,7 @@ class Case:
     def case_id(self) -> str:
         """Hash of everything that determines the case's numbers (not the repetition)."""
         ident = {"scene": self.scene, "fingerprint": self.scene_fingerprint,
+                 **({"mode": self.mode} if self.mode != "rb" else {}),
                  "overrides": list(self.overrides), "components": self.components,
                  "N": self.N, "R": self.R, "params": self.params, "seed": self.seed}
         return hashlib.sha256(json.dumps(ident, sort_keys=True, default=str).encode()
@@ -99,8 +109,15 @@ class Case:
         return f"{self.case_id}-r{self.repetition}"
 
     @property
+    def base_scene(self) -> str:
+        """The scene file's name (``name`` of a ``name@variant`` entry)."""
+        return self.scene.split("@", 1)[0]
+
+    @property
     def label(self) -> str:
         c = self.components
+        if self.mode == "hf":
+            return f"{self.scene} HF {c['backend']}/{c['formulation']}/{c['solver']}"
         return (f"{self.scene} {c['dual']}+{c['stabilizer']}+{c['hyper']} N={self.N} R={self.R}"
                 + (f" rep {self.repetition}" if self.repetition else ""))
 
@@ -199,23 +216,40 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
     if reps < 1:
         raise MatrixError(f"{where}: [matrix] repetitions = {reps}; give an integer >= 1")
     seed = int(mtab.get("seed", 0))
+    mode = str(mtab.get("mode", "rb"))
+    if mode not in MODES:
+        raise MatrixError(f"{where}: [matrix] mode = {mode!r}; valid: {', '.join(MODES)}")
     timeout = float(mtab.get("timeout_s", 600))
     if timeout <= 0:
         raise MatrixError(f"{where}: [matrix] timeout_s = {timeout}; give seconds > 0")
 
     comps = data.get("components", {})
-    _check_keys(comps, set(COMPONENT_ROLES), f"{where}: [components]")
+    _check_keys(comps, set(_HF_ROLES) if mode == "hf" else set(COMPONENT_ROLES),
+                f"{where}: [components] (mode {mode})")
+    if mode == "hf":
+        for t in ("sizes", "params", "reduce"):
+            if t in data:
+                raise MatrixError(f"{where}: [{t}] does not apply to mode 'hf' (HF solves "
+                                  "only); remove it")
+    hf = data.get("hf", {})
+    _check_keys(hf, {"repeats"}, f"{where}: [hf]")
+    if mode == "hf":
+        reps_hf = hf.get("repeats", 3)
+        if not isinstance(reps_hf, int) or reps_hf < 1:
+            raise MatrixError(f"{where}: [hf] repeats = {reps_hf!r}; give an integer >= 1")
     axes = {role: [str(x) for x in _as_list(comps.get(role, default),
                                              f"{where}: [components] {role}")]
             for role, default in COMPONENT_ROLES.items()}
+    if mode == "hf":  # the RB roles do not apply: empty names in the rows
+        axes.update({r: [""] for r in COMPONENT_ROLES if r not in _HF_ROLES})
     for h in axes["hyper"]:
-        if h not in _HYPER:
+        if h not in _HYPER and not (mode == "hf" and h == ""):
             raise MatrixError(f"{where}: [components] hyper: {h!r}; valid: {', '.join(_HYPER)}")
     if registry is not None:
         for role, reg_role in _REGISTRY_ROLE.items():
             valid = registry.names(reg_role)
             for n in axes[role]:
-                if n not in valid:
+                if n not in valid and not (mode == "hf" and role not in _HF_ROLES):
                     raise MatrixError(f"{where}: [components] {role}: unknown {role} {n!r}; "
                                       f"valid: {', '.join(valid)}")
 
@@ -274,10 +308,11 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
         if not _selected(sname, sel.get("scene")):
             continue
         ov = tuple(overrides.get(sname, ()))
+        base_name = sname.split("@", 1)[0]
         if "seed" in mtab:
             ov = (*ov, f"sampling.seed={seed}")
         try:
-            scene = loaded.setdefault(sname, load_scene(sname, ov))
+            scene = loaded.setdefault(sname, load_scene(base_name, ov))
         except Exception as exc:  # noqa: BLE001 - name the matrix too
             raise MatrixError(f"{where}: [matrix] scenes: {sname!r}: {exc}") from None
         for combo in itertools.product(*axes.values()):
@@ -288,15 +323,19 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
             for N, R in pairs:
                 if not (_selected(N, sel.get("N")) and _selected(R, sel.get("R"))):
                     continue
+                if mode == "hf":
+                    N = R = None
                 for opts in itertools.product(*option_sets):
-                    p = dict(base)
+                    p = dict(base) if mode == "rb" else {"hf_repeats": hf.get("repeats", 3)}
                     for o in opts:
                         p.update(o)
                     status, reason = compatibility(scene, comp, registry)
                     for rep in range(reps):
                         cases.append(Case(sname, ov, comp, N, R, p, rep,
                                           int(scene.data["sampling"]["seed"]), timeout,
-                                          scene.fingerprint(), status, reason))
+                                          scene.fingerprint(), mode, status, reason))
+                if mode == "hf":
+                    break  # sizes do not apply
     if not cases:
         raise MatrixError(f"{where}: no case left after the selectors {list(selectors)}")
     return Matrix(name, str(path), data, cases)
@@ -338,8 +377,9 @@ def compatibility(scene: Scene, comp: dict[str, str],
     and whether each component's modules are importable (``find_spec``).
     """
     stab_online = comp["stabilizer"] == "supremizer"
+    roles = {r: rr for r, rr in _REGISTRY_ROLE.items() if comp[r]}  # "" = not applicable
     if registry is not None:
-        caps = {r: registry.get(rr, comp[r]).capabilities for r, rr in _REGISTRY_ROLE.items()}
+        caps = {r: registry.get(rr, comp[r]).capabilities for r, rr in roles.items()}
         physics = scene.data["scene"]["physics"]
         for r in ("backend", "formulation"):
             ok = caps[r].get("physics")
@@ -349,12 +389,13 @@ def compatibility(scene: Scene, comp: dict[str, str],
         if forms is not None and comp["formulation"] not in forms:
             return "skip", (f"solver {comp['solver']!r} does not solve the "
                             f"{comp['formulation']!r} formulation (solves {forms})")
-        stab_online = bool(caps["stabilizer"].get("online_hf", stab_online))
+        if "stabilizer" in caps:
+            stab_online = bool(caps["stabilizer"].get("online_hf", stab_online))
     if stab_online and comp["hyper"] in ("affine", "eim"):
         return "skip", (f"stabilizer {comp['stabilizer']!r} needs the HF B(mu) online: "
                         f"incompatible with hyper {comp['hyper']!r}")
     if registry is not None:
-        for r, rr in _REGISTRY_ROLE.items():
+        for r, rr in roles.items():
             ok, why = registry.availability(registry.get(rr, comp[r]))
             if not ok:
                 return "not_installed", f"{r} {comp[r]!r}: {why}"

@@ -94,10 +94,10 @@ def base_row(case: Case, run_id: str, executor: str) -> dict[str, Any]:
     """The identity and component columns of a case's row."""
     c = case.components
     return {"run_id": run_id, "case_id": case.case_id, "repetition": case.repetition,
-            "seed": case.seed, "scene": case.scene,
+            "seed": case.seed, "mode": case.mode, "scene": case.scene,
             "scene_overrides": json.dumps(list(case.overrides)),
-            **{k: c[k] for k in ("backend", "formulation", "solver", "primal", "dual",
-                                 "stabilizer", "hyper")},
+            **{k: c[k] or None for k in ("backend", "formulation", "solver", "primal", "dual",
+                                         "stabilizer", "hyper")},
             "executor": executor, "params": json.dumps(case.params, sort_keys=True),
             "N_req": case.N, "R_req": case.R,
             "started_at": datetime.now(timezone.utc).isoformat(timespec="seconds")}
@@ -146,7 +146,12 @@ def execute_case(case: Case, run_id: str, cache_dir: str, executor: str = "seria
     row.update(_provenance())
     details: dict[str, Any] = {}
     try:
-        scene = load_scene(case.scene, case.overrides)
+        scene = load_scene(case.base_scene, case.overrides)
+        if case.mode == "hf":
+            _execute_hf(case, scene, row, registry)
+            row["t_case_s"] = time.perf_counter() - t0
+            row["peak_rss_mb"] = _peak_rss_mb()
+            return {"row": schema.normalise_row(row), "details": {}}
         res = reduce(scene, case.reduce_config(cache_dir), progress=progress or _quiet,
                      registry=registry)
         s = res.summary()
@@ -180,6 +185,30 @@ def execute_case(case: Case, run_id: str, cache_dir: str, executor: str = "seria
 
 def _quiet(msg: str) -> None:
     return None
+
+
+def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) -> None:
+    """Mode hf: ``hf_repeats`` HF solves at the scene's default mu (components built once,
+    meshing not timed); fills the sizes, force, iterations and HF time columns."""
+    from rbbench.hf import make_components, solve_hf
+
+    c = case.components
+    comps = make_components(scene, c["backend"], c["formulation"], c["solver"], registry)
+    times, sol = [], None
+    for _ in range(int(case.params.get("hf_repeats", 3))):
+        sol = solve_hf(scene, None, c["backend"], c["formulation"], c["solver"],
+                       registry=registry, components=comps)
+        times.append(sol.times["total_s"])
+    m = sol.metrics
+    row.update(n_hf_dofs=m["n_dofs"], n_contact=m["n_contact"],
+               contact_force=m["contact_force"], hf_iterations=m["iterations"],
+               t_hf_median_s=float(np.median(times)))
+    if not sol.result.converged:
+        row.update(status="diverged", reason=f"HF solver stopped: {sol.result.stop_reason}")
+    elif not np.isfinite(m["contact_force"]):
+        row.update(status="diverged", reason="non-finite contact force")
+    else:
+        row.update(status="ok", reason="")
 
 
 def decided_row(case: Case, run_id: str, executor: str) -> dict[str, Any]:
@@ -284,7 +313,7 @@ def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,
         comp = c.components
         progress(f"HF snapshots for {c.scene} ({comp['backend']}/{comp['solver']})")
         try:
-            scene = load_scene(c.scene, c.overrides)
+            scene = load_scene(c.base_scene, c.overrides)
             mus = np.vstack([parameter_set(scene, "train", c.params.get("n_train")),
                              parameter_set(scene, "valid", c.params.get("n_valid"))])
             compute_snapshots(scene, mus, backend=comp["backend"],
@@ -354,13 +383,14 @@ def run_matrix(matrix: Matrix, out_dir: str | Path, executor: str = "processes",
         bar.set_postfix_str(msg[:60])
 
     runnable = [c for c in todo if c.status == "run"]
+    rb_cases = [c for c in runnable if c.mode == "rb"]
     for c in todo:
         if c.status != "run":
             finish(c, decided_row(c, out_dir.name, executor))
     ex = reg.create("executor", executor, jobs=jobs, **(executor_options or {}))
     try:
         if runnable:
-            prepare_snapshots(runnable, cache_dir, jobs, stage)
+            prepare_snapshots(rb_cases, cache_dir, jobs, stage)
             ex.run(runnable, run_id=out_dir.name, cache_dir=cache_dir, registry=reg,
                    on_result=finish, on_stage=stage)
     except KeyboardInterrupt:

@@ -56,7 +56,9 @@ COLUMNS: tuple[Column, ...] = (
     _c("repetition", "int", "identity", "", "repetition index, 0-based"),
     _c("seed", "int", "identity", "", "seed of the random parameter sets"),
     # components
-    _c("scene", "str", "components", "", "scene name"),
+    _c("mode", "str", "identity", "", "rb: a reduction validated online; hf: HF solves only"),
+    _c("scene", "str", "components", "", "scene name (name@variant: the scene under that "
+       "variant's overrides)"),
     _c("scene_overrides", "str", "components", "", "scene --set overrides, JSON"),
     _c("backend", "str", "components", "", "HF backend"),
     _c("formulation", "str", "components", "", "formulation"),
@@ -85,6 +87,10 @@ COLUMNS: tuple[Column, ...] = (
     _c("S", "int", "sizes", "", "stabiliser size: PGA vectors K (0 for none; R per mu for "
        "online supremizers)"),
     _c("M_eim", "int", "sizes", "", "EIM magic rows evaluated online (hyper eim)"),
+    # HF solve (mode hf; contact force also for reference in rb mode: not filled)
+    _c("contact_force", "float", "accuracy", "N/m", "mode hf: total normal contact force per "
+       "unit thickness at the scene's default mu (rbbench.hf contact_force)"),
+    _c("hf_iterations", "int", "accuracy", "", "mode hf: iterations of the HF VI solver"),
     # accuracy
     _c("err_u_max", "float", "accuracy", "1", _ERR_U + ", max " + _VALID),
     _c("err_u_mean", "float", "accuracy", "1", _ERR_U + ", mean " + _VALID),

@@ -182,3 +182,34 @@ def test_dask_executor_gives_the_same_rows(tmp_path):
     for col in ("N", "R", "S", "err_u_max", "err_lam_max", "beta_dec_min", "penetration_max"):
         np.testing.assert_allclose(a[col].astype(float), b.loc[a.index, col].astype(float),
                                    rtol=1e-10, err_msg=col)
+
+
+def test_hf_mode_matrix_times_backends_and_solvers(tmp_path):
+    p = tmp_path / "hf.toml"
+    p.write_text("""
+[matrix]
+name = "hf"
+mode = "hf"
+scenes = ["membrane_obstacle@a", "membrane_obstacle@b"]
+[components]
+solver = ["ssn", "uzawa"]
+[hf]
+repeats = 2
+[scene_overrides]
+"membrane_obstacle@a" = ["discretization.n_cells=6"]
+"membrane_obstacle@b" = ["discretization.n_cells=12"]
+""")
+    m = load_matrix(p, registry=default_registry())
+    assert len(m.cases) == 4 and {c.mode for c in m.cases} == {"hf"}
+    run_matrix(m, tmp_path / "run", jobs=2, cache_dir=tmp_path / "cache", progress=False)
+    df = pd.read_parquet(tmp_path / "run" / "results.parquet")
+    assert set(df["status"]) == {"ok"} and df["dual"].isna().all()
+    dofs = df.groupby("scene")["n_hf_dofs"].first()
+    assert dofs["membrane_obstacle@b"] > dofs["membrane_obstacle@a"]
+    # both solvers solve the same problem: same force on each mesh (Uzawa to its tolerance)
+    for _, g in df.groupby("scene"):
+        f = g.set_index("solver")["contact_force"]
+        assert f["uzawa"] == pytest.approx(f["ssn"], rel=1e-6)
+    with pytest.raises(MatrixError, match=r"\[sizes\] does not apply to mode 'hf'"):
+        p.write_text(p.read_text() + "\n[sizes]\nN = [3]\n")
+        load_matrix(p, registry=default_registry())
