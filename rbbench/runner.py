@@ -41,7 +41,7 @@ __all__ = ["CaseTimeout", "RunSummary", "execute_case", "load_rows", "run_matrix
 
 #: Summary keys of :meth:`rbbench.rb_pipeline.ReduceResult.summary` copied as they are.
 _COPIED = ("n_hf_dofs", "n_contact", "n_train", "n_valid", "N", "R", "M_eim", "err_u_max",
-           "err_u_mean", "err_lam_max", "err_lam_mean", "penetration_max",
+           "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
            "complementarity_max", "energy_err_max", "t_offline_s", "t_online_median_s",
            "t_online_iqr_s", "t_hf_median_s", "speedup")
 _TIMINGS = {"t_snapshots_s": "snapshots_s", "t_primal_s": "primal_s", "t_dual_s": "dual_s",

@@ -96,6 +96,9 @@ COLUMNS: tuple[Column, ...] = (
     _c("err_u_mean", "float", "accuracy", "1", _ERR_U + ", mean " + _VALID),
     _c("err_lam_max", "float", "accuracy", "1", _ERR_L + ", max " + _VALID),
     _c("err_lam_mean", "float", "accuracy", "1", _ERR_L + ", mean " + _VALID),
+    _c("lam_best_max", "float", "accuracy", "1", "||lam - Pi lam||_W / ||lam||_W, Pi the "
+       "W-projection onto the reduced cone (span for a non-cone dual): the floor of "
+       "err_lam on this dual space, max " + _VALID),
     _c("penetration_max", "float", "accuracy", "m", "largest mean penetration over one HF "
        "multiplier's support of the reconstructed u_N, max " + _VALID),
     _c("complementarity_max", "float", "accuracy", "1", "|lam_R . (G - B u_N)| / "
