@@ -699,6 +699,13 @@ def _fig_error_vs_size(ctx: _Ctx):
                 best = [ys[xs == v].min() for v in ux]
                 ax.plot(ux, best, color=st["color"], linestyle=st["linestyle"],
                         marker=st["marker"], markersize=6, label=lab)
+                if m == "err_lam_max":  # the cone's floor: no model on that space does better
+                    fl = [(x, _num(c.get("lam_best_max"))) for x, c in zip(xs, cs, strict=True)
+                          if _pos(c.get("lam_best_max"))]
+                    if fl:
+                        fx = np.unique([x for x, _ in fl])
+                        fy = [min(y for x, y in fl if x == v) for v in fx]
+                        ax.plot(fx, fy, color=st["color"], linestyle=":", linewidth=1.2)
             ax.set_yscale("log")
             ax.grid(True, which="major", alpha=0.3)
             ax.xaxis.get_major_locator().set_params(integer=True)
@@ -710,7 +717,8 @@ def _fig_error_vs_size(ctx: _Ctx):
     fig.suptitle("Error against RB size (line: best case at each size)", fontsize=11)
     caption = ("Top: err_u_max against the primal size N obtained; bottom: err_lam_max "
                "against the dual size R obtained. Where the other size also varies, every "
-               "case is a marker and the line joins the smallest error at each size.")
+               "case is a marker and the line joins the smallest error at each size. Dotted "
+               "(bottom): lam_best_max, " + _COL["lam_best_max"].doc + ".")
     return fig, caption
 
 
