@@ -328,3 +328,22 @@ def test_cli_solve_with_backend_options(tmp_path):
     rc, _, err = _run_main(["solve", "membrane_obstacle", "--backend-option", "mesh",
                             "--no-plot", "--quiet"])
     assert rc == 2 and "expected KEY=VALUE" in err
+
+
+def test_rb_pipeline_runs_unchanged_on_ngsolve(tmp_path):
+    """The offline / online pipeline sees only sparse operators: same code, other backend."""
+    import pickle
+
+    from rbbench.rb_pipeline import ReduceConfig, reduce
+
+    sc = load_scene("membrane_obstacle", ["discretization.n_cells=8"])
+    kw = dict(dual="mcpg", stabilizer="pga", N=6, R=6, n_train=9, n_valid=4, n_jobs=1,
+              online_repeats=2, exact_max_r=4, cache_dir=str(tmp_path))
+    s_ng = reduce(sc, ReduceConfig(backend="ngsolve", **kw))
+    s_sk = reduce(sc, ReduceConfig(backend="skfem", **kw))
+    a, b = s_ng.summary(), s_sk.summary()
+    assert a["hyper"] == b["hyper"] == "affine"  # the membrane is affine on both backends
+    assert a["err_u_max"] < 0.1 and a["beta_off_min"] > 0
+    # own meshes (Netgen's unit square is not skfem's grid): comparable accuracy only
+    assert 0.2 < a["err_u_max"] / b["err_u_max"] < 5
+    assert pickle.loads(pickle.dumps(s_ng.model)).N == s_ng.model.N
