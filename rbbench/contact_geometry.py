@@ -92,20 +92,49 @@ def ray_cast(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
     return seg, np.clip(s[rows, j], 0.0, 1.0), np.where(hit, t[rows, j], np.nan)
 
 
+def window_tangent_ranges(a: np.ndarray, b: np.ndarray, lo: np.ndarray,
+                          hi: np.ndarray) -> np.ndarray:
+    """Per window ``lo .. hi`` of chain facets, the range ``[alpha, beta]`` of facet directions.
+
+    Angles of ``b - a`` unwrapped from the window's first facet, (n_windows, 2). A
+    similarity map with a scalar scale (:class:`AffineMap`) leaves them unchanged, so
+    they can be computed once on the reference chain. O(windows x width).
+    """
+    phi = np.arctan2(*(b - a).T[::-1])
+    width = int((hi - lo).max()) + 1 if lo.size else 1
+    idx = lo[:, None] + np.arange(width)[None, :]
+    inside = idx <= hi[:, None]
+    idx = np.where(inside, idx, lo[:, None])
+    rel = np.angle(np.exp(1j * (phi[idx] - phi[lo][:, None])))  # wrapped to (-pi, pi]
+    rel = np.where(inside, rel, 0.0)
+    return np.stack([phi[lo] + rel.min(axis=1), phi[lo] + rel.max(axis=1)], axis=1)
+
+
 def ray_cast_window(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
-                    lo: np.ndarray, hi: np.ndarray, tol: float = 1e-10
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    lo: np.ndarray, hi: np.ndarray, ranges: np.ndarray | None = None,
+                    tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`ray_cast` of each point against its window of chain facets ``lo .. hi``.
 
-    ``a``, ``b`` form an ordered chain (``b[j] == a[j + 1]``). The side of each
-    chain vertex relative to the ray line, ``cross(n, P_j - x)``, changes sign at
-    the hit facet; it is found by bisection in ``O(log(hi - lo))``, then
-    confirmed by an exact ray cast on that facet and its two neighbours. Points
-    where the side function is not monotone over the window (no sign change,
-    or no confirmed hit) fall back to the brute-force cast over their window,
-    so the result always equals :func:`ray_cast` restricted to the window.
+    ``a``, ``b`` form an ordered chain (``b[j] == a[j + 1]``). The side of each chain
+    vertex relative to the ray line, ``cross(n, P_j - x)``, is monotone along the
+    window when ``cross(n, b_j - a_j)`` has one sign for every facet of the window,
+    i.e. when no facet direction in ``ranges`` (:func:`window_tangent_ranges`,
+    computed here if not given) is parallel to ``n``. Then the line crosses the
+    window at most once: its facet is found by bisection in ``O(log(hi - lo))`` and
+    confirmed by an exact ray cast on it and its two neighbours. Every other point
+    (a direction parallel to ``n`` in its window, e.g. a wavy chain, or no confirmed
+    hit) is cast by brute force over its window. So the result equals
+    :func:`ray_cast` restricted to the window.
     """
     verts = np.vstack([a, b[-1:]])  # chain vertices 0 .. n_facets
+    if ranges is None:
+        ranges = window_tangent_ranges(a, b, lo, hi)
+    # monotone side function: [alpha - theta_n, beta - theta_n] holds no multiple of pi
+    th = np.arctan2(n[:, 1], n[:, 0])
+    eps = 1e-9
+    lo_k = np.floor((ranges[:, 0] - th - eps) / np.pi)
+    hi_k = np.floor((ranges[:, 1] - th + eps) / np.pi)
+    monotone = lo_k == hi_k
 
     def side(j: np.ndarray) -> np.ndarray:
         d = verts[j] - x
@@ -122,7 +151,7 @@ def ray_cast_window(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
     cand = left[:, None] + np.arange(-1, 2)[None, :]
     cand = np.where((cand >= lo[:, None]) & (cand <= hi[:, None]), cand, -1)
     seg, s, t = ray_cast(x, n, a, b, tol, candidates=cand)
-    bad = np.flatnonzero(seg < 0)
+    bad = np.flatnonzero((seg < 0) | ~monotone)
     if bad.size:
         width = int((hi[bad] - lo[bad]).max()) + 1
         full = lo[bad, None] + np.arange(width)[None, :]
@@ -227,6 +256,108 @@ class FacetChain:
 
 
 @dataclass
+class SlaveStress:
+    """The slave body's elements next to its contact facets: ``sigma_nn`` at contact points.
+
+    Nitsche's method (seed 000, "Nitsche's method (1/2)"; Chouly & Hild 2013) needs
+    the normal stress ``sigma_nn(u) = n . sigma(u) n`` of the slave body on the
+    contact boundary. It is evaluated in the element adjacent to each slave facet
+    from the Lagrange basis on that element (P1: constant per element; P2: at the
+    point), plane strain ``sigma = lambda tr(eps) I + 2 mu_L eps``. The body map is a
+    similarity ``x = s(mu) x_hat + c(mu)``, so physical gradients are reference
+    gradients divided by ``s(mu)`` and the normals are the reference ones.
+
+    Attributes
+    ----------
+    tri : (nf, 3, 2)
+        Reference vertices of the triangle adjacent to each facet of the slave chain
+        (chain order).
+    dofs : (nf, n_loc, 2)
+        Global dofs of the triangle's Lagrange basis: vertices 0, 1, 2, then (P2)
+        the midpoints of the edges (0, 1), (1, 2), (2, 0); x component.
+    E, nu : (p + 1,)
+        Young's modulus and Poisson's ratio of the slave body as coefficients on
+        ``theta(mu) = [1, mu_1, ..., mu_p]`` (scene values are affine in mu).
+    """
+
+    tri: np.ndarray
+    dofs: np.ndarray
+    E: np.ndarray
+    nu: np.ndarray
+
+    def subset(self, idx: np.ndarray) -> SlaveStress:
+        idx = np.asarray(idx, dtype=np.int64)
+        return replace(self, tri=self.tri[idx], dofs=self.dofs[idx])
+
+    def material(self, mu: np.ndarray) -> tuple[float, float]:
+        """``(E, nu)`` at mu."""
+        th = np.concatenate([[1.0], np.atleast_1d(np.asarray(mu, dtype=float))])
+        return float(self.E @ th), float(self.nu @ th)
+
+    def lame(self, mu: np.ndarray) -> tuple[float, float]:
+        """Plane-strain Lame parameters ``(lambda, mu_L)`` at mu."""
+        E, nu = self.material(mu)
+        return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
+
+
+def lagrange_gradients(tri: np.ndarray, x: np.ndarray, degree: int) -> np.ndarray:
+    """Gradients of the Lagrange shape functions of triangles ``tri`` at points ``x``.
+
+    Parameters
+    ----------
+    tri : (n, 3, 2)
+        Triangle vertices, one triangle per point.
+    x : (n, 2)
+        Points (in or on their triangle).
+    degree : int
+        1 (vertices) or 2 (vertices, then midpoints of edges (0,1), (1,2), (2,0)).
+
+    Returns
+    -------
+    (n, 3 or 6, 2)
+        ``grad phi_k(x)`` in the coordinates of ``tri``.
+    """
+    J = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]], axis=2)  # columns: edges
+    Jinv = np.linalg.inv(J)  # rows: grad lambda_1, grad lambda_2
+    g = np.stack([-Jinv[:, 0] - Jinv[:, 1], Jinv[:, 0], Jinv[:, 1]], axis=1)  # (n, 3, 2)
+    if degree == 1:
+        return g
+    if degree != 2:
+        raise ValueError(f"degree {degree} not supported (1 or 2)")
+    l12 = np.einsum("nij,nj->ni", Jinv, x - tri[:, 0])
+    lam = np.stack([1.0 - l12[:, 0] - l12[:, 1], l12[:, 0], l12[:, 1]], axis=1)  # (n, 3)
+    vert = (4.0 * lam - 1.0)[:, :, None] * g
+    edges = [(0, 1), (1, 2), (2, 0)]
+    mid = np.stack([4.0 * (lam[:, i, None] * g[:, j] + lam[:, j, None] * g[:, i])
+                    for i, j in edges], axis=1)
+    return np.concatenate([vert, mid], axis=1)
+
+
+def normal_stress_terms(stress: SlaveStress, slave: FacetChain, degree: int, fq: np.ndarray,
+                        sq: np.ndarray, nrm: np.ndarray, mu: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """``(c, d)``, each (n_q, 2 n_loc): ``sigma_nn(u)(x_q) = sum_j c[q, j] u[d[q, j]]``.
+
+    ``fq``, ``sq``: facet (in ``slave``, aligned with ``stress``) and local coordinate
+    of each point; ``nrm`` (n_q, 2) the slave normals. With ``g = grad phi_k / s(mu)``::
+
+        sigma_nn = lambda div u + 2 mu_L (n . grad u n)
+        c[k, x] = lambda g_x + 2 mu_L n_x (n_x g_x + n_y g_y)
+        c[k, y] = lambda g_y + 2 mu_L n_y (n_x g_x + n_y g_y)
+    """
+    scale = slave.map.at(mu)[0]
+    x_hat = slave.a[fq] + sq[:, None] * (slave.b[fq] - slave.a[fq])
+    g = lagrange_gradients(stress.tri[fq], x_hat, degree) / scale  # (nq, k, 2)
+    lam, mu_l = stress.lame(mu)
+    gn = np.einsum("qkd,qd->qk", g, nrm)  # n . grad phi_k
+    cx = lam * g[:, :, 0] + 2.0 * mu_l * nrm[:, 0, None] * gn
+    cy = lam * g[:, :, 1] + 2.0 * mu_l * nrm[:, 1, None] * gn
+    nq = fq.size
+    coef = np.stack([cx, cy], axis=2).reshape(nq, -1)
+    return coef, stress.dofs[fq].reshape(nq, -1)
+
+
+@dataclass
 class ContactLayout:
     """Everything the GPTS pairing needs, in reference coordinates (small arrays only).
 
@@ -248,6 +379,9 @@ class ContactLayout:
         Number of facets of the full slave chain (fixes the multiplier numbering).
     n_dofs : int
         Global number of displacement dofs.
+    stress : SlaveStress or None
+        The slave elements next to the chain facets (aligned with ``slave``), for
+        the normal stress ``Snn`` (Nitsche); ``None`` if the backend gives none.
     """
 
     slave: FacetChain
@@ -258,6 +392,7 @@ class ContactLayout:
     patch: int
     n_facets: int
     n_dofs: int
+    stress: SlaveStress | None = None
 
     @property
     def n_mult(self) -> int:
@@ -316,7 +451,7 @@ class Pairing:
 
 def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,
          master: FacetChain | None = None,
-         windows: tuple[np.ndarray, np.ndarray] | None = None) -> Pairing:
+         windows: tuple[np.ndarray, ...] | None = None) -> Pairing:
     """Gauss-point-to-segment pairing at mu (module docstring).
 
     ``slave`` / ``master`` default to the layout's chains; a subset chain and
@@ -345,24 +480,49 @@ def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,
     if windows is None:
         seg, s2, gap = ray_cast(x, nrm, ma, mb)
     else:
-        seg, s2, gap = ray_cast_window(x, nrm, ma, mb, *windows)
+        seg, s2, gap = ray_cast_window(x, nrm, ma, mb, *windows)  # (lo, hi[, ranges])
     if np.any(seg < 0):
         raise PairingError(int(np.sum(seg < 0)), x[seg < 0][0])
     return Pairing(x, nrm, w, fq, sq, gap, phi, sdofs, seg, facet_shape(s2, layout.degree),
                    master.dofs[seg], a, b)
 
 
+def normal_stress(layout: ContactLayout, p: Pairing, mu: np.ndarray,
+                  slave: FacetChain | None = None, n_dofs: int | None = None
+                  ) -> sp.csr_matrix:
+    """``Snn`` (n_q x n_dofs): the slave normal stress at the points of pairing ``p``.
+
+    ``slave`` (default ``layout.slave``) is the chain ``p`` was computed on, with
+    ``layout.stress`` aligned with it (:func:`normal_stress_terms`).
+    """
+    if layout.stress is None:
+        raise ValueError("the contact layout carries no slave stress data (SlaveStress): "
+                         "the backend cannot evaluate sigma_nn")
+    slave = layout.slave if slave is None else slave
+    coef, dofs = normal_stress_terms(layout.stress, slave, layout.degree, p.fq, p.sq,
+                                     p.nrm, mu)
+    nq = p.w.size
+    rows = np.repeat(np.arange(nq), coef.shape[1])
+    return sp.csr_matrix((coef.ravel(), (rows, dofs.ravel())),
+                         shape=(nq, layout.n_dofs if n_dofs is None else n_dofs))
+
+
 def contact_operators(layout: ContactLayout, mu: np.ndarray,
-                      tangential: bool = False) -> ContactOperators:
-    """The full contact operators at mu (``Un``, gap, weights, multipliers; ``Ut`` on request).
+                      tangential: bool = False, stress: bool = False) -> ContactOperators:
+    """The full contact operators at mu (``Un``, gap, weights, multipliers; ``Ut``, ``Snn``
+    on request).
 
     ``Un`` evaluates the normal jump ``(u1 - u2 o pi) . n1``; with
-    ``tangential``, ``Ut`` evaluates ``(u1 - u2 o pi) . t1``, ``t1 = (-n_y, n_x)``.
+    ``tangential``, ``Ut`` evaluates ``(u1 - u2 o pi) . t1``, ``t1 = (-n_y, n_x)``;
+    with ``stress``, ``Snn`` the slave normal stress (:func:`normal_stress`) and
+    ``facet_length`` the physical length of each point's slave facet.
     """
     p = pair(layout, mu)
     Un = p.jump(p.nrm, layout.n_dofs)
     Ut = (p.jump(np.stack([-p.nrm[:, 1], p.nrm[:, 0]], axis=1), layout.n_dofs)
           if tangential else None)
+    Snn = normal_stress(layout, p, mu) if stress else None
+    hq = np.linalg.norm(p.b - p.a, axis=1)[p.fq] if stress else None
     Mlam = multiplier_basis(layout.multiplier, layout.n_facets, layout.slave.ids[p.fq], p.sq,
                             layout.patch)
     mw = np.asarray(Mlam.T @ p.w).ravel()
@@ -377,4 +537,4 @@ def contact_operators(layout: ContactLayout, mu: np.ndarray,
     np.maximum.at(ext[:, 1], coo.col, np.maximum(np.maximum(fa, fb), xs))
     return ContactOperators(Un=Un, gap=p.gap, weights=p.w, points=p.x, normals=p.nrm,
                             Mlam=Mlam, multiplier=layout.multiplier, mult_points=mpts,
-                            mult_extent=ext, Ut=Ut)
+                            mult_extent=ext, Ut=Ut, Snn=Snn, facet_length=hq)

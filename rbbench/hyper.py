@@ -41,6 +41,7 @@ from rbbench.contact_geometry import (
     FacetChain,
     multiplier_basis,
     pair,
+    window_tangent_ranges,
 )
 from rbbench.eim import deim, eim_error, matrix_eim
 
@@ -63,10 +64,11 @@ class RowEvaluator:
         windows, dofs renumbered to ``0 .. n_local - 1``.
     rows : (M,)
         Global multiplier indices.
-    windows : (lo, hi) or None
+    windows : (lo, hi, ranges) or None
         Per quadrature point, the range of master facets (indices into the
         contiguous chain ``layout.master``) hit over a dense sample of D,
-        widened by a margin; searched by bisection
+        widened by a margin, and the range of facet directions in it; searched
+        by bisection where the chain is monotone along the ray
         (:func:`~rbbench.contact_geometry.ray_cast_window`).
     local_dofs : (n_local,)
         Global dofs behind the local numbering.
@@ -76,7 +78,7 @@ class RowEvaluator:
 
     layout: ContactLayout
     rows: np.ndarray
-    windows: tuple[np.ndarray, np.ndarray] | None
+    windows: tuple[np.ndarray, ...] | None
     local_dofs: np.ndarray
     Mrows: np.ndarray
 
@@ -148,6 +150,8 @@ def build_row_evaluator(layout: ContactLayout, rows: np.ndarray, mus: np.ndarray
         first = int(lo.min())
         master = layout.master.subset(np.arange(first, int(hi.max()) + 1))  # contiguous chain
         windows = (lo - first, hi - first)
+        # facet directions per window, once (a similarity map keeps them)
+        windows = (*windows, window_tangent_ranges(master.a, master.b, *windows))
     dofs = [slave.dofs.reshape(-1)] + ([master.dofs.reshape(-1)] if master else [])
     local = np.unique(np.concatenate(dofs))
 

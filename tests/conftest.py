@@ -1,6 +1,18 @@
-"""Shared pytest setup: ``--runslow`` enables tests marked ``slow`` (see pyproject.toml)."""
+"""Shared pytest setup: ``--runslow`` enables tests marked ``slow`` (see pyproject.toml).
+
+Hypothesis runs derandomized (fixed seed) by default, so CI is reproducible;
+``HYPOTHESIS_PROFILE=explore pytest`` searches with fresh random examples (and
+more of them). Counterexamples it finds become ``@example`` cases.
+"""
+
+import os
 
 import pytest
+from hypothesis import settings
+
+settings.register_profile("default", derandomize=True)
+settings.register_profile("explore", derandomize=False, max_examples=1000)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 
 def pytest_addoption(parser):
