@@ -52,6 +52,20 @@ def rbbench_register(registry):
         description="Lagrange multipliers: A u + B^T lam = F, 0 <= lam _|_ G - B u >= 0",
     ))
     add(ComponentSpec(
+        name="nitsche", role="formulation",
+        target="rbbench_plugins.formulations.nitsche:NitscheFormulation",
+        capabilities={"physics": ("elasticity",), "solvers": ("newton",),
+                      "needs": ("stress",)},
+        description="Nitsche (Alart-Curnier, theta = 1 / 0 / -1, gamma = gamma0 E / h): "
+                    "unconstrained, from the contact evaluation matrices Un, Snn",
+    ))
+    add(ComponentSpec(
+        name="newton", role="solver",
+        target="rbbench_plugins.solvers.newton:NewtonSolver",
+        capabilities={"formulations": ("nitsche",)},
+        description="generalised Newton (Heaviside tangent) with a line search, for Nitsche",
+    ))
+    add(ComponentSpec(
         name="ssn", role="solver",
         target="rbbench_plugins.solvers.condensed:SemismoothNewtonSolver",
         capabilities={"formulations": ("mixed",)},

@@ -1,6 +1,7 @@
 """The ``rbbench`` command line.
 
-``rbbench solve SCENE``: one HF solve with summary and files;
+``rbbench solve SCENE``: one HF solve with summary and files (``--formulation nitsche``);
+``rbbench nitsche-table``: the seed's Alart-Curnier residual table (Nitsche);
 ``rbbench plugins``: every registered component and whether it is importable;
 ``rbbench scenes``: the scenes in ``problems/``;
 ``rbbench run MATRIX``: a run matrix, one results row per case;
@@ -42,7 +43,7 @@ def _fmt(v) -> str:
 def print_summary(m: dict, mu: dict) -> None:
     keys = ["n_dofs", "n_contact", "n_active", "iterations", "stop_reason", "final_residual",
             "solve_time_s", "contact_force", "contact_half_width", "max_pressure",
-            "complementarity", "penetration_max", "zone_saturated"]
+            "complementarity", "penetration_max", "zone_saturated", "e_ac"]
     print("mu: " + ", ".join(f"{k} = {v:g}" for k, v in mu.items()))
     for k in keys:
         if k in m:
@@ -54,6 +55,9 @@ def print_summary(m: dict, mu: dict) -> None:
               f"rel. error {100 * h['a_rel_error']:+.2f} %")
         print(f"    p0  = {h['p0']:.6g} Pa  computed {m['max_pressure']:.6g} Pa  "
               f"rel. error {100 * h['p0_rel_error']:+.2f} %")
+    reason = (m.get("solver_info") or {}).get("reason")
+    if reason and m.get("stop_reason") != "converged":
+        print(f"  reason: {reason}")
     if m.get("zone_saturated"):
         print("  WARNING: the contact patch reaches the edge of the potential contact zone")
 
@@ -78,6 +82,15 @@ def _backend_options(items: list[str] | None) -> dict:
     return options
 
 
+def _resolve_solver(args) -> None:
+    """``--solver`` not given: the formulation's declared solver (``ssn`` for mixed,
+    ``newton`` for Nitsche)."""
+    if getattr(args, "solver", None) is None:
+        from rbbench.hf import default_solver
+
+        args.solver = default_solver(args.formulation)
+
+
 def _solve_components(scene, args, options: dict):
     """Backend (with ``options``), formulation and solver for ``rbbench solve``."""
     reg = default_registry()
@@ -97,6 +110,7 @@ def cmd_solve(args) -> int:
     scene = load_scene(args.scene, overrides=args.set or [])
     mu = scene.check_mu(args.mu) if args.mu is not None else scene.default_mu
     options = _backend_options(args.backend_option)
+    _resolve_solver(args)
     progress = _Progress(args.quiet)
     from rbbench.hf import solve_hf
     from rbbench.output import write_all
@@ -154,6 +168,7 @@ def cmd_scenes(args) -> int:
 def _reduce_config(args):
     from rbbench.rb_pipeline import ReduceConfig
 
+    _resolve_solver(args)
     try:
         return ReduceConfig(primal=args.primal, dual=args.dual, stabilizer=args.stabilizer,
                             hyper=args.hyper, N=args.N, R=args.R, n_train=args.n_train,
@@ -186,8 +201,9 @@ def cmd_reduce(args) -> int:
     progress = _Progress(args.quiet)
     res = reduce(scene, cfg, progress=progress, snapshot_progress=not args.quiet)
     s = res.summary()
-    out = Path(args.out) if args.out else Path("results") / "reduce" / (
-        f"{scene.name}_{args.dual}_{args.stabilizer}")
+    tag = f"nitsche_{res.hyper}" if cfg.formulation == "nitsche" else \
+        f"{args.dual}_{args.stabilizer}"
+    out = Path(args.out) if args.out else Path("results") / "reduce" / f"{scene.name}_{tag}"
     out.mkdir(parents=True, exist_ok=True)
     (out / "result.json").write_text(json.dumps(_jsonable({**s, "provenance": provenance()}),
                                                 indent=2) + "\n")
@@ -198,8 +214,16 @@ def cmd_reduce(args) -> int:
     for k in keys:
         if k in s:
             print(f"  {k:<20} {_fmt(s[k])}")
-    print("  (errors: relative, u in the X norm, lam in the W norm, max/mean over the "
-          "validation set; beta: min over the validation set, see result.json definitions)")
+    if cfg.formulation == "nitsche":
+        eim = s["histories"].get("eim", {})
+        for k in ("method", "rows", "e_eim_valid", "e_eim_cv_valid", "e_eim_tangent_cv_valid"):
+            if k in eim:
+                print(f"  {'eim.' + k:<20} {_fmt(eim[k])}")
+        print("  (Nitsche: err_lam is the contact pressure -[P_gamma]_- in L2(Gamma_c); no dual "
+              "space, no inf-sup constants; see result.json definitions)")
+    else:
+        print("  (errors: relative, u in the X norm, lam in the W norm, max/mean over the "
+              "validation set; beta: min over the validation set, see result.json definitions)")
     print(f"wrote: {out / 'result.json'}")
     return 0
 
@@ -211,6 +235,36 @@ def cmd_hertz_table(args) -> int:
     rows = hertz_table(args.scene, tuple(args.loads), tuple(args.levels), args.mu,
                        tuple(args.set or ()), progress=progress)
     print(markdown(rows))
+    return 0
+
+
+def cmd_nitsche_table(args) -> int:
+    from rbbench.studies import nitsche_markdown, nitsche_table
+
+    overrides = [f"load.displacement={args.load!r}",
+                 f"discretization.quadrature={args.quadrature}", *(args.set or ())]
+    rows = nitsche_table(args.scene, tuple(1e-3 * h for h in args.h), tuple(args.mu),
+                         backend=args.backend, theta=args.theta, gamma0=args.gamma0,
+                         overrides=tuple(overrides), progress=_Progress(args.quiet))
+    print(nitsche_markdown(rows))
+    r = rows[0]
+    print(f"(Nitsche theta = {r['theta']:g}, gamma = gamma0 E / h with gamma0 = {r['gamma0']:g}; "
+          f"backend {args.backend}; overrides {overrides}; e_AC in L2(Gamma_c) by the contact "
+          "quadrature; 'facet': mean slave facet length at mu; order: log ratio of e_AC over "
+          "log ratio of facet lengths; F mixed: LAC multipliers + ssn on the same mesh)")
+    return 0
+
+
+def cmd_nitsche_compare(args) -> int:
+    from rbbench.studies import comparison_markdown, formulation_comparison
+
+    res = formulation_comparison(args.scene, tuple(args.set or ()), n_train=args.n_train,
+                                 n_valid=args.n_valid, N=args.N, Rs=tuple(args.R),
+                                 progress=_Progress(args.quiet))
+    print(comparison_markdown(res))
+    print("(J = 1/2 a(u,u) - f(u) of the HF solutions over D_train; reduced errors: max over "
+          "the validation set, u in the X norm; mixed: lam in the W norm (mCPG + PGA); "
+          "Nitsche: the contact pressure -[P_gamma]_- in L2(Gamma_c))")
     return 0
 
 
@@ -308,7 +362,9 @@ def _add_reduce_args(rd) -> None:
     rd.add_argument("--stabilizer", default="pga", help="none, supremizer, pga")
     rd.add_argument("--hyper", default="auto",
                     help="auto (affine if exact, else eim), affine (exact), eim (EIM of "
-                         "B(mu) Z and G(mu)), none (plain: HF assembly projected online)")
+                         "B(mu) Z and G(mu)), none (plain: HF assembly projected online); "
+                         "nitsche: auto = empirical cubature at the contact points, eim = DEIM, "
+                         "none = plain")
     rd.add_argument("--tol-eim", type=float, default=1e-4,
                     help="EIM tolerance (relative max-norm training error)")
     rd.add_argument("--delta-pga", type=float, default=None,
@@ -321,8 +377,9 @@ def _add_reduce_args(rd) -> None:
     rd.add_argument("--n-valid", type=int, default=None)
     rd.add_argument("--jobs", type=int, default=None, help="processes for HF snapshots")
     rd.add_argument("--backend", default="skfem")
-    rd.add_argument("--formulation", default="mixed")
-    rd.add_argument("--solver", default="ssn")
+    rd.add_argument("--formulation", default="mixed", help="mixed or nitsche")
+    rd.add_argument("--solver", default=None,
+                    help="default: the formulation's (ssn for mixed, newton for nitsche)")
     rd.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
 
 
@@ -336,8 +393,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--backend-option", action="append", metavar="KEY=VALUE",
                    help="keyword option of the backend constructor (repeatable), e.g. "
                         "mesh=skfem for --backend ngsolve; VALUE is a TOML literal or a string")
-    s.add_argument("--formulation", default="mixed")
-    s.add_argument("--solver", default="ssn")
+    s.add_argument("--formulation", default="mixed", help="mixed or nitsche")
+    s.add_argument("--solver", default=None,
+                   help="default: the formulation's (ssn for mixed, newton for nitsche)")
     s.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE",
                    help="override a scene value (repeatable), e.g. load.displacement=0.01")
     s.add_argument("--out", help="output directory (default results/solve/<scene>_<mu>)")
@@ -347,8 +405,8 @@ def build_parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plugins", help="registered components and whether they are importable")
     pl.add_argument("--json", action="store_true")
     pl.set_defaults(func=cmd_plugins)
-    rd = sub.add_parser("reduce", help="offline RB stage + online validation (mixed "
-                        "formulation): errors, inf-sup constants, timings -> result.json")
+    rd = sub.add_parser("reduce", help="offline RB stage + online validation (mixed or "
+                        "nitsche formulation): errors, inf-sup constants, timings -> result.json")
     rd.add_argument("scene")
     _add_reduce_args(rd)
     rd.add_argument("--out")
@@ -365,6 +423,36 @@ def build_parser() -> argparse.ArgumentParser:
     ht.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
     ht.add_argument("--quiet", action="store_true")
     ht.set_defaults(func=cmd_hertz_table)
+    nt = sub.add_parser("nitsche-table",
+                        help="the seed's Alart-Curnier residual e_AC^n of the Nitsche solve "
+                             "against h and mu, side by side with the seed (Markdown table)")
+    nt.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    nt.add_argument("--h", type=float, nargs="+", default=[5.0, 2.5, 1.25],
+                    help="the seed's mesh sizes (mm), mapped to discretization.h_contact by "
+                         "rbbench.studies.seed_h_overrides")
+    nt.add_argument("--mu", type=float, nargs="+", default=[0.7, 1.0, 1.3])
+    nt.add_argument("--backend", default="skfem")
+    nt.add_argument("--theta", type=float, default=1.0)
+    nt.add_argument("--gamma0", type=float, default=None, help="default: the formulation's")
+    nt.add_argument("--load", type=float, default=0.09,
+                    help="imposed displacement d (m); the seed's 0.09 by default")
+    nt.add_argument("--quadrature", type=int, default=1,
+                    help="Gauss points per contact facet (1: reduced integration of the "
+                         "Nitsche terms, see README; 0: the scene's degree + 1)")
+    nt.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    nt.add_argument("--quiet", action="store_true")
+    nt.set_defaults(func=cmd_nitsche_table)
+    nc = sub.add_parser("nitsche-compare",
+                        help="Nitsche against mixed: HF energies over D_train and reduced "
+                             "errors for several R (Markdown tables)")
+    nc.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    nc.add_argument("-N", type=int, default=20)
+    nc.add_argument("-R", type=int, nargs="+", default=[10, 30, 40])
+    nc.add_argument("--n-train", type=int, default=61, help="|D_train| (the seed: 61)")
+    nc.add_argument("--n-valid", type=int, default=10)
+    nc.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    nc.add_argument("--quiet", action="store_true")
+    nc.set_defaults(func=cmd_nitsche_compare)
     osc = sub.add_parser("online-scaling",
                          help="online time of one reduction at several mesh levels, timed "
                               "side by side (is it flat in the HF size?)")

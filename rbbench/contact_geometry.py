@@ -256,6 +256,108 @@ class FacetChain:
 
 
 @dataclass
+class SlaveStress:
+    """The slave body's elements next to its contact facets: ``sigma_nn`` at contact points.
+
+    Nitsche's method (seed 000, "Nitsche's method (1/2)"; Chouly & Hild 2013) needs
+    the normal stress ``sigma_nn(u) = n . sigma(u) n`` of the slave body on the
+    contact boundary. It is evaluated in the element adjacent to each slave facet
+    from the Lagrange basis on that element (P1: constant per element; P2: at the
+    point), plane strain ``sigma = lambda tr(eps) I + 2 mu_L eps``. The body map is a
+    similarity ``x = s(mu) x_hat + c(mu)``, so physical gradients are reference
+    gradients divided by ``s(mu)`` and the normals are the reference ones.
+
+    Attributes
+    ----------
+    tri : (nf, 3, 2)
+        Reference vertices of the triangle adjacent to each facet of the slave chain
+        (chain order).
+    dofs : (nf, n_loc, 2)
+        Global dofs of the triangle's Lagrange basis: vertices 0, 1, 2, then (P2)
+        the midpoints of the edges (0, 1), (1, 2), (2, 0); x component.
+    E, nu : (p + 1,)
+        Young's modulus and Poisson's ratio of the slave body as coefficients on
+        ``theta(mu) = [1, mu_1, ..., mu_p]`` (scene values are affine in mu).
+    """
+
+    tri: np.ndarray
+    dofs: np.ndarray
+    E: np.ndarray
+    nu: np.ndarray
+
+    def subset(self, idx: np.ndarray) -> SlaveStress:
+        idx = np.asarray(idx, dtype=np.int64)
+        return replace(self, tri=self.tri[idx], dofs=self.dofs[idx])
+
+    def material(self, mu: np.ndarray) -> tuple[float, float]:
+        """``(E, nu)`` at mu."""
+        th = np.concatenate([[1.0], np.atleast_1d(np.asarray(mu, dtype=float))])
+        return float(self.E @ th), float(self.nu @ th)
+
+    def lame(self, mu: np.ndarray) -> tuple[float, float]:
+        """Plane-strain Lame parameters ``(lambda, mu_L)`` at mu."""
+        E, nu = self.material(mu)
+        return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
+
+
+def lagrange_gradients(tri: np.ndarray, x: np.ndarray, degree: int) -> np.ndarray:
+    """Gradients of the Lagrange shape functions of triangles ``tri`` at points ``x``.
+
+    Parameters
+    ----------
+    tri : (n, 3, 2)
+        Triangle vertices, one triangle per point.
+    x : (n, 2)
+        Points (in or on their triangle).
+    degree : int
+        1 (vertices) or 2 (vertices, then midpoints of edges (0,1), (1,2), (2,0)).
+
+    Returns
+    -------
+    (n, 3 or 6, 2)
+        ``grad phi_k(x)`` in the coordinates of ``tri``.
+    """
+    J = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]], axis=2)  # columns: edges
+    Jinv = np.linalg.inv(J)  # rows: grad lambda_1, grad lambda_2
+    g = np.stack([-Jinv[:, 0] - Jinv[:, 1], Jinv[:, 0], Jinv[:, 1]], axis=1)  # (n, 3, 2)
+    if degree == 1:
+        return g
+    if degree != 2:
+        raise ValueError(f"degree {degree} not supported (1 or 2)")
+    l12 = np.einsum("nij,nj->ni", Jinv, x - tri[:, 0])
+    lam = np.stack([1.0 - l12[:, 0] - l12[:, 1], l12[:, 0], l12[:, 1]], axis=1)  # (n, 3)
+    vert = (4.0 * lam - 1.0)[:, :, None] * g
+    edges = [(0, 1), (1, 2), (2, 0)]
+    mid = np.stack([4.0 * (lam[:, i, None] * g[:, j] + lam[:, j, None] * g[:, i])
+                    for i, j in edges], axis=1)
+    return np.concatenate([vert, mid], axis=1)
+
+
+def normal_stress_terms(stress: SlaveStress, slave: FacetChain, degree: int, fq: np.ndarray,
+                        sq: np.ndarray, nrm: np.ndarray, mu: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """``(c, d)``, each (n_q, 2 n_loc): ``sigma_nn(u)(x_q) = sum_j c[q, j] u[d[q, j]]``.
+
+    ``fq``, ``sq``: facet (in ``slave``, aligned with ``stress``) and local coordinate
+    of each point; ``nrm`` (n_q, 2) the slave normals. With ``g = grad phi_k / s(mu)``::
+
+        sigma_nn = lambda div u + 2 mu_L (n . grad u n)
+        c[k, x] = lambda g_x + 2 mu_L n_x (n_x g_x + n_y g_y)
+        c[k, y] = lambda g_y + 2 mu_L n_y (n_x g_x + n_y g_y)
+    """
+    scale = slave.map.at(mu)[0]
+    x_hat = slave.a[fq] + sq[:, None] * (slave.b[fq] - slave.a[fq])
+    g = lagrange_gradients(stress.tri[fq], x_hat, degree) / scale  # (nq, k, 2)
+    lam, mu_l = stress.lame(mu)
+    gn = np.einsum("qkd,qd->qk", g, nrm)  # n . grad phi_k
+    cx = lam * g[:, :, 0] + 2.0 * mu_l * nrm[:, 0, None] * gn
+    cy = lam * g[:, :, 1] + 2.0 * mu_l * nrm[:, 1, None] * gn
+    nq = fq.size
+    coef = np.stack([cx, cy], axis=2).reshape(nq, -1)
+    return coef, stress.dofs[fq].reshape(nq, -1)
+
+
+@dataclass
 class ContactLayout:
     """Everything the GPTS pairing needs, in reference coordinates (small arrays only).
 
@@ -277,6 +379,9 @@ class ContactLayout:
         Number of facets of the full slave chain (fixes the multiplier numbering).
     n_dofs : int
         Global number of displacement dofs.
+    stress : SlaveStress or None
+        The slave elements next to the chain facets (aligned with ``slave``), for
+        the normal stress ``Snn`` (Nitsche); ``None`` if the backend gives none.
     """
 
     slave: FacetChain
@@ -287,6 +392,7 @@ class ContactLayout:
     patch: int
     n_facets: int
     n_dofs: int
+    stress: SlaveStress | None = None
 
     @property
     def n_mult(self) -> int:
@@ -381,17 +487,42 @@ def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,
                    master.dofs[seg], a, b)
 
 
+def normal_stress(layout: ContactLayout, p: Pairing, mu: np.ndarray,
+                  slave: FacetChain | None = None, n_dofs: int | None = None
+                  ) -> sp.csr_matrix:
+    """``Snn`` (n_q x n_dofs): the slave normal stress at the points of pairing ``p``.
+
+    ``slave`` (default ``layout.slave``) is the chain ``p`` was computed on, with
+    ``layout.stress`` aligned with it (:func:`normal_stress_terms`).
+    """
+    if layout.stress is None:
+        raise ValueError("the contact layout carries no slave stress data (SlaveStress): "
+                         "the backend cannot evaluate sigma_nn")
+    slave = layout.slave if slave is None else slave
+    coef, dofs = normal_stress_terms(layout.stress, slave, layout.degree, p.fq, p.sq,
+                                     p.nrm, mu)
+    nq = p.w.size
+    rows = np.repeat(np.arange(nq), coef.shape[1])
+    return sp.csr_matrix((coef.ravel(), (rows, dofs.ravel())),
+                         shape=(nq, layout.n_dofs if n_dofs is None else n_dofs))
+
+
 def contact_operators(layout: ContactLayout, mu: np.ndarray,
-                      tangential: bool = False) -> ContactOperators:
-    """The full contact operators at mu (``Un``, gap, weights, multipliers; ``Ut`` on request).
+                      tangential: bool = False, stress: bool = False) -> ContactOperators:
+    """The full contact operators at mu (``Un``, gap, weights, multipliers; ``Ut``, ``Snn``
+    on request).
 
     ``Un`` evaluates the normal jump ``(u1 - u2 o pi) . n1``; with
-    ``tangential``, ``Ut`` evaluates ``(u1 - u2 o pi) . t1``, ``t1 = (-n_y, n_x)``.
+    ``tangential``, ``Ut`` evaluates ``(u1 - u2 o pi) . t1``, ``t1 = (-n_y, n_x)``;
+    with ``stress``, ``Snn`` the slave normal stress (:func:`normal_stress`) and
+    ``facet_length`` the physical length of each point's slave facet.
     """
     p = pair(layout, mu)
     Un = p.jump(p.nrm, layout.n_dofs)
     Ut = (p.jump(np.stack([-p.nrm[:, 1], p.nrm[:, 0]], axis=1), layout.n_dofs)
           if tangential else None)
+    Snn = normal_stress(layout, p, mu) if stress else None
+    hq = np.linalg.norm(p.b - p.a, axis=1)[p.fq] if stress else None
     Mlam = multiplier_basis(layout.multiplier, layout.n_facets, layout.slave.ids[p.fq], p.sq,
                             layout.patch)
     mw = np.asarray(Mlam.T @ p.w).ravel()
@@ -406,4 +537,4 @@ def contact_operators(layout: ContactLayout, mu: np.ndarray,
     np.maximum.at(ext[:, 1], coo.col, np.maximum(np.maximum(fa, fb), xs))
     return ContactOperators(Un=Un, gap=p.gap, weights=p.w, points=p.x, normals=p.nrm,
                             Mlam=Mlam, multiplier=layout.multiplier, mult_points=mpts,
-                            mult_extent=ext, Ut=Ut)
+                            mult_extent=ext, Ut=Ut, Snn=Snn, facet_length=hq)

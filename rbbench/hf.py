@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from rbbench.hertz import hertz_2d
-from rbbench.interfaces import ContactProblem, Discretization, SolveResult
+from rbbench.interfaces import ContactProblem, Discretization, NitscheProblem, SolveResult
 from rbbench.registry import Registry, default_registry
 from rbbench.scene import Scene
 
@@ -29,7 +29,7 @@ class HFSolution:
     mu: np.ndarray
     components: dict[str, str]
     disc: Discretization
-    problem: ContactProblem
+    problem: ContactProblem | NitscheProblem
     result: SolveResult
     times: dict[str, float]
     metrics: dict[str, Any] = field(default_factory=dict)
@@ -40,16 +40,36 @@ def _noop(stage: str) -> None:
 
 
 def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mixed",
-                    solver: str = "ssn", registry: Registry | None = None,
+                    solver: str | None = None, registry: Registry | None = None,
                     solver_options: dict | None = None):
-    """Instantiate the three HF roles by name (unknown names list the valid ones)."""
+    """Instantiate the three HF roles by name (unknown names list the valid ones).
+
+    ``solver = None``: the formulation's first declared solver (:func:`default_solver`).
+    """
     reg = registry or default_registry()
+    reg.get("formulation", formulation)
+    solver = default_solver(formulation, reg) if solver is None else solver
     for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):
         reg.get(role, name)  # unknown names fail here, before any meshing
     b = reg.create("backend", backend, scene=scene)
     f = reg.create("formulation", formulation)
     s = reg.create("solver", solver, **(solver_options or {}))
     return b, f, s
+
+
+def discretize_for(backend: Any, formulation: Any, mu: Any) -> Discretization:
+    """``backend.discretize(mu)`` with the optional operators the formulation declares
+    (``Formulation.needs``, e.g. ``{"stress"}`` for Nitsche; none for mixed)."""
+    needs = frozenset(getattr(formulation, "needs", frozenset()))
+    return backend.discretize(mu, needs=needs) if needs else backend.discretize(mu)
+
+
+def default_solver(formulation: str, registry: Registry | None = None) -> str:
+    """The first solver a formulation declares (``capabilities["solvers"]``): ``ssn`` for
+    mixed, ``newton`` for Nitsche."""
+    reg = registry or default_registry()
+    solvers = reg.get("formulation", formulation).capabilities.get("solvers") or ("ssn",)
+    return str(solvers[0])
 
 
 class ProblemCache:
@@ -65,7 +85,8 @@ class ProblemCache:
     def __call__(self, mu: Any) -> ContactProblem:
         key = np.asarray(mu, float).tobytes()
         if key not in self._problems:
-            self._problems[key] = self.formulation.build(self.backend.discretize(mu))
+            self._problems[key] = self.formulation.build(
+                discretize_for(self.backend, self.formulation, mu))
         return self._problems[key]
 
     def X_free(self, mu: Any) -> Any:
@@ -75,11 +96,17 @@ class ProblemCache:
 
 
 def solve_hf(scene: Scene, mu: Any = None, backend: str = "skfem", formulation: str = "mixed",
-             solver: str = "ssn", registry: Registry | None = None,
+             solver: str | None = None, registry: Registry | None = None,
              solver_options: dict | None = None,
              progress: Callable[[str], None] = _noop, components=None) -> HFSolution:
-    """Solve the HF contact problem of ``scene`` at ``mu`` (default: the scene default)."""
+    """Solve the HF contact problem of ``scene`` at ``mu`` (default: the scene default).
+
+    ``solver = None``: the formulation's declared solver (``ssn`` for mixed, ``newton``
+    for Nitsche).
+    """
     mu = scene.default_mu if mu is None else scene.check_mu(mu)
+    if solver is None:
+        solver = default_solver(formulation, registry)
     t0 = time.perf_counter()
     if components is None:
         progress("meshing the reference configuration")
@@ -88,7 +115,7 @@ def solve_hf(scene: Scene, mu: Any = None, backend: str = "skfem", formulation: 
     b, f, s = components
     t1 = time.perf_counter()
     progress("assembling operators")
-    disc = b.discretize(mu)
+    disc = discretize_for(b, f, mu)
     t2 = time.perf_counter()
     problem = f.build(disc)
     progress(f"solving ({disc.n_dofs} dofs, {disc.contact.n_mult} contact unknowns)")
@@ -118,6 +145,8 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
         force = float(np.sum(c.weights * lam_q * -c.normals[:, 1]))
     else:
         force = float(np.sum(c.weights * lam_q))
+    extra = _nitsche_metrics(prob, res, c) if isinstance(prob, NitscheProblem) else {}
+    force = extra.get("contact_force", force)
     lam_max = float(np.max(lam)) if lam.size else 0.0
     active = lam > ACTIVE_THRESHOLD * max(lam_max, np.finfo(float).tiny)
     if active.any():
@@ -170,16 +199,45 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
                 "note": "theory evaluated at the solver's own force P; errors are signed, "
                         "relative: (computed - theory) / theory",
             }
+    m.update(extra)
     m["definitions"] = DEFINITIONS
     return m
 
 
+def _nitsche_metrics(prob: NitscheProblem, res: SolveResult, c: Any) -> dict[str, Any]:
+    """Nitsche: force from the point pressures ``-[P_gamma(u)]_-`` (the consistent reaction
+    of the Nitsche equation), their peak, and the seed's relative AC residual ``e_ac``.
+
+    ``lam`` (hence ``max_pressure``, half-width, complementarity) is the L2 projection of
+    that pressure on the multiplier space (:func:`rbbench.nitsche.project_pressure`).
+    """
+    from rbbench import nitsche as nt
+
+    if not np.all(np.isfinite(res.u)):
+        return {"contact_force": float("nan"), "e_ac": None,
+                "nitsche": {"theta": prob.theta, "gamma0": prob.gamma0}}
+    u = res.u[prob.free]
+    p = nt.pressure(prob, u)
+    return {"contact_force": float(np.sum(prob.weights * p * -c.normals[:, 1])),
+            "max_pressure_quadrature": float(p.max()) if p.size else 0.0,
+            "e_ac": nt.ac_residual(prob, u),
+            "nitsche": {"theta": prob.theta, "gamma0": prob.gamma0, "E": prob.E,
+                        "h_min": float(prob.h.min()), "h_max": float(prob.h.max()),
+                        "n_active_points": int(np.sum(p > 0))}}
+
+
 DEFINITIONS = {
     "contact_force": "total normal contact force per unit thickness (N/m): vertical resultant "
-                     "int lam (-n_y) over the slave zone (obstacle: int lam)",
+                     "int lam (-n_y) over the slave zone (obstacle: int lam); Nitsche: "
+                     "int p (-n_y) with the point pressures p = -[P_gamma(u)]_-",
+    "e_ac": "Nitsche only: relative Alart-Curnier residual (seed 000) "
+            "||sigma_nn(u) - [P_gamma(u)]_-|| / ||sigma_nn(u)||, L2(Gamma_c) norms by the "
+            "contact quadrature, a fraction (not %)",
+    "max_pressure_quadrature": "Nitsche only: largest point pressure -[P_gamma(u)]_- (Pa)",
     "contact_half_width": "half the horizontal extent of the supports of the active multipliers "
                           "(m); overestimates the true half-width by at most one support",
-    "max_pressure": "largest multiplier value (Pa): the peak of the discrete pressure",
+    "max_pressure": "largest multiplier value (Pa): the peak of the discrete pressure (Nitsche: "
+                    "of its L2 projection on the multiplier space)",
     "complementarity": "|lam . (G - B u)| / (||lam||_2 ||G||_2), dimensionless; 0 at an exact "
                        "solution",
     "penetration_max": "largest mean penetration over one multiplier's support (m): "

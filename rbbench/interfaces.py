@@ -61,7 +61,12 @@ class ContactOperators:
     Ut : (n_q, n_dofs) sparse or None
         Tangential displacement jump (only built for friction scenes).
     Snn : (n_q, n_dofs) sparse or None
-        Normal stress ``sigma_nn(u)(x_q)`` of the slave body (only for Nitsche).
+        Normal stress ``sigma_nn(u)(x_q) = n_1 . sigma(u) n_1`` of the slave body at
+        the quadrature points (Pa; only when asked: ``needs={"stress"}``, Nitsche).
+        P1: constant on the slave element adjacent to the facet; P2: evaluated at x_q.
+    facet_length : (n_q,) or None
+        Physical length (m) of the slave facet holding each point (built with
+        ``Snn``: the ``h`` of the Nitsche parameter ``gamma = gamma0 E / h``).
     """
 
     Un: sp.csr_matrix
@@ -75,6 +80,7 @@ class ContactOperators:
     mult_extent: np.ndarray
     Ut: sp.csr_matrix | None = None
     Snn: sp.csr_matrix | None = None
+    facet_length: np.ndarray | None = None
 
     @property
     def n_quad(self) -> int:
@@ -170,6 +176,84 @@ class ContactProblem:
 
 
 @dataclass
+class NitscheProblem:
+    """The algebraic Nitsche contact problem on the free dofs (seed 000, "Nitsche's method").
+
+    Frictionless Signorini conditions in the Alart-Curnier form
+    ``sigma_nn(u) = [P_gamma(u)]_-`` with ``P_gamma(u) = sigma_nn(u) - gamma (u_n - d^n)``
+    (``[x]_- = min(x, 0)``), imposed weakly (Chouly & Hild 2013; Chouly, Hild & Renard
+    2015): find ``u`` with, for every ``v``::
+
+        a(u, v) - theta int 1/gamma sigma_nn(u) sigma_nn(v)
+                + int 1/gamma [P_gamma(u)]_- (theta sigma_nn(v) - gamma v_n) = f(v)
+
+    (``theta = 1``: the seed's symmetric variant, the optimality condition of the
+    Nitsche energy; ``0``: skew-less; ``-1``: skew-symmetric). Integrals are the
+    slave-side quadrature of the contact operators. Algebra: :mod:`rbbench.nitsche`.
+
+    Attributes
+    ----------
+    A, F : (n_free, n_free) sparse, (n_free,)
+        Stiffness and load on the free dofs, the Dirichlet lifting moved to ``F``.
+    Un, Snn : (n_q, n_free) sparse
+        Normal jump and slave normal stress at the contact quadrature points (free
+        columns).
+    gap : (n_q,)
+        Lifted gap ``d^n - Un u_lift`` (m): ``u_n - d^n = Un u_free - gap``.
+    snn_lift : (n_q,)
+        Normal stress of the lifting, ``Snn u_lift`` (Pa).
+    weights : (n_q,)
+        Quadrature weights on the mu-mapped boundary (m).
+    gamma : (n_q,)
+        Nitsche parameter per point, ``gamma0 * E / h_q`` (Pa/m).
+    theta : float
+        1, 0 or -1 (any real value is accepted).
+    gamma0 : float
+        Dimensionless Nitsche parameter.
+    E : float
+        Young's modulus (Pa) of the slave body used in the scaling.
+    h : (n_q,)
+        Slave facet length per point (m) used in the scaling.
+    free, u_lift, X
+        As in :class:`ContactProblem`.
+    Mlam : (n_q, n_mult) sparse
+        The mixed multiplier basis: the solver reports the contact pressure
+        ``-[P_gamma(u)]_-`` L2-projected on it as ``SolveResult.lam``.
+    factorize : Factorize or None
+        The backend's direct solver (for ``theta = 1`` tangents), or ``None``.
+    """
+
+    A: sp.csr_matrix
+    F: np.ndarray
+    Un: sp.csr_matrix
+    Snn: sp.csr_matrix
+    gap: np.ndarray
+    snn_lift: np.ndarray
+    weights: np.ndarray
+    gamma: np.ndarray
+    theta: float
+    gamma0: float
+    E: float
+    h: np.ndarray
+    free: np.ndarray
+    u_lift: np.ndarray
+    X: sp.csr_matrix
+    Mlam: sp.csr_matrix
+    factorize: Factorize | None = None
+
+    def expand(self, u_free: np.ndarray) -> np.ndarray:
+        """Global displacement from free-dof values."""
+        u = self.u_lift.copy()
+        u[self.free] = u_free
+        return u
+
+    @property
+    def W(self) -> sp.csr_matrix:
+        """Gram matrix of the multiplier space, ``Mlam^T diag(w) Mlam``."""
+        return (self.Mlam.T @ sp.diags(self.weights) @ self.Mlam).tocsr()
+
+
+@dataclass
 class SolveResult:
     """Outcome of one HF solve; ``stop_reason`` is one of :data:`STOP_REASONS`."""
 
@@ -198,16 +282,23 @@ class Backend(ABC):
     def discretize(self, mu: np.ndarray | float,
                    needs: frozenset[str] = frozenset()) -> Discretization:
         """Operators of the scene at ``mu``; optional operators only when in ``needs``
-        (``"tangential"``: ``ContactOperators.Ut``)."""
+        (``"tangential"``: ``ContactOperators.Ut``; ``"stress"``: ``ContactOperators.Snn``
+        and ``facet_length``)."""
 
 
 class Formulation(ABC):
-    """Formulation role: turn backend operators into the algebraic contact problem."""
+    """Formulation role: turn backend operators into the algebraic contact problem.
+
+    ``needs``: the optional backend operators the formulation uses, passed by the
+    HF driver to ``Backend.discretize(mu, needs=...)`` (e.g. ``{"stress"}`` for
+    Nitsche); empty by default.
+    """
 
     name: str = ""
+    needs: frozenset[str] = frozenset()
 
     @abstractmethod
-    def build(self, disc: Discretization) -> ContactProblem: ...
+    def build(self, disc: Discretization) -> ContactProblem | NitscheProblem: ...
 
 
 class Solver(ABC):
@@ -216,5 +307,6 @@ class Solver(ABC):
     name: str = ""
 
     @abstractmethod
-    def solve(self, problem: ContactProblem, warm_start: np.ndarray | None = None) -> SolveResult:
+    def solve(self, problem: ContactProblem | NitscheProblem,
+              warm_start: np.ndarray | None = None) -> SolveResult:
         """Solve; never hang: every return carries a stop reason."""

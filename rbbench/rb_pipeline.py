@@ -210,8 +210,14 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     """Run the offline stage on the training set and validate online.
 
     The primal and dual compressors and the stabiliser are the registered plugins named in
-    ``config`` (``registry``: default, the discovered plugins).
+    ``config`` (``registry``: default, the discovered plugins). ``config.formulation ==
+    "nitsche"``: the reduced Nitsche model (:func:`rbbench.nitsche_reduced.reduce_nitsche`).
     """
+    if config.formulation == "nitsche":
+        from rbbench.nitsche_reduced import reduce_nitsche
+
+        return reduce_nitsche(scene, config, progress=progress,
+                              snapshot_progress=snapshot_progress, registry=registry)
     reg = registry or default_registry()
     for role in ("primal", "dual", "stabilizer"):
         reg.get(role, getattr(config, role))  # unknown names fail before any HF work

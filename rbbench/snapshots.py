@@ -133,14 +133,29 @@ class SnapshotSet:
 # ---------------------------------------------------------------------------
 # cache key and files
 # ---------------------------------------------------------------------------
+def _formulation_params(formulation: str) -> dict[str, Any]:
+    """The default parameters a formulation declares for the cache key
+    (``cache_params()``, e.g. Nitsche's ``theta``, ``gamma0``); ``{}`` for mixed."""
+    try:
+        f = default_registry().create("formulation", formulation)
+    except Exception:  # noqa: BLE001 - unknown names are reported by compute_snapshots
+        return {}
+    params = getattr(f, "cache_params", None)
+    return dict(params()) if callable(params) else {}
+
+
 def _key_payload(scene: Any, backend: str, formulation: str, solver: str,
                  solver_options: dict | None) -> dict[str, Any]:
     data = {k: v for k, v in scene.data.items() if k not in _NOT_IN_KEY}
     if "scene" in data:
         data["scene"] = {k: v for k, v in data["scene"].items() if k != "description"}
-    return {"scene": data, "backend": backend, "formulation": formulation, "solver": solver,
-            "solver_options": dict(sorted((solver_options or {}).items())),
-            "rbbench": rbbench.__version__}
+    payload = {"scene": data, "backend": backend, "formulation": formulation, "solver": solver,
+               "solver_options": dict(sorted((solver_options or {}).items())),
+               "rbbench": rbbench.__version__}
+    params = _formulation_params(formulation)
+    if params:  # only then: the keys of existing (mixed) caches are unchanged
+        payload["formulation_params"] = params
+    return payload
 
 
 def snapshot_key(scene: Any, backend: str = "skfem", formulation: str = "mixed",

@@ -49,9 +49,10 @@ def test_jump_operators_on_rigid_translations(degree):
 
 def test_tangential_operators_only_on_request():
     b = _backend()
-    assert b.discretize(1.0).contact.Ut is None
+    c = b.discretize(1.0).contact
+    assert c.Ut is None and c.Snn is None and c.facet_length is None
     with pytest.raises(ValueError, match="unknown needs"):
-        b.discretize(1.0, needs=frozenset({"stress"}))
+        b.discretize(1.0, needs=frozenset({"friction"}))
 
 
 def test_gap_matches_circle_geometry():

@@ -11,7 +11,8 @@ mesh and dof numbering:
   :class:`~rbbench.contact_geometry.FacetChain` built from them
   (:func:`facet_chain`);
 * the GPTS contact operators at mu with the scene-level error message
-  (:func:`halfdisk_contact`), and the collocation operators of the scalar
+  (:func:`halfdisk_contact`), the slave elements behind the normal stress
+  ``Snn`` (:func:`slave_stress`), and the collocation operators of the scalar
   obstacle problem (:func:`obstacle_contact`);
 * the plane-strain Lame parameters (:func:`lame_parameters`).
 
@@ -32,6 +33,7 @@ from rbbench.contact_geometry import (
     ContactLayout,
     FacetChain,
     PairingError,
+    SlaveStress,
     contact_operators,
 )
 from rbbench.interfaces import ContactOperators
@@ -222,13 +224,72 @@ def facet_chain(points: np.ndarray, triangles: np.ndarray, facets: np.ndarray,
                       map=amap, ids=np.arange(rows.size))
 
 
+def edge_lookup(edges: np.ndarray, n_vertices: int) -> Callable[[np.ndarray], np.ndarray]:
+    """``index(pairs (k, 2)) -> (k,)``: rows of ``edges`` (n_e, 2) with these vertex pairs
+    (either order). Raises ``ValueError`` for a pair that is not an edge."""
+    key = np.sort(np.asarray(edges), axis=1) @ np.array([n_vertices, 1])
+    order = np.argsort(key)
+    sorted_key = key[order]
+
+    def index(pairs: np.ndarray) -> np.ndarray:
+        q = np.sort(np.asarray(pairs), axis=1) @ np.array([n_vertices, 1])
+        pos = np.minimum(np.searchsorted(sorted_key, q), key.size - 1)
+        if np.any(sorted_key[pos] != q):
+            raise ValueError("a vertex pair is not an edge of the mesh")
+        return order[pos]
+
+    return index
+
+
+def slave_stress(scene: Scene, points: np.ndarray, triangles: np.ndarray,
+                 facets: np.ndarray, elements: np.ndarray, zone: tuple[float, float],
+                 vertex_dofs: Callable[[np.ndarray], np.ndarray],
+                 edge_dofs: Callable[[np.ndarray], np.ndarray] | None,
+                 body: str = "upper") -> SlaveStress:
+    """The :class:`~rbbench.contact_geometry.SlaveStress` of the chain facets in ``zone``.
+
+    Parameters
+    ----------
+    points, triangles, facets, elements, zone
+        As in :func:`facet_chain` (the same facets, in the same chain order).
+    vertex_dofs : callable
+        ``vertex_dofs(v (k,))`` -> (k, 2) global dofs of vertices ``v``.
+    edge_dofs : callable or None
+        ``edge_dofs(pairs (k, 2))`` -> (k, 2) global dofs of the midpoints of the
+        edges with those vertex pairs (P2); ``None`` for P1.
+    body : str
+        The body whose material is used (the slave, ``"upper"``).
+    """
+    rows, _ = zone_facets(points, facets, zone)
+    tri = np.asarray(triangles)[elements[rows]]  # (nf, 3) vertex indices
+    nf = tri.shape[0]
+    dofs = [vertex_dofs(tri.ravel()).reshape(nf, 3, 2)]
+    if edge_dofs is not None:
+        pairs = np.stack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]], axis=1)
+        dofs.append(edge_dofs(pairs.reshape(-1, 2)).reshape(nf, 3, 2))
+    table = scene.data["material"][body]
+
+    def affine(raw) -> np.ndarray:  # a scene value on theta(mu) = [1, mu_1, ..., mu_p]
+        arr = np.zeros(1 + len(scene.parameters))
+        if isinstance(raw, str) and raw.startswith("mu."):
+            arr[1 + scene.param_names.index(raw[3:])] = 1.0
+        else:
+            arr[0] = float(raw)
+        return arr
+
+    return SlaveStress(tri=np.asarray(points, dtype=float)[tri],
+                       dofs=np.concatenate(dofs, axis=1), E=affine(table["E"]),
+                       nu=affine(table["nu"]))
+
+
 def halfdisk_layout(scene: Scene, slave: FacetChain, master: FacetChain | None,
-                    degree: int, n_gauss: int, n_dofs: int) -> ContactLayout:
+                    degree: int, n_gauss: int, n_dofs: int,
+                    stress: SlaveStress | None = None) -> ContactLayout:
     """The :class:`~rbbench.contact_geometry.ContactLayout` of a ``halfdisks`` scene."""
     disc = scene.data["discretization"]
     return ContactLayout(slave=slave, master=master, degree=degree, n_gauss=n_gauss,
                          multiplier=disc["multiplier"], patch=int(disc["lac_patch"]),
-                         n_facets=slave.n, n_dofs=n_dofs)
+                         n_facets=slave.n, n_dofs=n_dofs, stress=stress)
 
 
 def check_multiplier(scene: Scene) -> None:
@@ -238,26 +299,31 @@ def check_multiplier(scene: Scene) -> None:
                          "obstacle problems; use 'lac', 'p0' or 'p1' for two-body contact")
 
 
+#: Optional operators a backend builds on request (``Backend.discretize(mu, needs=...)``).
+NEEDS = ("tangential", "stress")
+
+
 def check_needs(backend: str, scene: Scene, needs: frozenset[str]) -> None:
-    """Validate ``needs`` of ``Backend.discretize`` (only ``"tangential"`` is known)."""
-    unknown = set(needs) - {"tangential"}
+    """Validate ``needs`` of ``Backend.discretize`` (:data:`NEEDS`: ``"tangential"``,
+    ``"stress"``)."""
+    unknown = set(needs) - set(NEEDS)
     if unknown:
         raise ValueError(f"{backend} backend: unknown needs {sorted(unknown)}; "
-                         "valid: 'tangential'")
+                         f"valid: {', '.join(map(repr, NEEDS))}")
     if needs and scene.data["geometry"]["kind"] == "unit_square":
         raise ValueError(f"{backend} backend: a scalar obstacle problem has no tangential "
-                         "operators")
+                         "or stress operators")
 
 
 def halfdisk_contact(scene: Scene, layout: ContactLayout, mu: np.ndarray,
-                     tangential: bool = False) -> ContactOperators:
+                     tangential: bool = False, stress: bool = False) -> ContactOperators:
     """GPTS pairing at mu (:func:`rbbench.contact_geometry.contact_operators`).
 
     A slave point missing the master zone becomes a :class:`SceneError` naming
     ``[geometry] master_zone``.
     """
     try:
-        return contact_operators(layout, mu, tangential)
+        return contact_operators(layout, mu, tangential, stress)
     except PairingError as exc:
         zone = [float(z) for z in scene.data["geometry"]["master_zone"]]
         raise SceneError(

@@ -44,7 +44,7 @@ import scipy.sparse as sp
 from netgen.occ import ArcOfCircle, Face, OCCGeometry, Pnt, Segment, Wire, WorkPlane
 from rbbench_plugins.backends import common
 
-from rbbench.contact_geometry import AffineMap, ContactLayout, FacetChain
+from rbbench.contact_geometry import AffineMap, ContactLayout, FacetChain, SlaveStress
 from rbbench.interfaces import (
     Backend,
     BodyMesh,
@@ -706,7 +706,8 @@ class NGSolveBackend(Backend):
         return sparse_cholesky if self.direct_solver == "sparsecholesky" else None
 
     def discretize(self, mu, needs: frozenset[str] = frozenset()) -> Discretization:
-        """Operators at ``mu``; ``needs`` may ask for ``"tangential"`` (friction) operators."""
+        """Operators at ``mu``; ``needs`` may ask for ``"tangential"`` (friction) and
+        ``"stress"`` (Nitsche: ``Snn``, ``facet_length``) operators."""
         mu = self.scene.check_mu(mu)
         common.check_needs(self.name, self.scene, needs)
         if self.kind == "unit_square":
@@ -727,7 +728,7 @@ class NGSolveBackend(Backend):
                 dofs.append(flat[c])
                 value = -d if (body.name == "upper" and c == 1) else 0.0
                 vals.append(np.full(flat[c].size, value))
-        contact = self._contact(mu, tangential="tangential" in needs)
+        contact = self._contact(mu, tangential="tangential" in needs, stress="stress" in needs)
         bodies = []
         for body in self._bodies():
             E, nu = self.scene.material(body.name, mu)
@@ -753,7 +754,8 @@ class NGSolveBackend(Backend):
             slave = self._chain(self.upper, maps["upper"])
             master = None if self.lower is None else self._chain(self.lower, maps["lower"])
             self._layout = common.halfdisk_layout(self.scene, slave, master, self.degree,
-                                                  self.n_gauss, self.ndofs)
+                                                  self.n_gauss, self.ndofs,
+                                                  stress=self._stress(self.upper))
         return self._layout
 
     @staticmethod
@@ -761,9 +763,23 @@ class NGSolveBackend(Backend):
         return common.facet_chain(body.points, body.triangles, body.facets, body.elements,
                                   body.chain_zone, body.facet_dofs, amap)
 
-    def _contact(self, mu: np.ndarray, tangential: bool = False) -> ContactOperators:
+    def _stress(self, body: _Body) -> SlaveStress:
+        """The slave elements behind ``Snn`` (:func:`common.slave_stress`)."""
+        comps = np.arange(body.ncomp) * body.nscalar + body.offset
+        edge_dofs = None
+        if body.degree == 2:
+            def edge_dofs(pairs):
+                return (body.nv + body.edge_of(pairs))[:, None] + comps
+
+        return common.slave_stress(self.scene, body.points, body.triangles, body.facets,
+                                   body.elements, body.chain_zone,
+                                   lambda v: body.vertex_dofs()[v], edge_dofs)
+
+    def _contact(self, mu: np.ndarray, tangential: bool = False,
+                 stress: bool = False) -> ContactOperators:
         """GPTS pairing at mu (:func:`rbbench_plugins.backends.common.halfdisk_contact`)."""
-        return common.halfdisk_contact(self.scene, self.contact_layout(), mu, tangential)
+        return common.halfdisk_contact(self.scene, self.contact_layout(), mu, tangential,
+                                       stress)
 
     def _discretize_square(self, mu: np.ndarray) -> Discretization:
         f = float(self.scene.value("load", "source", mu))

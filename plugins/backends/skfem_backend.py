@@ -28,7 +28,7 @@ from skfem import (
 from skfem.helpers import dot, grad
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-from rbbench.contact_geometry import AffineMap, ContactLayout, FacetChain
+from rbbench.contact_geometry import AffineMap, ContactLayout, FacetChain, SlaveStress
 from rbbench.interfaces import Backend, BodyMesh, ContactOperators, Discretization
 from rbbench.scene import Scene
 
@@ -195,7 +195,8 @@ class SkfemBackend(Backend):
         return sp.block_diag(blocks).tocsr(), bases
 
     def discretize(self, mu, needs: frozenset[str] = frozenset()) -> Discretization:
-        """Operators at ``mu``; ``needs`` may ask for ``"tangential"`` (friction) operators.
+        """Operators at ``mu``; ``needs`` may ask for ``"tangential"`` (friction) and
+        ``"stress"`` (Nitsche: ``Snn``, ``facet_length``) operators.
 
         Only what is asked for is built ("model only what a scene requires").
         """
@@ -221,7 +222,7 @@ class SkfemBackend(Backend):
             vals.append(np.zeros(lo.all().size))
         ddofs = np.concatenate(dofs)
         dvals = np.concatenate(vals)
-        contact = self._contact(mu, tangential="tangential" in needs)
+        contact = self._contact(mu, tangential="tangential" in needs, stress="stress" in needs)
         bodies = []
         for body in self._bodies():
             E, nu = self.scene.material(body.name, mu)
@@ -250,16 +251,32 @@ class SkfemBackend(Backend):
                                   body.chain_zone,
                                   lambda rows, flip: body.facet_dofs(bf[rows], flip), amap)
 
+    def _stress(self, body: _Body) -> SlaveStress:
+        """The slave elements behind ``Snn`` (:func:`common.slave_stress`)."""
+        m, b = body.mesh_hat, body.basis_hat
+        bf = m.boundary_facets()
+        edge_dofs = None
+        if body.degree == 2:
+            index = common.edge_lookup(m.facets.T, m.nvertices)
+
+            def edge_dofs(pairs):
+                return b.facet_dofs[:, index(pairs)].T + body.offset
+
+        return common.slave_stress(self.scene, m.p.T, m.t.T, m.facets[:, bf].T, m.f2t[0, bf],
+                                   body.chain_zone,
+                                   lambda v: b.nodal_dofs[:, v].T + body.offset, edge_dofs)
+
     def _build_layout(self) -> ContactLayout:
         maps = self._body_maps()
         slave = self._chain(self.upper, maps["upper"])
         master = None if self.lower is None else self._chain(self.lower, maps["lower"])
         return common.halfdisk_layout(self.scene, slave, master, self.degree, self.n_gauss,
-                                      self.ndofs)
+                                      self.ndofs, stress=self._stress(self.upper))
 
-    def _contact(self, mu, tangential: bool = False) -> ContactOperators:
+    def _contact(self, mu, tangential: bool = False, stress: bool = False) -> ContactOperators:
         """GPTS pairing at mu (:func:`rbbench_plugins.backends.common.halfdisk_contact`)."""
-        return common.halfdisk_contact(self.scene, self.contact_layout(), mu, tangential)
+        return common.halfdisk_contact(self.scene, self.contact_layout(), mu, tangential,
+                                       stress)
 
     def _discretize_square(self, mu) -> Discretization:
         f = float(self.scene.value("load", "source", mu))

@@ -47,6 +47,7 @@ from rbbench.interfaces import (
     ContactOperators,
     ContactProblem,
     Discretization,
+    NitscheProblem,
     SolveResult,
 )
 from rbbench.registry import ROLES, ComponentSpec, Registry, default_registry
@@ -63,6 +64,7 @@ __all__ = [
     "check_component",
     "check_dual",
     "check_formulation",
+    "check_nitsche_solver",
     "check_primal",
     "check_solver",
     "check_spec",
@@ -72,6 +74,7 @@ __all__ = [
     "infeasible_contact_problem",
     "primal_test_data",
     "random_contact_problem",
+    "random_nitsche_problem",
     "redundant_contact_problem",
     "reference_discretization",
     "stabilizer_test_data",
@@ -440,17 +443,20 @@ def check_backend(factory: Callable[..., Any], scene: Scene, name: str | None = 
 # ---------------------------------------------------------------------------
 @functools.cache
 def _cached_disc(backend: str, scene_name: str, overrides: tuple[str, ...],
-                 registry: Registry) -> Discretization:
+                 registry: Registry, needs: frozenset[str] = frozenset()) -> Discretization:
     scene = _scene(scene_name, overrides)
-    return registry.create("backend", backend, scene=scene).discretize(scene.default_mu)
+    b = registry.create("backend", backend, scene=scene)
+    return b.discretize(scene.default_mu, needs=needs) if needs else \
+        b.discretize(scene.default_mu)
 
 
-def reference_discretization(physics: str, registry: Registry | None = None) -> Discretization:
+def reference_discretization(physics: str, registry: Registry | None = None,
+                             needs: frozenset[str] = frozenset()) -> Discretization:
     """A Discretization of the reference scene for ``physics`` from an installed backend.
 
     Prefers the built-in ``skfem`` backend; the result is a copy of a cached
-    discretization. Raises ``LookupError`` if no installed backend declares that
-    physics.
+    discretization, with the optional operators ``needs`` (e.g. ``{"stress"}``).
+    Raises ``LookupError`` if no installed backend declares that physics.
     """
     reg = registry or default_registry()
     names = sorted(reg.names("backend"), key=lambda s: (s != "skfem", s))
@@ -459,7 +465,8 @@ def reference_discretization(physics: str, registry: Registry | None = None) -> 
     for name in names:
         spec = reg.get("backend", name)
         if physics in spec.capabilities.get("physics", ()) and reg.availability(spec)[0]:
-            return copy.deepcopy(_cached_disc(name, scene, overrides, reg))
+            return copy.deepcopy(_cached_disc(name, scene, overrides, reg,
+                                              frozenset(needs)))
     raise LookupError(f"no installed backend declares physics {physics!r}")
 
 
@@ -474,6 +481,9 @@ def check_formulation(factory: Callable[..., Any], disc: Discretization,
     """
     label = f"formulation {name or getattr(factory, '__name__', factory)!r} on {disc.physics}"
     prob = factory().build(disc)
+    if isinstance(prob, NitscheProblem):
+        _check_nitsche_problem(prob, disc, label)
+        return prob
     _require(isinstance(prob, ContactProblem),
              f"{label}: build() returned {type(prob).__name__}, not a ContactProblem")
     n = disc.n_dofs
@@ -510,6 +520,64 @@ def check_formulation(factory: Callable[..., Any], disc: Discretization,
              and np.allclose(lift[constrained], want, rtol=1e-12, atol=0),
              f"{label}: expand()/u_lift do not carry the Dirichlet values")
     return prob
+
+
+def _check_lifting(prob: Any, disc: Discretization, label: str) -> None:
+    """``free`` a set of distinct dofs, the Dirichlet values in ``u_lift`` and ``expand``."""
+    n = disc.n_dofs
+    free = np.asarray(prob.free)
+    constrained = np.setdiff1d(np.asarray(disc.dirichlet_dofs), free)
+    dvals = dict(zip(np.asarray(disc.dirichlet_dofs).tolist(),
+                     np.asarray(disc.dirichlet_values, dtype=float).tolist(), strict=True))
+    want = np.array([dvals[d] for d in constrained.tolist()])
+    lift = _vector(prob.u_lift, n, f"{label}: u_lift")
+    v = np.random.default_rng(0).standard_normal(free.size)
+    u = np.asarray(prob.expand(v))
+    _require(u.shape == (n,), f"{label}: expand(u_free) has shape {u.shape}, expected ({n},)")
+    _require(np.array_equal(u[free], v),
+             f"{label}: expand() does not place the free values at free dofs")
+    _require(np.allclose(u[constrained], want, rtol=1e-12, atol=0)
+             and np.allclose(lift[constrained], want, rtol=1e-12, atol=0),
+             f"{label}: expand()/u_lift do not carry the Dirichlet values")
+
+
+def _check_nitsche_problem(prob: NitscheProblem, disc: Discretization, label: str) -> None:
+    """A :class:`NitscheProblem`: shapes, finite data, ``A`` SPD, positive weights and
+    ``gamma``, the Dirichlet lifting, and its point operators equal to the backend's
+    ``Un``, ``Snn`` and gap applied to the lifted displacement (an independent check of the
+    elimination: ``Un v - gap = Un_full expand(v) - gap_full``, same for ``Snn``)."""
+    n = disc.n_dofs
+    free = _index_set(prob.free, n, f"{label}: free")
+    nf = free.size
+    _require(nf > 0, f"{label}: no free dofs")
+    A = _as_sparse(prob.A, f"{label}: A")
+    _shape(A, (nf, nf), f"{label}: A (n_free x n_free)")
+    _check_symmetric(A, f"{label}: A")
+    _check_spd(A, f"{label}: A")
+    _vector(prob.F, nf, f"{label}: F")
+    w = np.asarray(prob.weights, dtype=float)
+    nq = w.size
+    _require(nq > 0 and np.all(w > 0), f"{label}: weights must be > 0")
+    for what in ("Un", "Snn"):
+        M = _as_sparse(getattr(prob, what), f"{label}: {what}")
+        _shape(M, (nq, nf), f"{label}: {what} (n_q x n_free)")
+    for what in ("gap", "snn_lift", "gamma", "h"):
+        _vector(getattr(prob, what), nq, f"{label}: {what}")
+    _require(np.all(np.asarray(prob.gamma) > 0) and np.all(np.asarray(prob.h) > 0),
+             f"{label}: gamma and h must be > 0")
+    _require(np.isfinite(prob.theta), f"{label}: theta must be finite")
+    _require(prob.Mlam.shape[0] == nq, f"{label}: Mlam must have n_q = {nq} rows")
+    _check_lifting(prob, disc, label)
+    c = disc.contact
+    _require(c.Snn is not None, f"{label}: the discretization has no Snn")
+    v = np.random.default_rng(1).standard_normal(nf)
+    u = np.asarray(prob.expand(v))
+    for got, want, what in ((prob.Un @ v - prob.gap, c.Un @ u - c.gap, "Un v - gap"),
+                            (prob.Snn @ v + prob.snn_lift, c.Snn @ u, "Snn v + snn_lift")):
+        scale = max(np.abs(want).max(), np.finfo(float).tiny)
+        _require(np.abs(got - want).max() <= 1e-10 * scale,
+                 f"{label}: {what} differs from the backend operator on the lifted "
+                 "displacement")
 
 
 # ---------------------------------------------------------------------------
@@ -730,6 +798,138 @@ def check_solver(factory: Callable[..., Any], options: dict | None = None,
         _require(rinf.stop_reason != "converged",
                  f"{label}: claims 'converged' on a problem without solution "
                  f"(b.u <= -1 and -b.u <= -1; seed {k})")
+
+
+def random_nitsche_problem(seed: int = 0, n: int = 30, n_q: int = 12, n_fixed: int = 4,
+                           theta: float = 1.0, gamma: float = 10.0) -> NitscheProblem:
+    """A small Nitsche problem: SPD ``A``, random ``Un`` and a small ``Snn``, some negative
+    gaps (so some points are in contact), P0 multipliers on pairs of points.
+
+    ``Snn`` is scaled so that ``A - Snn^T diag(w / gamma) Snn`` stays positive definite
+    for ``gamma >= 1`` (``theta = 1`` is then a convex minimisation).
+    """
+    rng = np.random.default_rng(seed)
+    M = rng.standard_normal((n, n))
+    A = M @ M.T / n + np.eye(n)
+    Un = rng.standard_normal((n_q, n)) / np.sqrt(n)
+    Snn = 0.3 * rng.standard_normal((n_q, n)) / np.sqrt(n)
+    gap = rng.uniform(0.05, 0.5, n_q)
+    gap[: max(1, n_q // 3)] *= -1.0
+    fixed = np.sort(rng.choice(n + n_fixed, size=n_fixed, replace=False))
+    free = np.setdiff1d(np.arange(n + n_fixed), fixed)
+    u_lift = np.zeros(n + n_fixed)
+    u_lift[fixed] = rng.standard_normal(n_fixed)
+    m = max(n_q // 2, 1)
+    Mlam = sp.csr_matrix((np.ones(n_q), (np.arange(n_q), np.minimum(np.arange(n_q) // 2,
+                                                                      m - 1))), (n_q, m))
+    return NitscheProblem(A=sp.csr_matrix(A), F=rng.standard_normal(n), Un=sp.csr_matrix(Un),
+                          Snn=sp.csr_matrix(Snn), gap=gap, snn_lift=0.1 * rng.standard_normal(n_q),
+                          weights=rng.uniform(0.5, 1.5, n_q), gamma=np.full(n_q, float(gamma)),
+                          theta=float(theta), gamma0=float(gamma), E=1.0, h=np.ones(n_q),
+                          free=free, u_lift=u_lift, X=sp.identity(n, format="csr"), Mlam=Mlam)
+
+
+def _nitsche_residual(prob: NitscheProblem, u: np.ndarray) -> tuple[float, np.ndarray]:
+    """Relative residual of the Nitsche equations at ``u`` (free dofs) and the point
+    pressures ``-[P]_-``, written out here independently of :mod:`rbbench.nitsche`."""
+    s = prob.Snn @ u + prob.snn_lift
+    P = s - prob.gamma * (prob.Un @ u - prob.gap)
+    neg = np.minimum(P, 0.0)
+    dw = prob.weights / prob.gamma
+    Au = prob.A @ u
+    boundary = -prob.theta * (prob.Snn.T @ (dw * s)) + (prob.theta * prob.Snn.T @ (dw * neg)
+                                                       - prob.Un.T @ (prob.weights * neg))
+    R = Au - prob.F + boundary
+    scale = max(np.linalg.norm(prob.F), np.linalg.norm(Au), np.linalg.norm(boundary),
+                np.finfo(float).tiny)
+    return float(np.linalg.norm(R) / scale), -neg
+
+
+def check_nitsche_solver(factory: Callable[..., Any], options: dict | None = None,
+                         name: str | None = None, timeout: float = 20.0, seed: int = 0) -> None:
+    """Contract of a solver of the Nitsche formulation (``factory(**options)`` builds it).
+
+    1. For ``theta`` = 1, 0, -1 on :func:`random_nitsche_problem`, a cold start
+       converges; the result solves the Nitsche equations (residual recomputed
+       here, relative ``1e-8``), keeps the Dirichlet lifting, has some points in
+       contact, and ``lam`` has one entry per multiplier.
+    2. A warm start from that solution converges in at most one iteration to the
+       same ``u``.
+    3. NaN in the data: stop reason ``"nan"``.
+    4. With ``max_iter=1`` (when the constructor takes it): at most one iteration.
+    5. ``theta = 1`` with ``gamma`` far too small (the energy is not convex) and huge
+       ``gamma``: it returns, and a ``"converged"`` result solves the equations.
+
+    Every solve must return within ``timeout`` seconds with a stop reason in
+    :data:`~rbbench.interfaces.STOP_REASONS`, without raising.
+    """
+    options = dict(options or {})
+    label = f"solver {name or getattr(factory, '__name__', factory)!r}"
+
+    def run(prob, opts=options, warm=None, what="solve"):
+        solver = factory(**opts)
+        where = f"{label}: {what}"
+        try:
+            res = _call_with_timeout(lambda: solver.solve(prob, warm_start=warm), timeout, where)
+        except ContractViolation:
+            raise
+        except Exception as exc:  # noqa: BLE001 - any exception breaks the contract
+            raise ContractViolation(f"{where}: solve() raised {type(exc).__name__}: {exc} "
+                                    "instead of returning a stop reason") from exc
+        _require(isinstance(res, SolveResult),
+                 f"{where}: solve() returned {type(res).__name__}, not a SolveResult")
+        _require(res.stop_reason in STOP_REASONS,
+                 f"{where}: stop_reason {res.stop_reason!r} is not one of {STOP_REASONS}")
+        _require(isinstance(res.iterations, (int, np.integer)) and res.iterations >= 0,
+                 f"{where}: iterations must be a non-negative int, got {res.iterations!r}")
+        _require(np.shape(res.u) == prob.u_lift.shape,
+                 f"{where}: u has shape {np.shape(res.u)}, expected {prob.u_lift.shape} "
+                 "(global dofs)")
+        _require(np.shape(res.lam) == (prob.Mlam.shape[1],),
+                 f"{where}: lam has shape {np.shape(res.lam)}, expected "
+                 f"({prob.Mlam.shape[1]},)")
+        if res.converged:
+            rel, _ = _nitsche_residual(prob, np.asarray(res.u, dtype=float)[prob.free])
+            _require(rel <= 1e-8, f"{where}: stop_reason 'converged' but the Nitsche residual "
+                     f"is {rel:.3e} (relative)")
+        return res
+
+    for theta in (1.0, 0.0, -1.0):
+        prob = random_nitsche_problem(seed, theta=theta)
+        res = run(prob, what=f"random problem, theta = {theta:g}")
+        _require(res.converged, f"{label}: theta = {theta:g}: a cold start did not converge "
+                 f"on a small well-posed problem ({res.stop_reason!r})")
+        fixed = np.setdiff1d(np.arange(prob.u_lift.size), prob.free)
+        _require(np.array_equal(np.asarray(res.u)[fixed], prob.u_lift[fixed]),
+                 f"{label}: u does not keep the Dirichlet values u_lift on the constrained dofs")
+        _, p = _nitsche_residual(prob, np.asarray(res.u)[prob.free])
+        _require(np.any(p > 0), f"{label}: no point in contact on a problem built to have some")
+        res2 = run(prob, warm=np.asarray(res.u).copy(), what="warm start from the solution")
+        _require(res2.converged and res2.iterations <= 1,
+                 f"{label}: a warm start from the solution took {res2.iterations} iterations "
+                 f"({res2.stop_reason!r})")
+        du = np.linalg.norm(np.asarray(res2.u) - np.asarray(res.u))
+        _require(du <= 1e-8 * np.linalg.norm(res.u),
+                 f"{label}: warm start changed the solution (||du|| = {du:.3e})")
+
+    bad = random_nitsche_problem(seed)
+    bad.F = bad.F.copy()
+    bad.F[0] = np.nan
+    rn = run(bad, what="NaN in F")
+    _require(rn.stop_reason == "nan", f"{label}: NaN in the data gave stop_reason "
+             f"{rn.stop_reason!r}, expected 'nan'")
+
+    try:
+        params = inspect.signature(factory).parameters
+    except (TypeError, ValueError):
+        params = {}
+    if "max_iter" in params:
+        r1 = run(random_nitsche_problem(seed), opts={**options, "max_iter": 1}, what="max_iter=1")
+        _require(r1.iterations <= 1, f"{label}: max_iter=1 but {r1.iterations} iterations")
+
+    for gamma in (1e-4, 1e8):
+        run(random_nitsche_problem(seed, theta=1.0, gamma=gamma),
+            what=f"theta = 1, gamma = {gamma:g}")
 
 
 # ---------------------------------------------------------------------------
@@ -1142,10 +1342,11 @@ def check_component(spec: ComponentSpec, registry: Registry | None = None) -> No
             check_backend(obj, scene, name=name)
     elif spec.role == "formulation":
         physics = tuple(spec.capabilities.get("physics", _KNOWN_PHYSICS))
+        needs = frozenset(getattr(obj, "needs", frozenset()))
         ran = 0
         for ph in physics:
             try:
-                disc = reference_discretization(ph, reg)
+                disc = reference_discretization(ph, reg, needs)
             except LookupError:
                 continue
             check_formulation(obj, disc, name=name)
@@ -1153,7 +1354,12 @@ def check_component(spec: ComponentSpec, registry: Registry | None = None) -> No
         if not ran:
             pytest.skip(f"no installed backend provides physics {physics}")
     elif spec.role == "solver":
-        check_solver(obj, name=name)
+        # a solver declares the formulations it solves; the mixed contract is the default
+        forms = tuple(spec.capabilities.get("formulations", ("mixed",)))
+        if "nitsche" in forms:
+            check_nitsche_solver(obj, name=name)
+        if "mixed" in forms or "nitsche" not in forms:
+            check_solver(obj, name=name)
     elif spec.role == "executor":
         check_executor(obj, name=name)
     else:
