@@ -66,7 +66,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -565,7 +564,6 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
     from rbbench.rb_pipeline import DivergedError, ReduceResult, _check_finite
     from rbbench.registry import default_registry
     from rbbench.sampling import parameter_set
-    from rbbench.snapshots import compute_snapshots
 
     reg = registry or default_registry()
     if config.hyper == "affine":
@@ -578,14 +576,11 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
     reg.get("primal", config.primal)
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
-    mus_train = parameter_set(scene, "train", config.n_train)
-    mus_valid = parameter_set(scene, "valid", config.n_valid)
-    snap_kw = dict(backend=config.backend, formulation="nitsche", solver=solver,
-                   cache_dir=Path(config.cache_dir), n_jobs=config.n_jobs,
-                   progress=snapshot_progress)
-    progress(f"HF Nitsche snapshots: {len(mus_train)} training, {len(mus_valid)} validation")
-    train = compute_snapshots(scene, mus_train, **snap_kw)
-    valid = compute_snapshots(scene, mus_valid, **snap_kw)
+    from rbbench.rb_pipeline import training_snapshots
+
+    mus_train, train, valid = training_snapshots(scene, config, "nitsche", solver, progress,
+                                                 snapshot_progress)
+    mus_valid = valid.mus
     timings["snapshots_s"] = time.perf_counter() - t0
 
     b, f, _ = make_components(scene, config.backend, "nitsche", solver, registry=reg)

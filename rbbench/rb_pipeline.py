@@ -223,14 +223,8 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         reg.get(role, getattr(config, role))  # unknown names fail before any HF work
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
-    mus_train = parameter_set(scene, "train", config.n_train)
-    mus_valid = parameter_set(scene, "valid", config.n_valid)
-    snap_kw = dict(backend=config.backend, formulation=config.formulation, solver=config.solver,
-                   cache_dir=Path(config.cache_dir), n_jobs=config.n_jobs,
-                   progress=snapshot_progress)
-    progress(f"HF snapshots: {len(mus_train)} training, {len(mus_valid)} validation")
-    train = compute_snapshots(scene, mus_train, **snap_kw)
-    valid = compute_snapshots(scene, mus_valid, **snap_kw)
+    mus_train, train, valid = training_snapshots(scene, config, config.formulation,
+                                                 config.solver, progress, snapshot_progress)
     timings["snapshots_s"] = time.perf_counter() - t0
 
     b, f, _ = make_components(scene, config.backend, config.formulation, config.solver,
@@ -387,13 +381,29 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     timings["total_s"] = time.perf_counter() - t0
     return ReduceResult(
         scene=scene.name, config=asdict(config), N=int(Z.shape[1]), R=int(Vg.shape[1]),
-        K_pga=K, hyper=hyper, n_train=len(mus_train), n_valid=len(mus_valid),
+        K_pga=K, hyper=hyper, n_train=len(mus_train), n_valid=len(valid.mus),
         n_hf_dofs=int(train.n_dofs), n_contact=int(train.LAM.shape[0]),
         err_u=err_u, err_lam=err_lam, penetration=pen, complementarity=compl,
         energy_err=e_en, beta=beta,
         t_online=t_on, t_hf=[float(t) for t in np.concatenate([train.times, valid.times])],
         timings=timings, histories=histories, definitions=DEFINITIONS, model=model,
         valid_mus=np.asarray(valid.mus))
+
+
+def training_snapshots(scene: Scene, config: ReduceConfig, formulation: str, solver: str,
+                       progress: Callable[[str], None] = _progress,
+                       snapshot_progress: bool = False) -> tuple[np.ndarray, Any, Any]:
+    """``(mus_train, train, valid)``: the training / validation sets of ``config`` and their
+    HF snapshots (:func:`rbbench.snapshots.compute_snapshots`, cached on disk)."""
+    mus_train = parameter_set(scene, "train", config.n_train)
+    mus_valid = parameter_set(scene, "valid", config.n_valid)
+    snap_kw = dict(backend=config.backend, formulation=formulation, solver=solver,
+                   cache_dir=Path(config.cache_dir), n_jobs=config.n_jobs,
+                   progress=snapshot_progress)
+    progress(f"HF snapshots ({formulation}): {len(mus_train)} training, {len(mus_valid)} "
+             "validation")
+    return (mus_train, compute_snapshots(scene, mus_train, **snap_kw),
+            compute_snapshots(scene, mus_valid, **snap_kw))
 
 
 def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_train,

@@ -71,6 +71,19 @@ class HalfDiskBody:
     mirrored: bool
 
 
+def discretization_settings(scene: Scene) -> dict:
+    """The scene's ``[discretization]`` as backend attributes: ``degree``, ``h_contact`` and
+    ``h_max`` (scaled by ``2**-level``), ``grading``, ``n_gauss`` (0: degree + 1),
+    ``multiplier``; and the geometry ``kind``."""
+    disc = scene.data["discretization"]
+    scale = 2.0 ** (-int(disc["level"]))
+    degree = int(disc["degree"])
+    return {"degree": degree, "h_contact": float(disc["h_contact"]) * scale,
+            "h_max": float(disc["h_max"]) * scale, "grading": float(disc["grading"]),
+            "n_gauss": int(disc["quadrature"]) or degree + 1,
+            "multiplier": disc["multiplier"], "kind": scene.data["geometry"]["kind"]}
+
+
 def is_rigid(scene: Scene) -> bool:
     """The lower body is the rigid plane ``y = 0`` (``geometry.lower = "rigid_flat"``)."""
     return scene.data["geometry"]["lower"] == "rigid_flat"

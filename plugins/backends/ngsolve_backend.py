@@ -551,15 +551,7 @@ class NGSolveBackend(Backend):
         self.scene = scene
         self.direct_solver = direct_solver
         self.mesh_source = mesh if isinstance(mesh, str) else "arrays"
-        disc = scene.data["discretization"]
-        self.degree = int(disc["degree"])
-        scale = 2.0 ** (-int(disc["level"]))
-        self.h_contact = float(disc["h_contact"]) * scale
-        self.h_max = float(disc["h_max"]) * scale
-        self.grading = float(disc["grading"])
-        self.n_gauss = int(disc["quadrature"]) or self.degree + 1
-        self.multiplier = disc["multiplier"]
-        self.kind = scene.data["geometry"]["kind"]
+        vars(self).update(common.discretization_settings(scene))  # degree, h_contact, ..., kind
         self._X: sp.csr_matrix | None = None
         self._layout: ContactLayout | None = None
         self._maps: dict[str, AffineMap] | None = None

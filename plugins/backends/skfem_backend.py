@@ -105,15 +105,7 @@ class SkfemBackend(Backend):
         if options:
             raise TypeError(f"skfem backend: unknown options {sorted(options)}")
         self.scene = scene
-        disc = scene.data["discretization"]
-        self.degree = int(disc["degree"])
-        scale = 2.0 ** (-int(disc["level"]))
-        self.h_contact = float(disc["h_contact"]) * scale
-        self.h_max = float(disc["h_max"]) * scale
-        self.grading = float(disc["grading"])
-        self.n_gauss = int(disc["quadrature"]) or self.degree + 1
-        self.multiplier = disc["multiplier"]
-        self.kind = scene.data["geometry"]["kind"]
+        vars(self).update(common.discretization_settings(scene))  # degree, h_contact, ..., kind
         t0 = time.perf_counter()
         if self.kind == "halfdisks":
             self._init_halfdisks()

@@ -704,6 +704,20 @@ def _check_result(res: Any, prob: ContactProblem, label: str) -> SolveResult:
     return res
 
 
+def _solve_checked(factory: Callable[..., Any], opts: dict, prob: Any, warm: Any,
+                   where: str, timeout: float) -> Any:
+    """``factory(**opts).solve(prob, warm_start=warm)`` within ``timeout``; any exception
+    breaks the contract (a solver returns a stop reason instead)."""
+    solver = factory(**opts)
+    try:
+        return _call_with_timeout(lambda: solver.solve(prob, warm_start=warm), timeout, where)
+    except ContractViolation:
+        raise
+    except Exception as exc:  # noqa: BLE001 - any exception breaks the contract
+        raise ContractViolation(f"{where}: solve() raised {type(exc).__name__}: {exc} "
+                                "instead of returning a stop reason") from exc
+
+
 def check_solver(factory: Callable[..., Any], options: dict | None = None,
                  name: str | None = None, timeout: float = 20.0, seed: int = 0,
                  n_degenerate: int = 5) -> None:
@@ -728,15 +742,8 @@ def check_solver(factory: Callable[..., Any], options: dict | None = None,
     label = f"solver {name or getattr(factory, '__name__', factory)!r}"
 
     def run(prob, opts=options, warm=None, what="solve"):
-        solver = factory(**opts)
         where = f"{label}: {what}"
-        try:
-            res = _call_with_timeout(lambda: solver.solve(prob, warm_start=warm), timeout, where)
-        except ContractViolation:
-            raise
-        except Exception as exc:  # noqa: BLE001 - any exception breaks the contract
-            raise ContractViolation(f"{where}: solve() raised {type(exc).__name__}: {exc} "
-                                    "instead of returning a stop reason") from exc
+        res = _solve_checked(factory, opts, prob, warm, where, timeout)
         return _check_result(res, prob, where)
 
     def kkt(prob, res, what):
@@ -867,15 +874,8 @@ def check_nitsche_solver(factory: Callable[..., Any], options: dict | None = Non
     label = f"solver {name or getattr(factory, '__name__', factory)!r}"
 
     def run(prob, opts=options, warm=None, what="solve"):
-        solver = factory(**opts)
         where = f"{label}: {what}"
-        try:
-            res = _call_with_timeout(lambda: solver.solve(prob, warm_start=warm), timeout, where)
-        except ContractViolation:
-            raise
-        except Exception as exc:  # noqa: BLE001 - any exception breaks the contract
-            raise ContractViolation(f"{where}: solve() raised {type(exc).__name__}: {exc} "
-                                    "instead of returning a stop reason") from exc
+        res = _solve_checked(factory, opts, prob, warm, where, timeout)
         _require(isinstance(res, SolveResult),
                  f"{where}: solve() returned {type(res).__name__}, not a SolveResult")
         _require(res.stop_reason in STOP_REASONS,
