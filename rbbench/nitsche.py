@@ -41,8 +41,9 @@ import scipy.sparse.linalg as spla
 
 from rbbench.interfaces import NitscheProblem
 
-__all__ = ["NitscheState", "ac_residual", "energy", "gamma_scaling", "pressure",
-           "project_pressure", "residual", "state", "tangent"]
+__all__ = ["NitscheState", "ac_residual", "ac_residual_nodal", "ac_residual_variants",
+           "energy", "gamma_scaling", "pressure", "project_pressure", "residual", "state",
+           "tangent"]
 
 
 def gamma_scaling(gamma0: float, E: float, h: np.ndarray) -> np.ndarray:
@@ -142,3 +143,107 @@ def ac_residual(prob: NitscheProblem, u_free: np.ndarray) -> float:
     den = float(np.sqrt(np.sum(prob.weights * st.s**2)))
     num = float(np.sqrt(np.sum(prob.weights * (st.s - st.neg) ** 2)))
     return num / den if den > 0 else 0.0
+
+
+# ---------------------------------------------------------------------------
+# e_AC variants (the seed's "l2(Gamma_c)" norm is not specified; README "Nitsche")
+# ---------------------------------------------------------------------------
+def _facet_operators(layout, mu: np.ndarray, s_local: np.ndarray):
+    """``(Un, gap, Snn, fq)`` at local coordinates ``s_local`` of every slave facet.
+
+    Same pairing as the contact operators (ray cast along the slave facet normal,
+    :mod:`rbbench.contact_geometry`), evaluated at arbitrary points of the facets
+    instead of the contact quadrature; ``Snn`` is the stress of the slave element
+    adjacent to each facet. Also returns the physical facet lengths ``L``.
+    """
+    from rbbench import contact_geometry as cg
+
+    slave, master = layout.slave, layout.master
+    a, b = slave.map(mu, slave.a), slave.map(mu, slave.b)
+    nrm_f = cg.outward_normals(a, b, slave.map(mu, slave.inner))
+    s_local = np.asarray(s_local, dtype=float)
+    nf = slave.n
+    fq, sq = np.repeat(np.arange(nf), s_local.size), np.tile(s_local, nf)
+    x, nrm = a[fq] + sq[:, None] * (b[fq] - a[fq]), nrm_f[fq]
+    phi, sdofs = cg.facet_shape(sq, layout.degree), slave.dofs[fq]
+    ones = np.ones(fq.size)
+    if master is None:  # rigid plane y = 0
+        p = cg.Pairing(x, nrm, ones, fq, sq, -x[:, 1] / nrm[:, 1], phi, sdofs, None, None,
+                       None, a, b)
+    else:
+        seg, s2, gap = cg.ray_cast(x, nrm, master.map(mu, master.a), master.map(mu, master.b))
+        if np.any(seg < 0):
+            raise cg.PairingError(int(np.sum(seg < 0)), x[seg < 0][0])
+        p = cg.Pairing(x, nrm, ones, fq, sq, gap, phi, sdofs, seg,
+                       cg.facet_shape(s2, layout.degree), master.dofs[seg], a, b)
+    return (p.jump(p.nrm, layout.n_dofs), p.gap, cg.normal_stress(layout, p, mu), fq,
+            np.linalg.norm(b - a, axis=1))
+
+
+def ac_residual_nodal(s: np.ndarray, pen: np.ndarray, gamma: np.ndarray) -> float:
+    """``|| s - [s - gamma pen]_- ||_2 / || s ||_2`` of nodal vectors (plain l2 norms).
+
+    ``s``: sigma_nn at the slave contact nodes, ``pen = u_n - d^n`` there, ``gamma``
+    the Nitsche parameter there. Zero iff the Alart-Curnier equation holds at every node.
+    """
+    s, pen, gamma = (np.asarray(v, dtype=float) for v in (s, pen, gamma))
+    den = float(np.linalg.norm(s))
+    return float(np.linalg.norm(s - np.minimum(s - gamma * pen, 0.0))) / den if den > 0 else 0.0
+
+
+def ac_residual_variants(layout, prob: NitscheProblem, u: np.ndarray, mu,
+                         n_points: int = 6) -> dict[str, float]:
+    """The seed's relative Alart-Curnier residual under three readings of its norm.
+
+    ``u``: all dofs (``result.u``); ``layout``: the backend's
+    :class:`~rbbench.contact_geometry.ContactLayout`. Returns fractions:
+
+    ``quad``
+        :func:`ac_residual`: L2(Gamma_c) by the contact quadrature of the solve
+        (the points where the Nitsche equation is imposed).
+    ``nodal``
+        plain l2 over the slave contact nodes (:func:`ac_residual_nodal`): at each
+        node, ``sigma_nn`` and ``u_n - d^n`` are the means of the values at that
+        node of its (one or two) slave facets (``sigma_nn``: stress of each facet's
+        adjacent element along that facet's normal; ``u_n``: jump along that
+        normal, master ray cast from the node); ``gamma = gamma0 E / h`` with ``h``
+        the mean of the adjacent facet lengths.
+    ``l2``
+        L2(Gamma_c) of the finite-element functions ``sigma_nn(u_h) - [P_gamma(u_h)]_-``
+        over ``sigma_nn(u_h)``, ``n_points`` Gauss points per slave facet (independent
+        of the quadrature of the solve; sees the variation of ``u_n`` inside a facet).
+    """
+    mu = np.atleast_1d(np.asarray(mu, dtype=float))
+    u = np.asarray(u, dtype=float)
+    g0E = float(prob.gamma0) * float(prob.E)
+    out = {"quad": ac_residual(prob, u[prob.free])}
+    # L2 of the FE functions
+    sg, wg = _gauss_01(n_points)
+    Un, gap, Snn, fq, L = _facet_operators(layout, mu, sg)
+    s = Snn @ u
+    r = s - np.minimum(s - g0E / L[fq] * (Un @ u - gap), 0.0)
+    w = np.tile(wg, L.size) * L[fq]
+    den = float(np.sum(w * s**2))
+    out["l2"] = float(np.sqrt(np.sum(w * r**2) / den)) if den > 0 else 0.0
+    # nodal: facet-end values averaged at the shared slave nodes (the chain is ordered:
+    # node j is the end of facet j - 1 and the start of facet j)
+    Un, gap, Snn, fq, L = _facet_operators(layout, mu, np.array([0.0, 1.0]))
+    nf = L.size
+    ends = np.stack([Snn @ u, Un @ u - gap, np.repeat(L, 2)], axis=1).reshape(nf, 2, 3)
+    chained = np.r_[False, np.all(np.isclose(layout.slave.b[:-1], layout.slave.a[1:]),
+                                  axis=1)]
+    start = np.arange(nf) + np.cumsum(~chained) - 1  # a break in the chain: new node
+    acc, cnt = np.zeros((start[-1] + 2, 3)), np.zeros(start[-1] + 2)
+    for k, nodes in enumerate((start, start + 1)):
+        np.add.at(acc, nodes, ends[:, k])
+        np.add.at(cnt, nodes, 1.0)
+    keep = cnt > 0
+    nodal = acc[keep] / cnt[keep, None]
+    out["nodal"] = ac_residual_nodal(nodal[:, 0], nodal[:, 1], g0E / nodal[:, 2])
+    return out
+
+
+def _gauss_01(n: int) -> tuple[np.ndarray, np.ndarray]:
+    from rbbench.contact_geometry import gauss_legendre_01
+
+    return gauss_legendre_01(n)

@@ -164,6 +164,37 @@ def test_ac_residual_decreases_under_refinement():
     assert np.log(e[0] / e[2]) / np.log(4.0) > 0.5  # observed order (seed: 1)
 
 
+def test_nodal_ac_residual_is_zero_for_an_exact_alart_curnier_field():
+    from rbbench.nitsche import ac_residual_nodal
+
+    gamma = np.full(4, 1e12)
+    s = np.array([-3.0, -1.0, 0.0, 0.0])  # active: no penetration; inactive: a gap
+    pen = np.array([0.0, 0.0, -1e-6, -2e-3])
+    assert ac_residual_nodal(s, pen, gamma) == 0.0
+    assert ac_residual_nodal(s, pen + 1e-12, gamma) > 0.0  # penetration
+    assert ac_residual_nodal(s + 0.5, pen, gamma) > 0.0  # tension
+
+
+def test_ac_residual_variants_on_a_rigid_obstacle():
+    """The three e_AC readings: ``quad`` is the solve's ``e_ac``; on a rigid flat
+    obstacle (no non-matching master mesh) the nodal one decreases under refinement."""
+    from rbbench.nitsche import ac_residual_variants
+
+    reg = default_registry()
+    e = []
+    for hc in (0.04, 0.02, 0.01):
+        sc = load_scene("hertz_halfdisks", [*TABLE, f"discretization.h_contact={hc}",
+                                            "geometry.lower=rigid_flat"])
+        b = reg.create("backend", "skfem", scene=sc)
+        sol = _nitsche(sc, 1.0, backend=b)
+        assert sol.result.converged
+        v = ac_residual_variants(b.contact_layout(), sol.problem, sol.result.u, sol.mu)
+        assert v["quad"] == pytest.approx(sol.metrics["e_ac"], rel=1e-12)
+        assert all(0.0 < x < 1.0 for x in v.values()), v
+        e.append(v["nodal"])
+    assert e[0] > e[1] > e[2], e
+
+
 @pytest.mark.parametrize("theta", [1.0, -1.0])
 def test_gamma_sweep_converges_or_reports_why(theta):
     sc = _scene()
@@ -344,3 +375,4 @@ def test_cli_nitsche_table(tmp_path):
                        "--set", "discretization.h_max=0.2"])
     assert code == 0, text
     assert "| 1 | 10 |" in text and "seed e_AC" in text and "| 1 | 5 |" in text
+    assert "e_AC nodal" in text and "e_AC L2" in text and "e_AC quad:" in text
