@@ -62,8 +62,9 @@ def print_summary(m: dict, mu: dict) -> None:
         print("  WARNING: the contact patch reaches the edge of the potential contact zone")
 
 
-def _backend_options(items: list[str] | None) -> dict:
-    """``--backend-option KEY=VALUE`` pairs; a value is a TOML literal, else a string."""
+def _backend_options(items: list[str] | None, flag: str = "--backend-option") -> dict:
+    """``FLAG KEY=VALUE`` pairs (``--backend-option``, ``--formulation-option``); a value is
+    a TOML literal, else a string."""
     if sys.version_info >= (3, 11):
         import tomllib
     else:  # pragma: no cover
@@ -74,7 +75,8 @@ def _backend_options(items: list[str] | None) -> dict:
         key, sep, raw = text.partition("=")
         key, raw = key.strip(), raw.strip()
         if not sep or not key.isidentifier():
-            raise SceneError(f"--backend-option {text!r}: expected KEY=VALUE, e.g. mesh=skfem")
+            raise SceneError(f"{flag} {text!r}: expected KEY=VALUE, e.g. mesh=skfem or "
+                             "gamma0=1.0")
         try:
             options[key] = tomllib.loads(f"v = {raw}")["v"]
         except tomllib.TOMLDecodeError:
@@ -91,8 +93,9 @@ def _resolve_solver(args) -> None:
         args.solver = default_solver(args.formulation)
 
 
-def _solve_components(scene, args, options: dict):
-    """Backend (with ``options``), formulation and solver for ``rbbench solve``."""
+def _solve_components(scene, args, options: dict, f_options: dict | None = None):
+    """Backend (with ``options``), formulation (with ``f_options``) and solver for
+    ``rbbench solve``."""
     reg = default_registry()
     for role, name in (("backend", args.backend), ("formulation", args.formulation),
                        ("solver", args.solver)):
@@ -103,22 +106,27 @@ def _solve_components(scene, args, options: dict):
         raise
     except (TypeError, ValueError) as exc:
         raise SceneError(f"--backend-option: {exc}") from None
-    return backend, reg.create("formulation", args.formulation), reg.create("solver", args.solver)
+    try:
+        form = reg.create("formulation", args.formulation, **(f_options or {}))
+    except (TypeError, ValueError) as exc:
+        raise SceneError(f"--formulation-option: {exc}") from None
+    return backend, form, reg.create("solver", args.solver)
 
 
 def cmd_solve(args) -> int:
     scene = load_scene(args.scene, overrides=args.set or [])
     mu = scene.check_mu(args.mu) if args.mu is not None else scene.default_mu
     options = _backend_options(args.backend_option)
+    f_options = _backend_options(args.formulation_option, "--formulation-option")
     _resolve_solver(args)
     progress = _Progress(args.quiet)
     from rbbench.hf import solve_hf
     from rbbench.output import write_all
 
     components = None
-    if options:
+    if options or f_options:
         progress("meshing the reference configuration")
-        components = _solve_components(scene, args, options)
+        components = _solve_components(scene, args, options, f_options)
     sol = solve_hf(scene, mu, backend=args.backend, formulation=args.formulation,
                    solver=args.solver, progress=progress, components=components)
     mu_txt = "_".join(f"{k}{v:g}" for k, v in scene.mu_dict(mu).items())
@@ -175,7 +183,10 @@ def _reduce_config(args):
                             n_valid=args.n_valid, n_jobs=args.jobs, solver=args.solver,
                             backend=args.backend, formulation=args.formulation,
                             tol_eim=args.tol_eim, delta_pga=args.delta_pga,
-                            k_pga_max=args.k_pga_max)
+                            k_pga_max=args.k_pga_max,
+                            backend_options=_backend_options(args.backend_option),
+                            formulation_options=_backend_options(
+                                args.formulation_option, "--formulation-option"))
     except ValueError as exc:
         raise SceneError(str(exc)) from None
 
@@ -356,7 +367,17 @@ def _add_run_parsers(sub) -> None:
     cp.set_defaults(func=cmd_compare)
 
 
+def _add_option_args(p) -> None:
+    p.add_argument("--backend-option", action="append", metavar="KEY=VALUE",
+                   help="backend constructor option (repeatable), e.g. mesh=skfem "
+                        "(ngsolve: one mesh with skfem)")
+    p.add_argument("--formulation-option", action="append", metavar="KEY=VALUE",
+                   help="formulation constructor option (repeatable), e.g. gamma0=1.0 "
+                        "(nitsche)")
+
+
 def _add_reduce_args(rd) -> None:
+    _add_option_args(rd)
     rd.add_argument("--primal", default="pod")
     rd.add_argument("--dual", default="mcpg", help="pod, cpg, mcpg, eng, nnmf")
     rd.add_argument("--stabilizer", default="pga", help="none, supremizer, pga")
@@ -390,9 +411,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scene", help="scene name in problems/ or path to a .toml file")
     s.add_argument("--mu", type=float, nargs="+", help="parameter value(s) (default: scene's)")
     s.add_argument("--backend", default="skfem")
-    s.add_argument("--backend-option", action="append", metavar="KEY=VALUE",
-                   help="keyword option of the backend constructor (repeatable), e.g. "
-                        "mesh=skfem for --backend ngsolve; VALUE is a TOML literal or a string")
+    _add_option_args(s)
     s.add_argument("--formulation", default="mixed", help="mixed or nitsche")
     s.add_argument("--solver", default=None,
                    help="default: the formulation's (ssn for mixed, newton for nitsche)")

@@ -41,18 +41,26 @@ def _noop(stage: str) -> None:
 
 def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mixed",
                     solver: str | None = None, registry: Registry | None = None,
-                    solver_options: dict | None = None):
+                    solver_options: dict | None = None,
+                    component_options: dict | None = None):
     """Instantiate the three HF roles by name (unknown names list the valid ones).
 
     ``solver = None``: the formulation's first declared solver (:func:`default_solver`).
+    ``component_options``: ``{"backend": {...}, "formulation": {...}}`` constructor
+    options (e.g. NGSolve's ``mesh``, Nitsche's ``gamma0``).
     """
+    opts = component_options or {}
+    bad = set(opts) - {"backend", "formulation"}
+    if bad:
+        raise ValueError(f"component options: unknown role(s) {sorted(bad)}; valid: backend, "
+                         "formulation (solver options are solver_options)")
     reg = registry or default_registry()
     reg.get("formulation", formulation)
     solver = default_solver(formulation, reg) if solver is None else solver
     for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):
         reg.get(role, name)  # unknown names fail here, before any meshing
-    b = reg.create("backend", backend, scene=scene)
-    f = reg.create("formulation", formulation)
+    b = reg.create("backend", backend, scene=scene, **opts.get("backend", {}))
+    f = reg.create("formulation", formulation, **opts.get("formulation", {}))
     s = reg.create("solver", solver, **(solver_options or {}))
     return b, f, s
 

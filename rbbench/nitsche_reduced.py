@@ -583,7 +583,8 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
     mus_valid = valid.mus
     timings["snapshots_s"] = time.perf_counter() - t0
 
-    b, f, _ = make_components(scene, config.backend, "nitsche", solver, registry=reg)
+    b, f, _ = make_components(scene, config.backend, "nitsche", solver, registry=reg,
+                              component_options=config.component_options)
     if not hasattr(b, "contact_layout"):
         raise ValueError(f"backend {config.backend!r} provides no contact layout: the reduced "
                          "Nitsche model evaluates the contact points from it")

@@ -66,6 +66,14 @@ class ReduceConfig:
     cache_dir: str = ".rbbench_cache"
     online_repeats: int = 20
     online_method: str = "daqp"  # reduced saddle-point solver: daqp (QP) or pdas (LCP)
+    backend_options: dict = field(default_factory=dict)  # e.g. NGSolve {"mesh": "skfem"}
+    formulation_options: dict = field(default_factory=dict)  # e.g. Nitsche {"gamma0": 1.0}
+
+    @property
+    def component_options(self) -> dict:
+        """``{"backend": ..., "formulation": ...}`` for :func:`rbbench.hf.make_components`."""
+        return {"backend": dict(self.backend_options),
+                "formulation": dict(self.formulation_options)}
     exact_max_r: int = 10
     tol_eim: float = 1e-4
     m_eim: int | None = None
@@ -228,6 +236,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     timings["snapshots_s"] = time.perf_counter() - t0
 
     b, f, _ = make_components(scene, config.backend, config.formulation, config.solver,
+                              component_options=config.component_options,
                               registry=reg)
     problem_at = ProblemCache(b, f)
     X = problem_at.X_free(scene.default_mu)
@@ -399,7 +408,7 @@ def training_snapshots(scene: Scene, config: ReduceConfig, formulation: str, sol
     mus_valid = parameter_set(scene, "valid", config.n_valid)
     snap_kw = dict(backend=config.backend, formulation=formulation, solver=solver,
                    cache_dir=Path(config.cache_dir), n_jobs=config.n_jobs,
-                   progress=snapshot_progress)
+                   progress=snapshot_progress, component_options=config.component_options)
     progress(f"HF snapshots ({formulation}): {len(mus_train)} training, {len(mus_valid)} "
              "validation")
     return (mus_train, compute_snapshots(scene, mus_train, **snap_kw),

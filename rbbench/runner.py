@@ -292,7 +292,9 @@ def _snapshot_groups(cases: list[Case]) -> dict[tuple, Case]:
     for c in cases:
         comp = c.components
         key = (c.scene, c.overrides, comp["backend"], comp["formulation"], comp["solver"],
-               c.params.get("n_train"), c.params.get("n_valid"))
+               c.params.get("n_train"), c.params.get("n_valid"),
+               json.dumps([c.params.get("backend_options"), c.params.get("formulation_options")],
+                          sort_keys=True))
         groups.setdefault(key, c)
     return groups
 
@@ -319,7 +321,9 @@ def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,
             compute_snapshots(scene, mus, backend=comp["backend"],
                               formulation=comp["formulation"], solver=comp["solver"],
                               cache_dir=Path(cache_dir), n_jobs=jobs, progress=True,
-                              strict=False)
+                              strict=False, component_options={
+                                  "backend": c.params.get("backend_options") or {},
+                                  "formulation": c.params.get("formulation_options") or {}})
         except Exception as exc:  # noqa: BLE001 - the cases report it in their rows
             failures[key] = f"{type(exc).__name__}: {exc}"
     return failures

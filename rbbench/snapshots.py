@@ -133,11 +133,11 @@ class SnapshotSet:
 # ---------------------------------------------------------------------------
 # cache key and files
 # ---------------------------------------------------------------------------
-def _formulation_params(formulation: str) -> dict[str, Any]:
-    """The default parameters a formulation declares for the cache key
-    (``cache_params()``, e.g. Nitsche's ``theta``, ``gamma0``); ``{}`` for mixed."""
+def _formulation_params(formulation: str, options: dict | None = None) -> dict[str, Any]:
+    """The parameters a formulation declares for the cache key (``cache_params()``, e.g.
+    Nitsche's ``theta``, ``gamma0``, with ``options`` applied); ``{}`` for mixed."""
     try:
-        f = default_registry().create("formulation", formulation)
+        f = default_registry().create("formulation", formulation, **(options or {}))
     except Exception:  # noqa: BLE001 - unknown names are reported by compute_snapshots
         return {}
     params = getattr(f, "cache_params", None)
@@ -145,28 +145,35 @@ def _formulation_params(formulation: str) -> dict[str, Any]:
 
 
 def _key_payload(scene: Any, backend: str, formulation: str, solver: str,
-                 solver_options: dict | None) -> dict[str, Any]:
+                 solver_options: dict | None,
+                 component_options: dict | None = None) -> dict[str, Any]:
     data = {k: v for k, v in scene.data.items() if k not in _NOT_IN_KEY}
     if "scene" in data:
         data["scene"] = {k: v for k, v in data["scene"].items() if k != "description"}
     payload = {"scene": data, "backend": backend, "formulation": formulation, "solver": solver,
                "solver_options": dict(sorted((solver_options or {}).items())),
                "rbbench": rbbench.__version__}
-    params = _formulation_params(formulation)
+    copts = component_options or {}
+    params = _formulation_params(formulation, copts.get("formulation"))
     if params:  # only then: the keys of existing (mixed) caches are unchanged
         payload["formulation_params"] = params
+    for role in ("backend", "formulation"):  # likewise only when given
+        if copts.get(role):
+            payload[f"{role}_options"] = dict(sorted(copts[role].items()))
     return payload
 
 
 def snapshot_key(scene: Any, backend: str = "skfem", formulation: str = "mixed",
-                 solver: str = "ssn", solver_options: dict | None = None) -> str:
+                 solver: str = "ssn", solver_options: dict | None = None,
+                 component_options: dict | None = None) -> str:
     """sha256 (hex, 24 characters) of everything that determines a snapshot.
 
     Unlike :meth:`Scene.fingerprint`, the ``[sampling]`` and ``[reference]`` tables and
     the scene description are left out: changing the training set size or seed must
     reuse the snapshots already computed.
     """
-    blob = json.dumps(_key_payload(scene, backend, formulation, solver, solver_options),
+    blob = json.dumps(_key_payload(scene, backend, formulation, solver, solver_options,
+                                   component_options),
                       sort_keys=True, default=str).encode()
     return hashlib.sha256(blob).hexdigest()[:24]
 
@@ -306,9 +313,10 @@ def limit_blas_threads(n: int) -> str:
 
 
 def _init_worker(scene: Any, names: tuple[str, str, str], solver_options: dict | None,
-                 threads: int | None) -> None:
+                 threads: int | None, component_options: dict | None = None) -> None:
     _WORKER.clear()
-    _WORKER.update(scene=scene, names=names, solver_options=solver_options, components=None)
+    _WORKER.update(scene=scene, names=names, solver_options=solver_options, components=None,
+                   component_options=component_options)
     if threads:
         _WORKER["thread_limit"] = limit_blas_threads(threads)
 
@@ -318,7 +326,8 @@ def _worker_task(mu: np.ndarray, path: Path) -> Snapshot:
         scene, names = _WORKER["scene"], _WORKER["names"]
         try:
             _WORKER["components"] = make_components(
-                scene, *names, solver_options=_WORKER["solver_options"])
+                scene, *names, solver_options=_WORKER["solver_options"],
+                component_options=_WORKER["component_options"])
         except Exception as exc:
             return Snapshot(mu=mu, u=np.empty(0), lam=np.empty(0), iterations=0,
                             stop_reason="error", time_s=0.0,
@@ -332,7 +341,8 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
                       progress: bool = True, strict: bool = True,
                       solver_options: dict | None = None,
                       mp_context: str | None = None,
-                      blas_threads: int | None = None) -> SnapshotSet:
+                      blas_threads: int | None = None,
+                      component_options: dict | None = None) -> SnapshotSet:
     """HF snapshots at every row of ``mus``, from the cache where present.
 
     Parameters
@@ -356,6 +366,9 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
         wrong. Finished snapshots are cached either way.
     solver_options : dict, optional
         Passed to the solver; part of the cache key.
+    component_options : dict, optional
+        ``{"backend": {...}, "formulation": {...}}`` constructor options
+        (:func:`rbbench.hf.make_components`); part of the cache key when given.
     mp_context : {"fork", "forkserver", "spawn"}, optional
         Start method of the worker processes (default: the platform's).
     blas_threads : int, optional
@@ -374,9 +387,10 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
         mus = mus.reshape(-1, 1) if len(scene.parameters) == 1 else mus.reshape(1, -1)
     mus = np.array([scene.check_mu(m) for m in mus]).reshape(len(mus), len(scene.parameters))
     names = (backend, formulation, solver)
-    key = snapshot_key(scene, backend, formulation, solver, solver_options)
+    key = snapshot_key(scene, backend, formulation, solver, solver_options, component_options)
     root = Path(cache_dir)
-    _write_key_file(root / key, scene, backend, formulation, solver, solver_options)
+    _write_key_file(root / key, scene, backend, formulation, solver, solver_options,
+                    component_options)
     paths = [cache_path(root, key, mu) for mu in mus]
 
     snaps: list[Snapshot | None] = [_try_load(p, mu) for p, mu in zip(paths, mus, strict=True)]
@@ -392,7 +406,8 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     try:
         if todo and n_jobs == 1:
             bar = _progress_bar(progress, scene.name, len(mus), len(todo))
-            components = make_components(scene, *names, solver_options=solver_options)
+            components = make_components(scene, *names, solver_options=solver_options,
+                                         component_options=component_options)
             for i in todo:
                 snaps[i] = _solve_one(scene, mus[i], names, components, paths[i])
                 if bar is not None:
@@ -402,7 +417,8 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
             threads = max(1, _n_cpus() // n_jobs) if blas_threads is None \
                 else int(blas_threads)
             with ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
-                                     initargs=(scene, names, solver_options, threads)) as pool:
+                                     initargs=(scene, names, solver_options, threads,
+                                               component_options)) as pool:
                 futures = {pool.submit(_worker_task, mus[i], paths[i]): i for i in todo}
                 # the bar only after the workers started: no fork with extra threads alive
                 bar = _progress_bar(progress, scene.name, len(mus), len(todo))
@@ -456,11 +472,12 @@ def _progress_bar(progress: bool, name: str, total: int, todo: int):
 
 
 def _write_key_file(folder: Path, scene: Any, backend: str, formulation: str, solver: str,
-                    solver_options: dict | None) -> None:
+                    solver_options: dict | None, component_options: dict | None = None) -> None:
     path = folder / "key.json"
     if path.exists():
         return
-    payload = _key_payload(scene, backend, formulation, solver, solver_options)
+    payload = _key_payload(scene, backend, formulation, solver, solver_options,
+                           component_options)
     payload["scene_path"] = str(scene.path)
     payload["overrides"] = list(scene.overrides)
     text = json.dumps(payload, sort_keys=True, indent=1, default=str).encode()

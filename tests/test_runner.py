@@ -213,3 +213,26 @@ repeats = 2
     with pytest.raises(MatrixError, match=r"\[sizes\] does not apply to mode 'hf'"):
         p.write_text(p.read_text() + "\n[sizes]\nN = [3]\n")
         load_matrix(p, registry=default_registry())
+
+
+def test_component_options_are_matrix_parameters(tmp_path):
+    """Backend / formulation constructor options: a parameter grid, part of the case id and
+    of the HF snapshot cache key (empty options keep the old keys)."""
+    from rbbench.scene import load_scene
+    from rbbench.snapshots import snapshot_key
+
+    p = tmp_path / "opt.toml"
+    p.write_text(TINY.format(duals='["cpg"]', stabs='["none"]', hyper='["auto"]', timeout=120)
+                 + '\n[params.backend.skfem]\nbackend_options = [{}, {bogus = 1}]\n')
+    m = load_matrix(p, selectors=["N=3"], registry=default_registry())
+    assert len(m.cases) == 2 and len({c.key for c in m.cases}) == 2
+    run_matrix(m, tmp_path / "run", jobs=2, cache_dir=tmp_path / "cache", progress=False)
+    df = pd.read_parquet(tmp_path / "run" / "results.parquet").set_index("params")
+    ok = df.loc[[i for i in df.index if "bogus" not in i]]
+    bad = df.loc[[i for i in df.index if "bogus" in i]]
+    assert list(ok["status"]) == ["ok"]
+    assert list(bad["status"]) == ["error"] and "bogus" in bad["reason"].iloc[0]
+    sc = load_scene("membrane_obstacle")
+    k0 = snapshot_key(sc, "skfem", "mixed", "ssn")
+    assert snapshot_key(sc, "skfem", "mixed", "ssn", None, {"backend": {}}) == k0
+    assert snapshot_key(sc, "skfem", "mixed", "ssn", None, {"backend": {"a": 1}}) != k0
