@@ -1185,9 +1185,11 @@ def report(run_dir: str | Path, out_dir: str | Path | None = None,
 
 
 _ROW_COLUMNS = ("scene", "backend", "formulation", "solver", "primal", "dual", "stabilizer",
-                "hyper_used", "params", "N", "R", "S", "M_eim", "repetition", "status",
-                "err_u_max", "err_lam_max", "penetration_max", "beta_dec_min", "beta_on_min",
-                "beta_off_min", "t_offline_s", "t_online_median_s", "speedup", "case_id")
+                "hyper_used", "params", "n_hf_dofs", "n_contact", "N", "R", "S", "M_eim",
+                "repetition", "status", "err_u_max", "err_lam_max", "lam_best_max",
+                "penetration_max", "beta_dec_min", "beta_on_min", "beta_off_min",
+                "contact_force", "hf_iterations", "t_hf_median_s", "t_offline_s",
+                "t_online_median_s", "speedup", "case_id")
 _TITLES = {"pareto": "Error against online time (Pareto fronts)",
            "error_vs_size": "Error against RB size", "infsup": "Inf-sup constants",
            "histories": "Offline histories", "speedup": "Speed-up",
