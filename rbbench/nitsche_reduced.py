@@ -579,7 +579,7 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
     from rbbench.rb_pipeline import training_snapshots
 
     mus_train, train, valid = training_snapshots(scene, config, "nitsche", solver, progress,
-                                                 snapshot_progress)
+                                                 snapshot_progress, reg)
     mus_valid = valid.mus
     timings["snapshots_s"] = time.perf_counter() - t0
 

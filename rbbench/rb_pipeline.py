@@ -232,7 +232,8 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
     mus_train, train, valid = training_snapshots(scene, config, config.formulation,
-                                                 config.solver, progress, snapshot_progress)
+                                                 config.solver, progress, snapshot_progress,
+                                                 reg)
     timings["snapshots_s"] = time.perf_counter() - t0
 
     b, f, _ = make_components(scene, config.backend, config.formulation, config.solver,
@@ -401,14 +402,16 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
 
 def training_snapshots(scene: Scene, config: ReduceConfig, formulation: str, solver: str,
                        progress: Callable[[str], None] = _progress,
-                       snapshot_progress: bool = False) -> tuple[np.ndarray, Any, Any]:
+                       snapshot_progress: bool = False,
+                       registry: Registry | None = None) -> tuple[np.ndarray, Any, Any]:
     """``(mus_train, train, valid)``: the training / validation sets of ``config`` and their
     HF snapshots (:func:`rbbench.snapshots.compute_snapshots`, cached on disk)."""
     mus_train = parameter_set(scene, "train", config.n_train)
     mus_valid = parameter_set(scene, "valid", config.n_valid)
     snap_kw = dict(backend=config.backend, formulation=formulation, solver=solver,
                    cache_dir=Path(config.cache_dir), n_jobs=config.n_jobs,
-                   progress=snapshot_progress, component_options=config.component_options)
+                   progress=snapshot_progress, component_options=config.component_options,
+                   registry=registry)
     progress(f"HF snapshots ({formulation}): {len(mus_train)} training, {len(mus_valid)} "
              "validation")
     return (mus_train, compute_snapshots(scene, mus_train, **snap_kw),

@@ -299,33 +299,68 @@ def _snapshot_groups(cases: list[Case]) -> dict[tuple, Case]:
     return groups
 
 
-def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,
-                      progress: Callable[[str], None]) -> dict[tuple, str]:
-    """Compute the HF snapshots the cases share, once per group, before the cases start.
-
-    Failures are not raised: each affected case meets the same failure itself and
-    records it in its row. Returns ``{group: failure message}``.
-    """
+def _prepare_group(c: Case, cache_dir: str, jobs: int | None, registry: Any = None) -> None:
+    """The HF snapshots (training + validation) of one case's group, into the cache."""
     from rbbench.sampling import parameter_set
     from rbbench.scene import load_scene
     from rbbench.snapshots import compute_snapshots
 
+    comp = c.components
+    scene = load_scene(c.base_scene, c.overrides)
+    mus = np.vstack([parameter_set(scene, "train", c.params.get("n_train")),
+                     parameter_set(scene, "valid", c.params.get("n_valid"))])
+    compute_snapshots(scene, mus, backend=comp["backend"], formulation=comp["formulation"],
+                      solver=comp["solver"], cache_dir=Path(cache_dir), n_jobs=jobs,
+                      progress=True, strict=False, registry=registry, component_options={
+                          "backend": c.params.get("backend_options") or {},
+                          "formulation": c.params.get("formulation_options") or {}})
+
+
+def _prepare_child(c: Case, cache_dir: str, jobs: int | None, registry: Any) -> None:
+    os.setsid()  # its own process group: a time-out kills its snapshot workers too
+    try:
+        _prepare_group(c, cache_dir, jobs, registry)
+    except Exception:  # noqa: BLE001 - the cases meet (and record) the same failure
+        os._exit(1)
+    os._exit(0)
+
+
+def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,
+                      progress: Callable[[str], None],
+                      registry: Registry | None = None) -> dict[tuple, str]:
+    """Compute the HF snapshots the cases share, once per group, before the cases start.
+
+    Each group runs in a child process limited to the longest time limit of its cases
+    (a hung HF solver cannot stall the run: the group is killed and its cases compute
+    what they need under their own limits). Failures are not raised: each affected case
+    meets the same failure itself and records it in its row. Returns ``{group: why}``.
+    """
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork" if hasattr(os, "fork") else "spawn")
+    limits: dict[tuple, float] = {}
+    for c in cases:
+        k = next(k for k, g in _snapshot_groups([c]).items())
+        limits[k] = max(limits.get(k, 0.0), c.timeout_s)
     failures = {}
     for key, c in _snapshot_groups(cases).items():
         comp = c.components
         progress(f"HF snapshots for {c.scene} ({comp['backend']}/{comp['solver']})")
+        p = ctx.Process(target=_prepare_child, args=(c, cache_dir, jobs, registry))
+        p.start()
         try:
-            scene = load_scene(c.base_scene, c.overrides)
-            mus = np.vstack([parameter_set(scene, "train", c.params.get("n_train")),
-                             parameter_set(scene, "valid", c.params.get("n_valid"))])
-            compute_snapshots(scene, mus, backend=comp["backend"],
-                              formulation=comp["formulation"], solver=comp["solver"],
-                              cache_dir=Path(cache_dir), n_jobs=jobs, progress=True,
-                              strict=False, component_options={
-                                  "backend": c.params.get("backend_options") or {},
-                                  "formulation": c.params.get("formulation_options") or {}})
-        except Exception as exc:  # noqa: BLE001 - the cases report it in their rows
-            failures[key] = f"{type(exc).__name__}: {exc}"
+            p.join(limits[key])
+        except BaseException:  # Ctrl-C: do not leave the group running
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, signal.SIGKILL)
+            raise
+        if p.is_alive():
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(p.pid, signal.SIGKILL)
+            p.join(5)
+            failures[key] = f"snapshot preparation killed after {limits[key]:g} s"
+        elif p.exitcode != 0:
+            failures[key] = f"snapshot preparation failed (exit code {p.exitcode})"
     return failures
 
 
@@ -394,7 +429,7 @@ def run_matrix(matrix: Matrix, out_dir: str | Path, executor: str = "processes",
     ex = reg.create("executor", executor, jobs=jobs, **(executor_options or {}))
     try:
         if runnable:
-            prepare_snapshots(rb_cases, cache_dir, jobs, stage)
+            prepare_snapshots(rb_cases, cache_dir, jobs, stage, reg)
             ex.run(runnable, run_id=out_dir.name, cache_dir=cache_dir, registry=reg,
                    on_result=finish, on_stage=stage)
     except KeyboardInterrupt:

@@ -133,11 +133,13 @@ class SnapshotSet:
 # ---------------------------------------------------------------------------
 # cache key and files
 # ---------------------------------------------------------------------------
-def _formulation_params(formulation: str, options: dict | None = None) -> dict[str, Any]:
+def _formulation_params(formulation: str, options: dict | None = None,
+                        registry: Any = None) -> dict[str, Any]:
     """The parameters a formulation declares for the cache key (``cache_params()``, e.g.
     Nitsche's ``theta``, ``gamma0``, with ``options`` applied); ``{}`` for mixed."""
     try:
-        f = default_registry().create("formulation", formulation, **(options or {}))
+        f = (registry or default_registry()).create("formulation", formulation,
+                                                    **(options or {}))
     except Exception:  # noqa: BLE001 - unknown names are reported by compute_snapshots
         return {}
     params = getattr(f, "cache_params", None)
@@ -146,7 +148,8 @@ def _formulation_params(formulation: str, options: dict | None = None) -> dict[s
 
 def _key_payload(scene: Any, backend: str, formulation: str, solver: str,
                  solver_options: dict | None,
-                 component_options: dict | None = None) -> dict[str, Any]:
+                 component_options: dict | None = None,
+                 registry: Any = None) -> dict[str, Any]:
     data = {k: v for k, v in scene.data.items() if k not in _NOT_IN_KEY}
     if "scene" in data:
         data["scene"] = {k: v for k, v in data["scene"].items() if k != "description"}
@@ -154,7 +157,7 @@ def _key_payload(scene: Any, backend: str, formulation: str, solver: str,
                "solver_options": dict(sorted((solver_options or {}).items())),
                "rbbench": rbbench.__version__}
     copts = component_options or {}
-    params = _formulation_params(formulation, copts.get("formulation"))
+    params = _formulation_params(formulation, copts.get("formulation"), registry)
     if params:  # only then: the keys of existing (mixed) caches are unchanged
         payload["formulation_params"] = params
     for role in ("backend", "formulation"):  # likewise only when given
@@ -165,7 +168,7 @@ def _key_payload(scene: Any, backend: str, formulation: str, solver: str,
 
 def snapshot_key(scene: Any, backend: str = "skfem", formulation: str = "mixed",
                  solver: str = "ssn", solver_options: dict | None = None,
-                 component_options: dict | None = None) -> str:
+                 component_options: dict | None = None, registry: Any = None) -> str:
     """sha256 (hex, 24 characters) of everything that determines a snapshot.
 
     Unlike :meth:`Scene.fingerprint`, the ``[sampling]`` and ``[reference]`` tables and
@@ -173,7 +176,7 @@ def snapshot_key(scene: Any, backend: str = "skfem", formulation: str = "mixed",
     reuse the snapshots already computed.
     """
     blob = json.dumps(_key_payload(scene, backend, formulation, solver, solver_options,
-                                   component_options),
+                                   component_options, registry),
                       sort_keys=True, default=str).encode()
     return hashlib.sha256(blob).hexdigest()[:24]
 
@@ -313,10 +316,11 @@ def limit_blas_threads(n: int) -> str:
 
 
 def _init_worker(scene: Any, names: tuple[str, str, str], solver_options: dict | None,
-                 threads: int | None, component_options: dict | None = None) -> None:
+                 threads: int | None, component_options: dict | None = None,
+                 registry: Any = None) -> None:
     _WORKER.clear()
     _WORKER.update(scene=scene, names=names, solver_options=solver_options, components=None,
-                   component_options=component_options)
+                   component_options=component_options, registry=registry)
     if threads:
         _WORKER["thread_limit"] = limit_blas_threads(threads)
 
@@ -327,7 +331,7 @@ def _worker_task(mu: np.ndarray, path: Path) -> Snapshot:
         try:
             _WORKER["components"] = make_components(
                 scene, *names, solver_options=_WORKER["solver_options"],
-                component_options=_WORKER["component_options"])
+                component_options=_WORKER["component_options"], registry=_WORKER["registry"])
         except Exception as exc:
             return Snapshot(mu=mu, u=np.empty(0), lam=np.empty(0), iterations=0,
                             stop_reason="error", time_s=0.0,
@@ -342,7 +346,8 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
                       solver_options: dict | None = None,
                       mp_context: str | None = None,
                       blas_threads: int | None = None,
-                      component_options: dict | None = None) -> SnapshotSet:
+                      component_options: dict | None = None,
+                      registry: Any = None) -> SnapshotSet:
     """HF snapshots at every row of ``mus``, from the cache where present.
 
     Parameters
@@ -369,6 +374,8 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     component_options : dict, optional
         ``{"backend": {...}, "formulation": {...}}`` constructor options
         (:func:`rbbench.hf.make_components`); part of the cache key when given.
+    registry : Registry, optional
+        Where the component names are looked up (default: the discovered plugins).
     mp_context : {"fork", "forkserver", "spawn"}, optional
         Start method of the worker processes (default: the platform's).
     blas_threads : int, optional
@@ -387,10 +394,11 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
         mus = mus.reshape(-1, 1) if len(scene.parameters) == 1 else mus.reshape(1, -1)
     mus = np.array([scene.check_mu(m) for m in mus]).reshape(len(mus), len(scene.parameters))
     names = (backend, formulation, solver)
-    key = snapshot_key(scene, backend, formulation, solver, solver_options, component_options)
+    key = snapshot_key(scene, backend, formulation, solver, solver_options, component_options,
+                       registry)
     root = Path(cache_dir)
     _write_key_file(root / key, scene, backend, formulation, solver, solver_options,
-                    component_options)
+                    component_options, registry)
     paths = [cache_path(root, key, mu) for mu in mus]
 
     snaps: list[Snapshot | None] = [_try_load(p, mu) for p, mu in zip(paths, mus, strict=True)]
@@ -398,7 +406,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     n_jobs = _n_cpus() if n_jobs is None else int(n_jobs)
     n_jobs = max(1, min(n_jobs, len(todo)))
     if todo:  # unknown component names fail here, not once per parameter in the workers
-        reg = default_registry()
+        reg = registry or default_registry()
         for role, name in zip(("backend", "formulation", "solver"), names, strict=True):
             reg.get(role, name)
 
@@ -407,7 +415,8 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
         if todo and n_jobs == 1:
             bar = _progress_bar(progress, scene.name, len(mus), len(todo))
             components = make_components(scene, *names, solver_options=solver_options,
-                                         component_options=component_options)
+                                         component_options=component_options,
+                                         registry=registry)
             for i in todo:
                 snaps[i] = _solve_one(scene, mus[i], names, components, paths[i])
                 if bar is not None:
@@ -418,7 +427,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
                 else int(blas_threads)
             with ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
                                      initargs=(scene, names, solver_options, threads,
-                                               component_options)) as pool:
+                                               component_options, registry)) as pool:
                 futures = {pool.submit(_worker_task, mus[i], paths[i]): i for i in todo}
                 # the bar only after the workers started: no fork with extra threads alive
                 bar = _progress_bar(progress, scene.name, len(mus), len(todo))
@@ -472,12 +481,13 @@ def _progress_bar(progress: bool, name: str, total: int, todo: int):
 
 
 def _write_key_file(folder: Path, scene: Any, backend: str, formulation: str, solver: str,
-                    solver_options: dict | None, component_options: dict | None = None) -> None:
+                    solver_options: dict | None, component_options: dict | None = None,
+                    registry: Any = None) -> None:
     path = folder / "key.json"
     if path.exists():
         return
     payload = _key_payload(scene, backend, formulation, solver, solver_options,
-                           component_options)
+                           component_options, registry)
     payload["scene_path"] = str(scene.path)
     payload["overrides"] = list(scene.overrides)
     text = json.dumps(payload, sort_keys=True, indent=1, default=str).encode()

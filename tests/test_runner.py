@@ -236,3 +236,20 @@ def test_component_options_are_matrix_parameters(tmp_path):
     k0 = snapshot_key(sc, "skfem", "mixed", "ssn")
     assert snapshot_key(sc, "skfem", "mixed", "ssn", None, {"backend": {}}) == k0
     assert snapshot_key(sc, "skfem", "mixed", "ssn", None, {"backend": {"a": 1}}) != k0
+
+
+def test_a_hung_hf_solver_cannot_stall_the_run(tmp_path, faulty_registry):
+    """The shared snapshot preparation is killed at the time limit; the case then gets its
+    own timeout row, and the other solver's case runs."""
+    p = tmp_path / "hang.toml"
+    p.write_text(TINY.format(duals='["cpg"]', stabs='["none"]', hyper='["auto"]', timeout=6))
+    p.write_text(p.read_text().replace(
+        "[components]\n", '[components]\nsolver = ["ssn", "faulty-hang"]\n'))
+    m = load_matrix(p, selectors=["N=3"], registry=faulty_registry)
+    t0 = time.perf_counter()
+    run_matrix(m, tmp_path / "run", jobs=2, registry=faulty_registry,
+               cache_dir=tmp_path / "cache", progress=False)
+    assert time.perf_counter() - t0 < 60
+    df = pd.read_parquet(tmp_path / "run" / "results.parquet").set_index("solver")
+    assert df.loc["faulty-hang", "status"] == "timeout"
+    assert df.loc["ssn", "status"] == "ok"

@@ -3,8 +3,9 @@
 ``discover(extra_plugins=(rbbench.testing.faulty,))`` adds dual compressors
 that raise (``faulty-raise``), return NaN generators (``faulty-nan``), sleep
 past any sensible time limit (``faulty-sleep``), or need a module that does
-not exist (``faulty-missing``). Each must become one results row with its
-status (error / diverged / timeout / not_installed) while the run goes on.
+not exist (``faulty-missing``), and an HF solver that hangs (``faulty-hang``).
+Each must become one results row with its status (error / diverged / timeout /
+not_installed) while the run goes on.
 """
 
 from __future__ import annotations
@@ -45,8 +46,20 @@ class SleepingDual(CPG):
         return super().__call__(LAM, W, **kw)
 
 
+class HangingSolver:
+    """An HF solver that never returns (a hung external library)."""
+
+    name = "faulty-hang"
+
+    def solve(self, problem: Any, warm_start: Any = None):
+        time.sleep(3600)
+
+
 @hookimpl
 def rbbench_register(registry):
+    registry.add(ComponentSpec(name="faulty-hang", role="solver", target=f"{_HERE}:HangingSolver",
+                               capabilities={"formulations": ("mixed",)},
+                               description="test double: an HF solver that hangs"))
     for name, cls, modules in (("faulty-raise", "RaisingDual", ()),
                                ("faulty-nan", "NaNDual", ()),
                                ("faulty-sleep", "SleepingDual", ()),
