@@ -48,7 +48,8 @@ def rbbench_register(registry):
     add(ComponentSpec(
         name="mixed", role="formulation",
         target="rbbench_plugins.formulations.mixed:MixedFormulation",
-        capabilities={"physics": _ALL_PHYSICS, "solvers": ("ssn", "uzawa", "petsc-vi", "petsc-tao")},
+        capabilities={"physics": _ALL_PHYSICS,
+                      "solvers": ("ssn", "uzawa", "petsc-vi", "petsc-tao")},
         description="Lagrange multipliers: A u + B^T lam = F, 0 <= lam _|_ G - B u >= 0",
     ))
     add(ComponentSpec(
