@@ -14,8 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from rbbench import infsup as inf
-from rbbench.compressors import pga_default_delta
 from rbbench.hf import ProblemCache, make_components
+from rbbench.rb_pipeline import eim_training_set, make_stabilizer, pga_delta, primal_basis
 from rbbench.registry import default_registry
 from rbbench.sampling import parameter_set
 from rbbench.snapshots import compute_snapshots
@@ -57,26 +57,19 @@ class _Stage:
     def bases(self):
         """``Z`` (primal plugin) and ``Vg`` (dual plugin) as ``reduce()`` builds them."""
         cfg, reg = self.cfg, self.registry
-        Z = reg.create("primal", cfg.primal)(self.data["U"], self.X,
-                                             tol=None if cfg.N else cfg.tol_pod, n=cfg.N).Z
+        Z = primal_basis(reg, cfg, self.data["U"], self.X).Z
         Vg = reg.create("dual", cfg.dual)(self.data["LAM"], self.W_ref, tol=cfg.tol_dual,
                                           r_max=cfg.R).generators
         return Z, Vg
 
     def stabilise(self, stabilizer, Z, Vg, problems):
         """The stabiliser stage of ``reduce()``: default delta (seed's rule), offline()."""
-        delta = self.cfg.delta_pga
-        if delta is None and self.cfg.stabilizer == "pga":
-            probe = problems[:: max(1, len(problems) // 5)]
-            delta = pga_default_delta([p.B for p in probe], [p.W for p in probe],
-                                      self.x_solve, Vg, fraction=1.0, over="max")
+        delta = pga_delta(self.cfg, problems, self.x_solve, Vg)
         return stabilizer.offline(Z, Vg, self.X, self.x_solve, (p.B for p in problems),
                                   delta)[0]
 
     def make_stabilizer(self):
-        cfg = self.cfg
-        opts = {"max_dim": cfg.k_pga_max} if cfg.stabilizer == "pga" else {}
-        return self.registry.create("stabilizer", cfg.stabilizer, **opts)
+        return make_stabilizer(self.registry, self.cfg)
 
 
 def offline_inputs():
@@ -215,10 +208,7 @@ class EIM(_Stage):
         self.contact_operators = contact_operators
         self.layout = self.backend.contact_layout()
         mus = self.data["mus"]
-        lo, hi = self.scene.bounds[:, 0], self.scene.bounds[:, 1]
-        n_grid = self.cfg.n_eim_train or 4 * (len(mus) - 1) + 1
-        grid = lo + np.linspace(0.0, 1.0, n_grid)[:, None] * (hi - lo)
-        self.mus_eim = np.vstack([mus, grid])
+        self.mus_eim = eim_training_set(self.scene, self.cfg, mus)
         self.free = self.problem_at(mus[0]).free
         self.B_eim, G = self._operators()
         self.G_eim = np.stack(G, axis=1)

@@ -38,7 +38,6 @@ import scipy.sparse as sp
 
 from rbbench.contact_geometry import (
     ContactLayout,
-    FacetChain,
     multiplier_basis,
     pair,
     window_tangent_ranges,
@@ -46,7 +45,7 @@ from rbbench.contact_geometry import (
 from rbbench.eim import deim, eim_error, matrix_eim
 
 __all__ = ["ContactEIM", "HyperReductionError", "RowEvaluator", "build_row_evaluator",
-           "contact_eim", "entrywise_eim_error"]
+           "contact_eim", "entrywise_eim_error", "pair_in_windows", "restrict_layout"]
 
 
 class HyperReductionError(ValueError):
@@ -83,12 +82,7 @@ class RowEvaluator:
     Mrows: np.ndarray
 
     def _pair(self, mu: np.ndarray):
-        try:
-            return pair(self.layout, mu, windows=self.windows)
-        except ValueError as exc:
-            raise HyperReductionError(
-                f"mu = {np.atleast_1d(mu).tolist()}: a magic row's quadrature point left the "
-                f"master window sampled offline ({exc})") from None
+        return pair_in_windows(self.layout, mu, self.windows, "a magic row's quadrature point")
 
     def __call__(self, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(B(mu)[rows][:, local_dofs] (M x n_local) dense, G(mu)[rows] (M,))``."""
@@ -129,6 +123,54 @@ class RowEvaluator:
         return int(self.local_dofs.size)
 
 
+def pair_in_windows(layout: ContactLayout, mu: np.ndarray,
+                    windows: tuple[np.ndarray, ...] | None, what: str):
+    """:func:`~rbbench.contact_geometry.pair` in the master windows sampled offline; a point
+    that left its window raises :class:`HyperReductionError` (``what`` names it)."""
+    try:
+        return pair(layout, mu, windows=windows)
+    except ValueError as exc:
+        raise HyperReductionError(f"mu = {np.atleast_1d(mu).tolist()}: {what} left the master "
+                                  f"window sampled offline ({exc})") from None
+
+
+def restrict_layout(layout: ContactLayout, facets: np.ndarray, mus: np.ndarray,
+                    margin: int = 2, with_stress: bool = False
+                    ) -> tuple[ContactLayout, tuple[np.ndarray, ...] | None, np.ndarray]:
+    """``layout`` restricted to the slave ``facets``: ``(small, windows, local_dofs)``.
+
+    ``small`` holds those slave facets, the contiguous master chain their windows span
+    (and, with ``with_stress``, the slave stress data), dofs renumbered to
+    ``0 .. n_local - 1`` (``local_dofs`` maps them back). ``windows = (lo, hi, ranges)``:
+    per quadrature point the master facets it hits over ``mus`` (a dense sample of D,
+    including its corners), widened by ``margin`` each side, and the facet directions in
+    that window (:func:`~rbbench.contact_geometry.window_tangent_ranges`, once: a
+    similarity map keeps them). ``None`` for a rigid plane.
+    """
+    slave = layout.slave.subset(facets)
+    stress = layout.stress.subset(facets) if with_stress else None
+    master, windows = None, None
+    if layout.master is not None:
+        segs = np.stack([pair(layout, mu, slave=slave).master_seg for mu in mus])
+        lo = np.maximum(segs.min(axis=0) - margin, 0)
+        hi = np.minimum(segs.max(axis=0) + margin, layout.master.n - 1)
+        first = int(lo.min())
+        master = layout.master.subset(np.arange(first, int(hi.max()) + 1))  # contiguous chain
+        lo, hi = lo - first, hi - first
+        windows = (lo, hi, window_tangent_ranges(master.a, master.b, lo, hi))
+    dofs = [c.dofs.reshape(-1) for c in (slave, stress, master) if c is not None]
+    local = np.unique(np.concatenate(dofs))
+
+    def renumber(part):
+        return None if part is None else replace(part, dofs=np.searchsorted(local, part.dofs))
+
+    small = ContactLayout(slave=renumber(slave), master=renumber(master), degree=layout.degree,
+                          n_gauss=layout.n_gauss, multiplier=layout.multiplier,
+                          patch=layout.patch, n_facets=layout.n_facets, n_dofs=local.size,
+                          stress=renumber(stress))
+    return small, windows, local
+
+
 def build_row_evaluator(layout: ContactLayout, rows: np.ndarray, mus: np.ndarray,
                         margin: int = 2) -> RowEvaluator:
     """Restrict ``layout`` to the multiplier ``rows``.
@@ -139,28 +181,7 @@ def build_row_evaluator(layout: ContactLayout, rows: np.ndarray, mus: np.ndarray
     window raises :class:`HyperReductionError` rather than pairing wrongly.
     """
     rows = np.unique(np.asarray(rows, dtype=np.int64))
-    facets = layout.facets_of_rows(rows)
-    slave = layout.slave.subset(facets)
-    master = None
-    windows = None
-    if layout.master is not None:
-        segs = np.stack([pair(layout, mu, slave=slave).master_seg for mu in mus])
-        lo = np.maximum(segs.min(axis=0) - margin, 0)
-        hi = np.minimum(segs.max(axis=0) + margin, layout.master.n - 1)
-        first = int(lo.min())
-        master = layout.master.subset(np.arange(first, int(hi.max()) + 1))  # contiguous chain
-        windows = (lo - first, hi - first)
-        # facet directions per window, once (a similarity map keeps them)
-        windows = (*windows, window_tangent_ranges(master.a, master.b, *windows))
-    dofs = [slave.dofs.reshape(-1)] + ([master.dofs.reshape(-1)] if master else [])
-    local = np.unique(np.concatenate(dofs))
-
-    def renumber(chain: FacetChain | None) -> FacetChain | None:
-        return None if chain is None else replace(chain, dofs=np.searchsorted(local, chain.dofs))
-
-    small = ContactLayout(slave=renumber(slave), master=renumber(master), degree=layout.degree,
-                          n_gauss=layout.n_gauss, multiplier=layout.multiplier,
-                          patch=layout.patch, n_facets=layout.n_facets, n_dofs=local.size)
+    small, windows, local = restrict_layout(layout, layout.facets_of_rows(rows), mus, margin)
     p = pair(small, mus[0], windows=windows)
     M = multiplier_basis(layout.multiplier, layout.n_facets, small.slave.ids[p.fq], p.sq,
                          layout.patch).tocsc()

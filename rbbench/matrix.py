@@ -57,8 +57,8 @@ __all__ = ["COMPONENT_ROLES", "Case", "Matrix", "MatrixError", "compatibility", 
 COMPONENT_ROLES = {"backend": "skfem", "formulation": "mixed", "solver": "ssn",
                    "primal": "pod", "dual": "mcpg", "stabilizer": "pga", "hyper": "auto"}
 #: Registry role of each axis ("hyper" is a pipeline choice, not a registered role yet).
-_REGISTRY_ROLE = {"backend": "backend", "formulation": "formulation", "solver": "solver",
-                  "primal": "primal", "dual": "dual", "stabilizer": "stabilizer"}
+#: Axes that name registered components (their registry role has the same name).
+_REGISTRY_ROLES = ("backend", "formulation", "solver", "primal", "dual", "stabilizer")
 _HYPER = ("auto", "affine", "eim", "none")
 _TOP = {"matrix", "components", "sizes", "reduce", "scene_overrides", "params", "hf"}
 _MATRIX_KEYS = {"name", "description", "scenes", "repetitions", "timeout_s", "seed", "mode"}
@@ -246,8 +246,8 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
         if h not in _HYPER and not (mode == "hf" and h == ""):
             raise MatrixError(f"{where}: [components] hyper: {h!r}; valid: {', '.join(_HYPER)}")
     if registry is not None:
-        for role, reg_role in _REGISTRY_ROLE.items():
-            valid = registry.names(reg_role)
+        for role in _REGISTRY_ROLES:
+            valid = registry.names(role)
             for n in axes[role]:
                 if n not in valid and not (mode == "hf" and role not in _HF_ROLES):
                     raise MatrixError(f"{where}: [components] {role}: unknown {role} {n!r}; "
@@ -377,9 +377,9 @@ def compatibility(scene: Scene, comp: dict[str, str],
     and whether each component's modules are importable (``find_spec``).
     """
     stab_online = comp["stabilizer"] == "supremizer"
-    roles = {r: rr for r, rr in _REGISTRY_ROLE.items() if comp[r]}  # "" = not applicable
+    roles = [r for r in _REGISTRY_ROLES if comp[r]]  # "" = not applicable
     if registry is not None:
-        caps = {r: registry.get(rr, comp[r]).capabilities for r, rr in roles.items()}
+        caps = {r: registry.get(r, comp[r]).capabilities for r in roles}
         physics = scene.data["scene"]["physics"]
         for r in ("backend", "formulation"):
             ok = caps[r].get("physics")
@@ -395,8 +395,8 @@ def compatibility(scene: Scene, comp: dict[str, str],
         return "skip", (f"stabilizer {comp['stabilizer']!r} needs the HF B(mu) online: "
                         f"incompatible with hyper {comp['hyper']!r}")
     if registry is not None:
-        for r, rr in roles.items():
-            ok, why = registry.availability(registry.get(rr, comp[r]))
+        for r in roles:
+            ok, why = registry.availability(registry.get(r, comp[r]))
             if not ok:
                 return "not_installed", f"{r} {comp[r]!r}: {why}"
     return "run", ""

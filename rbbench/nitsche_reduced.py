@@ -72,14 +72,12 @@ import numpy as np
 
 from rbbench.contact_geometry import (
     ContactLayout,
-    FacetChain,
     contact_operators,
     normal_stress,
     normal_stress_terms,
-    pair,
 )
 from rbbench.eim import deim
-from rbbench.hyper import HyperReductionError
+from rbbench.hyper import HyperReductionError, pair_in_windows, restrict_layout
 from rbbench.nitsche import gamma_scaling
 from rbbench.reduced import AffineOperator, LinearInMu, NotAffineError, affine_decomposition
 
@@ -184,18 +182,13 @@ class PointEvaluator:
     """
 
     layout: ContactLayout
-    windows: tuple[np.ndarray, np.ndarray] | None
+    windows: tuple[np.ndarray, ...] | None
     select: np.ndarray
     points: np.ndarray
     local_dofs: np.ndarray
 
     def _pair(self, mu: np.ndarray):
-        try:
-            return pair(self.layout, mu, windows=self.windows)
-        except ValueError as exc:
-            raise HyperReductionError(
-                f"mu = {np.atleast_1d(mu).tolist()}: a magic point left the master window "
-                f"sampled offline ({exc})") from None
+        return pair_in_windows(self.layout, mu, self.windows, "a magic point")
 
     def __call__(self, mu: np.ndarray) -> tuple[Any, Any, np.ndarray, np.ndarray, np.ndarray,
                                                 float]:
@@ -241,28 +234,7 @@ def build_point_evaluator(layout: ContactLayout, points: np.ndarray, mus: np.nda
     points = np.asarray(points, dtype=np.int64)
     ng = layout.n_gauss
     facets = np.unique(points // ng)
-    slave = layout.slave.subset(facets)
-    stress = layout.stress.subset(facets)
-    master, windows = None, None
-    if layout.master is not None:
-        segs = np.stack([pair(layout, mu, slave=slave).master_seg for mu in mus])
-        lo = np.maximum(segs.min(axis=0) - margin, 0)
-        hi = np.minimum(segs.max(axis=0) + margin, layout.master.n - 1)
-        first = int(lo.min())
-        master = layout.master.subset(np.arange(first, int(hi.max()) + 1))
-        windows = (lo - first, hi - first)
-    dofs = [slave.dofs.reshape(-1), stress.dofs.reshape(-1)]
-    if master is not None:
-        dofs.append(master.dofs.reshape(-1))
-    local = np.unique(np.concatenate(dofs))
-
-    def renumber(chain: FacetChain | None) -> FacetChain | None:
-        return None if chain is None else replace(chain, dofs=np.searchsorted(local, chain.dofs))
-
-    small = ContactLayout(slave=renumber(slave), master=renumber(master), degree=layout.degree,
-                          n_gauss=ng, multiplier=layout.multiplier, patch=layout.patch,
-                          n_facets=layout.n_facets, n_dofs=local.size,
-                          stress=replace(stress, dofs=np.searchsorted(local, stress.dofs)))
+    small, windows, local = restrict_layout(layout, facets, mus, margin, with_stress=True)
     select = np.searchsorted(facets, points // ng) * ng + points % ng
     return PointEvaluator(small, windows, select, points, local)
 
@@ -561,7 +533,13 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
     """
     from rbbench import nitsche as nt
     from rbbench.hf import ProblemCache, default_solver, make_components
-    from rbbench.rb_pipeline import DivergedError, ReduceResult, _check_finite
+    from rbbench.rb_pipeline import (
+        DivergedError,
+        ReduceResult,
+        _check_finite,
+        primal_basis,
+        training_snapshots,
+    )
     from rbbench.registry import default_registry
     from rbbench.sampling import parameter_set
 
@@ -576,8 +554,6 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
     reg.get("primal", config.primal)
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
-    from rbbench.rb_pipeline import training_snapshots
-
     mus_train, train, valid = training_snapshots(scene, config, "nitsche", solver, progress,
                                                  snapshot_progress, reg)
     mus_valid = valid.mus
@@ -591,15 +567,12 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
     layout = b.contact_layout()
     problem_at = ProblemCache(b, f)
     p0 = problem_at(scene.default_mu)
-    X = p0.X[p0.free][:, p0.free].tocsr()
+    X = problem_at.X_free(scene.default_mu)
     theta, gamma0 = float(f.theta), float(f.gamma0)
 
     t1 = time.perf_counter()
-    progress(f"primal {config.primal}")
-    primal = reg.create("primal", config.primal)(
-        train.U, X, tol=None if config.N else config.tol_pod, n=config.N)
+    primal = primal_basis(reg, config, train.U, X, progress)
     Z = primal.Z
-    _check_finite(f"primal compressor {config.primal!r}: the basis", Z)
     N = Z.shape[1]
     Zfull = np.zeros((p0.u_lift.size, N))
     Zfull[p0.free] = Z

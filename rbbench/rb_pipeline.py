@@ -245,11 +245,8 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     W_ref = problem_at(scene.default_mu).W
 
     t1 = time.perf_counter()
-    progress(f"primal {config.primal}")
-    primal = reg.create("primal", config.primal)(
-        train.U, X, tol=None if config.N else config.tol_pod, n=config.N)
+    primal = primal_basis(reg, config, train.U, X, progress)
     Z = primal.Z
-    _check_finite(f"primal compressor {config.primal!r}: the basis", Z)
     timings["primal_s"] = time.perf_counter() - t1
 
     t1 = time.perf_counter()
@@ -261,8 +258,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
 
     # stabiliser
     t1 = time.perf_counter()
-    stab_opts = {"max_dim": config.k_pga_max} if config.stabilizer == "pga" else {}
-    stabilizer = reg.create("stabilizer", config.stabilizer, **stab_opts)
+    stabilizer = make_stabilizer(reg, config)
     if stabilizer.online and config.hyper in ("affine", "eim"):
         raise ValueError(f"stabilizer {config.stabilizer!r} builds its space online from the HF "
                          f"B(mu): use hyper 'none' or 'auto', not {config.hyper!r}")
@@ -273,13 +269,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     delta = None
     if config.stabilizer == "pga":
         progress("PGA (supremizers on the training set)")
-        delta = config.delta_pga
-        if delta is None:
-            # the seed's rule (friction example: delta_PGA = sup beta_HF / c_HF = 0.072),
-            # with beta the span value over the reduced cone (a lower bound)
-            probe = [problem_at(mu) for mu in mus_train[:: max(1, len(mus_train) // 5)]]
-            delta = pga_default_delta([p.B for p in probe], [p.W for p in probe], x_solve,
-                                      Vg, fraction=1.0, over="max")
+        delta = pga_delta(config, [problem_at(mu) for mu in mus_train], x_solve, Vg)
     Z_off, stab_hist = stabilizer.offline(Z, Vg, X, x_solve,
                                           (problem_at(mu).B for mu in mus_train), delta)
     _check_finite(f"stabilizer {config.stabilizer!r}: the offline basis", Z_off)
@@ -400,6 +390,49 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         valid_mus=np.asarray(valid.mus))
 
 
+def make_stabilizer(reg: Registry, config: ReduceConfig) -> Any:
+    """The registered stabiliser ``config.stabilizer`` (PGA capped at ``k_pga_max``)."""
+    opts = {"max_dim": config.k_pga_max} if config.stabilizer == "pga" else {}
+    return reg.create("stabilizer", config.stabilizer, **opts)
+
+
+def pga_delta(config: ReduceConfig, problems: list, x_solve: Any,
+              Vg: np.ndarray) -> float | None:
+    """The PGA tolerance: ``config.delta_pga``, else the seed's rule (friction example:
+    ``delta_PGA = sup beta_HF / c_HF = 0.072``) with beta the span value over the reduced
+    cone (a lower bound), over every fifth training problem. ``None`` unless PGA."""
+    if config.stabilizer != "pga":
+        return None
+    if config.delta_pga is not None:
+        return config.delta_pga
+    probe = problems[:: max(1, len(problems) // 5)]
+    return pga_default_delta([p.B for p in probe], [p.W for p in probe], x_solve, Vg,
+                             fraction=1.0, over="max")
+
+
+def eim_training_set(scene: Scene, config: ReduceConfig, mus_train: np.ndarray) -> np.ndarray:
+    """The EIM training set: the snapshot parameters plus a uniform grid of D of
+    ``n_eim_train`` points (default 4 (n_train - 1) + 1). Only the contact operators are
+    evaluated there (no HF solve), so it can be much denser (seed: 61, 150)."""
+    lo, hi = scene.bounds[:, 0], scene.bounds[:, 1]
+    n_grid = config.n_eim_train or 4 * (len(mus_train) - 1) + 1
+    grid = lo + np.linspace(0.0, 1.0, n_grid)[:, None] * (hi - lo) if len(lo) == 1 else \
+        parameter_set(scene, "train", n_grid)
+    return np.vstack([np.asarray(mus_train), grid])
+
+
+def primal_basis(reg: Registry, config: ReduceConfig, U: np.ndarray, X: Any,
+                 progress: Callable[[str], None] = _progress) -> Any:
+    """The registered primal compressor ``config.primal`` on the displacement snapshots
+    ``U`` in the X inner product (size ``config.N``, else tolerance ``config.tol_pod``);
+    a non-finite basis raises :class:`DivergedError`."""
+    progress(f"primal {config.primal}")
+    primal = reg.create("primal", config.primal)(
+        U, X, tol=None if config.N else config.tol_pod, n=config.N)
+    _check_finite(f"primal compressor {config.primal!r}: the basis", primal.Z)
+    return primal
+
+
 def training_snapshots(scene: Scene, config: ReduceConfig, formulation: str, solver: str,
                        progress: Callable[[str], None] = _progress,
                        snapshot_progress: bool = False,
@@ -429,13 +462,7 @@ def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_tr
                          "(Backend.contact_layout); use hyper 'none'")
     layout = backend.contact_layout()
     p0 = problem_at(mus_train[0])
-    lo, hi = scene.bounds[:, 0], scene.bounds[:, 1]
-    # EIM training set: the snapshot parameters plus a uniform grid of D. Only the contact
-    # operators are evaluated there (no HF solve), so it can be much denser (seed: 61, 150)
-    n_grid = config.n_eim_train or 4 * (len(mus_train) - 1) + 1
-    grid = lo + np.linspace(0.0, 1.0, n_grid)[:, None] * (hi - lo) if len(lo) == 1 else \
-        parameter_set(scene, "train", n_grid)
-    mus_eim = np.vstack([np.asarray(mus_train), grid])
+    mus_eim = eim_training_set(scene, config, mus_train)
     dirichlet = np.setdiff1d(np.arange(layout.n_dofs), p0.free)
     B_eim, G_eim = [], []
     for mu in mus_eim:

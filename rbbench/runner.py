@@ -18,6 +18,7 @@ parameter set before the cases that share them start.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import platform
@@ -35,6 +36,7 @@ import numpy as np
 
 from rbbench import schema
 from rbbench.matrix import Case, Matrix
+from rbbench.output import _jsonable
 from rbbench.registry import NotInstalledError, Registry, default_registry
 
 __all__ = ["CaseTimeout", "RunSummary", "execute_case", "load_rows", "run_matrix"]
@@ -70,7 +72,10 @@ def _threads() -> str:
     return json.dumps({k: os.environ.get(k) for k in keys})
 
 
+@functools.lru_cache(maxsize=1)
 def _provenance() -> dict[str, Any]:
+    """Versions, git sha, machine and threads: the same for every row of a process (computed
+    once; callers copy it into rows, never mutate it)."""
     import scipy
 
     from rbbench.output import provenance
@@ -228,12 +233,6 @@ def failed_row(case: Case, run_id: str, executor: str, status: str, reason: str,
     return {"row": schema.normalise_row(row), "details": {}}
 
 
-def _jsonable(obj: Any) -> Any:
-    from rbbench.output import _jsonable as j
-
-    return j(obj)
-
-
 # ------------------------------------------------------------------------- persistence
 def _atomic_write_text(path: Path, text: str) -> None:
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
@@ -287,16 +286,13 @@ def _write_manifest(out_dir: Path, matrix: Matrix, extra: dict) -> None:
 
 
 # ------------------------------------------------------------------------------ the run
-def _snapshot_groups(cases: list[Case]) -> dict[tuple, Case]:
-    groups: dict[tuple, Case] = {}
-    for c in cases:
-        comp = c.components
-        key = (c.scene, c.overrides, comp["backend"], comp["formulation"], comp["solver"],
-               c.params.get("n_train"), c.params.get("n_valid"),
-               json.dumps([c.params.get("backend_options"), c.params.get("formulation_options")],
-                          sort_keys=True))
-        groups.setdefault(key, c)
-    return groups
+def _snapshot_group(c: Case) -> tuple:
+    """What determines a case's HF snapshot sets (cases with equal keys share them)."""
+    comp = c.components
+    return (c.scene, c.overrides, comp["backend"], comp["formulation"], comp["solver"],
+            c.params.get("n_train"), c.params.get("n_valid"),
+            json.dumps([c.params.get("backend_options"), c.params.get("formulation_options")],
+                       sort_keys=True))
 
 
 def _prepare_group(c: Case, cache_dir: str, jobs: int | None, registry: Any = None) -> None:
@@ -338,12 +334,14 @@ def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,
     import multiprocessing as mp
 
     ctx = mp.get_context("fork" if hasattr(os, "fork") else "spawn")
+    groups: dict[tuple, Case] = {}
     limits: dict[tuple, float] = {}
     for c in cases:
-        k = next(k for k, g in _snapshot_groups([c]).items())
+        k = _snapshot_group(c)
+        groups.setdefault(k, c)
         limits[k] = max(limits.get(k, 0.0), c.timeout_s)
     failures = {}
-    for key, c in _snapshot_groups(cases).items():
+    for key, c in groups.items():
         comp = c.components
         progress(f"HF snapshots for {c.scene} ({comp['backend']}/{comp['solver']})")
         p = ctx.Process(target=_prepare_child, args=(c, cache_dir, jobs, registry))

@@ -470,6 +470,20 @@ def reference_discretization(physics: str, registry: Registry | None = None,
     raise LookupError(f"no installed backend declares physics {physics!r}")
 
 
+def _check_free_stiffness(prob: Any, n: int, label: str) -> tuple[np.ndarray, sp.csr_matrix]:
+    """The part every formulation's problem shares: free dofs (a non-empty index set of
+    ``0 .. n - 1``), ``A`` sparse, n_free square, symmetric, SPD, and ``F`` of that size."""
+    free = _index_set(prob.free, n, f"{label}: free")
+    nf = free.size
+    _require(nf > 0, f"{label}: no free dofs")
+    A = _as_sparse(prob.A, f"{label}: A")
+    _shape(A, (nf, nf), f"{label}: A (n_free x n_free)")
+    _check_symmetric(A, f"{label}: A")
+    _check_spd(A, f"{label}: A")
+    _vector(prob.F, nf, f"{label}: F")
+    return free, A
+
+
 def check_formulation(factory: Callable[..., Any], disc: Discretization,
                       name: str | None = None) -> ContactProblem:
     """Contract of the formulation role on one Discretization (``factory()`` builds it).
@@ -487,14 +501,8 @@ def check_formulation(factory: Callable[..., Any], disc: Discretization,
     _require(isinstance(prob, ContactProblem),
              f"{label}: build() returned {type(prob).__name__}, not a ContactProblem")
     n = disc.n_dofs
-    free = _index_set(prob.free, n, f"{label}: free")
+    free, A = _check_free_stiffness(prob, n, label)
     nf = free.size
-    _require(nf > 0, f"{label}: no free dofs")
-    A = _as_sparse(prob.A, f"{label}: A")
-    _shape(A, (nf, nf), f"{label}: A (n_free x n_free)")
-    _check_symmetric(A, f"{label}: A")
-    _check_spd(A, f"{label}: A")
-    _vector(prob.F, nf, f"{label}: F")
     B = _as_sparse(prob.B, f"{label}: B")
     _require(B.shape[1] == nf, f"{label}: B has {B.shape[1]} columns, expected n_free = {nf}")
     m = B.shape[0]
@@ -547,14 +555,8 @@ def _check_nitsche_problem(prob: NitscheProblem, disc: Discretization, label: st
     ``Un``, ``Snn`` and gap applied to the lifted displacement (an independent check of the
     elimination: ``Un v - gap = Un_full expand(v) - gap_full``, same for ``Snn``)."""
     n = disc.n_dofs
-    free = _index_set(prob.free, n, f"{label}: free")
+    free, A = _check_free_stiffness(prob, n, label)
     nf = free.size
-    _require(nf > 0, f"{label}: no free dofs")
-    A = _as_sparse(prob.A, f"{label}: A")
-    _shape(A, (nf, nf), f"{label}: A (n_free x n_free)")
-    _check_symmetric(A, f"{label}: A")
-    _check_spd(A, f"{label}: A")
-    _vector(prob.F, nf, f"{label}: F")
     w = np.asarray(prob.weights, dtype=float)
     nq = w.size
     _require(nq > 0 and np.all(w > 0), f"{label}: weights must be > 0")
@@ -704,6 +706,14 @@ def _check_result(res: Any, prob: ContactProblem, label: str) -> SolveResult:
     return res
 
 
+def _accepts(factory: Callable[..., Any], option: str) -> bool:
+    """Whether ``factory`` takes the keyword ``option`` (False if it has no signature)."""
+    try:
+        return option in inspect.signature(factory).parameters
+    except (TypeError, ValueError):
+        return False
+
+
 def _solve_checked(factory: Callable[..., Any], opts: dict, prob: Any, warm: Any,
                    where: str, timeout: float) -> Any:
     """``factory(**opts).solve(prob, warm_start=warm)`` within ``timeout``; any exception
@@ -785,11 +795,7 @@ def check_solver(factory: Callable[..., Any], options: dict | None = None,
              f"{label}: without contact unknowns u must solve A u = F")
 
     # 4. max_iter = 1: returns with a stop reason
-    try:
-        params = inspect.signature(factory).parameters
-    except (TypeError, ValueError):
-        params = {}
-    if "max_iter" in params:
+    if _accepts(factory, "max_iter"):
         r1 = run(prob, opts={**options, "max_iter": 1}, what="max_iter=1")
         _require(r1.iterations <= 1, f"{label}: max_iter=1 but {r1.iterations} iterations")
         kkt(prob, r1, "max_iter=1")
@@ -919,11 +925,7 @@ def check_nitsche_solver(factory: Callable[..., Any], options: dict | None = Non
     _require(rn.stop_reason == "nan", f"{label}: NaN in the data gave stop_reason "
              f"{rn.stop_reason!r}, expected 'nan'")
 
-    try:
-        params = inspect.signature(factory).parameters
-    except (TypeError, ValueError):
-        params = {}
-    if "max_iter" in params:
+    if _accepts(factory, "max_iter"):
         r1 = run(random_nitsche_problem(seed), opts={**options, "max_iter": 1}, what="max_iter=1")
         _require(r1.iterations <= 1, f"{label}: max_iter=1 but {r1.iterations} iterations")
 
