@@ -89,6 +89,18 @@ def _child(conn, case: Case, run_id: str, cache_dir: str, registry: Any, name: s
         conn.close()
 
 
+def _record(kind: str, payload: Any, case: Case, run_id: str, name: str) -> dict:
+    """The case's record from the last message of its process: its ``result``, or an
+    ``error`` row for a ``crash`` (traceback) or a process that ``died`` (exit code)."""
+    if kind == "result":
+        return payload
+    if kind == "crash":
+        return failed_row(case, run_id, name, "error", "the case's process crashed", payload)
+    return failed_row(case, run_id, name, "error",
+                      f"the case's process died (exit code {payload}; negative: killed by "
+                      "that signal, e.g. -9 out of memory)")
+
+
 def _context(start_method: str | None) -> mp.context.BaseContext:
     if start_method is None:
         start_method = "fork" if sys.platform.startswith("linux") else "spawn"
@@ -138,17 +150,7 @@ class ProcessExecutor:
                     del running[conn]
                     conn.close()
                     p.join(5)
-                    if kind == "result":
-                        rec = payload
-                    elif kind == "crash":
-                        rec = failed_row(case, run_id, self.name, "error",
-                                         "the case's process crashed", payload)
-                    else:
-                        rec = failed_row(case, run_id, self.name, "error",
-                                         f"the case's process died (exit code {payload}; "
-                                         "negative: killed by that signal, e.g. -9 out of "
-                                         "memory)")
-                    on_result(case, rec)
+                    on_result(case, _record(kind, payload, case, run_id, self.name))
                 now = time.monotonic()
                 for conn, (p, case, deadline) in list(running.items()):
                     if now > deadline:
@@ -200,15 +202,11 @@ def run_isolated(case: Case, run_id: str, cache_dir: str, registry: Any,
                     kind, payload = recv.recv()
                 except (EOFError, OSError):
                     p.join(5)
-                    return failed_row(case, run_id, name, "error",
-                                      f"the case's process died (exit code {p.exitcode})")
+                    kind, payload = "died", p.exitcode
                 if kind == "stage":
                     continue
                 p.join(5)
-                if kind == "result":
-                    return payload
-                return failed_row(case, run_id, name, "error", "the case's process crashed",
-                                  payload)
+                return _record(kind, payload, case, run_id, name)
     finally:
         recv.close()
         if p.is_alive():
