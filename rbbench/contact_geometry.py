@@ -2,8 +2,13 @@
 
 Pairing choice (documented): *Gauss-point-to-segment* on the reference
 configuration mapped by mu. Quadrature points live on the slave facets; each
-is projected along the slave's outward facet normal onto the master boundary
-(a ray cast); the normal gap is the ray parameter. The constraint is imposed
+is projected along the slave's outward normal onto the master boundary (a ray
+cast); the normal gap is the ray parameter. The normal is the facet's own
+(``[discretization] normals = "facet"``, piecewise constant) or, with
+``"smooth"``, interpolated along each facet between vertex normals averaged
+over the two adjacent facets (:func:`with_vertex_normals`): continuous along
+the chain, so ``u . n`` has no jump at the vertices where a large displacement
+meets a kink of the polygon (README "Nitsche", the e_AC table). The constraint is imposed
 weakly against the multiplier space, ``int (u_n - d^n) eta <= 0`` for
 ``eta >= 0``, which is the Lagrange-multiplier (mortar-like) form of seed 000
 ("HF model"), integrated with slave-side quadrature.
@@ -236,6 +241,10 @@ class FacetChain:
         The body's map from the reference configuration at mu.
     ids : (nf,)
         Position of each facet in the full chain (a subset keeps its ids).
+    na, nb : (nf, 2) or None
+        Unit outward normals at the start and end vertex of each facet (reference;
+        a similarity map leaves them unchanged), for normals interpolated along the
+        facets (:func:`with_vertex_normals`); ``None``: the facet normal.
     """
 
     a: np.ndarray
@@ -244,6 +253,8 @@ class FacetChain:
     dofs: np.ndarray
     map: AffineMap
     ids: np.ndarray
+    na: np.ndarray | None = None
+    nb: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -251,8 +262,42 @@ class FacetChain:
 
     def subset(self, idx: np.ndarray) -> FacetChain:
         idx = np.asarray(idx, dtype=np.int64)
+        vn = {} if self.na is None else {"na": self.na[idx], "nb": self.nb[idx]}
         return replace(self, a=self.a[idx], b=self.b[idx], inner=self.inner[idx],
-                       dofs=self.dofs[idx], ids=self.ids[idx])
+                       dofs=self.dofs[idx], ids=self.ids[idx], **vn)
+
+    def normals_at(self, mu: np.ndarray, fq: np.ndarray, sq: np.ndarray) -> np.ndarray:
+        """Unit outward normals (nq, 2) at local coordinates ``sq`` of facets ``fq``.
+
+        The facet normal, or (with vertex normals) ``(1 - s) n_a + s n_b`` normalised.
+        """
+        if self.na is None:
+            nrm = outward_normals(self.map(mu, self.a), self.map(mu, self.b),
+                                  self.map(mu, self.inner))
+            return nrm[fq]
+        n = (1.0 - sq)[:, None] * self.na[fq] + sq[:, None] * self.nb[fq]
+        return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def with_vertex_normals(chain: FacetChain) -> FacetChain:
+    """``chain`` with vertex normals: the normalised mean of the facet normals of the two
+    facets sharing each vertex (one facet at the ends of the chain or of a gap).
+
+    Interpolated along each facet (:meth:`FacetChain.normals_at`) they give a
+    continuous normal field, the usual smoothing of node-to-segment contact
+    (e.g. Wriggers, *Computational Contact Mechanics*, 2006, sec. 9.1.2). Facets
+    must be ordered along the chain (``b[i] == a[i + 1]`` where they touch).
+    """
+    nf = outward_normals(chain.a, chain.b, chain.inner)
+    na, nb = nf.copy(), nf.copy()
+    if chain.n > 1:
+        scale = np.linalg.norm(chain.b - chain.a, axis=1).min()
+        touch = np.linalg.norm(chain.a[1:] - chain.b[:-1], axis=1) <= 1e-9 * scale
+        mean = nf[:-1] + nf[1:]
+        mean /= np.linalg.norm(mean, axis=1, keepdims=True)
+        nb[:-1][touch] = mean[touch]
+        na[1:][touch] = mean[touch]
+    return replace(chain, na=na, nb=nb)
 
 
 @dataclass
@@ -451,25 +496,26 @@ class Pairing:
 
 def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,
          master: FacetChain | None = None,
-         windows: tuple[np.ndarray, ...] | None = None) -> Pairing:
+         windows: tuple[np.ndarray, ...] | None = None,
+         local: tuple[np.ndarray, np.ndarray] | None = None) -> Pairing:
     """Gauss-point-to-segment pairing at mu (module docstring).
 
     ``slave`` / ``master`` default to the layout's chains; a subset chain and
     per-point ``windows = (lo, hi)`` of master facets (indices into an ordered
     ``master`` chain, :func:`ray_cast_window`) restrict the work to some rows
-    (hyper-reduction). Raises :class:`PairingError` when a point hits no
-    master facet.
+    (hyper-reduction). ``local = (s, w)``: points at local coordinates ``s`` of every
+    facet with weights ``w`` (times the facet length) instead of the layout's Gauss
+    rule. Raises :class:`PairingError` when a point hits no master facet.
     """
     slave = layout.slave if slave is None else slave
     master = layout.master if master is None else master
     a, b = slave.map(mu, slave.a), slave.map(mu, slave.b)
-    nrm_f = outward_normals(a, b, slave.map(mu, slave.inner))
-    sg, wg = gauss_legendre_01(layout.n_gauss)
-    nf, ng = slave.n, sg.size
+    sg, wg = gauss_legendre_01(layout.n_gauss) if local is None else local
+    nf, ng = slave.n, len(sg)
     fq = np.repeat(np.arange(nf), ng)
-    sq = np.tile(sg, nf)
+    sq = np.tile(np.asarray(sg, dtype=float), nf)
     x = a[fq] + sq[:, None] * (b[fq] - a[fq])
-    nrm = nrm_f[fq]
+    nrm = slave.normals_at(mu, fq, sq)
     w = np.tile(wg, nf) * np.linalg.norm(b - a, axis=1)[fq]
     phi = facet_shape(sq, layout.degree)
     sdofs = slave.dofs[fq]

@@ -151,33 +151,17 @@ def ac_residual(prob: NitscheProblem, u_free: np.ndarray) -> float:
 def _facet_operators(layout, mu: np.ndarray, s_local: np.ndarray):
     """``(Un, gap, Snn, fq)`` at local coordinates ``s_local`` of every slave facet.
 
-    Same pairing as the contact operators (ray cast along the slave facet normal,
-    :mod:`rbbench.contact_geometry`), evaluated at arbitrary points of the facets
+    Same pairing as the contact operators (ray cast along the slave normal,
+    :func:`rbbench.contact_geometry.pair`), evaluated at arbitrary points of the facets
     instead of the contact quadrature; ``Snn`` is the stress of the slave element
     adjacent to each facet. Also returns the physical facet lengths ``L``.
     """
     from rbbench import contact_geometry as cg
 
-    slave, master = layout.slave, layout.master
-    a, b = slave.map(mu, slave.a), slave.map(mu, slave.b)
-    nrm_f = cg.outward_normals(a, b, slave.map(mu, slave.inner))
     s_local = np.asarray(s_local, dtype=float)
-    nf = slave.n
-    fq, sq = np.repeat(np.arange(nf), s_local.size), np.tile(s_local, nf)
-    x, nrm = a[fq] + sq[:, None] * (b[fq] - a[fq]), nrm_f[fq]
-    phi, sdofs = cg.facet_shape(sq, layout.degree), slave.dofs[fq]
-    ones = np.ones(fq.size)
-    if master is None:  # rigid plane y = 0
-        p = cg.Pairing(x, nrm, ones, fq, sq, -x[:, 1] / nrm[:, 1], phi, sdofs, None, None,
-                       None, a, b)
-    else:
-        seg, s2, gap = cg.ray_cast(x, nrm, master.map(mu, master.a), master.map(mu, master.b))
-        if np.any(seg < 0):
-            raise cg.PairingError(int(np.sum(seg < 0)), x[seg < 0][0])
-        p = cg.Pairing(x, nrm, ones, fq, sq, gap, phi, sdofs, seg,
-                       cg.facet_shape(s2, layout.degree), master.dofs[seg], a, b)
-    return (p.jump(p.nrm, layout.n_dofs), p.gap, cg.normal_stress(layout, p, mu), fq,
-            np.linalg.norm(b - a, axis=1))
+    p = cg.pair(layout, mu, local=(s_local, np.ones(s_local.size)))
+    return (p.jump(p.nrm, layout.n_dofs), p.gap, cg.normal_stress(layout, p, mu), p.fq,
+            np.linalg.norm(p.b - p.a, axis=1))
 
 
 def ac_residual_nodal(s: np.ndarray, pen: np.ndarray, gamma: np.ndarray) -> float:

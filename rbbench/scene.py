@@ -144,6 +144,9 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "quadrature": Field("int", default=0, low=0, high=6,
                             doc="Gauss points per contact facet (0: degree + 1)"),
         "inner_product": Field("str", default="energy", choices=("energy", "h1")),
+        "normals": Field("str", default="facet", choices=("facet", "smooth"),
+                         doc="slave normal of the pairing: per facet, or interpolated "
+                             "between vertex-averaged normals (continuous)"),
     },
     "reference": {
         "hertz": Field("bool", default=False,

@@ -35,6 +35,7 @@ from rbbench.contact_geometry import (
     PairingError,
     SlaveStress,
     contact_operators,
+    with_vertex_normals,
 )
 from rbbench.interfaces import ContactOperators
 from rbbench.scene import Scene, SceneError
@@ -298,8 +299,12 @@ def slave_stress(scene: Scene, points: np.ndarray, triangles: np.ndarray,
 def halfdisk_layout(scene: Scene, slave: FacetChain, master: FacetChain | None,
                     degree: int, n_gauss: int, n_dofs: int,
                     stress: SlaveStress | None = None) -> ContactLayout:
-    """The :class:`~rbbench.contact_geometry.ContactLayout` of a ``halfdisks`` scene."""
+    """The :class:`~rbbench.contact_geometry.ContactLayout` of a ``halfdisks`` scene
+    (``[discretization] normals = "smooth"``: the slave chain gets vertex normals,
+    :func:`~rbbench.contact_geometry.with_vertex_normals`)."""
     disc = scene.data["discretization"]
+    if disc["normals"] == "smooth":
+        slave = with_vertex_normals(slave)
     return ContactLayout(slave=slave, master=master, degree=degree, n_gauss=n_gauss,
                          multiplier=disc["multiplier"], patch=int(disc["lac_patch"]),
                          n_facets=slave.n, n_dofs=n_dofs, stress=stress)
