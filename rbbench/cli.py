@@ -252,8 +252,10 @@ def cmd_hertz_table(args) -> int:
 def cmd_nitsche_table(args) -> int:
     from rbbench.studies import NITSCHE_COLUMNS, nitsche_markdown, nitsche_table
 
-    overrides = [f"load.displacement={args.load!r}",
-                 f"discretization.quadrature={args.quadrature}", *(args.set or ())]
+    overrides = [f"load.displacement={args.load!r}", f"discretization.degree={args.degree}",
+                 f"discretization.quadrature={args.quadrature}",
+                 f"discretization.normals={args.normals!r}",
+                 f"discretization.contact_integration={args.integration!r}", *(args.set or ())]
     rows = nitsche_table(args.scene, tuple(1e-3 * h for h in args.h), tuple(args.mu),
                          backend=args.backend, theta=args.theta, gamma0=args.gamma0,
                          overrides=tuple(overrides), progress=_Progress(args.quiet))
@@ -455,9 +457,16 @@ def build_parser() -> argparse.ArgumentParser:
     nt.add_argument("--gamma0", type=float, default=None, help="default: the formulation's")
     nt.add_argument("--load", type=float, default=0.09,
                     help="imposed displacement d (m); the seed's 0.09 by default")
-    nt.add_argument("--quadrature", type=int, default=1,
-                    help="Gauss points per contact facet (1: reduced integration of the "
-                         "Nitsche terms, see README; 0: the scene's degree + 1)")
+    nt.add_argument("--degree", type=int, choices=(1, 2), default=2,
+                    help="displacement degree (the seed's Hertz setting: P2)")
+    nt.add_argument("--quadrature", type=int, default=0,
+                    help="Gauss points per contact facet or piece (0: degree + 1)")
+    nt.add_argument("--normals", choices=("facet", "smooth"), default="smooth",
+                    help="slave normals: per facet, or continuous (vertex-averaged); "
+                         "README 'The e_AC table'")
+    nt.add_argument("--integration", choices=("gauss", "segmented"), default="segmented",
+                    help="contact quadrature per slave facet (GPTS) or per piece between "
+                         "master-vertex rays (segment-to-segment)")
     nt.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
     nt.add_argument("--quiet", action="store_true")
     nt.set_defaults(func=cmd_nitsche_table)

@@ -8,7 +8,16 @@ cast); the normal gap is the ray parameter. The normal is the facet's own
 ``"smooth"``, interpolated along each facet between vertex normals averaged
 over the two adjacent facets (:func:`with_vertex_normals`): continuous along
 the chain, so ``u . n`` has no jump at the vertices where a large displacement
-meets a kink of the polygon (README "Nitsche", the e_AC table). The constraint is imposed
+meets a kink of the polygon (README "Nitsche", the e_AC table).
+
+Integration (``[discretization] contact_integration``): ``"gauss"``, the layout's
+Gauss rule on every slave facet (fixed points, as hyper-reduction needs), or
+``"segmented"``, the same rule on each piece of a slave facet between the points
+whose rays hit a master vertex (:func:`segmented_rule`). The integrands are
+then polynomial on every piece, so the master's shape functions are integrated
+exactly: the mortar-style segment-to-segment integration that passes the contact
+patch test on non-matching meshes, which Gauss-point-to-segment does not
+(Zavarise & De Lorenzis 2009; Puso & Laursen 2004). The constraint is imposed
 weakly against the multiplier space, ``int (u_n - d^n) eta <= 0`` for
 ``eta >= 0``, which is the Lagrange-multiplier (mortar-like) form of seed 000
 ("HF model"), integrated with slave-side quadrature.
@@ -427,6 +436,10 @@ class ContactLayout:
     stress : SlaveStress or None
         The slave elements next to the chain facets (aligned with ``slave``), for
         the normal stress ``Snn`` (Nitsche); ``None`` if the backend gives none.
+    integration : str
+        ``"gauss"`` (``n_gauss`` points per slave facet) or ``"segmented"`` (per
+        piece between master-vertex rays, :func:`segmented_rule`; the points
+        depend on mu).
     """
 
     slave: FacetChain
@@ -438,6 +451,7 @@ class ContactLayout:
     n_facets: int
     n_dofs: int
     stress: SlaveStress | None = None
+    integration: str = "gauss"
 
     @property
     def n_mult(self) -> int:
@@ -512,11 +526,18 @@ def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,
     a, b = slave.map(mu, slave.a), slave.map(mu, slave.b)
     sg, wg = gauss_legendre_01(layout.n_gauss) if local is None else local
     nf, ng = slave.n, len(sg)
-    fq = np.repeat(np.arange(nf), ng)
-    sq = np.tile(np.asarray(sg, dtype=float), nf)
+    if layout.integration == "segmented" and local is None and master is not None:
+        if windows is not None:
+            raise ValueError("contact_integration = 'segmented' has mu-dependent points: "
+                             "windowed pairing (hyper-reduction) needs 'gauss'")
+        fq, sq, wq = segmented_rule(slave, master, mu, sg, wg)
+    else:
+        fq = np.repeat(np.arange(nf), ng)
+        sq = np.tile(np.asarray(sg, dtype=float), nf)
+        wq = np.tile(wg, nf)
     x = a[fq] + sq[:, None] * (b[fq] - a[fq])
     nrm = slave.normals_at(mu, fq, sq)
-    w = np.tile(wg, nf) * np.linalg.norm(b - a, axis=1)[fq]
+    w = wq * np.linalg.norm(b - a, axis=1)[fq]
     phi = facet_shape(sq, layout.degree)
     sdofs = slave.dofs[fq]
     if master is None:  # rigid plane y = 0
@@ -531,6 +552,73 @@ def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,
         raise PairingError(int(np.sum(seg < 0)), x[seg < 0][0])
     return Pairing(x, nrm, w, fq, sq, gap, phi, sdofs, seg, facet_shape(s2, layout.degree),
                    master.dofs[seg], a, b)
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+
+def master_vertex_hits(slave: FacetChain, master: FacetChain, mu: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Where the slave rays hit master vertices: ``(facet, s)`` pairs, s in (0, 1).
+
+    On slave facet ``i``, ``x(s) = a + s (b - a)`` and the (unnormalised) normal
+    ``n(s) = n_a + s (n_b - n_a)`` (the facet normal when constant); the ray
+    ``x(s) + t n(s)`` passes through the master vertex ``m`` where
+    ``cross(n(s), m - x(s)) = 0``, a quadratic in ``s``. A root counts when the ray
+    cast from ``x(s)`` (:func:`ray_cast`) hits one of the two master facets at ``m``
+    (so vertices behind other facets, or out of reach, are ignored).
+    """
+    a, b = slave.map(mu, slave.a), slave.map(mu, slave.b)
+    ma, mb = master.map(mu, master.a), master.map(mu, master.b)
+    mv = np.vstack([ma, mb[-1:]])  # master vertices 0 .. n (chain order)
+    nf = slave.n
+    if slave.na is None:
+        na = nb = outward_normals(a, b, slave.map(mu, slave.inner))
+    else:
+        na, nb = slave.na, slave.nb
+    dn, dx = (nb - na)[:, None, :], (b - a)[:, None, :]
+    r = mv[None, :, :] - a[:, None, :]  # (nf, nv, 2)
+    c0 = _cross(na[:, None, :], r)
+    c1 = _cross(dn, r) - _cross(na[:, None, :], dx)
+    c2 = np.broadcast_to(-_cross(dn, dx), c0.shape)
+    scale = np.abs(c1) + np.abs(c0)
+    quad = np.abs(c2) > 1e-12 * np.maximum(scale, 1e-300)
+    disc = c1**2 - 4.0 * c2 * c0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sq = np.sqrt(np.where(quad & (disc >= 0), disc, np.nan))
+        q = -0.5 * (c1 + np.copysign(sq, c1))  # stable roots q / c2, c0 / q
+        roots = np.stack([np.where(quad, q / c2, -c0 / c1), np.where(quad, c0 / q, np.nan)])
+    ok = np.isfinite(roots) & (roots > 1e-12) & (roots < 1.0 - 1e-12)
+    k, fi, vi = np.nonzero(ok)
+    s = roots[k, fi, vi]
+    if s.size == 0:
+        return fi, s
+    x = a[fi] + s[:, None] * (b[fi] - a[fi])
+    n = na[fi] + s[:, None] * (nb[fi] - na[fi])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    seg, _, _ = ray_cast(x, n, ma, mb)
+    keep = (seg == vi) | (seg == vi - 1)
+    return fi[keep], s[keep]
+
+
+def segmented_rule(slave: FacetChain, master: FacetChain, mu: np.ndarray, sg: np.ndarray,
+                   wg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Segment-to-segment quadrature: ``(fq, sq, wq)`` (facet, local coordinate, weight
+    relative to the facet length) of the rule ``(sg, wg)`` on [0, 1] applied on each
+    piece of every slave facet between the points of :func:`master_vertex_hits`."""
+    fi, s = master_vertex_hits(slave, master, mu)
+    nf = slave.n
+    cuts = np.concatenate([np.arange(nf, dtype=float), np.arange(nf) + 1.0, fi + s])
+    cuts = np.unique(cuts)  # sorted breakpoints on the chain parameter facet + s
+    lo, hi = cuts[:-1], cuts[1:]
+    facet = np.floor(lo).astype(np.int64)
+    keep = hi - lo > 1e-12
+    lo, hi, facet = lo[keep] - facet[keep], hi[keep] - facet[keep], facet[keep]
+    sg, wg = np.asarray(sg, dtype=float), np.asarray(wg, dtype=float)
+    sq = lo[:, None] + (hi - lo)[:, None] * sg[None, :]
+    wq = (hi - lo)[:, None] * wg[None, :]
+    return np.repeat(facet, sg.size), sq.ravel(), wq.ravel()
 
 
 def normal_stress(layout: ContactLayout, p: Pairing, mu: np.ndarray,

@@ -146,7 +146,13 @@ def restrict_layout(layout: ContactLayout, facets: np.ndarray, mus: np.ndarray,
     including its corners), widened by ``margin`` each side, and the facet directions in
     that window (:func:`~rbbench.contact_geometry.window_tangent_ranges`, once: a
     similarity map keeps them). ``None`` for a rigid plane.
+
+    Raises ``ValueError`` for ``integration = "segmented"`` (mu-dependent points).
     """
+    if layout.integration != "gauss" and layout.master is not None:
+        raise ValueError("hyper-reduction (EIM / ECSW rows) needs fixed contact points: "
+                         f"[discretization] contact_integration = {layout.integration!r} "
+                         "moves them with mu; use 'gauss', or hyper = 'none'")
     slave = layout.slave.subset(facets)
     stress = layout.stress.subset(facets) if with_stress else None
     master, windows = None, None

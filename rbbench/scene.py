@@ -147,6 +147,10 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "normals": Field("str", default="facet", choices=("facet", "smooth"),
                          doc="slave normal of the pairing: per facet, or interpolated "
                              "between vertex-averaged normals (continuous)"),
+        "contact_integration": Field(
+            "str", default="gauss", choices=("gauss", "segmented"),
+            doc="contact quadrature: the Gauss rule per slave facet (fixed points), or per "
+                "piece between master-vertex rays (segment-to-segment; HF only)"),
     },
     "reference": {
         "hertz": Field("bool", default=False,

@@ -29,8 +29,12 @@ from rbbench.scene import load_scene
 from rbbench.testing import HERTZ_COARSE
 
 COARSE = list(HERTZ_COARSE)
-#: The e_AC study's setting (README "Nitsche"): the seed's load, one point per facet.
+#: The e_AC study's former setting (GPTS): the seed's load, P1, one point per facet.
 TABLE = ["load.displacement=0.09", "discretization.quadrature=1", "discretization.h_max=0.2"]
+#: The e_AC table's setting (README "The e_AC^n table"): P2, smooth slave normals,
+#: segment-to-segment contact quadrature.
+SEED_TABLE = ["load.displacement=0.09", "discretization.degree=2", "discretization.h_max=0.2",
+              "discretization.normals=smooth", "discretization.contact_integration=segmented"]
 
 
 def _scene(*extra):
@@ -162,6 +166,31 @@ def test_ac_residual_decreases_under_refinement():
         e.append(sol.metrics["e_ac"])
     assert e[0] > e[1] > e[2], e
     assert np.log(e[0] / e[2]) / np.log(4.0) > 0.5  # observed order (seed: 1)
+
+
+def _e_ac_order(setting, mu, hcs=(0.02, 0.01)):
+    reg = default_registry()
+    e, h = [], []
+    for hc in hcs:
+        sc = load_scene("hertz_halfdisks", [*setting, f"discretization.h_contact={hc}"])
+        sol = _nitsche(sc, mu, backend=reg.create("backend", "skfem", scene=sc))
+        assert sol.result.converged
+        e.append(sol.metrics["e_ac"])
+        h.append(float(np.mean(sol.problem.h)))
+    return np.log(e[0] / e[1]) / np.log(h[0] / h[1]), e
+
+
+@pytest.mark.parametrize("mu", [0.7, 1.3])
+def test_ac_residual_converges_at_order_one_on_non_matching_meshes(mu):
+    """The seed's order 1 (README "The e_AC^n table"): two bodies, non-matching contact
+    meshes, P2, smooth normals and segment-to-segment quadrature; GPTS with facet
+    normals (the former setting) stagnates on the same meshes."""
+    order, e = _e_ac_order(SEED_TABLE, mu)
+    assert 0.7 < order < 1.6, (order, e)
+    assert e[1] < 0.015
+    if mu == 1.3:
+        order_gpts, e_gpts = _e_ac_order(TABLE, mu)
+        assert order_gpts < 0.3 and e_gpts[1] > 3 * e[1], (order_gpts, e_gpts)
 
 
 def test_nodal_ac_residual_is_zero_for_an_exact_alart_curnier_field():
@@ -372,7 +401,7 @@ def test_cli_solve_nitsche_picks_newton_and_writes_e_ac(tmp_path):
 
 def test_cli_nitsche_table(tmp_path):
     code, text = _run(["nitsche-table", "--h", "10", "5", "--mu", "1.0", "--quiet",
-                       "--set", "discretization.h_max=0.2"])
+                       "--degree", "1", "--set", "discretization.h_max=0.2"])
     assert code == 0, text
     assert "| 1 | 10 |" in text and "seed e_AC" in text and "| 1 | 5 |" in text
     assert "e_AC nodal" in text and "e_AC L2" in text and "e_AC quad:" in text

@@ -301,13 +301,15 @@ def halfdisk_layout(scene: Scene, slave: FacetChain, master: FacetChain | None,
                     stress: SlaveStress | None = None) -> ContactLayout:
     """The :class:`~rbbench.contact_geometry.ContactLayout` of a ``halfdisks`` scene
     (``[discretization] normals = "smooth"``: the slave chain gets vertex normals,
-    :func:`~rbbench.contact_geometry.with_vertex_normals`)."""
+    :func:`~rbbench.contact_geometry.with_vertex_normals`; ``contact_integration``:
+    :attr:`~rbbench.contact_geometry.ContactLayout.integration`)."""
     disc = scene.data["discretization"]
     if disc["normals"] == "smooth":
         slave = with_vertex_normals(slave)
     return ContactLayout(slave=slave, master=master, degree=degree, n_gauss=n_gauss,
                          multiplier=disc["multiplier"], patch=int(disc["lac_patch"]),
-                         n_facets=slave.n, n_dofs=n_dofs, stress=stress)
+                         n_facets=slave.n, n_dofs=n_dofs, stress=stress,
+                         integration=disc["contact_integration"])
 
 
 def check_multiplier(scene: Scene) -> None:

@@ -1,0 +1,167 @@
+"""Smooth slave normals and segment-to-segment contact integration
+(:mod:`rbbench.contact_geometry`; README "Nitsche", the e_AC table)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rbbench.contact_geometry import (
+    AffineMap,
+    ContactLayout,
+    FacetChain,
+    facet_shape,
+    gauss_legendre_01,
+    master_vertex_hits,
+    pair,
+    segmented_rule,
+    with_vertex_normals,
+)
+
+IDENTITY = AffineMap(scale=np.array([1.0, 0.0]), shift=np.zeros((2, 2)))
+MU = np.array([0.0])
+
+
+def _chain(vertices: np.ndarray, inner: np.ndarray, first_dof: int = 0) -> FacetChain:
+    """A P1 chain through ``vertices`` (n + 1, 2); vertex k has dofs 2 (first + k) + (0, 1)."""
+    n = vertices.shape[0] - 1
+    k = np.arange(n)
+    dofs = np.stack([np.stack([2 * (first_dof + k), 2 * (first_dof + k) + 1], axis=1),
+                     np.stack([2 * (first_dof + k + 1), 2 * (first_dof + k + 1) + 1], axis=1)],
+                    axis=1)
+    return FacetChain(a=vertices[:-1], b=vertices[1:], inner=np.broadcast_to(inner, (n, 2)),
+                      dofs=dofs, map=IDENTITY, ids=k)
+
+
+def _arc(radius: float, angles: np.ndarray, centre=(0.0, 0.0)) -> np.ndarray:
+    return np.asarray(centre) + radius * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(0.01, 0.2), min_size=2, max_size=12), st.floats(0.3, 3.0))
+def test_vertex_normals_are_continuous_unit_and_radial_on_a_regular_arc(steps, radius):
+    """On a polygon inscribed in a circle with equal facets the averaged vertex normal is
+    the circle's radial normal; in general it is continuous along the chain."""
+    th = -np.pi / 2 + np.concatenate([[0.0], np.cumsum(steps)]) - 0.5 * np.sum(steps)
+    chain = with_vertex_normals(_chain(_arc(radius, th), np.zeros(2)))
+    n = chain.n
+    assert np.allclose(np.linalg.norm(chain.na, axis=1), 1.0)
+    assert np.allclose(chain.nb[:-1], chain.na[1:])  # continuous at inner vertices
+    ends = chain.normals_at(MU, np.arange(n), np.ones(n))
+    starts = chain.normals_at(MU, np.arange(n), np.zeros(n))
+    assert np.allclose(ends[:-1], starts[1:])
+    radial = _arc(1.0, th)  # outward normals of the disk at the vertices
+    equal = np.isclose(steps[:-1], steps[1:])
+    assert np.allclose(chain.nb[:-1][equal], radial[1:-1][equal])
+    # subsets keep the full chain's vertex normals
+    sub = chain.subset(np.arange(1, n))
+    assert np.array_equal(sub.na, chain.na[1:])
+
+
+def _flat_pair(slave_x: np.ndarray, master_x: np.ndarray, gap: float, integration: str,
+               n_gauss: int) -> ContactLayout:
+    """Slave on y = gap (body above), master on y = 0 (body below), both P1 flat chains."""
+    slave = _chain(np.stack([slave_x, np.full(slave_x.size, gap)], axis=1),
+                   np.array([0.0, gap + 1.0]))
+    master = _chain(np.stack([master_x, np.zeros(master_x.size)], axis=1),
+                    np.array([0.0, -1.0]), first_dof=slave_x.size)
+    return ContactLayout(slave=slave, master=master, degree=1, n_gauss=n_gauss,
+                         multiplier="p0", patch=1, n_facets=slave.n,
+                         n_dofs=2 * (slave_x.size + master_x.size), integration=integration)
+
+
+def _sorted_points(ticks: list[int], lo: float, hi: float) -> np.ndarray:
+    """Chain abscissae: ``lo``, the ``ticks`` (thousandths), ``hi``; at least 1e-3 apart."""
+    return np.unique(np.concatenate([[lo], np.asarray(ticks, dtype=float) / 1000.0, [hi]]))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.integers(1, 999), min_size=1, max_size=8),
+       st.lists(st.integers(-300, 1300), min_size=1, max_size=10),
+       st.floats(0.001, 0.1))
+def test_segmented_rule_transfers_a_uniform_pressure_exactly(slave_in, master_in, gap):
+    """Contact patch test of the force transfer: a uniform pressure on the slave gives
+    the master nodal forces ``int phi_k`` of its own mesh (on the overlap) when the
+    pieces are cut at the master vertices, for any pair of non-matching meshes."""
+    xs = _sorted_points(slave_in, 0.0, 1.0)
+    xm = _sorted_points(master_in, -0.5, 1.5)
+    lay = _flat_pair(xs, xm, gap, "segmented", 1)
+    p = pair(lay, MU)
+    # the normal jump's master part, weighted: nodal y-forces of a unit pressure
+    # (the slave normal is -y, so the master's y-coefficients are +phi_k)
+    Un = p.jump(p.nrm, lay.n_dofs)
+    f = np.asarray(Un.T @ p.w).ravel()[2 * xs.size + 1::2]
+    # exact: int_0^1 phi_k(x) dx of the master hat functions
+    fine = np.linspace(0.0, 1.0, 20001)
+    hats = np.stack([np.interp(fine, xm, np.eye(xm.size)[k]) for k in range(xm.size)])
+    exact = np.trapezoid(hats, fine, axis=1)
+    assert np.allclose(f, exact, atol=1e-7)
+    assert np.isclose(p.w.sum(), 1.0)
+
+
+def test_gauss_point_to_segment_fails_that_patch_test_on_non_matching_meshes():
+    """The reason for ``segmented``: one Gauss point per slave facet (GPTS) loads the
+    master nodes of non-matching meshes unevenly (about +-25 % here)."""
+    xs, xm = np.linspace(0.0, 1.0, 8), np.linspace(-0.5, 1.5, 19)
+    fine = np.linspace(0.0, 1.0, 20001)
+    exact = np.trapezoid(np.stack([np.interp(fine, xm, np.eye(xm.size)[k])
+                                   for k in range(xm.size)]), fine, axis=1)
+    forces = {}
+    for rule in ("gauss", "segmented"):
+        lay = _flat_pair(xs, xm, 0.01, rule, 1)
+        p = pair(lay, MU)
+        forces[rule] = np.asarray(p.jump(p.nrm, lay.n_dofs).T @ p.w).ravel()[2 * xs.size + 1::2]
+    inner = (xm > 0.2) & (xm < 0.8)
+    assert np.allclose(forces["segmented"], exact, atol=1e-9)
+    assert np.max(np.abs(forces["gauss"][inner] / exact[inner] - 1.0)) > 0.1
+
+
+def test_master_vertex_hits_lie_on_the_rays_through_the_vertices():
+    """On curved chains with smooth normals each cut point's ray passes through a master
+    vertex (cross product 0) and the pieces tile every facet."""
+    th_s = np.linspace(-0.6, -0.4, 9) * np.pi
+    th_m = np.linspace(0.3, 0.7, 23) * np.pi
+    slave = with_vertex_normals(_chain(_arc(1.0, th_s, (0.0, 1.001)), np.array([0.0, 1.001])))
+    master = _chain(_arc(1.0, th_m, (0.0, -1.0)), np.array([0.0, -1.0]), first_dof=9)
+    fi, s = master_vertex_hits(slave, master, MU)
+    assert fi.size > 0
+    x = slave.a[fi] + s[:, None] * (slave.b[fi] - slave.a[fi])
+    n = slave.normals_at(MU, fi, s)
+    mv = np.vstack([master.a, master.b[-1:]])
+    d = mv[None, :, :] - x[:, None, :]
+    cross = np.abs(n[:, None, 0] * d[..., 1] - n[:, None, 1] * d[..., 0])
+    assert np.all(cross.min(axis=1) < 1e-12)
+    sg, wg = gauss_legendre_01(2)
+    fq, sq, wq = segmented_rule(slave, master, MU, sg, wg)
+    assert np.allclose(np.bincount(fq, weights=wq, minlength=slave.n), 1.0)
+    assert np.all((sq > 0) & (sq < 1))
+    # exact on a master P1 hat evaluated along the rays: compare a fine rule
+    lay = ContactLayout(slave=slave, master=master, degree=1, n_gauss=2, multiplier="p0",
+                        patch=1, n_facets=slave.n, n_dofs=2 * (9 + 23),
+                        integration="segmented")
+    p = pair(lay, MU)
+    fine = pair(ContactLayout(**{**lay.__dict__, "n_gauss": 1}), MU,
+                local=(np.linspace(0.5 / 4000, 1 - 0.5 / 4000, 4000), np.full(4000, 1 / 4000)))
+    for q, ref in ((p, fine),):
+        f = np.asarray(q.jump(q.nrm, lay.n_dofs).T @ q.w).ravel()
+        g = np.asarray(ref.jump(ref.nrm, lay.n_dofs).T @ ref.w).ravel()
+        assert np.allclose(f, g, atol=1e-6 * np.abs(g).max())
+
+
+def test_facet_shape_partition_of_unity_on_segmented_points():
+    sg, wg = gauss_legendre_01(3)
+    xs, xm = np.linspace(0, 1, 5), np.linspace(-0.2, 1.2, 8)
+    lay = _flat_pair(xs, xm, 0.01, "segmented", 3)
+    p = pair(lay, MU)
+    assert np.allclose(facet_shape(p.sq, 1).sum(axis=1), 1.0)
+    assert np.allclose(p.gap, 0.01)
+
+
+def test_hyper_reduction_refuses_segmented_integration():
+    from rbbench.hyper import restrict_layout
+
+    lay = _flat_pair(np.linspace(0, 1, 5), np.linspace(-0.2, 1.2, 8), 0.01, "segmented", 2)
+    with pytest.raises(ValueError, match="contact_integration"):
+        restrict_layout(lay, np.arange(2), np.zeros((1, 1)))
