@@ -572,7 +572,6 @@ def master_vertex_hits(slave: FacetChain, master: FacetChain, mu: np.ndarray
     a, b = slave.map(mu, slave.a), slave.map(mu, slave.b)
     ma, mb = master.map(mu, master.a), master.map(mu, master.b)
     mv = np.vstack([ma, mb[-1:]])  # master vertices 0 .. n (chain order)
-    nf = slave.n
     if slave.na is None:
         na = nb = outward_normals(a, b, slave.map(mu, slave.inner))
     else:
