@@ -202,9 +202,9 @@ NITSCHE_COLUMNS = (
     "facets (e_ac_nodal); e_AC L2: L2(Gamma_c) of the finite-element functions, 6 Gauss "
     "points per slave facet (e_ac_l2); all with the solve's gamma. Orders: log ratio of "
     "e_AC over log ratio of the mean slave facet lengths ('facet'); seed order from its h. "
-    "Measured at the defaults (two bodies, P1, gamma0 = 10, one point per facet): none of the "
-    "three reproduces the seed's order 1 on the non-matching meshes (mu != 1); "
-    "see README 'The e_AC^n table'.")
+    "Defaults: two bodies, P2, gamma0 = 10, smooth slave normals and segment-to-segment "
+    "contact quadrature, which give the seed's order 1; Gauss-point-to-segment with facet "
+    "normals stagnates on the non-matching meshes (README 'The e_AC^n table').")
 
 
 def nitsche_markdown(rows: list[dict]) -> str:
