@@ -537,6 +537,7 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
         DivergedError,
         ReduceResult,
         _check_finite,
+        fixed_contact_points,
         primal_basis,
         training_snapshots,
     )
@@ -547,6 +548,7 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
     if config.hyper == "affine":
         raise ValueError("hyper 'affine': the Nitsche contact term is nonlinear; use 'auto' "
                          "(empirical cubature), 'eim' (DEIM) or 'none' (plain)")
+    fixed_contact_points(scene, config.hyper, plain_ok=False)
     solver = config.solver
     if "nitsche" not in reg.get("solver", solver).capabilities.get("formulations", ()):
         solver = default_solver("nitsche", reg)

@@ -28,7 +28,7 @@ from rbbench.reduced import (
 )
 from rbbench.registry import Registry, default_registry
 from rbbench.sampling import parameter_set
-from rbbench.scene import Scene
+from rbbench.scene import Scene, SceneError
 from rbbench.snapshots import compute_snapshots
 
 HYPER = ("auto", "affine", "eim", "none")
@@ -229,6 +229,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     reg = registry or default_registry()
     for role in ("primal", "dual", "stabilizer"):
         reg.get(role, getattr(config, role))  # unknown names fail before any HF work
+    fixed_points = fixed_contact_points(scene, config.hyper)
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
     mus_train, train, valid = training_snapshots(scene, config, config.formulation,
@@ -293,7 +294,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
                 if hyper == "affine":
                     raise
                 histories["affine_refused"] = str(exc)
-                hyper = "eim" if hasattr(b, "contact_layout") else "none"
+                hyper = "eim" if hasattr(b, "contact_layout") and fixed_points else "none"
         if hyper == "eim":
             progress("EIM on the contact rows (B(mu) Z, G(mu))")
             constraint = _contact_eim(b, scene, config, problem_at, mus_train, valid.mus,
@@ -408,6 +409,28 @@ def pga_delta(config: ReduceConfig, problems: list, x_solve: Any,
     probe = problems[:: max(1, len(problems) // 5)]
     return pga_default_delta([p.B for p in probe], [p.W for p in probe], x_solve, Vg,
                              fraction=1.0, over="max")
+
+
+def fixed_contact_points(scene: Scene, hyper: str, plain_ok: bool = True) -> bool:
+    """Whether the contact quadrature points are the same at every mu (hyper-reduction by
+    rows or points needs them).
+
+    ``[discretization] contact_integration = "segmented"`` moves them with mu: an explicit
+    ``hyper = "eim"`` (or any reduced model when ``plain_ok`` is false: the reduced
+    Nitsche model evaluates its contact points at fixed positions) raises a
+    :class:`~rbbench.scene.SceneError`; ``"auto"`` falls back to the plain model.
+    """
+    disc = scene.data.get("discretization", {})
+    rule = disc.get("contact_integration", "gauss")
+    if rule == "gauss":
+        return True
+    if hyper == "eim" or not plain_ok:
+        what = "the reduced Nitsche model" if not plain_ok else "hyper 'eim'"
+        alt = "" if not plain_ok else "use hyper 'auto' or 'none' (plain reduced model), or "
+        raise SceneError(f"{scene.path}: [discretization] contact_integration = {rule!r} "
+                         f"moves the contact points with mu, so {what} (points fixed "
+                         f"offline) cannot be built; {alt}set contact_integration = 'gauss'")
+    return False
 
 
 def eim_training_set(scene: Scene, config: ReduceConfig, mus_train: np.ndarray) -> np.ndarray:

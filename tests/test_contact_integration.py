@@ -165,3 +165,26 @@ def test_hyper_reduction_refuses_segmented_integration():
     lay = _flat_pair(np.linspace(0, 1, 5), np.linspace(-0.2, 1.2, 8), 0.01, "segmented", 2)
     with pytest.raises(ValueError, match="contact_integration"):
         restrict_layout(lay, np.arange(2), np.zeros((1, 1)))
+
+
+# ---------------------------------------------------------------------------
+# segmented integration in the pipeline: HF yes, fixed-point hyper-reduction no
+# ---------------------------------------------------------------------------
+SEGMENTED = ["discretization.h_contact=0.02", "discretization.h_max=0.2",
+             "discretization.normals=smooth", "discretization.contact_integration=segmented"]
+
+
+def test_reduce_with_segmented_points_falls_back_to_plain_or_refuses(tmp_path):
+    from rbbench.rb_pipeline import ReduceConfig, reduce
+    from rbbench.scene import SceneError, load_scene
+
+    sc = load_scene("hertz_halfdisks", SEGMENTED)
+    common = dict(dual="mcpg", stabilizer="none", N=4, R=4, n_train=4, n_valid=2, n_jobs=1,
+                  cache_dir=str(tmp_path), online_repeats=1)
+    for config in (ReduceConfig(hyper="eim", **common),
+                   ReduceConfig(formulation="nitsche", solver="newton", hyper="auto",
+                                **common)):
+        with pytest.raises(SceneError, match="contact_integration = 'segmented'"):
+            reduce(sc, config)
+    r = reduce(sc, ReduceConfig(hyper="auto", **common))  # B(mu) not affine, no EIM: plain
+    assert r.hyper == "none" and np.all(np.isfinite(r.err_u)) and max(r.err_u) < 0.1
