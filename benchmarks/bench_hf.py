@@ -68,3 +68,73 @@ class HertzAccuracy:
 
     track_a_rel_error.unit = "relative"
     track_p0_rel_error.unit = "relative"
+
+
+#: The e_AC table's setting (``rbbench nitsche-table``; README "The e_AC^n table").
+_AC_SETTING = ("load.displacement=0.09", "discretization.degree=2",
+               "discretization.normals=smooth", "discretization.contact_integration=segmented")
+
+
+class NitscheAlartCurnier:
+    """The seed's relative Alart-Curnier residual e_AC^n of the Nitsche HF solve on two
+    non-matching bodies (mu = 0.7), at the seed's h = 5 and 2.5 mm (``h_contact = 4 h``,
+    coarse far field ``h_max = 0.2``), in the e_AC table's setting (P2, smooth normals,
+    segment-to-segment quadrature, theta = 1, gamma0 = 10).
+
+    A fraction, L2(Gamma_c) by the contact quadrature (``summary.json`` ``e_ac``);
+    lower is better. The ratio of the two values gives the observed order (about 1;
+    Gauss-point-to-segment with facet normals stagnates at 7 %).
+    """
+
+    params = (["5", "2.5"],)
+    param_names = ["h_mm"]
+    timeout = TIMEOUT
+
+    def setup_cache(self):
+        from rbbench.scene import load_scene
+
+        out = {}
+        for h in self.params[0]:
+            sc = load_scene("hertz_halfdisks", [*_AC_SETTING, "discretization.h_max=0.2",
+                                                f"discretization.h_contact={4e-3 * float(h)!r}"])
+            sol = solve_hf(sc, 0.7, formulation="nitsche")
+            if not sol.result.converged:
+                raise RuntimeError(f"h = {h} mm: Nitsche solve {sol.result.stop_reason}")
+            out[h] = sol.metrics["e_ac"]
+        return out
+
+    setup_cache.timeout = TIMEOUT
+
+    def track_e_ac(self, cache, h_mm):
+        """e_AC^n at mu = 0.7 (relative, lower is better)."""
+        return finite(cache[h_mm], "e_AC")
+
+    track_e_ac.unit = "relative"
+
+
+class ContactPairing:
+    """Wall time (s) of the contact pairing at mu = 0.8 on the default Hertz mesh with
+    smooth normals (:func:`rbbench.contact_geometry.pair`): the Gauss rule per slave
+    facet, or segment-to-segment pieces (master-vertex rays, a quadratic per facet and
+    master vertex)."""
+
+    params = (["gauss", "segmented"],)
+    param_names = ["integration"]
+    timeout = TIMEOUT
+
+    def setup(self, integration):
+        import numpy as np
+
+        from rbbench.registry import default_registry
+        from rbbench.scene import load_scene
+
+        sc = load_scene("hertz_halfdisks", ["discretization.normals=smooth",
+                                            f"discretization.contact_integration={integration}"])
+        self.layout = default_registry().create("backend", "skfem", scene=sc).contact_layout()
+        self.mu = np.array([0.8])
+
+    def time_pair(self, integration):
+        """Pairing at mu: points, normals, ray casts, gaps (s)."""
+        from rbbench.contact_geometry import pair
+
+        pair(self.layout, self.mu)

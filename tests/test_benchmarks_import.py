@@ -25,6 +25,8 @@ EXPECTED = {
     ("bench_hf", "HFSolve.time_hf_solve"),
     ("bench_hf", "HFSolve.peakmem_hf_solve"),
     ("bench_hf", "HertzAccuracy.track_a_rel_error"),
+    ("bench_hf", "NitscheAlartCurnier.track_e_ac"),
+    ("bench_hf", "ContactPairing.time_pair"),
     ("bench_offline", "Snapshots.time_snapshots"),
     ("bench_offline", "PrimalPOD.time_primal_pod"),
     ("bench_offline", "DualCompressor.time_dual_compressor"),
