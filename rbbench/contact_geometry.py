@@ -285,7 +285,8 @@ class FacetChain:
                                   self.map(mu, self.inner))
             return nrm[fq]
         n = (1.0 - sq)[:, None] * self.na[fq] + sq[:, None] * self.nb[fq]
-        return n / np.linalg.norm(n, axis=1, keepdims=True)
+        sign = np.sign(self.map.at(mu)[0])  # a reflecting map (negative scale) flips them
+        return sign * n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
 def with_vertex_normals(chain: FacetChain) -> FacetChain:
@@ -453,6 +454,11 @@ class ContactLayout:
     stress: SlaveStress | None = None
     integration: str = "gauss"
 
+    def __post_init__(self):
+        if self.integration not in ("gauss", "segmented"):
+            raise ValueError(f"ContactLayout: integration = {self.integration!r}; valid: "
+                             "'gauss', 'segmented'")
+
     @property
     def n_mult(self) -> int:
         return int(multiplier_basis(self.multiplier, self.n_facets, np.zeros(1, dtype=int),
@@ -512,7 +518,9 @@ def pair(layout: ContactLayout, mu: np.ndarray, slave: FacetChain | None = None,
          master: FacetChain | None = None,
          windows: tuple[np.ndarray, ...] | None = None,
          local: tuple[np.ndarray, np.ndarray] | None = None) -> Pairing:
-    """Gauss-point-to-segment pairing at mu (module docstring).
+    """Pairing of the slave quadrature points with the master at mu (module docstring):
+    Gauss-point-to-segment, or segment-to-segment with ``layout.integration ==
+    "segmented"``.
 
     ``slave`` / ``master`` default to the layout's chains; a subset chain and
     per-point ``windows = (lo, hi)`` of master facets (indices into an ordered
@@ -566,12 +574,14 @@ def master_vertex_hits(slave: FacetChain, master: FacetChain, mu: np.ndarray
     ``n(s) = n_a + s (n_b - n_a)`` (the facet normal when constant); the ray
     ``x(s) + t n(s)`` passes through the master vertex ``m`` where
     ``cross(n(s), m - x(s)) = 0``, a quadratic in ``s``. A root counts when the ray
-    cast from ``x(s)`` (:func:`ray_cast`) hits one of the two master facets at ``m``
-    (so vertices behind other facets, or out of reach, are ignored).
+    cast from ``x(s)`` (:func:`ray_cast`) hits the master facet that ``m`` ends (so
+    vertices behind other facets, or out of reach, are ignored). Shared vertices are
+    tested once per facet; the duplicates give the same cut.
     """
     a, b = slave.map(mu, slave.a), slave.map(mu, slave.b)
     ma, mb = master.map(mu, master.a), master.map(mu, master.b)
-    mv = np.vstack([ma, mb[-1:]])  # master vertices 0 .. n (chain order)
+    # every facet's two ends, tagged with their facet (a chain may have gaps)
+    mv, owner = np.vstack([ma, mb]), np.tile(np.arange(master.n), 2)
     if slave.na is None:
         na = nb = outward_normals(a, b, slave.map(mu, slave.inner))
     else:
@@ -597,7 +607,7 @@ def master_vertex_hits(slave: FacetChain, master: FacetChain, mu: np.ndarray
     n = na[fi] + s[:, None] * (nb[fi] - na[fi])
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     seg, _, _ = ray_cast(x, n, ma, mb)
-    keep = (seg == vi) | (seg == vi - 1)
+    keep = seg == owner[vi]  # the ray ends on that facet, at that end
     return fi[keep], s[keep]
 
 

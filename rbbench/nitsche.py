@@ -189,8 +189,9 @@ def ac_residual_variants(layout, prob: NitscheProblem, u: np.ndarray, mu,
         plain l2 over the slave contact nodes (:func:`ac_residual_nodal`): at each
         node, ``sigma_nn`` and ``u_n - d^n`` are the means of the values at that
         node of its (one or two) slave facets (``sigma_nn``: stress of each facet's
-        adjacent element along that facet's normal; ``u_n``: jump along that
-        normal, master ray cast from the node); ``gamma = gamma0 E / h`` with ``h``
+        adjacent element along the slave normal there; ``u_n``: jump along that
+        normal, master ray cast from the node; with smooth normals the two facets
+        share it); ``gamma = gamma0 E / h`` with ``h``
         the mean of the adjacent facet lengths.
     ``l2``
         L2(Gamma_c) of the finite-element functions ``sigma_nn(u_h) - [P_gamma(u_h)]_-``

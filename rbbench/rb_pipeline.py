@@ -422,8 +422,10 @@ def fixed_contact_points(scene: Scene, hyper: str, plain_ok: bool = True) -> boo
     """
     disc = scene.data.get("discretization", {})
     rule = disc.get("contact_integration", "gauss")
-    if rule == "gauss":
-        return True
+    geo = scene.data.get("geometry", {})
+    two_bodies = geo.get("kind") == "halfdisks" and geo.get("lower", "half_disk") == "half_disk"
+    if rule == "gauss" or not two_bodies:
+        return True  # segmentation needs a master mesh: rigid / obstacle points are fixed
     if hyper == "eim" or not plain_ok:
         what = "the reduced Nitsche model" if not plain_ok else "hyper 'eim'"
         alt = "" if not plain_ok else "use hyper 'auto' or 'none' (plain reduced model), or "

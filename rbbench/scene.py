@@ -274,12 +274,32 @@ class Scene:
 
     # -- identity ------------------------------------------------------------
     def fingerprint(self) -> str:
-        """Hash of the validated content (for caches): same content, same key."""
-        blob = json.dumps(self.data, sort_keys=True, default=str).encode()
+        """Hash of the validated content (for caches): same content, same key.
+
+        Options added after release that sit at their default are left out
+        (:func:`key_data`), so existing caches keep their keys."""
+        blob = json.dumps(key_data(self.data), sort_keys=True, default=str).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
 
     def with_overrides(self, overrides: list[str] | tuple[str, ...]) -> Scene:
         return load_scene(self.path, overrides=tuple(self.overrides) + tuple(overrides))
+
+
+#: Options added after scenes were first cached: (section, field) -> the default that
+#: reproduces the former behaviour. At that default they stay out of cache keys.
+KEY_NEUTRAL_DEFAULTS = {("discretization", "normals"): "facet",
+                        ("discretization", "contact_integration"): "gauss"}
+
+
+def key_data(data: dict) -> dict:
+    """``data`` without the :data:`KEY_NEUTRAL_DEFAULTS` fields that hold their default
+    (a shallow copy per touched section; ``data`` is not modified)."""
+    out = dict(data)
+    for (section, field), default in KEY_NEUTRAL_DEFAULTS.items():
+        sec = out.get(section)
+        if isinstance(sec, dict) and sec.get(field, default) == default and field in sec:
+            out[section] = {k: v for k, v in sec.items() if k != field}
+    return out
 
 
 # ---------------------------------------------------------------------------

@@ -38,6 +38,7 @@ import numpy as np
 import rbbench
 from rbbench.hf import make_components, solve_hf
 from rbbench.registry import default_registry
+from rbbench.scene import key_data
 
 __all__ = ["Snapshot", "SnapshotError", "SnapshotSet", "cache_path", "compute_snapshots",
            "limit_blas_threads", "load_snapshot", "save_snapshot", "snapshot_key"]
@@ -150,7 +151,7 @@ def _key_payload(scene: Any, backend: str, formulation: str, solver: str,
                  solver_options: dict | None,
                  component_options: dict | None = None,
                  registry: Any = None) -> dict[str, Any]:
-    data = {k: v for k, v in scene.data.items() if k not in _NOT_IN_KEY}
+    data = {k: v for k, v in key_data(scene.data).items() if k not in _NOT_IN_KEY}
     if "scene" in data:
         data["scene"] = {k: v for k, v in data["scene"].items() if k != "description"}
     payload = {"scene": data, "backend": backend, "formulation": formulation, "solver": solver,

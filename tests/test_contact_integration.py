@@ -150,13 +150,69 @@ def test_master_vertex_hits_lie_on_the_rays_through_the_vertices():
         assert np.allclose(f, g, atol=1e-6 * np.abs(g).max())
 
 
-def test_facet_shape_partition_of_unity_on_segmented_points():
-    sg, wg = gauss_legendre_01(3)
-    xs, xm = np.linspace(0, 1, 5), np.linspace(-0.2, 1.2, 8)
-    lay = _flat_pair(xs, xm, 0.01, "segmented", 3)
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.integers(1, 999), min_size=1, max_size=8),
+       st.lists(st.integers(-300, 1300), min_size=1, max_size=10), st.integers(1, 4))
+def test_segmented_rule_cuts_flat_facets_exactly_at_the_master_vertices(slave_in, master_in,
+                                                                         ng):
+    """Flat parallel chains: the cuts are the master abscissae inside each slave facet,
+    the pieces tile every facet (weights sum to 1), each holds the ``ng`` Gauss points."""
+    xs, xm = _sorted_points(slave_in, 0.0, 1.0), _sorted_points(master_in, -0.5, 1.5)
+    lay = _flat_pair(xs, xm, 0.01, "segmented", ng)
+    fi, s = master_vertex_hits(lay.slave, lay.master, MU)
+    a, b = xs[:-1], xs[1:]
+    expected = sorted((i, (m - a[i]) / (b[i] - a[i])) for i in range(a.size) for m in xm
+                      if a[i] < m < b[i])
+    got = sorted(zip(fi.tolist(), s.tolist(), strict=True))
+    assert len(got) == len(expected)
+    assert np.allclose(np.array(got).reshape(-1, 2), np.array(expected).reshape(-1, 2))
+    sg, wg = gauss_legendre_01(ng)
+    fq, sq, wq = segmented_rule(lay.slave, lay.master, MU, sg, wg)
+    assert np.allclose(np.bincount(fq, weights=wq, minlength=a.size), 1.0)
+    assert fq.size == ng * (a.size + len(expected))
     p = pair(lay, MU)
-    assert np.allclose(facet_shape(p.sq, 1).sum(axis=1), 1.0)
-    assert np.allclose(p.gap, 0.01)
+    assert np.allclose(facet_shape(p.sq, 1).sum(axis=1), 1.0) and np.allclose(p.gap, 0.01)
+
+
+def test_master_vertex_hits_across_a_gap_in_the_master_chain():
+    """Both ends of a gap are cuts (each vertex is tested with its own facet)."""
+    slave = _chain(np.array([[0.2, 0.01], [0.6, 0.01]]), np.array([0.0, 1.0]))
+    master = _chain(np.array([[0.0, 0.0], [0.3, 0.0]]), np.array([0.0, -1.0]), first_dof=2)
+    second = _chain(np.array([[0.5, 0.0], [1.0, 0.0]]), np.array([0.0, -1.0]), first_dof=4)
+    gapped = FacetChain(a=np.vstack([master.a, second.a]), b=np.vstack([master.b, second.b]),
+                        inner=np.vstack([master.inner, second.inner]),
+                        dofs=np.concatenate([master.dofs, second.dofs]), map=IDENTITY,
+                        ids=np.arange(2))
+    fi, s = master_vertex_hits(slave, gapped, MU)
+    assert np.allclose(np.sort(0.2 + 0.4 * s), [0.3, 0.5]) and np.all(fi == 0)
+
+
+def test_key_neutral_defaults_keep_cache_keys():
+    """The options at their defaults leave scene fingerprints and snapshot keys as they
+    were before the options existed; other values change them."""
+    from rbbench.scene import load_scene
+    from rbbench.snapshots import snapshot_key
+
+    base = load_scene("hertz_halfdisks")
+    same = load_scene("hertz_halfdisks", ['discretization.normals="facet"',
+                                          'discretization.contact_integration="gauss"'])
+    assert base.fingerprint() == same.fingerprint()
+    assert snapshot_key(base) == snapshot_key(same)
+    for change in ('discretization.normals="smooth"',
+                   'discretization.contact_integration="segmented"'):
+        other = load_scene("hertz_halfdisks", [change])
+        assert other.fingerprint() != base.fingerprint()
+        assert snapshot_key(other) != snapshot_key(base)
+
+
+def test_rigid_or_obstacle_scenes_keep_fixed_points_with_segmented():
+    from rbbench.rb_pipeline import fixed_contact_points
+    from rbbench.scene import load_scene
+
+    rigid = load_scene("hertz_halfdisks", ['geometry.lower="rigid_flat"',
+                                           'discretization.contact_integration="segmented"'])
+    assert fixed_contact_points(rigid, "eim", plain_ok=False)
+    assert fixed_contact_points(load_scene("hertz_halfdisks"), "eim", plain_ok=False)
 
 
 def test_hyper_reduction_refuses_segmented_integration():

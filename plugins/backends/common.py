@@ -10,7 +10,7 @@ mesh and dof numbering:
   flat (Dirichlet) face (:func:`flat_facets`), and the
   :class:`~rbbench.contact_geometry.FacetChain` built from them
   (:func:`facet_chain`);
-* the GPTS contact operators at mu with the scene-level error message
+* the contact operators at mu with the scene-level error message
   (:func:`halfdisk_contact`), the slave elements behind the normal stress
   ``Snn`` (:func:`slave_stress`), and the collocation operators of the scalar
   obstacle problem (:func:`obstacle_contact`);
@@ -337,7 +337,8 @@ def check_needs(backend: str, scene: Scene, needs: frozenset[str]) -> None:
 
 def halfdisk_contact(scene: Scene, layout: ContactLayout, mu: np.ndarray,
                      tangential: bool = False, stress: bool = False) -> ContactOperators:
-    """GPTS pairing at mu (:func:`rbbench.contact_geometry.contact_operators`).
+    """The contact operators at mu (:func:`rbbench.contact_geometry.contact_operators`:
+    Gauss-point-to-segment, or segment-to-segment with ``contact_integration``).
 
     A slave point missing the master zone becomes a :class:`SceneError` naming
     ``[geometry] master_zone``.
