@@ -336,16 +336,16 @@ def pga_default_delta(B_train: Iterable[Any], W_train: Iterable[Any], x_solve: X
     ``sigma < beta_on / c_HF`` on the parameters probed. Pass a subset of the training
     matrices to save the ``R`` solves per parameter.
     """
+    if over not in ("min", "max"):
+        raise ValueError(f"pga_default_delta: over = {over!r}: 'min' or 'max'")
     Vg = np.asarray(Vg, dtype=float)
     ratios = []
     for B, W in zip(B_train, W_train, strict=True):
         # the quotient matrices of rbbench.infsup.quotient_matrices with Z = None, from R
         # solves (the supremizers) instead of m: S = (B^T Vg)^T X^{-1} (B^T Vg)
         S = np.asarray(B.T @ Vg).T @ supremizers(B, x_solve, Vg)
-        M = Vg.T @ np.asarray(W @ Vg)
+        M = inf._gram(W, Vg)
         ratios.append(inf.infsup_span(S, M) / inf.boundedness_constant(S, M))
     if not ratios:
         raise ValueError("pga_default_delta: no parameters given")
-    if over not in ("min", "max"):
-        raise ValueError(f"pga_default_delta: over = {over!r}: 'min' or 'max'")
     return fraction * float(min(ratios) if over == "min" else max(ratios))

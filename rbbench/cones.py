@@ -83,7 +83,6 @@ class WMetric:
     n: int
     sqrt_diag: np.ndarray | None  # sqrt(w) when W is diagonal
     chol: np.ndarray | None  # lower Cholesky factor L otherwise
-    W: Any  # the matrix itself (for ``apply``)
 
     @property
     def is_diagonal(self) -> bool:
@@ -109,14 +108,6 @@ class WMetric:
         if self.sqrt_diag is not None:
             return Y / self.sqrt_diag[:, None] if Y.ndim == 2 else Y / self.sqrt_diag
         return sla.solve_triangular(self.chol.T, Y, lower=False)
-
-    def apply(self, X: np.ndarray) -> np.ndarray:
-        """``W X``."""
-        X = np.asarray(X, dtype=float)
-        if self.sqrt_diag is not None:
-            w = self.sqrt_diag**2
-            return w[:, None] * X if X.ndim == 2 else w * X
-        return np.asarray(self.W @ X)
 
     def norm(self, X: np.ndarray) -> np.ndarray | float:
         """``||x||_W`` of a vector, or of each column of a matrix."""
@@ -146,30 +137,30 @@ def as_metric(W: Any) -> WMetric:
         W = sp.csr_matrix(W, dtype=float)
         d = W.diagonal()
         if (W - sp.diags(d)).count_nonzero() == 0:
-            return _diag_metric(d, W)
+            return _diag_metric(d)
         dense = W.toarray()
     else:
         dense = np.asarray(W, dtype=float)
         if dense.ndim == 1:
-            return _diag_metric(dense, None)
+            return _diag_metric(dense)
         if dense.ndim != 2 or dense.shape[0] != dense.shape[1]:
             raise ValueError(f"W must be square, got shape {dense.shape}")
         d = np.diag(dense).copy()
         if np.count_nonzero(dense - np.diag(d)) == 0:
-            return _diag_metric(d, dense)
+            return _diag_metric(d)
     sym = 0.5 * (dense + dense.T)
     try:
         L = np.linalg.cholesky(sym)
     except np.linalg.LinAlgError as exc:
         raise ValueError("W is not symmetric positive definite") from exc
-    return WMetric(n=sym.shape[0], sqrt_diag=None, chol=L, W=W)
+    return WMetric(n=sym.shape[0], sqrt_diag=None, chol=L)
 
 
-def _diag_metric(d: np.ndarray, W: Any) -> WMetric:
+def _diag_metric(d: np.ndarray) -> WMetric:
     d = np.asarray(d, dtype=float)
     if not np.all(d > 0):
         raise ValueError("diagonal W must have positive entries")
-    return WMetric(n=d.size, sqrt_diag=np.sqrt(d), chol=None, W=W if W is not None else d)
+    return WMetric(n=d.size, sqrt_diag=np.sqrt(d), chol=None)
 
 
 # ------------------------------------------------------------------ cone projection
@@ -645,11 +636,15 @@ def cpg(Theta: np.ndarray, W: Any, tol: float = 1e-3, r_max: int | None = None,
     return _greedy(Theta, W, tol, r_max, "cpg", lambda th, gram, info: th)
 
 
+def _init_qp_counters(info: dict) -> None:
+    """The mCPG QP tallies of ``info``, at zero unless already counting."""
+    for key, val in (("qp_retries", 0), ("qp_fallbacks", 0), ("qp_min_shrink", 1.0)):
+        info.setdefault(key, val)
+
+
 def _count_qp(status: dict, info: dict) -> bool:
     """Tally QP retries / failures in ``info``; True if the QP was solved."""
-    info.setdefault("qp_retries", 0)
-    info.setdefault("qp_fallbacks", 0)
-    info.setdefault("qp_min_shrink", 1.0)
+    _init_qp_counters(info)
     ok = bool(status["ok"])
     if not ok:
         info["qp_fallbacks"] += 1
@@ -694,8 +689,7 @@ def mcpg(Theta: np.ndarray, W: Any, tol: float = 1e-3, r_max: int | None = None,
     if options:
         raise TypeError(f"mcpg: unexpected options {sorted(options)}")
     basis = _greedy(Theta, W, tol, r_max, "mcpg", _mcpg_generator)
-    for key, val in (("qp_fallbacks", 0), ("qp_retries", 0), ("qp_min_shrink", 1.0)):
-        basis.info.setdefault(key, val)
+    _init_qp_counters(basis.info)
     return basis
 
 
@@ -785,8 +779,7 @@ def eng(Theta: np.ndarray, W: Any, tol: float = 1e-3, r_max: int | None = None,
         return _peel_all(V, M, info, sweeps, min_gain) if V.shape[1] > 1 else V
 
     basis = _greedy(Theta, W, tol, r_max, "eng", _mcpg_generator, post)
-    for key, val in (("qp_fallbacks", 0), ("qp_retries", 0), ("qp_min_shrink", 1.0)):
-        basis.info.setdefault(key, val)
+    _init_qp_counters(basis.info)
     basis.info.setdefault("peel_replacements", 0)
     basis.info["sweeps"] = sweeps
     return basis

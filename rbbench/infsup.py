@@ -212,14 +212,25 @@ def quotient_matrices(B, X, Vg: np.ndarray, W, Z: np.ndarray | None = None, *,
     return _sym(C.T @ C), _gram(W, Vg)
 
 
+def _unit_diagonal(S: np.ndarray, M: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``d = sqrt(diag M)`` and the pencil scaled to ``M_ii = 1``: ``(d, S / d d^T, M / d d^T)``.
+
+    The scaling preserves the orthant; a zero (or negative) diagonal entry of ``M`` means a
+    zero generator and is refused.
+    """
+    d = np.sqrt(np.clip(np.diag(M), 0.0, None))
+    if np.any(d <= 0):
+        raise ValueError("M has a non-positive diagonal entry: a zero cone generator")
+    dd = np.outer(d, d)
+    return d, S / dd, M / dd
+
+
 def _reduced_pencil(S: np.ndarray, M: np.ndarray, rtol: float) -> np.ndarray:
     """``T^T S T`` with ``T^T M T = I`` on the range of ``M`` (after diagonal scaling)."""
     S = _sym(np.asarray(S, dtype=float))
     M = _sym(np.asarray(M, dtype=float))
-    d = np.sqrt(np.clip(np.diag(M), 0.0, None))
-    if np.any(d <= 0):
-        raise ValueError("M has a non-positive diagonal entry: a zero cone generator")
-    Ss, Ms = S / np.outer(d, d), M / np.outer(d, d)
+    _, Ss, Ms = _unit_diagonal(S, M)
     w, Q = np.linalg.eigh(Ms)
     keep = w > rtol * w[-1]
     T = Q[:, keep] / np.sqrt(w[keep])
@@ -315,11 +326,11 @@ def _face_candidates(S: np.ndarray, M: np.ndarray, max_k: int, sign_rtol: float 
         # Conic Caratheodory: every cone point is a non-negative combination of linearly
         # independent generators, so faces with dependent generators can be skipped.
         ev = np.linalg.eigvalsh(Mk)
-        faces = faces[ev[:, 0] > 1e-12 * ev[:, -1]]
+        independent = ev[:, 0] > 1e-12 * ev[:, -1]
+        faces, Mk = faces[independent], Mk[independent]
         if faces.size == 0:
             continue
         Sk = S[faces[:, :, None], faces[:, None, :]]
-        Mk = M[faces[:, :, None], faces[:, None, :]]
         L = np.linalg.cholesky(Mk)
         A = np.linalg.solve(L, np.linalg.solve(L, Sk).swapaxes(1, 2))
         A = 0.5 * (A + A.swapaxes(1, 2))
@@ -447,14 +458,10 @@ def infsup_cone(S: np.ndarray, M: np.ndarray, *, C: np.ndarray | None = None,
     if R == 0:
         raise ValueError("empty cone (R = 0)")
     span = infsup_span(S, M)
-    d = np.sqrt(np.diag(M))
-    Ss, Ms = S / np.outer(d, d), M / np.outer(d, d)
     # M may be singular: a cone in a space of dimension < R needs dependent generators.
     # The quotient stays defined on the orthant when y >= 0, y != 0 implies Vg y != 0
-    # (true for non-negative generators); a singular M combined with a zero denominator
-    # on the orthant is refused.
-    if np.any(d <= 0):
-        raise ValueError("M has a zero diagonal entry: a generator is zero")
+    # (true for non-negative generators); a zero generator (M_ii = 0) is refused.
+    d, Ss, Ms = _unit_diagonal(S, M)
     if R <= exact_max_r:
         q, z = _face_candidates(Ss, Ms, R)
         kind = "cone-exact"
@@ -464,9 +471,7 @@ def infsup_cone(S: np.ndarray, M: np.ndarray, *, C: np.ndarray | None = None,
     y = z / d
     y /= y.sum()
     if C is None:
-        w, Q = np.linalg.eigh(S)
-        keep = w > R * np.finfo(float).eps * max(w[-1], 0.0)
-        C = np.sqrt(w[keep])[:, None] * Q[:, keep].T
+        C = _psd_factor(S, R * np.finfo(float).eps).T  # S = C^T C
         rtol = 1e-6 if zero_rtol is None else zero_rtol
     else:
         rtol = 1e-9 if zero_rtol is None else zero_rtol

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
-import scipy.sparse as sp
 
 __all__ = ["GreedyResult", "PODResult", "gram_schmidt_add", "pod", "projection_errors",
            "weak_greedy"]
@@ -228,8 +227,7 @@ def weak_greedy(U: np.ndarray, X=None,
     sigma: list[float] = []
     if ideal:
         R = U.copy()
-        XR = _matvec(X, R)
-        XR = XR.toarray() if sp.issparse(XR) else np.asarray(XR)
+        XR = np.asarray(_matvec(X, R))  # sparse @ ndarray is an ndarray
     while True:
         if ideal:
             err = np.sqrt(np.maximum(np.einsum("ij,ij->j", R, XR), 0.0))

@@ -255,18 +255,6 @@ class ReducedBasis:
         return self.Z @ result.c, self.Vg @ result.alpha
 
 
-def project_affine(terms_full: list, left: np.ndarray | None, right: np.ndarray | None
-                   ) -> AffineOperator:
-    """Project HF affine terms: ``left^T M_k right`` (vectors: ``left^T M_k``)."""
-    out = []
-    for M in terms_full:
-        if right is None:  # vector term
-            out.append(left.T @ np.asarray(M).ravel())
-        else:
-            out.append(left.T @ (M @ right))
-    return AffineOperator(np.asarray(out))
-
-
 def build_affine_model(reduced_operators: Callable[[np.ndarray], tuple], bounds: np.ndarray,
                        is_cone: bool = True, rtol: float = 1e-10, info: dict | None = None,
                        constraint: Callable | None = None) -> ReducedModel:
