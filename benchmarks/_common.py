@@ -18,7 +18,6 @@ This module holds no benchmark (no ``time_`` / ``track_`` / ``peakmem_`` names).
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 from rbbench.scene import Scene, load_scene
 from rbbench.testing import HERTZ_COARSE
@@ -59,10 +58,10 @@ def reduce_config(case: str, cache_dir: str | None = None, **changes):
     """
     from rbbench.rb_pipeline import ReduceConfig
 
-    cfg = ReduceConfig(n_jobs=1, online_repeats=3, **RB_OPTIONS[case])
+    opts = {"n_jobs": 1, "online_repeats": 3, **RB_OPTIONS[case]}
     if cache_dir is not None:
-        changes = {"cache_dir": str(cache_dir), **changes}
-    return replace(cfg, **changes) if changes else cfg
+        opts["cache_dir"] = str(cache_dir)
+    return ReduceConfig(**{**opts, **changes})
 
 
 def reduced_case(case: str, cache_dir: str, **changes) -> dict:

@@ -14,7 +14,9 @@ from dataclasses import replace
 import numpy as np
 
 from rbbench import infsup as inf
+from rbbench.contact_geometry import contact_operators
 from rbbench.hf import ProblemCache, make_components
+from rbbench.hyper import contact_eim
 from rbbench.rb_pipeline import eim_training_set, make_stabilizer, pga_delta, primal_basis
 from rbbench.registry import default_registry
 from rbbench.sampling import parameter_set
@@ -38,8 +40,35 @@ def _snapshots(sc, cfg, mus):
                              progress=False)
 
 
+def offline_inputs():
+    """setup_cache: training snapshots of each RB case, plus Z_off, Vg for EIM.
+
+    Bases as ``reduce()`` builds them (POD, mCPG, PGA with the default delta).
+    """
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="rbbench-asv-") as d:
+        for case in RB_CASES:
+            snaps = _snapshots(*_training(case, d))
+            out[case] = {"mus": snaps.mus, "U": snaps.U, "LAM": snaps.LAM}
+    # bases for the EIM benchmark (hertz_coarse only: the membrane is exactly affine)
+    st = _Stage()
+    st.setup(out, "hertz_coarse")
+    Z, Vg = st.bases()
+    problems = [st.problem_at(mu) for mu in st.data["mus"]]
+    Z_off = st.stabilise(make_stabilizer(st.registry, st.cfg), Z, Vg, problems)
+    st.data.update(Vg=Vg, Z_off=Z_off)
+    return out
+
+
+offline_inputs.timeout = TIMEOUT
+
+
 class _Stage:
-    """Common setup: the scene, the registry, X and W_ref (as in ``reduce()``)."""
+    """Common setup: the scene, the registry, X and W_ref (as in ``reduce()``); the
+    training inputs from :func:`offline_inputs` (``setup_cache``)."""
+
+    timeout = TIMEOUT
+    setup_cache = staticmethod(offline_inputs)
 
     def setup(self, data, case):
         self.data = data[case]
@@ -67,32 +96,6 @@ class _Stage:
         delta = pga_delta(self.cfg, problems, self.x_solve, Vg)
         return stabilizer.offline(Z, Vg, self.X, self.x_solve, (p.B for p in problems),
                                   delta)[0]
-
-    def make_stabilizer(self):
-        return make_stabilizer(self.registry, self.cfg)
-
-
-def offline_inputs():
-    """setup_cache: training snapshots of each RB case, plus Z_off, Vg for EIM.
-
-    Bases as ``reduce()`` builds them (POD, mCPG, PGA with the default delta).
-    """
-    out = {}
-    with tempfile.TemporaryDirectory(prefix="rbbench-asv-") as d:
-        for case in RB_CASES:
-            snaps = _snapshots(*_training(case, d))
-            out[case] = {"mus": snaps.mus, "U": snaps.U, "LAM": snaps.LAM}
-    # bases for the EIM benchmark (hertz_coarse only: the membrane is exactly affine)
-    st = _Stage()
-    st.setup(out, "hertz_coarse")
-    Z, Vg = st.bases()
-    problems = [st.problem_at(mu) for mu in st.data["mus"]]
-    Z_off = st.stabilise(st.make_stabilizer(), Z, Vg, problems)
-    st.data.update(Vg=Vg, Z_off=Z_off)
-    return out
-
-
-offline_inputs.timeout = TIMEOUT
 
 
 class Snapshots:
@@ -127,8 +130,6 @@ class PrimalPOD(_Stage):
 
     params = (RB_CASES,)
     param_names = ["scene"]
-    timeout = TIMEOUT
-    setup_cache = staticmethod(offline_inputs)
 
     def setup(self, data, case):
         super().setup(data, case)
@@ -149,8 +150,6 @@ class DualCompressor(_Stage):
 
     params = (RB_CASES, DUALS)
     param_names = ["scene", "dual"]
-    timeout = TIMEOUT
-    setup_cache = staticmethod(offline_inputs)
 
     def setup(self, data, case, dual):
         super().setup(data, case)
@@ -173,14 +172,12 @@ class PGA(_Stage):
 
     params = (RB_CASES,)
     param_names = ["scene"]
-    timeout = TIMEOUT
-    setup_cache = staticmethod(offline_inputs)
 
     def setup(self, data, case):
         super().setup(data, case)
         self.problems = [self.problem_at(mu) for mu in self.data["mus"]]
         self.Z, self.Vg = self.bases()
-        self.stabilizer = self.make_stabilizer()
+        self.stabilizer = make_stabilizer(self.registry, self.cfg)
 
     def time_pga(self, data, case):
         """Wall time (s) of default delta + supremizers + PGA greedy."""
@@ -198,14 +195,8 @@ class EIM(_Stage):
     (:func:`rbbench.hyper.contact_eim`, tolerance 1e-4). Unit: seconds.
     """
 
-    timeout = TIMEOUT
-    setup_cache = staticmethod(offline_inputs)
-
     def setup(self, data):
-        from rbbench.contact_geometry import contact_operators
-
         super().setup(data, "hertz_coarse")
-        self.contact_operators = contact_operators
         self.layout = self.backend.contact_layout()
         mus = self.data["mus"]
         self.mus_eim = eim_training_set(self.scene, self.cfg, mus)
@@ -216,7 +207,7 @@ class EIM(_Stage):
     def _operators(self):
         B, G = [], []
         for mu in self.mus_eim:
-            c = self.contact_operators(self.layout, mu)
+            c = contact_operators(self.layout, mu)
             B.append(c.B()[:, self.free])
             G.append(c.G())
         return B, G
@@ -227,7 +218,5 @@ class EIM(_Stage):
 
     def time_eim_build(self, data):
         """Wall time (s) of the contact EIM construction (greedy EIMs + row evaluator)."""
-        from rbbench.hyper import contact_eim
-
         contact_eim(self.layout, self.B_eim, self.G_eim, self.data["Z_off"], self.data["Vg"],
                     self.free, self.mus_eim, tol=self.cfg.tol_eim, m_max=self.cfg.m_eim)

@@ -76,6 +76,12 @@ class Snapshot:
         return self.stop_reason == "converged"
 
 
+def _error_snapshot(mu: np.ndarray, error: str, time_s: float = 0.0) -> Snapshot:
+    """The placeholder of a solve that raised or was lost: no data, stop reason "error"."""
+    return Snapshot(mu=mu, u=np.empty(0), lam=np.empty(0), iterations=0, stop_reason="error",
+                    time_s=time_s, error=error)
+
+
 @dataclass
 class SnapshotSet:
     """Snapshots of a parameter set, column ``p`` for ``mus[p]``.
@@ -176,9 +182,12 @@ def snapshot_key(scene: Any, backend: str = "skfem", formulation: str = "mixed",
     the scene description are left out: changing the training set size or seed must
     reuse the snapshots already computed.
     """
-    blob = json.dumps(_key_payload(scene, backend, formulation, solver, solver_options,
-                                   component_options, registry),
-                      sort_keys=True, default=str).encode()
+    return _payload_key(_key_payload(scene, backend, formulation, solver, solver_options,
+                                     component_options, registry))
+
+
+def _payload_key(payload: dict[str, Any]) -> str:
+    blob = json.dumps(payload, sort_keys=True, default=str).encode()
     return hashlib.sha256(blob).hexdigest()[:24]
 
 
@@ -252,9 +261,7 @@ def _solve_one(scene: Any, mu: np.ndarray, names: tuple[str, str, str], componen
         sol = solve_hf(scene, mu, backend=backend, formulation=formulation, solver=solver,
                        components=components)
     except Exception as exc:  # one failing mu must not lose the others
-        return Snapshot(mu=mu, u=np.empty(0), lam=np.empty(0), iterations=0,
-                        stop_reason="error", time_s=time.perf_counter() - t0,
-                        error=f"{type(exc).__name__}: {exc}")
+        return _error_snapshot(mu, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
     res, prob = sol.result, sol.problem
     snap = Snapshot(mu=np.asarray(mu, dtype=float),
                     u=np.asarray(res.u, dtype=float)[prob.free].copy(),
@@ -277,43 +284,19 @@ def limit_blas_threads(n: int) -> str:
 
     Several worker processes each running a multithreaded BLAS oversubscribe the
     cores (measured on 2 cores, Hertz scene, 2 workers: 34 s against 2.5 s with one
-    thread each). Uses ``threadpoolctl`` when installed, otherwise calls the
-    ``*openblas_set_num_threads*`` entry points of the OpenBLAS libraries already
-    loaded (the ones numpy and scipy bundle; Linux only). Returns what it did.
+    thread each). Sets the thread variables for libraries loaded later and caps the
+    pools already loaded (numpy's and scipy's BLAS) with ``threadpoolctl``. Returns
+    what it did (``"threadpoolctl"``).
     """
+    from threadpoolctl import threadpool_limits
+
     for var in _THREAD_ENV:  # for libraries loaded later
         os.environ[var] = str(n)
     import scipy.linalg  # noqa: F401  (load scipy's BLAS before capping it)
     import scipy.sparse.linalg  # noqa: F401
 
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        pass
-    else:
-        _WORKER["threadpool_limits"] = threadpool_limits(limits=n)
-        return "threadpoolctl"
-    import ctypes
-
-    done = []
-    try:
-        with open("/proc/self/maps") as fh:
-            libs = {line.split()[-1] for line in fh if "openblas" in line.lower()}
-    except OSError:
-        return "none"
-    for path in sorted(libs):
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
-        for sym in ("openblas_set_num_threads", "scipy_openblas_set_num_threads",
-                    "openblas_set_num_threads64_", "scipy_openblas_set_num_threads64_"):
-            fn = getattr(lib, sym, None)
-            if fn is not None:
-                fn(ctypes.c_int(n))
-                done.append(os.path.basename(path))
-                break
-    return "ctypes: " + ", ".join(done) if done else "none"
+    _WORKER["threadpool_limits"] = threadpool_limits(limits=n)
+    return "threadpoolctl"
 
 
 def _init_worker(scene: Any, names: tuple[str, str, str], solver_options: dict | None,
@@ -334,9 +317,7 @@ def _worker_task(mu: np.ndarray, path: Path) -> Snapshot:
                 scene, *names, solver_options=_WORKER["solver_options"],
                 component_options=_WORKER["component_options"], registry=_WORKER["registry"])
         except Exception as exc:
-            return Snapshot(mu=mu, u=np.empty(0), lam=np.empty(0), iterations=0,
-                            stop_reason="error", time_s=0.0,
-                            error=f"building components: {type(exc).__name__}: {exc}")
+            return _error_snapshot(mu, f"building components: {type(exc).__name__}: {exc}")
     return _solve_one(_WORKER["scene"], mu, _WORKER["names"], _WORKER["components"], path)
 
 
@@ -395,11 +376,11 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
         mus = mus.reshape(-1, 1) if len(scene.parameters) == 1 else mus.reshape(1, -1)
     mus = np.array([scene.check_mu(m) for m in mus]).reshape(len(mus), len(scene.parameters))
     names = (backend, formulation, solver)
-    key = snapshot_key(scene, backend, formulation, solver, solver_options, component_options,
-                       registry)
+    payload = _key_payload(scene, backend, formulation, solver, solver_options,
+                           component_options, registry)
+    key = _payload_key(payload)  # = snapshot_key(...), from the payload built once
     root = Path(cache_dir)
-    _write_key_file(root / key, scene, backend, formulation, solver, solver_options,
-                    component_options, registry)
+    _write_key_file(root / key, scene, payload)
     paths = [cache_path(root, key, mu) for mu in mus]
 
     snaps: list[Snapshot | None] = [_try_load(p, mu) for p, mu in zip(paths, mus, strict=True)]
@@ -438,9 +419,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
                         try:
                             snaps[i] = fut.result()
                         except BrokenProcessPool as exc:  # a worker died (e.g. killed)
-                            snaps[i] = Snapshot(mu=mus[i], u=np.empty(0), lam=np.empty(0),
-                                                iterations=0, stop_reason="error", time_s=0.0,
-                                                error=f"worker process died: {exc}")
+                            snaps[i] = _error_snapshot(mus[i], f"worker process died: {exc}")
                         if bar is not None:
                             bar.update()
                 except BaseException:
@@ -481,16 +460,12 @@ def _progress_bar(progress: bool, name: str, total: int, todo: int):
     return _Bar(total=total, initial=total - todo, unit="snapshot", desc=f"HF snapshots {name}")
 
 
-def _write_key_file(folder: Path, scene: Any, backend: str, formulation: str, solver: str,
-                    solver_options: dict | None, component_options: dict | None = None,
-                    registry: Any = None) -> None:
+def _write_key_file(folder: Path, scene: Any, payload: dict[str, Any]) -> None:
+    """``key.json``: the key's payload, plus where the scene came from."""
     path = folder / "key.json"
     if path.exists():
         return
-    payload = _key_payload(scene, backend, formulation, solver, solver_options,
-                           component_options, registry)
-    payload["scene_path"] = str(scene.path)
-    payload["overrides"] = list(scene.overrides)
+    payload = {**payload, "scene_path": str(scene.path), "overrides": list(scene.overrides)}
     text = json.dumps(payload, sort_keys=True, indent=1, default=str).encode()
     _atomic_write(path, lambda fh: fh.write(text))
 

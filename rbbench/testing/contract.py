@@ -470,9 +470,10 @@ def reference_discretization(physics: str, registry: Registry | None = None,
     raise LookupError(f"no installed backend declares physics {physics!r}")
 
 
-def _check_free_stiffness(prob: Any, n: int, label: str) -> tuple[np.ndarray, sp.csr_matrix]:
+def _check_free_stiffness(prob: Any, n: int, label: str) -> np.ndarray:
     """The part every formulation's problem shares: free dofs (a non-empty index set of
-    ``0 .. n - 1``), ``A`` sparse, n_free square, symmetric, SPD, and ``F`` of that size."""
+    ``0 .. n - 1``, returned), ``A`` sparse, n_free square, symmetric, SPD, and ``F`` of
+    that size."""
     free = _index_set(prob.free, n, f"{label}: free")
     nf = free.size
     _require(nf > 0, f"{label}: no free dofs")
@@ -481,17 +482,19 @@ def _check_free_stiffness(prob: Any, n: int, label: str) -> tuple[np.ndarray, sp
     _check_symmetric(A, f"{label}: A")
     _check_spd(A, f"{label}: A")
     _vector(prob.F, nf, f"{label}: F")
-    return free, A
+    return free
 
 
 def check_formulation(factory: Callable[..., Any], disc: Discretization,
-                      name: str | None = None) -> ContactProblem:
+                      name: str | None = None) -> ContactProblem | NitscheProblem:
     """Contract of the formulation role on one Discretization (``factory()`` builds it).
 
     ``build(disc)`` returns a :class:`ContactProblem` with consistent shapes,
     finite data, ``A`` symmetric positive definite, ``W`` symmetric, ``free``
     a set of distinct dofs, and the Dirichlet dofs outside ``free`` carrying
-    their values in ``u_lift`` and in ``expand(u_free)``.
+    their values in ``u_lift`` and in ``expand(u_free)``. A :class:`NitscheProblem`
+    is checked by the same rules for ``free``, ``A``, ``F`` and the lifting, plus its
+    point operators against the backend's. Returns the checked problem.
     """
     label = f"formulation {name or getattr(factory, '__name__', factory)!r} on {disc.physics}"
     prob = factory().build(disc)
@@ -501,37 +504,25 @@ def check_formulation(factory: Callable[..., Any], disc: Discretization,
     _require(isinstance(prob, ContactProblem),
              f"{label}: build() returned {type(prob).__name__}, not a ContactProblem")
     n = disc.n_dofs
-    free, A = _check_free_stiffness(prob, n, label)
+    free = _check_free_stiffness(prob, n, label)
     nf = free.size
     B = _as_sparse(prob.B, f"{label}: B")
     _require(B.shape[1] == nf, f"{label}: B has {B.shape[1]} columns, expected n_free = {nf}")
     m = B.shape[0]
     _vector(prob.G, m, f"{label}: G")
-    lift = _vector(prob.u_lift, n, f"{label}: u_lift")
     X = _as_sparse(prob.X, f"{label}: X")
     _require(X.shape[0] == X.shape[1] and X.shape[0] in (n, nf),
              f"{label}: X has shape {X.shape}, expected square of size n_dofs or n_free")
     W = _as_sparse(prob.W, f"{label}: W")
     _shape(W, (m, m), f"{label}: W (n_mult x n_mult)")
     _check_symmetric(W, f"{label}: W")
-    constrained = np.setdiff1d(np.asarray(disc.dirichlet_dofs), free)
-    dvals = dict(zip(np.asarray(disc.dirichlet_dofs).tolist(),
-                     np.asarray(disc.dirichlet_values, dtype=float).tolist(), strict=True))
-    want = np.array([dvals[d] for d in constrained.tolist()])
-    rng = np.random.default_rng(0)
-    v = rng.standard_normal(nf)
-    u = np.asarray(prob.expand(v))
-    _require(u.shape == (n,), f"{label}: expand(u_free) has shape {u.shape}, expected ({n},)")
-    _require(np.array_equal(u[free], v),
-             f"{label}: expand() does not place the free values at free dofs")
-    _require(np.allclose(u[constrained], want, rtol=1e-12, atol=0)
-             and np.allclose(lift[constrained], want, rtol=1e-12, atol=0),
-             f"{label}: expand()/u_lift do not carry the Dirichlet values")
+    _check_lifting(prob, disc, label)
     return prob
 
 
 def _check_lifting(prob: Any, disc: Discretization, label: str) -> None:
-    """``free`` a set of distinct dofs, the Dirichlet values in ``u_lift`` and ``expand``."""
+    """The Dirichlet lifting: ``expand(u_free)`` puts ``u_free`` at ``free`` and, like
+    ``u_lift``, the Dirichlet values at the constrained dofs (``free`` already checked)."""
     n = disc.n_dofs
     free = np.asarray(prob.free)
     constrained = np.setdiff1d(np.asarray(disc.dirichlet_dofs), free)
@@ -554,8 +545,7 @@ def _check_nitsche_problem(prob: NitscheProblem, disc: Discretization, label: st
     ``gamma``, the Dirichlet lifting, and its point operators equal to the backend's
     ``Un``, ``Snn`` and gap applied to the lifted displacement (an independent check of the
     elimination: ``Un v - gap = Un_full expand(v) - gap_full``, same for ``Snn``)."""
-    n = disc.n_dofs
-    free, A = _check_free_stiffness(prob, n, label)
+    free = _check_free_stiffness(prob, disc.n_dofs, label)
     nf = free.size
     w = np.asarray(prob.weights, dtype=float)
     nq = w.size
@@ -690,19 +680,21 @@ def _call_with_timeout(fn: Callable[[], Any], timeout: float, what: str) -> Any:
     return box["value"]
 
 
-def _check_result(res: Any, prob: ContactProblem, label: str) -> SolveResult:
+def _check_result(res: Any, prob: Any, n_mult: int, label: str) -> SolveResult:
+    """The form of any solver's result: a :class:`SolveResult` with a known stop reason, a
+    non-negative iteration count, ``u`` on the global dofs of ``prob`` and ``n_mult``
+    multipliers."""
     _require(isinstance(res, SolveResult),
              f"{label}: solve() returned {type(res).__name__}, not a SolveResult")
     _require(res.stop_reason in STOP_REASONS,
              f"{label}: stop_reason {res.stop_reason!r} is not one of {STOP_REASONS}")
     _require(isinstance(res.iterations, (int, np.integer)) and res.iterations >= 0,
              f"{label}: iterations must be a non-negative int, got {res.iterations!r}")
-    n, m = prob.u_lift.size, prob.B.shape[0]
+    n = prob.u_lift.size
     _require(np.shape(res.u) == (n,), f"{label}: u has shape {np.shape(res.u)}, expected "
              f"({n},) (global dofs, Dirichlet lifting included)")
-    _require(np.shape(res.lam) == (m,), f"{label}: lam has shape {np.shape(res.lam)}, "
-             f"expected ({m},)")
-    _require(isinstance(res.residuals, list), f"{label}: residuals must be a list")
+    _require(np.shape(res.lam) == (n_mult,), f"{label}: lam has shape {np.shape(res.lam)}, "
+             f"expected ({n_mult},)")
     return res
 
 
@@ -754,7 +746,9 @@ def check_solver(factory: Callable[..., Any], options: dict | None = None,
     def run(prob, opts=options, warm=None, what="solve"):
         where = f"{label}: {what}"
         res = _solve_checked(factory, opts, prob, warm, where, timeout)
-        return _check_result(res, prob, where)
+        _check_result(res, prob, prob.B.shape[0], where)
+        _require(isinstance(res.residuals, list), f"{where}: residuals must be a list")
+        return res
 
     def kkt(prob, res, what):
         if not res.converged:
@@ -882,18 +876,7 @@ def check_nitsche_solver(factory: Callable[..., Any], options: dict | None = Non
     def run(prob, opts=options, warm=None, what="solve"):
         where = f"{label}: {what}"
         res = _solve_checked(factory, opts, prob, warm, where, timeout)
-        _require(isinstance(res, SolveResult),
-                 f"{where}: solve() returned {type(res).__name__}, not a SolveResult")
-        _require(res.stop_reason in STOP_REASONS,
-                 f"{where}: stop_reason {res.stop_reason!r} is not one of {STOP_REASONS}")
-        _require(isinstance(res.iterations, (int, np.integer)) and res.iterations >= 0,
-                 f"{where}: iterations must be a non-negative int, got {res.iterations!r}")
-        _require(np.shape(res.u) == prob.u_lift.shape,
-                 f"{where}: u has shape {np.shape(res.u)}, expected {prob.u_lift.shape} "
-                 "(global dofs)")
-        _require(np.shape(res.lam) == (prob.Mlam.shape[1],),
-                 f"{where}: lam has shape {np.shape(res.lam)}, expected "
-                 f"({prob.Mlam.shape[1]},)")
+        _check_result(res, prob, prob.Mlam.shape[1], where)
         if res.converged:
             rel, _ = _nitsche_residual(prob, np.asarray(res.u, dtype=float)[prob.free])
             _require(rel <= 1e-8, f"{where}: stop_reason 'converged' but the Nitsche residual "
