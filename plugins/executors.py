@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import ctypes
 import multiprocessing as mp
-import os
 import signal
 import sys
 import time
@@ -24,6 +23,7 @@ from typing import Any
 
 from rbbench.matrix import Case
 from rbbench.runner import CaseTimeout, alarm, execute_case, failed_row
+from rbbench.snapshots import _n_cpus
 
 OnResult = Callable[[Case, dict], None]
 OnStage = Callable[[str], None]
@@ -34,10 +34,14 @@ def _jobs(jobs: int | None) -> int:
         if int(jobs) < 1:
             raise ValueError(f"executor: jobs = {jobs}; give an integer >= 1")
         return int(jobs)
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
+    return max(1, _n_cpus())
+
+
+def _timeout_row(case: Case, run_id: str, name: str, killed: bool = True) -> dict:
+    """The ``timeout`` row of a case stopped at its time limit."""
+    return failed_row(case, run_id, name, "timeout",
+                      f"exceeded the case limit of {case.timeout_s:g} s"
+                      + (" (killed)" if killed else ""))
 
 
 class SerialExecutor:
@@ -56,8 +60,7 @@ class SerialExecutor:
                     rec = execute_case(case, run_id, cache_dir, self.name, registry,
                                        lambda m, c=case: on_stage(f"{c.label}: {m}"))
             except CaseTimeout:
-                rec = failed_row(case, run_id, self.name, "timeout",
-                                 f"exceeded the case limit of {case.timeout_s:g} s")
+                rec = _timeout_row(case, run_id, self.name, killed=False)
             on_result(case, rec)
 
 
@@ -87,6 +90,21 @@ def _child(conn, case: Case, run_id: str, cache_dir: str, registry: Any, name: s
         conn.send(("crash", traceback.format_exc()))
     finally:
         conn.close()
+
+
+def _receive(conn, p) -> tuple[str, Any]:
+    """The next message ``(kind, payload)`` from a case's process, or ``("died", exit code)``
+    when its pipe closed without one."""
+    try:
+        return conn.recv()
+    except (EOFError, OSError):
+        p.join(5)
+        return "died", p.exitcode
+
+
+def _kill(p) -> None:
+    p.kill()
+    p.join(5)
 
 
 def _record(kind: str, payload: Any, case: Case, run_id: str, name: str) -> dict:
@@ -139,11 +157,7 @@ class ProcessExecutor:
                     running[recv] = (p, case, time.monotonic() + case.timeout_s)
                 for conn in wait(list(running), timeout=0.25):
                     p, case, _ = running[conn]
-                    try:
-                        kind, payload = conn.recv()
-                    except (EOFError, OSError):
-                        p.join(5)
-                        kind, payload = "died", p.exitcode
+                    kind, payload = _receive(conn, p)
                     if kind == "stage":
                         on_stage(f"{case.label}: {payload}")
                         continue
@@ -154,17 +168,13 @@ class ProcessExecutor:
                 now = time.monotonic()
                 for conn, (p, case, deadline) in list(running.items()):
                     if now > deadline:
-                        p.kill()
-                        p.join(5)
+                        _kill(p)
                         del running[conn]
                         conn.close()
-                        on_result(case, failed_row(
-                            case, run_id, self.name, "timeout",
-                            f"exceeded the case limit of {case.timeout_s:g} s (killed)"))
+                        on_result(case, _timeout_row(case, run_id, self.name))
         finally:
             for conn, (p, _, _) in running.items():
-                p.kill()
-                p.join(5)
+                _kill(p)
                 conn.close()
 
 
@@ -193,16 +203,10 @@ def run_isolated(case: Case, run_id: str, cache_dir: str, registry: Any,
         while True:
             left = deadline - time.monotonic()
             if left <= 0:
-                p.kill()
-                p.join(5)
-                return failed_row(case, run_id, name, "timeout",
-                                  f"exceeded the case limit of {case.timeout_s:g} s (killed)")
+                _kill(p)
+                return _timeout_row(case, run_id, name)
             if recv.poll(min(left, 0.5)):
-                try:
-                    kind, payload = recv.recv()
-                except (EOFError, OSError):
-                    p.join(5)
-                    kind, payload = "died", p.exitcode
+                kind, payload = _receive(recv, p)
                 if kind == "stage":
                     continue
                 p.join(5)

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from rbbench.registry import NotInstalledError, UnknownComponentError, default_registry
-from rbbench.scene import PROBLEMS_DIR, SceneError, load_scene
+from rbbench.scene import PROBLEMS_DIR, SceneError, load_scene, tomllib
 
 
 class _Progress:
@@ -65,11 +65,6 @@ def print_summary(m: dict, mu: dict) -> None:
 def _backend_options(items: list[str] | None, flag: str = "--backend-option") -> dict:
     """``FLAG KEY=VALUE`` pairs (``--backend-option``, ``--formulation-option``); a value is
     a TOML literal, else a string."""
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover
-        import tomli as tomllib
-
     options = {}
     for text in items or ():
         key, sep, raw = text.partition("=")
@@ -406,6 +401,13 @@ def _add_reduce_args(rd) -> None:
     rd.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
 
 
+def _add_study_tail(p, func) -> None:
+    """The last arguments of a study command (``--set``, ``--quiet``) and its function."""
+    p.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=func)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rbbench", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -441,9 +443,7 @@ def build_parser() -> argparse.ArgumentParser:
     ht.add_argument("--levels", type=int, nargs="+", default=[0, 1, 2],
                     help="uniform refinement levels (sizes divided by 2**level)")
     ht.add_argument("--mu", type=float, default=1.0)
-    ht.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
-    ht.add_argument("--quiet", action="store_true")
-    ht.set_defaults(func=cmd_hertz_table)
+    _add_study_tail(ht, cmd_hertz_table)
     nt = sub.add_parser("nitsche-table",
                         help="the seed's Alart-Curnier residual e_AC^n of the Nitsche solve "
                              "against h and mu, side by side with the seed (Markdown table)")
@@ -467,9 +467,7 @@ def build_parser() -> argparse.ArgumentParser:
     nt.add_argument("--integration", choices=("gauss", "segmented"), default="segmented",
                     help="contact quadrature per slave facet (GPTS) or per piece between "
                          "master-vertex rays (segment-to-segment)")
-    nt.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
-    nt.add_argument("--quiet", action="store_true")
-    nt.set_defaults(func=cmd_nitsche_table)
+    _add_study_tail(nt, cmd_nitsche_table)
     nc = sub.add_parser("nitsche-compare",
                         help="Nitsche against mixed: HF energies over D_train and reduced "
                              "errors for several R (Markdown tables)")
@@ -478,9 +476,7 @@ def build_parser() -> argparse.ArgumentParser:
     nc.add_argument("-R", type=int, nargs="+", default=[10, 30, 40])
     nc.add_argument("--n-train", type=int, default=61, help="|D_train| (the seed: 61)")
     nc.add_argument("--n-valid", type=int, default=10)
-    nc.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
-    nc.add_argument("--quiet", action="store_true")
-    nc.set_defaults(func=cmd_nitsche_compare)
+    _add_study_tail(nc, cmd_nitsche_compare)
     osc = sub.add_parser("online-scaling",
                          help="online time of one reduction at several mesh levels, timed "
                               "side by side (is it flat in the HF size?)")

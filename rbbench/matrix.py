@@ -56,7 +56,6 @@ __all__ = ["COMPONENT_ROLES", "Case", "Matrix", "MatrixError", "compatibility", 
 #: The component axes of a case, in table order, with the built-in default of each.
 COMPONENT_ROLES = {"backend": "skfem", "formulation": "mixed", "solver": "ssn",
                    "primal": "pod", "dual": "mcpg", "stabilizer": "pga", "hyper": "auto"}
-#: Registry role of each axis ("hyper" is a pipeline choice, not a registered role yet).
 #: Axes that name registered components (their registry role has the same name).
 _REGISTRY_ROLES = ("backend", "formulation", "solver", "primal", "dual", "stabilizer")
 _HYPER = ("auto", "affine", "eim", "none")
@@ -137,10 +136,6 @@ class Matrix:
     path: str
     data: dict[str, Any]
     cases: list[Case]
-
-    @property
-    def timeout_s(self) -> float:
-        return float(self.data["matrix"].get("timeout_s", 600))
 
 
 def _reduce_fields() -> dict[str, Any]:
@@ -302,40 +297,34 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
                               "'section.key=value' strings")
 
     sel = _selectors(selectors)
-    loaded: dict[str, Scene] = {}
     cases: list[Case] = []
     for sname in scenes:
         if not _selected(sname, sel.get("scene")):
             continue
         ov = tuple(overrides.get(sname, ()))
-        base_name = sname.split("@", 1)[0]
         if "seed" in mtab:
             ov = (*ov, f"sampling.seed={seed}")
         try:
-            scene = loaded.setdefault(sname, load_scene(base_name, ov))
+            scene = load_scene(sname.split("@", 1)[0], ov)
         except Exception as exc:  # noqa: BLE001 - name the matrix too
             raise MatrixError(f"{where}: [matrix] scenes: {sname!r}: {exc}") from None
+        scene_seed, fingerprint = int(scene.data["sampling"]["seed"]), scene.fingerprint()
         for combo in itertools.product(*axes.values()):
             comp = dict(zip(axes, combo, strict=True))
             if not all(_selected(comp[r], sel.get(r)) for r in COMPONENT_ROLES):
                 continue
+            status, reason = compatibility(scene, comp, registry)
             option_sets = [grids.get((r, comp[r]), [{}]) for r in COMPONENT_ROLES]
-            for N, R in pairs:
+            for N, R in pairs:  # mode hf: no [sizes], the one pair (None, None)
                 if not (_selected(N, sel.get("N")) and _selected(R, sel.get("R"))):
                     continue
-                if mode == "hf":
-                    N = R = None
                 for opts in itertools.product(*option_sets):
                     p = dict(base) if mode == "rb" else {"hf_repeats": hf.get("repeats", 3)}
                     for o in opts:
                         p.update(o)
-                    status, reason = compatibility(scene, comp, registry)
                     for rep in range(reps):
-                        cases.append(Case(sname, ov, comp, N, R, p, rep,
-                                          int(scene.data["sampling"]["seed"]), timeout,
-                                          scene.fingerprint(), mode, status, reason))
-                if mode == "hf":
-                    break  # sizes do not apply
+                        cases.append(Case(sname, ov, comp, N, R, p, rep, scene_seed, timeout,
+                                          fingerprint, mode, status, reason))
     if not cases:
         raise MatrixError(f"{where}: no case left after the selectors {list(selectors)}")
     return Matrix(name, str(path), data, cases)

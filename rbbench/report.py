@@ -368,10 +368,8 @@ class _Combos:
     and line style by the rest of the combination)."""
 
     def __init__(self, records: list[dict[str, Any]]):
-        self.fields = [f for f in _COMBO_ORDER
-                       if f in _COMBO_ALWAYS
-                       or (f in _COMBO_IF_VARYING and f in _varying(records, (f,)))]
-        labels = sorted({self.label(r) for r in records})
+        varying = _varying(records, _COMBO_IF_VARYING)
+        self.fields = [f for f in _COMBO_ORDER if f in _COMBO_ALWAYS or f in varying]
         duals = sorted({self._part(r, "dual") for r in records})
         rests = sorted({self.label(r, without="dual") for r in records})
         from matplotlib import colormaps
@@ -379,7 +377,6 @@ class _Combos:
         cmap = colormaps["tab10" if len(duals) <= 10 else "tab20"]
         self.dual_colour = {d: cmap(i % cmap.N) for i, d in enumerate(duals)}
         self.rest_index = {r: i for i, r in enumerate(rests)}
-        self.labels = labels
 
     @staticmethod
     def _part(rec: dict[str, Any], f: str) -> str:
@@ -737,16 +734,21 @@ def _kind_text(kinds: list[str | None]) -> str:
     return ", ".join(f"{_KIND_TEXT.get(k, k)} at {ks.count(k)}/{len(ks)} mu" for k in uniq)
 
 
+def _ok_details(ctx: _Ctx) -> list[tuple[dict[str, Any], dict]]:
+    """``(row, details)`` of the ok rows that have case details."""
+    out = []
+    for r in ctx.records:
+        if r.get("status") == "ok":
+            det = ctx.run.details.get((str(r.get("case_id")), int(r.get("repetition") or 0)))
+            if det:
+                out.append((r, det))
+    return out
+
+
 def _fig_infsup(ctx: _Ctx):
     from matplotlib.lines import Line2D
 
-    ok_keys = {(str(r.get("case_id")), int(r.get("repetition") or 0)): r
-               for r in ctx.records if r.get("status") == "ok"}
-    have = []
-    for key, r in ok_keys.items():
-        det = ctx.run.details.get(key)
-        if det and _beta_series(det):
-            have.append((r, det))
+    have = [(r, det) for r, det in _ok_details(ctx) if _beta_series(det)]
     if not have:
         raise _Skip("no ok case with per-mu inf-sup constants (details.per_mu.beta)")
     panels: dict[tuple[str, str], list[tuple[dict, dict]]] = {}
@@ -904,13 +906,7 @@ def _fig_histories(ctx: _Ctx):
             ("sigma_max", "PGA iteration (vectors added so far)",
              "sigma_max over the training set", 0),
             ("eim_error", "EIM magic rows M", "EIM training error of B(mu) Z", 1)]
-    ok = []
-    for r in ctx.records:
-        if r.get("status") != "ok":
-            continue
-        det = ctx.run.details.get((str(r.get("case_id")), int(r.get("repetition") or 0)))
-        if det and det.get("histories"):
-            ok.append((r, det))
+    ok = [(r, det) for r, det in _ok_details(ctx) if det.get("histories")]
     found = {name: {sc: _pick_history([p for p in ok if str(p[0].get("scene")) == sc], name)
                     for sc in ctx.scenes} for name, *_ in hist}
     if not any(v for per in found.values() for v in per.values()):
@@ -1196,6 +1192,17 @@ _TITLES = {"pareto": "Error against online time (Pareto fronts)",
            "status": "Status counts"}
 
 
+def _md_table(headers: Sequence[Any], rows: Sequence[Sequence[Any]]) -> list[str]:
+    """The lines of a Markdown table (``|`` escaped, newlines as spaces in the cells)."""
+
+    def line(cells: Sequence[Any]) -> str:
+        return "| " + " | ".join(str(c).replace("|", "\\|").replace("\n", " ")
+                                 for c in cells) + " |"
+
+    return [line(headers), "|" + "|".join(" --- " for _ in headers) + "|",
+            *(line(r) for r in rows)]
+
+
 class _Doc:
     """Builds the Markdown and HTML summaries side by side."""
 
@@ -1221,13 +1228,7 @@ class _Doc:
         self.html.append(f'<p><img src="{html.escape(src)}" alt="{html.escape(alt)}"></p>')
 
     def table(self, headers: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
-        def cell(s: str) -> str:
-            return str(s).replace("|", "\\|").replace("\n", " ")
-
-        lines = ["| " + " | ".join(cell(h) for h in headers) + " |",
-                 "|" + "|".join(" --- " for _ in headers) + "|"]
-        lines += ["| " + " | ".join(cell(c) for c in r) + " |" for r in rows]
-        self.md.append("\n".join(lines) + "\n")
+        self.md.append("\n".join(_md_table(headers, rows)) + "\n")
         head = "".join(f"<th>{html.escape(str(h))}</th>" for h in headers)
         body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r)
                        + "</tr>" for r in rows)
@@ -1475,8 +1476,8 @@ def compare(a: str | Path, b: str | Path, threshold: float = 0.1,
     A = _records(load_results(a, notes))
     B = _records(load_results(b, notes))
     everything = A + B
-    vary = [c for c in ("backend", "formulation", "solver", "primal", "params",
-                        "scene_overrides") if c in _varying(everything, (c,))]
+    vary = _varying(everything, ("backend", "formulation", "solver", "primal", "params",
+                                 "scene_overrides"))
 
     def name(r: dict[str, Any]) -> str:
         parts = [str(r.get("scene"))]
@@ -1624,12 +1625,9 @@ def format_compare(result: CompareResult) -> str:
             lines.append("none")
             lines.append("")
             return
-        lines.append("| case | quantity | A | B | change |")
-        lines.append("| --- | --- | --- | --- | --- |")
-        for x in recs:
-            cells = [x["case"], x["quantity"], _fmt(x["a"]), _fmt(x["b"]), x["change"]]
-            lines.append("| " + " | ".join(str(c).replace("|", "\\|").replace("\n", " ")
-                                           for c in cells) + " |")
+        lines.extend(_md_table(["case", "quantity", "A", "B", "change"],
+                               [[x["case"], x["quantity"], _fmt(x["a"]), _fmt(x["b"]),
+                                 x["change"]] for x in recs]))
         lines.append("")
 
     table("regression", "Regressions")

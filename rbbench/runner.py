@@ -38,6 +38,7 @@ from rbbench import schema
 from rbbench.matrix import Case, Matrix
 from rbbench.output import _jsonable
 from rbbench.registry import NotInstalledError, Registry, default_registry
+from rbbench.snapshots import _atomic_write
 
 __all__ = ["CaseTimeout", "RunSummary", "execute_case", "load_rows", "run_matrix"]
 
@@ -76,17 +77,14 @@ def _threads() -> str:
 def _provenance() -> dict[str, Any]:
     """Versions, git sha, machine and threads: the same for every row of a process (computed
     once; callers copy it into rows, never mutate it)."""
-    import scipy
+    import importlib.metadata as md
 
     from rbbench.output import provenance
 
     p = provenance()
-    versions = {"numpy": np.__version__, "scipy": scipy.__version__,
-                "python": platform.python_version()}
+    versions = {k: p[k] for k in ("numpy", "scipy", "python")}
     for mod in ("skfem", "daqp", "ngsolve", "petsc4py"):
         with contextlib.suppress(Exception):
-            import importlib.metadata as md
-
             versions[mod] = md.version({"skfem": "scikit-fem"}.get(mod, mod))
     return {"rbbench_version": p["rbbench"], "git_sha": p["git_sha"] or "",
             "versions": json.dumps(versions, sort_keys=True),
@@ -96,7 +94,7 @@ def _provenance() -> dict[str, Any]:
 
 
 def base_row(case: Case, run_id: str, executor: str) -> dict[str, Any]:
-    """The identity and component columns of a case's row."""
+    """The identity, component and provenance columns of a case's row."""
     c = case.components
     return {"run_id": run_id, "case_id": case.case_id, "repetition": case.repetition,
             "seed": case.seed, "mode": case.mode, "scene": case.scene,
@@ -105,7 +103,8 @@ def base_row(case: Case, run_id: str, executor: str) -> dict[str, Any]:
                                          "stabilizer", "hyper")},
             "executor": executor, "params": json.dumps(case.params, sort_keys=True),
             "N_req": case.N, "R_req": case.R,
-            "started_at": datetime.now(timezone.utc).isoformat(timespec="seconds")}
+            "started_at": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            **_provenance()}
 
 
 def _peak_rss_mb() -> float:
@@ -142,36 +141,19 @@ def execute_case(case: Case, run_id: str, cache_dir: str, executor: str = "seria
     missing); ``timeout`` (:class:`CaseTimeout`); ``error`` (any other exception,
     with its traceback).
     """
-    from rbbench.rb_pipeline import DivergedError, reduce
+    from rbbench.rb_pipeline import DivergedError
     from rbbench.scene import load_scene
     from rbbench.snapshots import SnapshotError
 
     t0 = time.perf_counter()
     row = base_row(case, run_id, executor)
-    row.update(_provenance())
     details: dict[str, Any] = {}
     try:
         scene = load_scene(case.base_scene, case.overrides)
         if case.mode == "hf":
             _execute_hf(case, scene, row, registry)
-            row["t_case_s"] = time.perf_counter() - t0
-            row["peak_rss_mb"] = _peak_rss_mb()
-            return {"row": schema.normalise_row(row), "details": {}}
-        res = reduce(scene, case.reduce_config(cache_dir), progress=progress or _quiet,
-                     registry=registry)
-        s = res.summary()
-        _fill(row, s)
-        stops = s.get("online_stops", {})
-        bad_stops = {k: v for k, v in stops.items() if not k.startswith("converged")}
-        if not _finite(s):
-            row.update(status="diverged", reason="non-finite reduced errors or online time")
-        elif bad_stops:
-            row.update(status="diverged", reason=f"online solves did not converge: {bad_stops}")
         else:
-            row.update(status="ok", reason="")
-        details = {"per_mu": s.get("per_mu", {}), "histories": s.get("histories", {}),
-                   "valid_mus": np.asarray(res.valid_mus).tolist(),
-                   "timings": s.get("timings", {})}
+            details = _execute_rb(case, scene, row, cache_dir, registry, progress)
     except CaseTimeout:
         row.update(status="timeout", reason=f"exceeded the case limit of {case.timeout_s:g} s")
     except NotInstalledError as exc:
@@ -190,6 +172,28 @@ def execute_case(case: Case, run_id: str, cache_dir: str, executor: str = "seria
 
 def _quiet(msg: str) -> None:
     return None
+
+
+def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Registry | None,
+                progress: Callable[[str], None] | None) -> dict[str, Any]:
+    """Mode rb: the reduction and its online validation; fills the row's columns and
+    status and returns the case's details (per-mu values, histories, validation mus)."""
+    from rbbench.rb_pipeline import reduce
+
+    res = reduce(scene, case.reduce_config(cache_dir), progress=progress or _quiet,
+                 registry=registry)
+    s = res.summary()
+    _fill(row, s)
+    stops = s.get("online_stops", {})
+    bad_stops = {k: v for k, v in stops.items() if not k.startswith("converged")}
+    if not _finite(s):
+        row.update(status="diverged", reason="non-finite reduced errors or online time")
+    elif bad_stops:
+        row.update(status="diverged", reason=f"online solves did not converge: {bad_stops}")
+    else:
+        row.update(status="ok", reason="")
+    return {"per_mu": s.get("per_mu", {}), "histories": s.get("histories", {}),
+            "valid_mus": np.asarray(res.valid_mus).tolist(), "timings": s.get("timings", {})}
 
 
 def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) -> None:
@@ -219,7 +223,6 @@ def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) ->
 def decided_row(case: Case, run_id: str, executor: str) -> dict[str, Any]:
     """The row of a case decided without running it (skip / not_installed)."""
     row = base_row(case, run_id, executor)
-    row.update(_provenance())
     row.update(status=case.status, reason=case.reason, t_case_s=0.0)
     return {"row": schema.normalise_row(row), "details": {}}
 
@@ -228,16 +231,13 @@ def failed_row(case: Case, run_id: str, executor: str, status: str, reason: str,
                tb: str = "") -> dict[str, Any]:
     """The row of a case that the executor itself lost (killed, crashed)."""
     row = base_row(case, run_id, executor)
-    row.update(_provenance())
     row.update(status=status, reason=reason, traceback=tb or None)
     return {"row": schema.normalise_row(row), "details": {}}
 
 
 # ------------------------------------------------------------------------- persistence
 def _atomic_write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    _atomic_write(path, lambda fh: fh.write(text.encode()))
 
 
 def load_rows(out_dir: Path) -> dict[str, dict]:
@@ -268,13 +268,9 @@ def write_table(out_dir: Path, records: Iterable[dict], csv: bool = False) -> Pa
             df[c.name] = df[c.name].astype("string")
     df = df.sort_values(["scene", "case_id", "repetition"], kind="stable").reset_index(drop=True)
     path = Path(out_dir) / "results.parquet"
-    tmp = path.with_name(".results.parquet.tmp")
-    df.to_parquet(tmp, index=False)
-    os.replace(tmp, path)
+    _atomic_write(path, lambda fh: df.to_parquet(fh, index=False))
     if csv:
-        tmpc = path.with_name(".results.csv.tmp")
-        df.to_csv(tmpc, index=False)
-        os.replace(tmpc, path.with_name("results.csv"))
+        _atomic_write(path.with_name("results.csv"), lambda fh: df.to_csv(fh, index=False))
     return path
 
 
