@@ -23,7 +23,7 @@ from typing import Any
 
 from rbbench.matrix import Case
 from rbbench.runner import CaseTimeout, alarm, execute_case, failed_row
-from rbbench.snapshots import _n_cpus
+from rbbench.snapshots import n_cpus
 
 OnResult = Callable[[Case, dict], None]
 OnStage = Callable[[str], None]
@@ -34,7 +34,7 @@ def _jobs(jobs: int | None) -> int:
         if int(jobs) < 1:
             raise ValueError(f"executor: jobs = {jobs}; give an integer >= 1")
         return int(jobs)
-    return max(1, _n_cpus())
+    return max(1, n_cpus())
 
 
 def _timeout_row(case: Case, run_id: str, name: str, killed: bool = True) -> dict:

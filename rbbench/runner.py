@@ -38,7 +38,7 @@ from rbbench import schema
 from rbbench.matrix import Case, Matrix
 from rbbench.output import _jsonable
 from rbbench.registry import NotInstalledError, Registry, default_registry
-from rbbench.snapshots import _atomic_write
+from rbbench.snapshots import atomic_write
 
 __all__ = ["CaseTimeout", "RunSummary", "execute_case", "load_rows", "run_matrix"]
 
@@ -237,7 +237,7 @@ def failed_row(case: Case, run_id: str, executor: str, status: str, reason: str,
 
 # ------------------------------------------------------------------------- persistence
 def _atomic_write_text(path: Path, text: str) -> None:
-    _atomic_write(path, lambda fh: fh.write(text.encode()))
+    atomic_write(path, lambda fh: fh.write(text.encode()))
 
 
 def load_rows(out_dir: Path) -> dict[str, dict]:
@@ -268,9 +268,9 @@ def write_table(out_dir: Path, records: Iterable[dict], csv: bool = False) -> Pa
             df[c.name] = df[c.name].astype("string")
     df = df.sort_values(["scene", "case_id", "repetition"], kind="stable").reset_index(drop=True)
     path = Path(out_dir) / "results.parquet"
-    _atomic_write(path, lambda fh: df.to_parquet(fh, index=False))
+    atomic_write(path, lambda fh: df.to_parquet(fh, index=False))
     if csv:
-        _atomic_write(path.with_name("results.csv"), lambda fh: df.to_csv(fh, index=False))
+        atomic_write(path.with_name("results.csv"), lambda fh: df.to_csv(fh, index=False))
     return path
 
 

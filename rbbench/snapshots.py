@@ -40,8 +40,9 @@ from rbbench.hf import make_components, solve_hf
 from rbbench.registry import default_registry
 from rbbench.scene import key_data
 
-__all__ = ["Snapshot", "SnapshotError", "SnapshotSet", "cache_path", "compute_snapshots",
-           "limit_blas_threads", "load_snapshot", "save_snapshot", "snapshot_key"]
+__all__ = ["Snapshot", "SnapshotError", "SnapshotSet", "atomic_write", "cache_path",
+           "compute_snapshots", "limit_blas_threads", "load_snapshot", "n_cpus",
+           "save_snapshot", "snapshot_key"]
 
 #: Parts of the scene data that cannot change a snapshot (excluded from the key).
 _NOT_IN_KEY = ("sampling", "reference")
@@ -201,10 +202,16 @@ def cache_path(cache_dir: Path | str, key: str, mu: np.ndarray) -> Path:
     return Path(cache_dir) / key / _mu_name(mu)
 
 
-def _atomic_write(path: Path, write) -> None:
+def atomic_write(path: Path, write) -> None:
+    """Write ``path`` atomically: ``write(fh)`` fills a temporary file in the same
+    directory, flushed to disk, then renamed over ``path`` (removed on failure). The file
+    gets the usual permissions (``0o666`` less the umask), as ``open`` would give."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    umask = os.umask(0)
+    os.umask(umask)
     try:
+        os.fchmod(fd, 0o666 & ~umask)
         with os.fdopen(fd, "wb") as fh:
             write(fh)
             fh.flush()
@@ -228,7 +235,7 @@ def save_snapshot(path: Path, snap: Snapshot) -> None:
                  free=np.asarray(snap.free if snap.free is not None else [], dtype=np.int64),
                  n_dofs=np.int64(snap.n_dofs))
 
-    _atomic_write(path, write)
+    atomic_write(path, write)
 
 
 def load_snapshot(path: Path) -> Snapshot:
@@ -385,7 +392,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
 
     snaps: list[Snapshot | None] = [_try_load(p, mu) for p, mu in zip(paths, mus, strict=True)]
     todo = [i for i, s in enumerate(snaps) if s is None]
-    n_jobs = _n_cpus() if n_jobs is None else int(n_jobs)
+    n_jobs = n_cpus() if n_jobs is None else int(n_jobs)
     n_jobs = max(1, min(n_jobs, len(todo)))
     if todo:  # unknown component names fail here, not once per parameter in the workers
         reg = registry or default_registry()
@@ -405,7 +412,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
                     bar.update()
         elif todo:
             ctx = multiprocessing.get_context(mp_context) if mp_context else None
-            threads = max(1, _n_cpus() // n_jobs) if blas_threads is None \
+            threads = max(1, n_cpus() // n_jobs) if blas_threads is None \
                 else int(blas_threads)
             with ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
                                      initargs=(scene, names, solver_options, threads,
@@ -442,7 +449,8 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     return out
 
 
-def _n_cpus() -> int:
+def n_cpus() -> int:
+    """The number of CPUs this process may run on."""
     try:
         return len(os.sched_getaffinity(0))  # the CPUs this process may use
     except AttributeError:  # pragma: no cover - not on Linux
@@ -467,7 +475,7 @@ def _write_key_file(folder: Path, scene: Any, payload: dict[str, Any]) -> None:
         return
     payload = {**payload, "scene_path": str(scene.path), "overrides": list(scene.overrides)}
     text = json.dumps(payload, sort_keys=True, indent=1, default=str).encode()
-    _atomic_write(path, lambda fh: fh.write(text))
+    atomic_write(path, lambda fh: fh.write(text))
 
 
 def _assemble(mus: np.ndarray, snaps: list[Snapshot | None], key: str, root: Path,
