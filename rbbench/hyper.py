@@ -147,8 +147,11 @@ def restrict_layout(layout: ContactLayout, facets: np.ndarray, mus: np.ndarray,
     that window (:func:`~rbbench.contact_geometry.window_tangent_ranges`, once: a
     similarity map keeps them). ``None`` for a rigid plane.
 
-    Raises ``ValueError`` for ``integration = "segmented"`` (mu-dependent points).
+    Raises ``ValueError`` for ``integration = "segmented"`` (mu-dependent points), and
+    with ``with_stress`` when the layout has no slave stress data.
     """
+    if with_stress and layout.stress is None:
+        raise ValueError("the contact layout has no slave stress data (Snn)")
     if layout.integration != "gauss" and layout.master is not None:
         raise ValueError("hyper-reduction (EIM / ECSW rows) needs fixed contact points: "
                          f"[discretization] contact_integration = {layout.integration!r} "

@@ -39,6 +39,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from rbbench.contact_geometry import gauss_legendre_01, normal_stress, pair
 from rbbench.interfaces import NitscheProblem
 
 __all__ = ["NitscheState", "ac_residual", "ac_residual_nodal", "ac_residual_variants",
@@ -156,11 +157,9 @@ def _facet_operators(layout, mu: np.ndarray, s_local: np.ndarray):
     instead of the contact quadrature; ``Snn`` is the stress of the slave element
     adjacent to each facet. Also returns the physical facet lengths ``L``.
     """
-    from rbbench import contact_geometry as cg
-
     s_local = np.asarray(s_local, dtype=float)
-    p = cg.pair(layout, mu, local=(s_local, np.ones(s_local.size)))
-    return (p.jump(p.nrm, layout.n_dofs), p.gap, cg.normal_stress(layout, p, mu), p.fq,
+    p = pair(layout, mu, local=(s_local, np.ones(s_local.size)))
+    return (p.jump(p.nrm, layout.n_dofs), p.gap, normal_stress(layout, p, mu), p.fq,
             np.linalg.norm(p.b - p.a, axis=1))
 
 
@@ -203,7 +202,7 @@ def ac_residual_variants(layout, prob: NitscheProblem, u: np.ndarray, mu,
     g0E = float(prob.gamma0) * float(prob.E)
     out = {"quad": ac_residual(prob, u[prob.free])}
     # L2 of the FE functions
-    sg, wg = _gauss_01(n_points)
+    sg, wg = gauss_legendre_01(n_points)
     Un, gap, Snn, fq, L = _facet_operators(layout, mu, sg)
     s = Snn @ u
     r = s - np.minimum(s - g0E / L[fq] * (Un @ u - gap), 0.0)
@@ -226,9 +225,3 @@ def ac_residual_variants(layout, prob: NitscheProblem, u: np.ndarray, mu,
     nodal = acc[keep] / cnt[keep, None]
     out["nodal"] = ac_residual_nodal(nodal[:, 0], nodal[:, 1], g0E / nodal[:, 2])
     return out
-
-
-def _gauss_01(n: int) -> tuple[np.ndarray, np.ndarray]:
-    from rbbench.contact_geometry import gauss_legendre_01
-
-    return gauss_legendre_01(n)

@@ -70,15 +70,10 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.contact_geometry import (
-    ContactLayout,
-    contact_operators,
-    normal_stress,
-    normal_stress_terms,
-)
+from rbbench.contact_geometry import ContactLayout, contact_operators, normal_stress_terms
 from rbbench.eim import deim
 from rbbench.hyper import HyperReductionError, pair_in_windows, restrict_layout
-from rbbench.nitsche import gamma_scaling
+from rbbench.nitsche import gamma_scaling, pressure, state
 from rbbench.reduced import AffineOperator, LinearInMu, NotAffineError, affine_decomposition
 
 __all__ = ["NitscheOnlineResult", "NitscheReducedModel", "PointEvaluator", "ReducedPoints",
@@ -163,7 +158,8 @@ def full_points(layout: ContactLayout, mu: np.ndarray, Zfull: np.ndarray, u_lift
 # ---------------------------------------------------------------------------
 @dataclass
 class PointEvaluator:
-    """Rows of ``Un``, ``Snn``, gap, weights, facet lengths at some quadrature points.
+    """Rows of ``Un``, ``Snn``, gap, weights, facet lengths at some quadrature points,
+    projected on a local basis by :meth:`project`.
 
     Attributes
     ----------
@@ -187,25 +183,11 @@ class PointEvaluator:
     points: np.ndarray
     local_dofs: np.ndarray
 
-    def _pair(self, mu: np.ndarray):
-        return pair_in_windows(self.layout, mu, self.windows, "a magic point")
-
-    def __call__(self, mu: np.ndarray) -> tuple[Any, Any, np.ndarray, np.ndarray, np.ndarray,
-                                                float]:
-        """``(Un, Snn, gap, w, h, E)`` at mu; ``Un``, ``Snn`` sparse (n_p x n_local)."""
-        p = self._pair(mu)
-        sel = self.select
-        n = self.local_dofs.size
-        Un = p.jump(p.nrm, n)[sel]
-        Snn = normal_stress(self.layout, p, mu)[sel]
-        h = np.linalg.norm(p.b - p.a, axis=1)[p.fq][sel]
-        return Un, Snn, p.gap[sel], p.w[sel], h, self.layout.stress.material(mu)[0]
-
     def project(self, mu: np.ndarray, Z_loc: np.ndarray, lift_loc: np.ndarray, gamma0: float
                 ) -> ReducedPoints:
         """The points at mu projected on ``Z_loc`` (n_local, N), without forming matrices:
         each row is gathered from its few dofs (O(n_p x dofs per point x N))."""
-        p = self._pair(mu)
+        p = pair_in_windows(self.layout, mu, self.windows, "a magic point")
         sel = self.select
         terms = [(c[sel], d[sel]) for c, d in p.jump_terms(p.nrm)]
         cs, ds = normal_stress_terms(self.layout.stress, self.layout.slave, self.layout.degree,
@@ -229,8 +211,6 @@ def build_point_evaluator(layout: ContactLayout, points: np.ndarray, mus: np.nda
     dense sample of D), widened by ``margin``; online, a point leaving its window
     raises :class:`~rbbench.hyper.HyperReductionError`.
     """
-    if layout.stress is None:
-        raise ValueError("the contact layout has no slave stress data (Snn)")
     points = np.asarray(points, dtype=np.int64)
     ng = layout.n_gauss
     facets = np.unique(points // ng)
@@ -531,18 +511,18 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
     replaced by the formulation's (``newton``). Returns a
     :class:`rbbench.rb_pipeline.ReduceResult`.
     """
-    from rbbench import nitsche as nt
     from rbbench.hf import ProblemCache, default_solver, make_components
     from rbbench.rb_pipeline import (
         DivergedError,
         ReduceResult,
         _check_finite,
+        _xn,
+        eim_grid,
         fixed_contact_points,
         primal_basis,
         training_snapshots,
     )
     from rbbench.registry import default_registry
-    from rbbench.sampling import parameter_set
 
     reg = registry or default_registry()
     if config.hyper == "affine":
@@ -583,18 +563,11 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
 
     t1 = time.perf_counter()
     progress("affine decomposition of A_N, F_N (verified by probing)")
-    cache: dict[bytes, tuple] = {}
-
-    def at(mu):
-        key = np.asarray(mu, dtype=float).tobytes()
-        if key not in cache:
-            p = problem_at(mu)
-            cache[key] = (Z.T @ (p.A @ Z), Z.T @ p.F)
-        return cache[key]
-
-    try:
-        A_op = AffineOperator(affine_decomposition(lambda mu: at(mu)[0], scene.bounds))
-        F_op = AffineOperator(affine_decomposition(lambda mu: at(mu)[1], scene.bounds))
+    try:  # problem_at caches the HF problem at each probe
+        A_op = AffineOperator(affine_decomposition(lambda mu: Z.T @ (problem_at(mu).A @ Z),
+                                                   scene.bounds))
+        F_op = AffineOperator(affine_decomposition(lambda mu: Z.T @ problem_at(mu).F,
+                                                   scene.bounds))
     except NotAffineError as exc:
         raise ValueError(f"reduced Nitsche model: A_N or F_N is {exc}") from None
     coef = LinearInMu(np.asarray(scene.bounds).shape[0])
@@ -602,10 +575,7 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
 
     # ---- plain reduced Newton iterates: the hyper-reduction's training data ----
     t1 = time.perf_counter()
-    lo, hi = scene.bounds[:, 0], scene.bounds[:, 1]
-    n_grid = config.n_eim_train or 2 * (len(mus_train) - 1) + 1
-    grid = lo + np.linspace(0.0, 1.0, n_grid)[:, None] * (hi - lo) if len(lo) == 1 else \
-        parameter_set(scene, "train", n_grid)
+    grid = eim_grid(scene, config, len(mus_train), per_interval=2)
     c_hf_train = (Z.T @ (X @ train.U)).T  # projections (X-orthonormal Z), (P, N)
     plain_c = np.zeros_like(c_hf_train)
     progress(f"plain reduced Newton on {len(mus_train)} training + {len(grid)} grid parameters")
@@ -647,12 +617,15 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
         progress("empirical cubature (ECSW) at the contact points")
         H = np.zeros((nq, nq))
         g = np.zeros(nq)
+        n_sums = 0  # b^T b: each non-zero training sum is scaled to norm 1
         for Y in Ysnap:  # rows of G: the N entries of one training sum, scaled to norm 1
             bj = Y.sum(axis=0)
-            sc = float(np.linalg.norm(bj)) or 1.0
+            nb = float(np.linalg.norm(bj))
+            n_sums += nb > 0
+            sc = nb or 1.0
             H += (Y @ Y.T) / sc**2
             g += (Y @ bj) / sc**2
-        bb = float(sum(1.0 for Y in Ysnap if np.linalg.norm(Y.sum(axis=0)) > 0)) or 1.0
+        bb = float(n_sums) or 1.0
         cap = config.m_eim or ECSW_POINTS_PER_MODE * N
         omega, errors = sparse_nnls(H, g, bb, tol=config.tol_eim, max_terms=cap)
         pts = np.flatnonzero(omega > 0)
@@ -724,9 +697,9 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
         uN = Z @ res.c
         err_u.append(float(np.sqrt(_xn(X, u - uN) / _xn(X, u))))
         w = p.weights
-        pu, pN = nt.pressure(p, u), nt.pressure(p, uN)
+        pu, pN = pressure(p, u), pressure(p, uN)
         err_p.append(_l2rel(w, pu - pN, pu))
-        su, sN = nt.state(p, u).s, nt.state(p, uN).s
+        su, sN = state(p, u).s, state(p, uN).s
         err_s.append(_l2rel(w, su - sN, su))
         pen.append(float(max(0.0, np.max(p.Un @ uN - p.gap))))
         J = 0.5 * u @ (p.A @ u) - p.F @ u
@@ -778,10 +751,6 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
         t_hf=[float(t) for t in np.concatenate([train.times, valid.times])],
         timings=timings, histories=histories, definitions=DEFINITIONS, model=model,
         valid_mus=np.asarray(valid.mus))
-
-
-def _xn(X, v: np.ndarray) -> float:
-    return float(v @ (X @ v))
 
 
 def _l2rel(w: np.ndarray, diff: np.ndarray, ref: np.ndarray) -> float:

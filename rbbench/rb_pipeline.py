@@ -18,7 +18,7 @@ import numpy as np
 
 from rbbench import infsup as inf
 from rbbench.compressors import pga_default_delta
-from rbbench.hf import ProblemCache, make_components
+from rbbench.hf import ProblemCache, discretize_for, make_components
 from rbbench.reduced import (
     ONLINE_METHODS,
     NotAffineError,
@@ -68,16 +68,17 @@ class ReduceConfig:
     online_method: str = "daqp"  # reduced saddle-point solver: daqp (QP) or pdas (LCP)
     backend_options: dict = field(default_factory=dict)  # e.g. NGSolve {"mesh": "skfem"}
     formulation_options: dict = field(default_factory=dict)  # e.g. Nitsche {"gamma0": 1.0}
+    exact_max_r: int = 10
+    tol_eim: float = 1e-4
+    m_eim: int | None = None
+    n_eim_train: int | None = None  # default: 4 (n_train - 1) + 1 grid points (+ training);
+    # Nitsche: 2 (n_train - 1) + 1 (rbbench.nitsche_reduced)
 
     @property
     def component_options(self) -> dict:
         """``{"backend": ..., "formulation": ...}`` for :func:`rbbench.hf.make_components`."""
         return {"backend": dict(self.backend_options),
                 "formulation": dict(self.formulation_options)}
-    exact_max_r: int = 10
-    tol_eim: float = 1e-4
-    m_eim: int | None = None
-    n_eim_train: int | None = None  # default: 4 (n_train - 1) + 1 grid points (+ training)
 
     def __post_init__(self) -> None:
         # component names are checked against the registry in reduce(); here only what
@@ -319,7 +320,6 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
         lam = valid.LAM[:, j]
         if model is not None:
             Zu = Z_off
-            arrays = model.arrays(mu)
             runs = []
             for _ in range(config.online_repeats):
                 res = model.solve(mu, method=config.online_method)
@@ -328,7 +328,7 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
             # the plain model's online step starts from the HF operators at mu: time a
             # fresh assembly (the cached problem serves the error evaluation)
             ta = time.perf_counter()
-            p_fresh = f.build(b.discretize(mu))
+            p_fresh = f.build(discretize_for(b, f, mu))
             Zu = Z_off
             if stabilizer.online:
                 Zu = stabilizer.online_basis(Z_off, Vg, X, x_solve, p_fresh.B)
@@ -435,15 +435,22 @@ def fixed_contact_points(scene: Scene, hyper: str, plain_ok: bool = True) -> boo
     return False
 
 
-def eim_training_set(scene: Scene, config: ReduceConfig, mus_train: np.ndarray) -> np.ndarray:
-    """The EIM training set: the snapshot parameters plus a uniform grid of D of
-    ``n_eim_train`` points (default 4 (n_train - 1) + 1). Only the contact operators are
-    evaluated there (no HF solve), so it can be much denser (seed: 61, 150)."""
+def eim_grid(scene: Scene, config: ReduceConfig, n_train: int, per_interval: int = 4
+             ) -> np.ndarray:
+    """``config.n_eim_train`` parameters (default ``per_interval (n_train - 1) + 1``): a
+    uniform grid of D for one parameter, else the scene's training sampling."""
     lo, hi = scene.bounds[:, 0], scene.bounds[:, 1]
-    n_grid = config.n_eim_train or 4 * (len(mus_train) - 1) + 1
-    grid = lo + np.linspace(0.0, 1.0, n_grid)[:, None] * (hi - lo) if len(lo) == 1 else \
-        parameter_set(scene, "train", n_grid)
-    return np.vstack([np.asarray(mus_train), grid])
+    n_grid = config.n_eim_train or per_interval * (n_train - 1) + 1
+    if len(lo) == 1:
+        return lo + np.linspace(0.0, 1.0, n_grid)[:, None] * (hi - lo)
+    return parameter_set(scene, "train", n_grid)
+
+
+def eim_training_set(scene: Scene, config: ReduceConfig, mus_train: np.ndarray) -> np.ndarray:
+    """The EIM training set: the snapshot parameters plus :func:`eim_grid` (default
+    4 (n_train - 1) + 1 points). Only the contact operators are evaluated there (no HF
+    solve), so it can be much denser (seed: 61, 150)."""
+    return np.vstack([np.asarray(mus_train), eim_grid(scene, config, len(mus_train))])
 
 
 def primal_basis(reg: Registry, config: ReduceConfig, U: np.ndarray, X: Any,

@@ -135,8 +135,9 @@ def beta_dec_study(scene: Scene | str, dual: str = "mcpg", R: int | Sequence[int
         Registered primal compressor; nested ones (``capabilities["nested"]``) are run
         once and truncated.
     delta_pga : float, optional
-        PGA tolerance; default :func:`rbbench.compressors.pga_default_delta` on every
-        fifth training parameter (the rule of ``rbbench reduce``), computed per ``R``.
+        PGA tolerance; default :func:`rbbench.compressors.pga_default_delta` with its
+        defaults (half the smallest ratio) on every fifth training parameter (the probes of
+        ``rbbench reduce``, which takes the largest ratio), computed per ``R``.
     exact_max_r, n_starts : int
         Passed to :func:`rbbench.infsup.infsup_cone` (exact face enumeration up to
         ``exact_max_r`` generators, ~0.7 s per call at R = 16).
@@ -217,9 +218,10 @@ def beta_dec_study(scene: Scene | str, dual: str = "mcpg", R: int | Sequence[int
         else:
             delta = float(delta_pga)
         say(f"PGA for N in {Ns[0]}..{Ns[-1]} (delta = {delta:.3g})")
+        Z_dec: dict[int, np.ndarray] = {}  # once per N (a non-nested primal recompresses)
         Z_off: dict[int, np.ndarray] = {}
         for N in Ns:
-            Z = basis(N)
+            Z = Z_dec[N] = basis(N)
             res = pga(T_list, Z, X, delta)
             Z_off[N] = np.hstack([Z, res.basis])
             pga_info[(R_req, N)] = {"delta": delta, "stop": res.stop_reason, "K": res.dim,
@@ -244,7 +246,7 @@ def beta_dec_study(scene: Scene | str, dual: str = "mcpg", R: int | Sequence[int
                 d["c"][j] = inf.boundedness_constant(S_on, M_on)
                 kinds["on"].add(k)
                 for i, N in enumerate(Ns):
-                    for tag, Y in (("dec", basis(N)), ("off", Z_off[N])):
+                    for tag, Y in (("dec", Z_dec[N]), ("off", Z_off[N])):
                         S, M = inf.quotient_matrices(p.B, X, Vg, p.W, Z=Y)
                         v, k, sp_, zero = _cone(S, M, Y.T @ BtV, exact_max_r, n_starts)
                         d[f"{tag}_cone"][i, j], d[f"{tag}_span"][i, j] = v, sp_

@@ -54,7 +54,7 @@ def _breakpoints(P: np.ndarray, dP: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return idx[order], tq[idx][order]
 
 
-def _energy_step(prob: NitscheProblem, u: np.ndarray, d: np.ndarray, st: nt.NitscheState,
+def _energy_step(prob: NitscheProblem, d: np.ndarray, st: nt.NitscheState,
                  R: np.ndarray) -> float:
     """Exact line search on the Nitsche energy (theta = 1) over ``t`` in [0, 1].
 
@@ -174,9 +174,9 @@ class NewtonSolver(Solver):
 
     def _result(self, prob, u, it, reason, why, residuals, t0, extra=None) -> SolveResult:
         ok = np.all(np.isfinite(u))
-        p = nt.pressure(prob, u) if ok else np.full(prob.weights.size, np.nan)
-        lam = nt.project_pressure(prob, p) if ok else np.full(prob.Mlam.shape[1], np.nan)
         st = nt.state(prob, u) if ok else None
+        p = -st.neg if ok else np.full(prob.weights.size, np.nan)  # pressure -[P_gamma]_-
+        lam = nt.project_pressure(prob, p) if ok else np.full(prob.Mlam.shape[1], np.nan)
         info = {"reason": why, "theta": float(prob.theta), "gamma0": float(prob.gamma0),
                 "n_active_points": int(st.active.sum()) if st is not None else None,
                 "lam": "L2 projection of the Nitsche pressure -[P_gamma(u)]_- on the "
@@ -213,50 +213,43 @@ class NewtonSolver(Solver):
         best, failures, it = np.inf, 0, 0
         extra = {"start": start, "steps": steps}
         prev_active, settled = None, 0
+
+        def done(reason: str, why: str) -> SolveResult:  # at the current u and it
+            return self._result(prob, u, it, reason, why, residuals, t0, extra)
+
         while True:
             rel = self._relative(prob, u, R)
             residuals.append(rel)
             if not np.isfinite(rel):
-                return self._result(prob, u, it, "nan", "non-finite residual", residuals, t0,
-                                    extra)
+                return done("nan", "non-finite residual")
             if rel <= self.tol:
-                return self._result(prob, u, it, "converged",
-                                    f"relative residual {rel:.2e} <= tol {self.tol:g}",
-                                    residuals, t0, extra)
+                return done("converged", f"relative residual {rel:.2e} <= tol {self.tol:g}")
             same = prev_active is not None and np.array_equal(prev_active, st.active)
             settled = settled + 1 if same and steps and steps[-1] == 1.0 else 0
             stuck = settled >= 2 and rel >= 0.1 * residuals[-2]
             if stuck and rel <= FLOOR_TOL:
-                return self._result(prob, u, it, "converged",
-                                    f"active set settled, relative residual {rel:.2e} at the "
-                                    f"rounding floor (<= {FLOOR_TOL:g}; tol {self.tol:g} not "
-                                    "reachable: ill-conditioned tangent)", residuals, t0, extra)
+                return done("converged", f"active set settled, relative residual {rel:.2e} at "
+                            f"the rounding floor (<= {FLOOR_TOL:g}; tol {self.tol:g} not "
+                            "reachable: ill-conditioned tangent)")
             if stuck and settled >= 4:
-                return self._result(prob, u, it, "diverged",
-                                    f"active set settled but the relative residual stagnates at "
-                                    f"{rel:.2e} > {FLOOR_TOL:g}: the tangent is too "
-                                    f"ill-conditioned (gamma0 = {prob.gamma0:g} too large?)",
-                                    residuals, t0, extra)
+                return done("diverged", f"active set settled but the relative residual "
+                            f"stagnates at {rel:.2e} > {FLOOR_TOL:g}: the tangent is too "
+                            f"ill-conditioned (gamma0 = {prob.gamma0:g} too large?)")
             prev_active = st.active
             best = min(best, rel)
             if rel > self.blowup * best:
-                return self._result(prob, u, it, "diverged",
-                                    f"the residual grew {rel / best:.1e} times above its best "
-                                    f"value {best:.2e}", residuals, t0, extra)
+                return done("diverged", f"the residual grew {rel / best:.1e} times above its "
+                            f"best value {best:.2e}")
             if it >= self.max_iter:
-                return self._result(prob, u, it, "max_iterations",
-                                    f"no convergence in {self.max_iter} Newton steps (relative "
-                                    f"residual {rel:.2e})", residuals, t0, extra)
+                return done("max_iterations", f"no convergence in {self.max_iter} Newton steps "
+                            f"(relative residual {rel:.2e})")
             K = nt.tangent(prob, u, st)
             try:
                 d = self._direction(prob, K, R)
             except RuntimeError as exc:  # SuperLU: exactly singular
-                return self._result(prob, u, it, "diverged", f"singular tangent ({exc})",
-                                    residuals, t0, extra)
+                return done("diverged", f"singular tangent ({exc})")
             if not np.all(np.isfinite(d)):
-                return self._result(prob, u, it, "diverged",
-                                    "singular tangent (non-finite Newton direction)",
-                                    residuals, t0, extra)
+                return done("diverged", "singular tangent (non-finite Newton direction)")
             it += 1
             if rel <= FLOOR_TOL:  # near the solution: the full (piecewise exact) step
                 st = nt.state(prob, u + d)
@@ -268,12 +261,10 @@ class NewtonSolver(Solver):
             if theta == 1.0:
                 slope = float(R @ d)
                 if slope >= 0.0:
-                    return self._result(
-                        prob, u, it, "diverged",
-                        "the Newton direction is not a descent direction of the Nitsche "
-                        f"energy: the tangent is not positive definite (gamma0 = "
-                        f"{prob.gamma0:g} is too small for theta = 1)", residuals, t0, extra)
-                t = _energy_step(prob, u, d, st, R)
+                    return done("diverged", "the Newton direction is not a descent direction "
+                                "of the Nitsche energy: the tangent is not positive definite "
+                                f"(gamma0 = {prob.gamma0:g} is too small for theta = 1)")
+                t = _energy_step(prob, d, st, R)
             else:
                 t = _residual_step(prob, d, st, R)
             st_new = nt.state(prob, u + t * d)
@@ -285,10 +276,8 @@ class NewtonSolver(Solver):
             else:  # no decrease: take the full step (piecewise affine residual)
                 failures += 1
                 if failures >= 3:
-                    return self._result(prob, u, it, "stagnation",
-                                        "the line search found no decrease in 3 successive "
-                                        f"steps (relative residual {rel:.2e})", residuals, t0,
-                                        extra)
+                    return done("stagnation", "the line search found no decrease in 3 "
+                                f"successive steps (relative residual {rel:.2e})")
                 t = 1.0
                 st_new = nt.state(prob, u + d)
                 R_new = nt.residual(prob, u + d, st_new)
