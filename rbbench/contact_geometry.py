@@ -34,6 +34,12 @@ import scipy.sparse as sp
 from rbbench.interfaces import ContactOperators
 
 
+def _theta(mu: np.ndarray) -> np.ndarray:
+    """``theta(mu) = [1, mu_1, ..., mu_p]``: the affine-in-mu scene values are
+    coefficient vectors on it."""
+    return np.concatenate([[1.0], np.atleast_1d(np.asarray(mu, dtype=float))])
+
+
 @lru_cache(maxsize=16)
 def _gauss_legendre_01(n: int) -> tuple[np.ndarray, np.ndarray]:
     x, w = np.polynomial.legendre.leggauss(n)
@@ -225,7 +231,7 @@ class AffineMap:
     shift: np.ndarray
 
     def at(self, mu: np.ndarray) -> tuple[float, np.ndarray]:
-        th = np.concatenate([[1.0], np.atleast_1d(np.asarray(mu, dtype=float))])
+        th = _theta(mu)
         return float(self.scale @ th), self.shift @ th
 
     def __call__(self, mu: np.ndarray, x_hat: np.ndarray) -> np.ndarray:
@@ -346,13 +352,22 @@ class SlaveStress:
 
     def material(self, mu: np.ndarray) -> tuple[float, float]:
         """``(E, nu)`` at mu."""
-        th = np.concatenate([[1.0], np.atleast_1d(np.asarray(mu, dtype=float))])
+        th = _theta(mu)
         return float(self.E @ th), float(self.nu @ th)
 
     def lame(self, mu: np.ndarray) -> tuple[float, float]:
-        """Plane-strain Lame parameters ``(lambda, mu_L)`` at mu."""
-        E, nu = self.material(mu)
-        return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
+        """Plane-strain Lame parameters ``(lambda, mu_L)`` at mu (:func:`lame_parameters`)."""
+        return lame_parameters(*self.material(mu))
+
+
+def lame_parameters(E: float, nu: float) -> tuple[float, float]:
+    """Plane-strain Lame parameters ``(lambda, mu)`` from Young's modulus and Poisson's ratio.
+
+    ``lambda = E nu / ((1 + nu)(1 - 2 nu))``, ``mu = E / (2 (1 + nu))``: the same
+    expressions, in the same floating-point order, as
+    ``skfem.models.elasticity.lame_parameters``.
+    """
+    return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
 
 
 def lagrange_gradients(tri: np.ndarray, x: np.ndarray, degree: int) -> np.ndarray:
@@ -574,9 +589,10 @@ def master_vertex_hits(slave: FacetChain, master: FacetChain, mu: np.ndarray
     ``n(s) = n_a + s (n_b - n_a)`` (the facet normal when constant); the ray
     ``x(s) + t n(s)`` passes through the master vertex ``m`` where
     ``cross(n(s), m - x(s)) = 0``, a quadratic in ``s``. A root counts when the ray
-    cast from ``x(s)`` (:func:`ray_cast`) hits the master facet that ``m`` ends (so
-    vertices behind other facets, or out of reach, are ignored). Shared vertices are
-    tested once per facet; the duplicates give the same cut.
+    cast from ``x(s)`` along the normal :func:`pair` uses there
+    (:meth:`FacetChain.normals_at`; :func:`ray_cast`) hits the master facet that ``m``
+    ends (so vertices behind other facets, or out of reach, are ignored). Shared
+    vertices are tested once per facet; the duplicates give the same cut.
     """
     a, b = slave.map(mu, slave.a), slave.map(mu, slave.b)
     ma, mb = master.map(mu, master.a), master.map(mu, master.b)
@@ -604,9 +620,7 @@ def master_vertex_hits(slave: FacetChain, master: FacetChain, mu: np.ndarray
     if s.size == 0:
         return fi, s
     x = a[fi] + s[:, None] * (b[fi] - a[fi])
-    n = na[fi] + s[:, None] * (nb[fi] - na[fi])
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    seg, _, _ = ray_cast(x, n, ma, mb)
+    seg, _, _ = ray_cast(x, slave.normals_at(mu, fi, s), ma, mb)
     keep = seg == owner[vi]  # the ray ends on that facet, at that end
     return fi[keep], s[keep]
 

@@ -35,6 +35,11 @@ class SceneError(ValueError):
     """A scene file or override is invalid; the message says where and what is valid."""
 
 
+def _parameter_ref(raw: Any) -> str | None:
+    """``NAME`` of a ``"mu.NAME"`` reference, else ``None`` (a constant)."""
+    return raw[3:] if isinstance(raw, str) and raw.startswith("mu.") else None
+
+
 # ---------------------------------------------------------------------------
 # schema
 # ---------------------------------------------------------------------------
@@ -242,29 +247,35 @@ class Scene:
         return self.resolve(raw, mu)
 
     def resolve(self, raw: Any, mu: np.ndarray | None = None) -> Any:
-        if isinstance(raw, str) and raw.startswith("mu."):
-            name = raw[3:]
+        """A raw scene value at ``mu``: a ``"mu.NAME"`` reference becomes the parameter's
+        value (``mu = None``: the default), anything else is returned as is."""
+        name = _parameter_ref(raw)
+        if name is not None:
             mu = self.default_mu if mu is None else np.atleast_1d(mu)
             return float(mu[self.param_names.index(name)])
         return raw
 
-    def affine_coefficients(self, section: str, key: str) -> np.ndarray:
-        """A scalar scene value as coefficients on ``theta = [1, mu_1, ..., mu_p]``.
+    def affine(self, raw: Any) -> np.ndarray:
+        """A raw scalar scene value as coefficients on ``theta = [1, mu_1, ..., mu_p]``.
 
         Scene values are constants or ``"mu.NAME"`` references, so each is
-        affine in mu; ``value(mu) == coefficients @ [1, *mu]``.
+        affine in mu; ``resolve(raw, mu) == affine(raw) @ [1, *mu]``.
         """
-        raw = self.get(section, key)
         coef = np.zeros(1 + len(self.parameters))
-        if isinstance(raw, str) and raw.startswith("mu."):
-            coef[1 + self.param_names.index(raw[3:])] = 1.0
+        name = _parameter_ref(raw)
+        if name is not None:
+            coef[1 + self.param_names.index(name)] = 1.0
         else:
             coef[0] = float(raw)
         return coef
 
+    def affine_coefficients(self, section: str, key: str) -> np.ndarray:
+        """:meth:`affine` of the value ``[section] key``:
+        ``value(section, key, mu) == coefficients @ [1, *mu]``."""
+        return self.affine(self.get(section, key))
+
     def is_parametric(self, section: str, key: str) -> bool:
-        raw = self.get(section, key)
-        return isinstance(raw, str) and raw.startswith("mu.")
+        return _parameter_ref(self.get(section, key)) is not None
 
     def material(self, body: str, mu: np.ndarray | None = None) -> tuple[float, float]:
         table = self.data.get("material", {}).get(body)
@@ -369,8 +380,8 @@ def _err(path: str, where: str, msg: str) -> SceneError:
 
 
 def _check_value(path: str, where: str, f: Field, value: Any, params: dict[str, Parameter]) -> Any:
-    if f.parametric and isinstance(value, str) and value.startswith("mu."):
-        name = value[3:]
+    name = _parameter_ref(value) if f.parametric else None
+    if name is not None:
         if name not in params:
             raise _err(path, where, f"references parameter {name!r}, which is not declared; "
                        f"declared: {', '.join(params) or '(none)'}")

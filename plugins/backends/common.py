@@ -12,9 +12,9 @@ mesh and dof numbering:
   (:func:`facet_chain`);
 * the contact operators at mu with the scene-level error message
   (:func:`halfdisk_contact`), the slave elements behind the normal stress
-  ``Snn`` (:func:`slave_stress`), and the collocation operators of the scalar
-  obstacle problem (:func:`obstacle_contact`);
-* the plane-strain Lame parameters (:func:`lame_parameters`).
+  ``Snn`` (:func:`slave_stress`), the layout and operators of a backend's
+  ``halfdisks`` scenes (the mixin :class:`HalfDiskContact`), and the
+  collocation operators of the scalar obstacle problem (:func:`obstacle_contact`).
 
 Meshes are arrays: ``points`` (n, 2) in reference coordinates, ``facets``
 (n_f, 2) vertex indices of edges, ``triangles`` (n_t, 3).
@@ -282,18 +282,9 @@ def slave_stress(scene: Scene, points: np.ndarray, triangles: np.ndarray,
         pairs = np.stack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]], axis=1)
         dofs.append(edge_dofs(pairs.reshape(-1, 2)).reshape(nf, 3, 2))
     table = scene.data["material"][body]
-
-    def affine(raw) -> np.ndarray:  # a scene value on theta(mu) = [1, mu_1, ..., mu_p]
-        arr = np.zeros(1 + len(scene.parameters))
-        if isinstance(raw, str) and raw.startswith("mu."):
-            arr[1 + scene.param_names.index(raw[3:])] = 1.0
-        else:
-            arr[0] = float(raw)
-        return arr
-
     return SlaveStress(tri=np.asarray(points, dtype=float)[tri],
-                       dofs=np.concatenate(dofs, axis=1), E=affine(table["E"]),
-                       nu=affine(table["nu"]))
+                       dofs=np.concatenate(dofs, axis=1), E=scene.affine(table["E"]),
+                       nu=scene.affine(table["nu"]))
 
 
 def halfdisk_layout(scene: Scene, slave: FacetChain, master: FacetChain | None,
@@ -353,8 +344,50 @@ def halfdisk_contact(scene: Scene, layout: ContactLayout, mu: np.ndarray,
             f"outside the master zone {zone} (theta/pi); widen it") from None
 
 
+class HalfDiskContact:
+    """Mixin: the contact of a backend's ``halfdisks`` scenes, whatever its dof numbering.
+
+    The mu-maps (:func:`body_maps`) and the :class:`~rbbench.contact_geometry.ContactLayout`
+    (:func:`halfdisk_layout`) are built once, on first use; the operators at mu come
+    from the layout (:func:`halfdisk_contact`). The backend has ``name``, ``scene``,
+    ``kind``, ``degree``, ``n_gauss``, ``ndofs``, the bodies ``upper`` and ``lower``
+    (``None`` on a rigid flat), and builds, in its own dof numbering, a body's contact
+    chain, ``_chain(body, amap)`` (:func:`facet_chain`), and the slave elements behind
+    ``Snn``, ``_stress(body)`` (:func:`slave_stress`).
+    """
+
+    _maps: dict[str, AffineMap] | None = None
+    _layout: ContactLayout | None = None
+
+    def _body_maps(self) -> dict[str, AffineMap]:
+        """The mu-map of each body (:func:`body_maps`)."""
+        if self._maps is None:
+            self._maps = body_maps(self.scene)
+        return self._maps
+
+    def contact_layout(self) -> ContactLayout:
+        """Reference contact data and the mu-maps (see :mod:`rbbench.contact_geometry`)."""
+        if self.kind != "halfdisks":
+            raise NotImplementedError(f"{self.name} backend: a contact layout exists for "
+                                      "two-body (halfdisks) scenes only")
+        if self._layout is None:
+            maps = self._body_maps()
+            slave = self._chain(self.upper, maps["upper"])
+            master = None if self.lower is None else self._chain(self.lower, maps["lower"])
+            self._layout = halfdisk_layout(self.scene, slave, master, self.degree,
+                                           self.n_gauss, self.ndofs,
+                                           stress=self._stress(self.upper))
+        return self._layout
+
+    def _contact(self, mu: np.ndarray, needs: frozenset[str]) -> ContactOperators:
+        """The contact operators at mu (:func:`halfdisk_contact`), ``Ut`` / ``Snn`` when
+        ``needs`` holds ``"tangential"`` / ``"stress"``."""
+        return halfdisk_contact(self.scene, self.contact_layout(), mu,
+                                tangential="tangential" in needs, stress="stress" in needs)
+
+
 # ---------------------------------------------------------------------------
-# obstacle problem and materials
+# obstacle problem
 # ---------------------------------------------------------------------------
 def obstacle_contact(scene: Scene, mu: np.ndarray, xy: np.ndarray, free: np.ndarray,
                      lumped: np.ndarray, n_dofs: int) -> ContactOperators:
@@ -382,12 +415,3 @@ def obstacle_contact(scene: Scene, mu: np.ndarray, xy: np.ndarray, free: np.ndar
         Mlam=sp.identity(nq, format="csr"), multiplier="nodal", mult_points=xy,
         mult_extent=np.stack([xy[:, 0], xy[:, 0]], axis=1))
 
-
-def lame_parameters(E: float, nu: float) -> tuple[float, float]:
-    """Plane-strain Lame parameters ``(lambda, mu)`` from Young's modulus and Poisson's ratio.
-
-    ``lambda = E nu / ((1 + nu)(1 - 2 nu))``, ``mu = E / (2 (1 + nu))``: the same
-    expressions, in the same floating-point order, as
-    ``skfem.models.elasticity.lame_parameters``.
-    """
-    return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))

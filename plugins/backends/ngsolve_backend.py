@@ -44,11 +44,15 @@ import scipy.sparse as sp
 from netgen.occ import ArcOfCircle, Face, OCCGeometry, Pnt, Segment, Wire, WorkPlane
 from rbbench_plugins.backends import common
 
-from rbbench.contact_geometry import AffineMap, ContactLayout, FacetChain, SlaveStress
+from rbbench.contact_geometry import (
+    AffineMap,
+    FacetChain,
+    SlaveStress,
+    lame_parameters,
+)
 from rbbench.interfaces import (
     Backend,
     BodyMesh,
-    ContactOperators,
     Discretization,
     Factorize,
 )
@@ -306,22 +310,6 @@ def sparse_cholesky(A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
 # ---------------------------------------------------------------------------
 # one body
 # ---------------------------------------------------------------------------
-def _edge_lookup(edges: np.ndarray, n_vertices: int) -> Callable[[np.ndarray], np.ndarray]:
-    """``index(facets (k, 2)) -> (k,)`` NGSolve edge numbers of vertex pairs."""
-    key = np.sort(edges, axis=1) @ np.array([n_vertices, 1])
-    order = np.argsort(key)
-    sorted_key = key[order]
-
-    def index(facets: np.ndarray) -> np.ndarray:
-        q = np.sort(facets, axis=1) @ np.array([n_vertices, 1])
-        pos = np.searchsorted(sorted_key, q)
-        if np.any(pos >= key.size) or np.any(sorted_key[np.minimum(pos, key.size - 1)] != q):
-            raise RuntimeError("ngsolve backend: a boundary facet is not an edge of the mesh")
-        return order[pos]
-
-    return index
-
-
 class _Body:
     """One body: reference arrays, NGSolve mesh and space, dof maps, mu-map.
 
@@ -362,7 +350,7 @@ class _Body:
         if degree == 2:
             self.edges = np.array([[v.nr for v in e.vertices] for e in self.mesh.edges],
                                   dtype=np.int64).reshape(-1, 2)
-            self.edge_of = _edge_lookup(self.edges, self.nv)
+            self.edge_of = common.edge_lookup(self.edges, self.nv)
         else:
             self.edges = np.zeros((0, 2), dtype=np.int64)
         self.nscalar = self.nv + self.edges.shape[0]
@@ -466,7 +454,7 @@ class _Body:
 
 
 def _elasticity(E: float, nu: float) -> Callable[[Any, Any], Any]:
-    lam, mu = common.lame_parameters(E, nu)
+    lam, mu = lame_parameters(E, nu)
 
     def form(u, v):
         eps_u, eps_v = ngs.Sym(ngs.Grad(u)), ngs.Sym(ngs.Grad(v))
@@ -490,7 +478,7 @@ def _mass(u, v):
 # ---------------------------------------------------------------------------
 # the backend
 # ---------------------------------------------------------------------------
-class NGSolveBackend(Backend):
+class NGSolveBackend(common.HalfDiskContact, Backend):
     """NGSolve backend: Netgen (or given) meshes, P1/P2 Lagrange, GPTS contact pairing.
 
     Parameters
@@ -553,8 +541,6 @@ class NGSolveBackend(Backend):
         self.mesh_source = mesh if isinstance(mesh, str) else "arrays"
         vars(self).update(common.discretization_settings(scene))  # degree, h_contact, ..., kind
         self._X: sp.csr_matrix | None = None
-        self._layout: ContactLayout | None = None
-        self._maps: dict[str, AffineMap] | None = None
         t0 = time.perf_counter()
         if self.kind == "halfdisks":
             self._init_halfdisks(mesh)
@@ -679,12 +665,6 @@ class NGSolveBackend(Backend):
                 self._X = sp.block_diag([b.matrix(_vector_h1) for b in self._bodies()]).tocsr()
         return self._X
 
-    def _body_maps(self) -> dict[str, AffineMap]:
-        """The mu-map of each body (:func:`rbbench_plugins.backends.common.body_maps`)."""
-        if self._maps is None:
-            self._maps = common.body_maps(self.scene)
-        return self._maps
-
     def _elastic_operator(self, mu: np.ndarray) -> sp.csr_matrix:
         """Block-diagonal plane-strain stiffness, each body assembled at its mu-map."""
         blocks = []
@@ -720,7 +700,7 @@ class NGSolveBackend(Backend):
                 dofs.append(flat[c])
                 value = -d if (body.name == "upper" and c == 1) else 0.0
                 vals.append(np.full(flat[c].size, value))
-        contact = self._contact(mu, tangential="tangential" in needs, stress="stress" in needs)
+        contact = self._contact(mu, needs)
         bodies = []
         for body in self._bodies():
             E, nu = self.scene.material(body.name, mu)
@@ -735,20 +715,6 @@ class NGSolveBackend(Backend):
                               dirichlet_values=np.concatenate(vals), X=self.inner_product(),
                               contact=contact, bodies=bodies, physics="elasticity", info=info,
                               factorize=self._factorize())
-
-    def contact_layout(self) -> ContactLayout:
-        """Reference contact data and the mu-maps (see :mod:`rbbench.contact_geometry`)."""
-        if self.kind != "halfdisks":
-            raise NotImplementedError("ngsolve backend: a contact layout exists for two-body "
-                                      "(halfdisks) scenes only")
-        if self._layout is None:
-            maps = self._body_maps()
-            slave = self._chain(self.upper, maps["upper"])
-            master = None if self.lower is None else self._chain(self.lower, maps["lower"])
-            self._layout = common.halfdisk_layout(self.scene, slave, master, self.degree,
-                                                  self.n_gauss, self.ndofs,
-                                                  stress=self._stress(self.upper))
-        return self._layout
 
     @staticmethod
     def _chain(body: _Body, amap: AffineMap) -> FacetChain:
@@ -766,12 +732,6 @@ class NGSolveBackend(Backend):
         return common.slave_stress(self.scene, body.points, body.triangles, body.facets,
                                    body.elements, body.chain_zone,
                                    lambda v: body.vertex_dofs()[v], edge_dofs)
-
-    def _contact(self, mu: np.ndarray, tangential: bool = False,
-                 stress: bool = False) -> ContactOperators:
-        """GPTS pairing at mu (:func:`rbbench_plugins.backends.common.halfdisk_contact`)."""
-        return common.halfdisk_contact(self.scene, self.contact_layout(), mu, tangential,
-                                       stress)
 
     def _discretize_square(self, mu: np.ndarray) -> Discretization:
         f = float(self.scene.value("load", "source", mu))

@@ -28,8 +28,8 @@ from skfem import (
 from skfem.helpers import dot, grad
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-from rbbench.contact_geometry import AffineMap, ContactLayout, FacetChain, SlaveStress
-from rbbench.interfaces import Backend, BodyMesh, ContactOperators, Discretization
+from rbbench.contact_geometry import AffineMap, FacetChain, SlaveStress
+from rbbench.interfaces import Backend, BodyMesh, Discretization
 from rbbench.scene import Scene
 
 
@@ -90,7 +90,7 @@ class _Body:
         return bf[common.flat_facets(m.p.T, m.facets[:, bf].T)]
 
 
-class SkfemBackend(Backend):
+class SkfemBackend(common.HalfDiskContact, Backend):
     """scikit-fem backend: graded meshes, P1/P2 Lagrange, GPTS contact pairing.
 
     Parameters
@@ -132,8 +132,16 @@ class SkfemBackend(Backend):
         if self.lower is not None:
             self.master_zone = np.asarray(self.lower.chain_zone)
         self.ndofs = offset
-        self._layout = None
-        self._maps = None
+        # Dirichlet dofs (independent of mu): the flat face of each body; the upper one
+        # moves by (0, -d) (``_moving``: its y dofs), the lower one is clamped
+        up = self.upper.basis_hat.get_dofs(facets=self.upper.flat_facets())
+        dofs = [up.all("u^1"), up.all("u^2")]
+        if self.lower is not None:
+            lo = self.lower.basis_hat.get_dofs(facets=self.lower.flat_facets())
+            dofs.append(lo.all() + self.lower.offset)
+        self._dirichlet = np.concatenate(dofs)
+        self._moving = np.zeros(self._dirichlet.size, dtype=bool)
+        self._moving[dofs[0].size:dofs[0].size + dofs[1].size] = True
 
     def _init_square(self) -> None:
         n = int(self.scene.data["discretization"]["n_cells"]) * 2 ** int(
@@ -155,7 +163,7 @@ class SkfemBackend(Backend):
             else:
                 mu0 = self.scene.default_mu
                 if which == "energy":
-                    self._X = self._elastic_operators(mu0)[0]
+                    self._X = self._elastic_operator(mu0)
                 else:
                     blocks = [asm(_vector_h1, b.basis_hat) for b in self._bodies()]
                     self._X = sp.block_diag(blocks).tocsr()
@@ -164,27 +172,21 @@ class SkfemBackend(Backend):
     def _bodies(self) -> list[_Body]:
         return [self.upper] + ([self.lower] if self.lower is not None else [])
 
-    def _body_maps(self) -> dict[str, AffineMap]:
-        """The mu-map of each body (:func:`rbbench_plugins.backends.common.body_maps`)."""
-        if self._maps is None:
-            self._maps = common.body_maps(self.scene)
-        return self._maps
-
     def _geometry(self, mu) -> dict:
         return common.halfdisk_geometry(self.scene, self._body_maps(), mu)
 
     def _mapped(self, body: _Body, mu) -> np.ndarray:
         return self._body_maps()[body.name](mu, body.mesh_hat.p.T).T
 
-    def _elastic_operators(self, mu) -> tuple[sp.csr_matrix, list]:
-        blocks, bases = [], []
+    def _elastic_operator(self, mu) -> sp.csr_matrix:
+        """Block-diagonal plane-strain stiffness, each body assembled on its mapped mesh."""
+        blocks = []
         for body in self._bodies():
             E, nu = self.scene.material(body.name, mu)
             mesh = type(body.mesh_hat)(self._mapped(body, mu), body.mesh_hat.t)
             basis = Basis(mesh, ElementVector(_element(self.degree)))
             blocks.append(asm(linear_elasticity(*lame_parameters(E, nu)), basis))
-            bases.append(basis)
-        return sp.block_diag(blocks).tocsr(), bases
+        return sp.block_diag(blocks).tocsr()
 
     def discretize(self, mu, needs: frozenset[str] = frozenset()) -> Discretization:
         """Operators at ``mu``; ``needs`` may ask for ``"tangential"`` (friction) and
@@ -201,20 +203,11 @@ class SkfemBackend(Backend):
     def _discretize_halfdisks(self, mu, needs=frozenset()) -> Discretization:
         t0 = time.perf_counter()
         geo = self._geometry(mu)
-        A, bases = self._elastic_operators(mu)
+        A = self._elastic_operator(mu)
         t_asm = time.perf_counter() - t0
         d = float(self.scene.value("load", "displacement", mu))
-        # Dirichlet: upper flat face moves by (0, -d); lower flat face clamped.
-        up = bases[0].get_dofs(facets=self.upper.flat_facets())
-        dofs = [up.all("u^1"), up.all("u^2")]
-        vals = [np.zeros(up.all("u^1").size), np.full(up.all("u^2").size, -d)]
-        if self.lower is not None:
-            lo = bases[1].get_dofs(facets=self.lower.flat_facets())
-            dofs.append(lo.all() + self.lower.offset)
-            vals.append(np.zeros(lo.all().size))
-        ddofs = np.concatenate(dofs)
-        dvals = np.concatenate(vals)
-        contact = self._contact(mu, tangential="tangential" in needs, stress="stress" in needs)
+        dvals = np.where(self._moving, -d, 0.0)
+        contact = self._contact(mu, needs)
         bodies = []
         for body in self._bodies():
             E, nu = self.scene.material(body.name, mu)
@@ -223,18 +216,9 @@ class SkfemBackend(Backend):
         info = {"geometry": geo, "t_assemble_s": t_asm,
                 "n_facets_slave": self.contact_layout().slave.n,
                 "h_contact": self.h_contact, "degree": self.degree, "backend": self.name}
-        return Discretization(mu=mu, A=A, F=np.zeros(self.ndofs), dirichlet_dofs=ddofs,
+        return Discretization(mu=mu, A=A, F=np.zeros(self.ndofs), dirichlet_dofs=self._dirichlet,
                               dirichlet_values=dvals, X=self.inner_product(), contact=contact,
                               bodies=bodies, physics="elasticity", info=info)
-
-    def contact_layout(self) -> ContactLayout:
-        """Reference contact data and the mu-maps (see :mod:`rbbench.contact_geometry`)."""
-        if self.kind != "halfdisks":
-            raise NotImplementedError("skfem backend: a contact layout exists for two-body "
-                                      "(halfdisks) scenes only")
-        if self._layout is None:
-            self._layout = self._build_layout()
-        return self._layout
 
     def _chain(self, body: _Body, amap: AffineMap) -> FacetChain:
         m = body.mesh_hat
@@ -257,18 +241,6 @@ class SkfemBackend(Backend):
         return common.slave_stress(self.scene, m.p.T, m.t.T, m.facets[:, bf].T, m.f2t[0, bf],
                                    body.chain_zone,
                                    lambda v: b.nodal_dofs[:, v].T + body.offset, edge_dofs)
-
-    def _build_layout(self) -> ContactLayout:
-        maps = self._body_maps()
-        slave = self._chain(self.upper, maps["upper"])
-        master = None if self.lower is None else self._chain(self.lower, maps["lower"])
-        return common.halfdisk_layout(self.scene, slave, master, self.degree, self.n_gauss,
-                                      self.ndofs, stress=self._stress(self.upper))
-
-    def _contact(self, mu, tangential: bool = False, stress: bool = False) -> ContactOperators:
-        """GPTS pairing at mu (:func:`rbbench_plugins.backends.common.halfdisk_contact`)."""
-        return common.halfdisk_contact(self.scene, self.contact_layout(), mu, tangential,
-                                       stress)
 
     def _discretize_square(self, mu) -> Discretization:
         f = float(self.scene.value("load", "source", mu))

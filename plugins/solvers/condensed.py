@@ -20,7 +20,7 @@ class _CondensedSolver(Solver):
 
     def solve(self, problem: ContactProblem, warm_start: np.ndarray | None = None) -> SolveResult:
         cond = lcp.condense(problem.A, problem.F, problem.B, problem.G,
-                            factorize=getattr(problem, "factorize", None))
+                            factorize=problem.factorize)
         t0 = time.perf_counter()
         lam, it, reason, res, info = self._run(cond.D, cond.q, warm_start)
         t_solve = time.perf_counter() - t0

@@ -242,10 +242,37 @@ def _vec(PETSc: Any, values: np.ndarray) -> Any:
     return v
 
 
+class _PetscSolver(Solver):
+    """What the PETSc solvers share: the option check, ``kkt_tol``, ``petsc_options`` under
+    a prefix of their own (``rbbench_<stem><k>_``), and the stop reason of a run."""
+
+    OPTIONS: tuple[str, ...] = ()
+    _stem = ""
+
+    def __init__(self, kkt_tol: float, petsc_options: dict[str, Any] | None,
+                 unknown: dict[str, Any]):
+        _unknown(type(self).__name__, unknown, self.OPTIONS)
+        self.kkt_tol = float(kkt_tol)
+        self.petsc_options = _petsc_options(petsc_options)
+        self.prefix = f"rbbench_{self._stem}{next(_COUNTER)}_"
+
+    def _stop_reason(self, code: int | None, finite: bool, problem: ContactProblem,
+                     u: np.ndarray, lam: np.ndarray, info: dict[str, Any]) -> str:
+        """``"diverged"`` after a PETSc error (``code = None``), ``"nan"`` for a non-finite
+        result, else PETSc's reason (:func:`map_reason`); checked by :func:`_finish`."""
+        if code is None:
+            reason = "diverged"
+        elif not finite:
+            reason = "nan"
+        else:
+            reason = map_reason(info["petsc_reason"])
+        return _finish(reason, kkt_errors(problem, u, lam), self.kkt_tol, info)
+
+
 # ---------------------------------------------------------------------------
 # SNES VI on the KKT system
 # ---------------------------------------------------------------------------
-class PetscVISolver(Solver):
+class PetscVISolver(_PetscSolver):
     """PETSc SNES variational-inequality Newton on the sparse KKT system.
 
     Unknowns ``x = (u, mu)`` with ``lam = t mu``; bounds ``u`` free,
@@ -333,6 +360,7 @@ class PetscVISolver(Solver):
     """
 
     name = "petsc-vi"
+    _stem = "vi"
     OPTIONS = ("snes_type", "rtol", "atol", "stol", "max_iter", "ordering", "linesearch",
                "pivot_shift", "degenerate_tol", "kkt_tol", "petsc_options")
 
@@ -342,7 +370,7 @@ class PetscVISolver(Solver):
                  pivot_shift: float = 1e-10, degenerate_tol: float = 1e-12,
                  kkt_tol: float = 1e-8, petsc_options: dict[str, Any] | None = None,
                  **unknown: Any):
-        _unknown(type(self).__name__, unknown, self.OPTIONS)
+        super().__init__(kkt_tol, petsc_options, unknown)
         self.snes_type = _choice(type(self).__name__, "snes_type", snes_type, SNES_TYPES)
         self.ordering = _choice(type(self).__name__, "ordering", ordering, ORDERINGS)
         self.rtol, self.atol, self.stol = float(rtol), float(atol), float(stol)
@@ -350,9 +378,6 @@ class PetscVISolver(Solver):
         self.linesearch = linesearch
         self.pivot_shift = float(pivot_shift)
         self.degenerate_tol = float(degenerate_tol)
-        self.kkt_tol = float(kkt_tol)
-        self.petsc_options = _petsc_options(petsc_options)
-        self.prefix = f"rbbench_vi{next(_COUNTER)}_"
 
     def solve(self, problem: ContactProblem, warm_start: np.ndarray | None = None) -> SolveResult:
         """Solve the contact problem; see the class docstring.
@@ -496,14 +521,7 @@ class PetscVISolver(Solver):
         u = np.empty(n)
         u[perm] = sigma * xs[:n]
         lam = (sigma * t) * xs[n:]
-        if code is None:
-            reason = "diverged"
-        elif not np.all(np.isfinite(xs)):
-            reason = "nan"
-        else:
-            reason = map_reason(info["petsc_reason"])
-        errors = kkt_errors(problem, u, lam)
-        reason = _finish(reason, errors, self.kkt_tol, info)
+        reason = self._stop_reason(code, bool(np.all(np.isfinite(xs))), problem, u, lam, info)
         residuals = (hist[: its + 1] / max(data_norm, _TINY)).tolist() if hist.size else []
         # not "setup_s" / "solve_s": contact_metrics merges these into the HF driver's times
         times = {"kkt_setup_s": t_setup, "warm_start_s": t_warm, "snes_s": t_solve}
@@ -514,7 +532,7 @@ class PetscVISolver(Solver):
 # ---------------------------------------------------------------------------
 # TAO on the condensed dual QP
 # ---------------------------------------------------------------------------
-class PetscTaoSolver(Solver):
+class PetscTaoSolver(_PetscSolver):
     """PETSc TAO bound-constrained QP on the condensed dual problem.
 
     :func:`rbbench.lcp.condense` factorises ``A`` once and forms the Delassus
@@ -560,20 +578,18 @@ class PetscTaoSolver(Solver):
     """
 
     name = "petsc-tao"
+    _stem = "tao"
     OPTIONS = ("tao_type", "gatol", "max_iter", "ksp_rtol", "pc_type", "kkt_tol",
                "petsc_options")
 
     def __init__(self, tao_type: str = "tron", gatol: float = 1e-13, max_iter: int = 200,
                  ksp_rtol: float = 1e-14, pc_type: str = "jacobi", kkt_tol: float = 1e-8,
                  petsc_options: dict[str, Any] | None = None, **unknown: Any):
-        _unknown(type(self).__name__, unknown, self.OPTIONS)
+        super().__init__(kkt_tol, petsc_options, unknown)
         self.tao_type = _choice(type(self).__name__, "tao_type", tao_type, TAO_TYPES)
         self.gatol, self.ksp_rtol = float(gatol), float(ksp_rtol)
         self.max_iter = int(max_iter)
         self.pc_type = str(pc_type)
-        self.kkt_tol = float(kkt_tol)
-        self.petsc_options = _petsc_options(petsc_options)
-        self.prefix = f"rbbench_tao{next(_COUNTER)}_"
 
     def solve(self, problem: ContactProblem, warm_start: np.ndarray | None = None) -> SolveResult:
         """Solve the contact problem; see the class docstring.
@@ -681,13 +697,8 @@ class PetscTaoSolver(Solver):
         tr = time.perf_counter()
         u = cond.displacement(lam)
         times.update(tao_setup_s=t_setup, tao_s=t_solve, recover_s=time.perf_counter() - tr)
-        if code is None:
-            reason = "diverged"
-        elif not (np.all(np.isfinite(lam)) and np.all(np.isfinite(u))):
-            reason = "nan"
-        else:
-            reason = map_reason(info["petsc_reason"])
-        reason = _finish(reason, kkt_errors(problem, u, lam), self.kkt_tol, info)
+        finite = bool(np.all(np.isfinite(lam)) and np.all(np.isfinite(u)))
+        reason = self._stop_reason(code, finite, problem, u, lam, info)
         info["scale"] = c
         info["scale_data"] = sigma
         return SolveResult(u=problem.expand(u), lam=lam, iterations=its, stop_reason=reason,
