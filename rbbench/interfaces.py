@@ -148,8 +148,22 @@ class Discretization:
         return int(self.A.shape[0])
 
 
+class _FreeDofs:
+    """``expand``: free-dof values back to the global displacement (``free``, ``u_lift``
+    are fields of the problem dataclasses below)."""
+
+    free: np.ndarray
+    u_lift: np.ndarray
+
+    def expand(self, u_free: np.ndarray) -> np.ndarray:
+        """Global displacement from free-dof values."""
+        u = self.u_lift.copy()
+        u[self.free] = u_free
+        return u
+
+
 @dataclass
-class ContactProblem:
+class ContactProblem(_FreeDofs):
     """The algebraic HF contact problem on the free dofs (seed 000, "Mixed formulation").
 
     Find ``u, lam`` with ``A u + B^T lam = F``, ``lam >= 0``, ``B u <= G``,
@@ -168,15 +182,9 @@ class ContactProblem:
     W: sp.csr_matrix
     factorize: Factorize | None = None
 
-    def expand(self, u_free: np.ndarray) -> np.ndarray:
-        """Global displacement from free-dof values."""
-        u = self.u_lift.copy()
-        u[self.free] = u_free
-        return u
-
 
 @dataclass
-class NitscheProblem:
+class NitscheProblem(_FreeDofs):
     """The algebraic Nitsche contact problem on the free dofs (seed 000, "Nitsche's method").
 
     Frictionless Signorini conditions in the Alart-Curnier form
@@ -240,12 +248,6 @@ class NitscheProblem:
     X: sp.csr_matrix
     Mlam: sp.csr_matrix
     factorize: Factorize | None = None
-
-    def expand(self, u_free: np.ndarray) -> np.ndarray:
-        """Global displacement from free-dof values."""
-        u = self.u_lift.copy()
-        u[self.free] = u_free
-        return u
 
     @property
     def W(self) -> sp.csr_matrix:

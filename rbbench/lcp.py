@@ -28,6 +28,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.optimize import nnls
 
+from rbbench.interfaces import Factorize
+
 
 @dataclass
 class Condensed:
@@ -55,8 +57,7 @@ def _scipy_solver(A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def condense(A: sp.spmatrix, F: np.ndarray, B: sp.spmatrix, G: np.ndarray,
-             factorize: Callable[[sp.spmatrix], Callable[[np.ndarray], np.ndarray]]
-             | None = None) -> Condensed:
+             factorize: Factorize | None = None) -> Condensed:
     """Factorise ``A`` once and form the Delassus operator ``D = B A^{-1} B^T``.
 
     ``factorize(A)`` returns ``solve(b)`` for ``b`` of shape (n,) or (n, k): a
