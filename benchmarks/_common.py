@@ -1,7 +1,7 @@
 """Settings shared by the asv suites: the cases, and how each is loaded and reduced.
 
 Every suite goes through the entry points of the CLI (``rbbench solve``:
-:func:`rbbench.hf.solve_hf`; ``rbbench reduce``: :func:`rbbench.rb_pipeline.reduce`
+:func:`rbbench.hf.model.solve_hf`; ``rbbench reduce``: :func:`rbbench.rb.offline.reduce`
 and the stage functions it calls) on small settings, so that ``asv run --quick``
 takes a few minutes on two cores.
 
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 
-from rbbench.scene import Scene, load_scene
+from rbbench.scene.loading import Scene, load_scene
 from rbbench.testing import HERTZ_COARSE
 
 #: case -> (scene name, overrides as for ``rbbench ... --set``)
@@ -50,13 +50,13 @@ def scene(case: str) -> Scene:
 
 
 def reduce_config(case: str, cache_dir: str | None = None, **changes):
-    """The :class:`~rbbench.rb_pipeline.ReduceConfig` of ``case``.
+    """The :class:`~rbbench.rb.offline.ReduceConfig` of ``case``.
 
     Snapshots in ``cache_dir`` (give a temporary directory whenever snapshots are
     computed) and in this process (``n_jobs = 1``: no process pool inside a benchmark);
     ``changes`` override any field (the tests use tiny sets).
     """
-    from rbbench.rb_pipeline import ReduceConfig
+    from rbbench.rb.offline import ReduceConfig
 
     opts = {"n_jobs": 1, "online_repeats": 3, **RB_OPTIONS[case]}
     if cache_dir is not None:
@@ -70,7 +70,7 @@ def reduced_case(case: str, cache_dir: str, **changes) -> dict:
     Returns ``{"model": ReducedModel, "mu": default mu, "summary": {...}}`` where
     ``summary`` holds the scalar results of :meth:`ReduceResult.summary`.
     """
-    from rbbench.rb_pipeline import reduce
+    from rbbench.rb.offline import reduce
 
     sc = scene(case)
     res = reduce(sc, reduce_config(case, cache_dir, **changes))

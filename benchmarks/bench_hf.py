@@ -1,6 +1,6 @@
-"""asv: the HF solve of ``rbbench solve`` (:func:`rbbench.hf.solve_hf`), time and accuracy."""
+"""asv: the HF solve of ``rbbench solve`` (:func:`rbbench.hf.model.solve_hf`), time and accuracy."""
 
-from rbbench.hf import make_components, solve_hf
+from rbbench.hf.model import make_components, solve_hf
 
 from ._common import CASES, TIMEOUT, finite, scene
 
@@ -91,7 +91,7 @@ class NitscheAlartCurnier:
     timeout = TIMEOUT
 
     def setup_cache(self):
-        from rbbench.scene import load_scene
+        from rbbench.scene.loading import load_scene
 
         out = {}
         for h in self.params[0]:
@@ -114,7 +114,7 @@ class NitscheAlartCurnier:
 
 class ContactPairing:
     """Wall time (s) of the contact pairing at mu = 0.8 on the default Hertz mesh with
-    smooth normals (:func:`rbbench.contact_geometry.pair`): the Gauss rule per slave
+    smooth normals (:func:`rbbench.hf.contact_geometry.pair`): the Gauss rule per slave
     facet, or segment-to-segment pieces (master-vertex rays, a quadratic per facet and
     master vertex)."""
 
@@ -126,7 +126,7 @@ class ContactPairing:
         import numpy as np
 
         from rbbench.registry import default_registry
-        from rbbench.scene import load_scene
+        from rbbench.scene.loading import load_scene
 
         sc = load_scene("hertz_halfdisks", ["discretization.normals=smooth",
                                             f"discretization.contact_integration={integration}"])
@@ -135,6 +135,6 @@ class ContactPairing:
 
     def time_pair(self, integration):
         """Pairing at mu: points, normals, ray casts, gaps (s)."""
-        from rbbench.contact_geometry import pair
+        from rbbench.hf.contact_geometry import pair
 
         pair(self.layout, self.mu)

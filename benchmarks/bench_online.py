@@ -1,10 +1,10 @@
 """asv: the online stage and the accuracy of one ``rbbench reduce`` per case.
 
 ``setup_cache`` (module level, shared by both classes) runs
-:func:`rbbench.rb_pipeline.reduce` once per RB case (CLI defaults: POD, mCPG, PGA, hyper
+:func:`rbbench.rb.offline.reduce` once per RB case (CLI defaults: POD, mCPG, PGA, hyper
 auto, i.e. exact-affine on the membrane and EIM on coarse Hertz; training / validation
 sizes of :data:`benchmarks._common.RB_OPTIONS`) and keeps the
-:class:`~rbbench.reduced.ReducedModel` (small dense arrays, pickled by asv) and the
+:class:`~rbbench.rb.mixed_model.ReducedModel` (small dense arrays, pickled by asv) and the
 scalar results. The online benchmarks therefore run without any HF data.
 """
 

@@ -8,7 +8,7 @@ from rbbench.hookspecs import hookimpl
 from rbbench.registry import ComponentSpec
 
 _ALL_PHYSICS = ("elasticity", "poisson")
-_COMP = "rbbench.compressors"
+_COMP = "rbbench.rb.compressors"
 
 #: Dual compressors: (name, class, is a cone, nested in R, modules, description).
 _DUALS = (

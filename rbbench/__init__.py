@@ -5,4 +5,9 @@ formulations and solvers are plugins discovered through the ``rbbench``
 entry-point group (see :mod:`rbbench.registry`).
 """
 
-__version__ = "0.1.0"
+from rbbench import _compat
+from rbbench._version import __version__
+
+_compat.install()
+
+__all__ = ["__version__"]

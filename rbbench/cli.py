@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from rbbench.registry import NotInstalledError, UnknownComponentError, default_registry
-from rbbench.scene import PROBLEMS_DIR, SceneError, load_scene, tomllib
+from rbbench.scene.loading import PROBLEMS_DIR, SceneError, load_scene, tomllib
 
 
 class _Progress:
@@ -83,7 +83,7 @@ def _resolve_solver(args) -> None:
     """``--solver`` not given: the formulation's declared solver (``ssn`` for mixed,
     ``newton`` for Nitsche)."""
     if getattr(args, "solver", None) is None:
-        from rbbench.hf import default_solver
+        from rbbench.hf.model import default_solver
 
         args.solver = default_solver(args.formulation)
 
@@ -115,8 +115,8 @@ def cmd_solve(args) -> int:
     f_options = _backend_options(args.formulation_option, "--formulation-option")
     _resolve_solver(args)
     progress = _Progress(args.quiet)
-    from rbbench.hf import solve_hf
-    from rbbench.output import write_all
+    from rbbench.hf.model import solve_hf
+    from rbbench.hf.output import write_all
 
     components = None
     if options or f_options:
@@ -169,7 +169,7 @@ def cmd_scenes(args) -> int:
 
 
 def _reduce_config(args):
-    from rbbench.rb_pipeline import ReduceConfig
+    from rbbench.rb.offline import ReduceConfig
 
     _resolve_solver(args)
     try:
@@ -187,7 +187,7 @@ def _reduce_config(args):
 
 
 def cmd_online_scaling(args) -> int:
-    from rbbench.studies import online_scaling, scaling_markdown
+    from rbbench.studies.seed_tables import online_scaling, scaling_markdown
 
     rows = online_scaling(args.scene, _reduce_config(args), tuple(args.levels),
                           tuple(args.set or ()), repeats=args.repeats,
@@ -199,8 +199,8 @@ def cmd_online_scaling(args) -> int:
 
 
 def cmd_reduce(args) -> int:
-    from rbbench.output import _jsonable, provenance
-    from rbbench.rb_pipeline import reduce
+    from rbbench.provenance import _jsonable, provenance
+    from rbbench.rb.offline import reduce
 
     scene = load_scene(args.scene, overrides=args.set or [])
     cfg = _reduce_config(args)
@@ -235,7 +235,7 @@ def cmd_reduce(args) -> int:
 
 
 def cmd_hertz_table(args) -> int:
-    from rbbench.studies import hertz_table, markdown
+    from rbbench.studies.seed_tables import hertz_table, markdown
 
     progress = _Progress(args.quiet)
     rows = hertz_table(args.scene, tuple(args.loads), tuple(args.levels), args.mu,
@@ -245,7 +245,7 @@ def cmd_hertz_table(args) -> int:
 
 
 def cmd_nitsche_table(args) -> int:
-    from rbbench.studies import NITSCHE_COLUMNS, nitsche_markdown, nitsche_table
+    from rbbench.studies.seed_tables import NITSCHE_COLUMNS, nitsche_markdown, nitsche_table
 
     overrides = [f"load.displacement={args.load!r}", f"discretization.degree={args.degree}",
                  f"discretization.quadrature={args.quadrature}",
@@ -264,7 +264,7 @@ def cmd_nitsche_table(args) -> int:
 
 
 def cmd_nitsche_compare(args) -> int:
-    from rbbench.studies import comparison_markdown, formulation_comparison
+    from rbbench.studies.seed_tables import comparison_markdown, formulation_comparison
 
     res = formulation_comparison(args.scene, tuple(args.set or ()), n_train=args.n_train,
                                  n_valid=args.n_valid, N=args.N, Rs=tuple(args.R),
@@ -277,8 +277,8 @@ def cmd_nitsche_compare(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from rbbench.matrix import MatrixError, load_matrix
-    from rbbench.runner import run_matrix
+    from rbbench.bench.matrix import MatrixError, load_matrix
+    from rbbench.bench.runner import run_matrix
 
     reg = default_registry()
     try:
@@ -314,7 +314,7 @@ def cmd_run(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from rbbench.report import report
+    from rbbench.bench.report import report
 
     res = report(args.run_dir, out_dir=args.out, formats=tuple(args.format))
     print(f"wrote: {res}")
@@ -322,7 +322,7 @@ def cmd_report(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from rbbench.report import compare, format_compare
+    from rbbench.bench.report import compare, format_compare
 
     res = compare(args.a, args.b, threshold=args.threshold, time_threshold=args.time_threshold)
     print(format_compare(res))
@@ -450,7 +450,7 @@ def build_parser() -> argparse.ArgumentParser:
     nt.add_argument("scene", nargs="?", default="hertz_halfdisks")
     nt.add_argument("--h", type=float, nargs="+", default=[5.0, 2.5, 1.25],
                     help="the seed's mesh sizes (mm), mapped to discretization.h_contact by "
-                         "rbbench.studies.seed_h_overrides")
+                         "rbbench.studies.seed_tables.seed_h_overrides")
     nt.add_argument("--mu", type=float, nargs="+", default=[0.7, 1.0, 1.3])
     nt.add_argument("--backend", default="skfem")
     nt.add_argument("--theta", type=float, default=1.0)

@@ -197,7 +197,7 @@ class NitscheProblem(_FreeDofs):
 
     (``theta = 1``: the seed's symmetric variant, the optimality condition of the
     Nitsche energy; ``0``: skew-less; ``-1``: skew-symmetric). Integrals are the
-    slave-side quadrature of the contact operators. Algebra: :mod:`rbbench.nitsche`.
+    slave-side quadrature of the contact operators. Algebra: :mod:`rbbench.hf.nitsche_algebra`.
 
     Attributes
     ----------

@@ -22,11 +22,11 @@ from rbbench_plugins.backends.ngsolve_backend import (  # noqa: E402
     sparse_cholesky,
 )
 
-from rbbench import lcp  # noqa: E402
 from rbbench.cli import main  # noqa: E402
-from rbbench.hf import solve_hf  # noqa: E402
+from rbbench.hf import lcp  # noqa: E402
+from rbbench.hf.model import solve_hf  # noqa: E402
 from rbbench.registry import default_registry  # noqa: E402
-from rbbench.scene import load_scene  # noqa: E402
+from rbbench.scene.loading import load_scene  # noqa: E402
 from rbbench.testing import HERTZ_COARSE  # noqa: E402
 
 COARSE = list(HERTZ_COARSE)
@@ -334,7 +334,7 @@ def test_rb_pipeline_runs_unchanged_on_ngsolve(tmp_path):
     """The offline / online pipeline sees only sparse operators: same code, other backend."""
     import pickle
 
-    from rbbench.rb_pipeline import ReduceConfig, reduce
+    from rbbench.rb.offline import ReduceConfig, reduce
 
     sc = load_scene("membrane_obstacle", ["discretization.n_cells=8"])
     kw = dict(dual="mcpg", stabilizer="pga", N=6, R=6, n_train=9, n_valid=4, n_jobs=1,

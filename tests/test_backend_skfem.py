@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rbbench.registry import default_registry
-from rbbench.scene import load_scene
+from rbbench.scene.loading import load_scene
 
 COARSE = ["discretization.h_contact=0.02", "discretization.h_max=0.2"]
 

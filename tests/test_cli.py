@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from rbbench.cli import main
-from rbbench.scene import load_scene
+from rbbench.scene.loading import load_scene
 
 RBBENCH = Path(sys.executable).parent / "rbbench"
 COARSE = ["--set", "discretization.h_contact=0.02", "--set", "discretization.h_max=0.2"]

@@ -1,4 +1,4 @@
-"""Primal / dual compressors and stabilisers as registered plugins (rbbench.compressors).
+"""Primal / dual compressors and stabilisers as registered plugins (rbbench.rb.compressors).
 
 The wrappers reproduce the library functions exactly, the registry lists them, and the
 role contracts of :mod:`rbbench.testing.contract` reject deliberately broken components.
@@ -12,12 +12,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from rbbench import compressors as comp
-from rbbench import infsup as inf
 from rbbench.cli import main
-from rbbench.cones import DUAL_COMPRESSORS, pod_dual
-from rbbench.pga import pga, supremizers, x_orthonormalize
-from rbbench.pod import pod, weak_greedy
+from rbbench.rb import compressors as comp
+from rbbench.rb import infsup as inf
+from rbbench.rb.cones import DUAL_COMPRESSORS, pod_dual
+from rbbench.rb.pga import pga, supremizers, x_orthonormalize
+from rbbench.rb.pod import pod, weak_greedy
 from rbbench.registry import ComponentSpec, Registry, default_registry
 from rbbench.testing import (
     ContractViolation,
@@ -61,9 +61,9 @@ def test_registered_targets(role):
 
 def test_spec_check_requires_the_role_method():
     reg = Registry()
-    for role, target, method in (("primal", "rbbench.compressors:PrimalBasis", "__call__"),
-                                 ("dual", "rbbench.cones:WMetric", "__call__"),
-                                 ("stabilizer", "rbbench.compressors:PODPrimal", "offline")):
+    for role, target, method in (("primal", "rbbench.rb.compressors:PrimalBasis", "__call__"),
+                                 ("dual", "rbbench.rb.cones:WMetric", "__call__"),
+                                 ("stabilizer", "rbbench.rb.compressors:PODPrimal", "offline")):
         reg.add(ComponentSpec(name="x", role=role, target=target, description="d"))
         with pytest.raises(ContractViolation, match=f"no {method}\\(\\) method"):
             check_spec(reg, reg.get(role, "x"))

@@ -1,4 +1,4 @@
-"""Dual compressors (rbbench.cones): exact cone projection, greedy invariants, baselines."""
+"""Dual compressors (rbbench.rb.cones): exact cone projection, greedy invariants, baselines."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import nnls
 
-from rbbench import cones
+from rbbench.rb import cones
 
 FAST = settings(max_examples=50, deadline=None, derandomize=True)
 

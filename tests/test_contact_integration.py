@@ -1,5 +1,5 @@
 """Smooth slave normals and segment-to-segment contact integration
-(:mod:`rbbench.contact_geometry`; README "Nitsche", the e_AC table)."""
+(:mod:`rbbench.hf.contact_geometry`; README "Nitsche", the e_AC table)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rbbench.contact_geometry import (
+from rbbench.hf.contact_geometry import (
     AffineMap,
     ContactLayout,
     FacetChain,
@@ -190,8 +190,8 @@ def test_master_vertex_hits_across_a_gap_in_the_master_chain():
 def test_key_neutral_defaults_keep_cache_keys():
     """The options at their defaults leave scene fingerprints and snapshot keys as they
     were before the options existed; other values change them."""
-    from rbbench.scene import load_scene
-    from rbbench.snapshots import snapshot_key
+    from rbbench.hf.snapshots import snapshot_key
+    from rbbench.scene.loading import load_scene
 
     base = load_scene("hertz_halfdisks")
     same = load_scene("hertz_halfdisks", ['discretization.normals="facet"',
@@ -206,8 +206,8 @@ def test_key_neutral_defaults_keep_cache_keys():
 
 
 def test_rigid_or_obstacle_scenes_keep_fixed_points_with_segmented():
-    from rbbench.rb_pipeline import fixed_contact_points
-    from rbbench.scene import load_scene
+    from rbbench.rb.offline import fixed_contact_points
+    from rbbench.scene.loading import load_scene
 
     rigid = load_scene("hertz_halfdisks", ['geometry.lower="rigid_flat"',
                                            'discretization.contact_integration="segmented"'])
@@ -216,7 +216,7 @@ def test_rigid_or_obstacle_scenes_keep_fixed_points_with_segmented():
 
 
 def test_hyper_reduction_refuses_segmented_integration():
-    from rbbench.hyper import restrict_layout
+    from rbbench.rb.contact_eim import restrict_layout
 
     lay = _flat_pair(np.linspace(0, 1, 5), np.linspace(-0.2, 1.2, 8), 0.01, "segmented", 2)
     with pytest.raises(ValueError, match="contact_integration"):
@@ -231,8 +231,8 @@ SEGMENTED = ["discretization.h_contact=0.02", "discretization.h_max=0.2",
 
 
 def test_reduce_with_segmented_points_falls_back_to_plain_or_refuses(tmp_path):
-    from rbbench.rb_pipeline import ReduceConfig, reduce
-    from rbbench.scene import SceneError, load_scene
+    from rbbench.rb.offline import ReduceConfig, reduce
+    from rbbench.scene.loading import SceneError, load_scene
 
     sc = load_scene("hertz_halfdisks", SEGMENTED)
     common = dict(dual="mcpg", stabilizer="none", N=4, R=4, n_train=4, n_valid=2, n_jobs=1,

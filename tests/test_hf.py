@@ -12,8 +12,8 @@ import pytest
 import scipy.linalg as sla
 from scipy.optimize import lsq_linear
 
-from rbbench.hf import solve_hf
-from rbbench.scene import SceneError, load_scene
+from rbbench.hf.model import solve_hf
+from rbbench.scene.loading import SceneError, load_scene
 
 COARSE = ["discretization.h_contact=0.02", "discretization.h_max=0.2"]
 
@@ -118,7 +118,7 @@ def test_dof_count_independent_of_mu():
 
 
 def _membrane_brute_force(sol):
-    """min 1/2 u^T A u - F^T u  s.t.  u >= psi, by dense BVLS (independent of rbbench.lcp)."""
+    """min 1/2 u^T A u - F^T u  s.t.  u >= psi, by dense BVLS (independent of rbbench.hf.lcp)."""
     p = sol.problem
     A = p.A.toarray()
     L = np.linalg.cholesky(A)

@@ -1,4 +1,4 @@
-"""Hyper-reduction of the contact rows (rbbench.hyper) against the HF operators."""
+"""Hyper-reduction of the contact rows (rbbench.rb.contact_eim) against the HF operators."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from rbbench.contact_geometry import ray_cast, ray_cast_window
-from rbbench.hf import make_components
-from rbbench.hyper import HyperReductionError, build_row_evaluator, contact_eim
-from rbbench.rb_pipeline import ReduceConfig, reduce
-from rbbench.scene import load_scene
+from rbbench.hf.contact_geometry import ray_cast, ray_cast_window
+from rbbench.hf.model import make_components
+from rbbench.rb.contact_eim import HyperReductionError, build_row_evaluator, contact_eim
+from rbbench.rb.offline import ReduceConfig, reduce
+from rbbench.scene.loading import load_scene
 
 COARSE = ["discretization.h_contact=0.02", "discretization.h_max=0.2"]
 
@@ -153,7 +153,7 @@ def test_pipeline_with_eim_matches_the_plain_reduced_model(tmp_path):
 
 
 def test_online_scaling_study_runs_on_two_levels(tmp_path, monkeypatch):
-    from rbbench.studies import online_scaling, scaling_markdown
+    from rbbench.studies.seed_tables import online_scaling, scaling_markdown
 
     monkeypatch.chdir(tmp_path)
     cfg = ReduceConfig(dual="mcpg", stabilizer="none", hyper="eim", N=4, R=4, n_train=5,

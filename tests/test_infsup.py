@@ -8,7 +8,7 @@ import scipy.sparse.linalg as spla
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rbbench.infsup import (
+from rbbench.rb.infsup import (
     beta_zero_certificate,
     beta_zero_test,
     boundedness_constant,
@@ -19,7 +19,7 @@ from rbbench.infsup import (
     quotient_matrices,
     supremizer_operator,
 )
-from rbbench.pga import supremizers
+from rbbench.rb.pga import supremizers
 
 PROPS = settings(derandomize=True, max_examples=40, deadline=None)
 
@@ -275,7 +275,7 @@ def test_span_generalised_eigenvalue():
 def test_cone_value_with_dependent_generators():
     """Span+{v1, v2, v3, v1 + v2} = Span+{v1, v2, v3}: same cone, same constant, although
     M is singular for the first family (cones often need dependent generators)."""
-    from rbbench.infsup import infsup_cone, quotient_matrices
+    from rbbench.rb.infsup import infsup_cone, quotient_matrices
 
     rng = np.random.default_rng(7)
     m, n = 12, 30

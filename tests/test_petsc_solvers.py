@@ -256,7 +256,7 @@ def test_registered_and_core_does_not_import_petsc():
     reg = default_registry()
     assert isinstance(reg.create("solver", "petsc-vi"), ps.PetscVISolver)
     assert isinstance(reg.create("solver", "petsc-tao", tao_type="gpcg"), ps.PetscTaoSolver)
-    code = ("import sys, rbbench, rbbench.hf, rbbench.cli, rbbench.lcp, rbbench.testing; "
+    code = ("import sys, rbbench, rbbench.hf.model, rbbench.cli, rbbench.hf.lcp, rbbench.testing; "
             "rbbench.registry.default_registry(); "
             "assert 'petsc4py' not in sys.modules, 'petsc4py imported by the core'")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
@@ -293,8 +293,8 @@ def test_hertz_contact_force_matches_ssn(tmp_path):
 
 @pytest.fixture(scope="module")
 def hertz_coarse_problem():
-    from rbbench.hf import make_components
-    from rbbench.scene import load_scene
+    from rbbench.hf.model import make_components
+    from rbbench.scene.loading import load_scene
 
     scene = load_scene("hertz_halfdisks", list(HERTZ_COARSE))
     backend, formulation, _ = make_components(scene)

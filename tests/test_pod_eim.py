@@ -1,4 +1,4 @@
-"""POD, the ideal / weak greedy (rbbench.pod) and EIM / DEIM (rbbench.eim)."""
+"""POD, the ideal / weak greedy (rbbench.rb.pod) and EIM / DEIM (rbbench.rb.eim)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from rbbench.eim import deim, eim_error, matrix_eim
-from rbbench.pod import gram_schmidt_add, pod, projection_errors, weak_greedy
+from rbbench.rb.eim import deim, eim_error, matrix_eim
+from rbbench.rb.pod import gram_schmidt_add, pod, projection_errors, weak_greedy
 
 
 def _laplace_mass(n: int) -> sp.csr_matrix:

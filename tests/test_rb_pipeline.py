@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from rbbench.cli import main
-from rbbench.rb_pipeline import ReduceConfig, reduce
-from rbbench.scene import load_scene
+from rbbench.rb.offline import ReduceConfig, reduce
+from rbbench.scene.loading import load_scene
 
 FAST = ["discretization.n_cells=8"]
 

@@ -7,19 +7,19 @@ import pickle
 import numpy as np
 import pytest
 
-from rbbench.hf import make_components, solve_hf
-from rbbench.reduced import (
+from rbbench.hf.model import make_components, solve_hf
+from rbbench.rb.mixed_model import (
     NotAffineError,
     ReducedBasis,
     affine_decomposition,
     build_affine_model,
     projector,
 )
-from rbbench.scene import load_scene
+from rbbench.scene.loading import load_scene
 
 
 def _x_orthonormal(U, X):
-    """X-orthonormal basis of span(U) (dense, small): independent of rbbench.pod."""
+    """X-orthonormal basis of span(U) (dense, small): independent of rbbench.rb.pod."""
     G = U.T @ (X @ U)
     w, V = np.linalg.eigh(G)
     keep = w > 1e-12 * w.max()
@@ -125,7 +125,7 @@ def test_hertz_contact_operators_are_not_affine():
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from rbbench.reduced import solve_reduced  # noqa: E402
+from rbbench.rb.mixed_model import solve_reduced  # noqa: E402
 
 
 @settings(max_examples=40, deadline=None)

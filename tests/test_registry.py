@@ -133,7 +133,7 @@ DEMO_PLUGIN = '''
 """rbbench-demo-plugin: a third-party solver declared through the rbbench entry point."""
 import numpy as np
 
-from rbbench import lcp
+from rbbench.hf import lcp
 from rbbench.hookspecs import hookimpl
 from rbbench.interfaces import Solver, SolveResult
 from rbbench.registry import ComponentSpec
@@ -278,7 +278,7 @@ def test_plugin_failing_to_import_is_named(tmp_path, monkeypatch):
 def test_core_does_not_import_a_backend():
     code = textwrap.dedent("""
         import sys
-        import rbbench, rbbench.registry, rbbench.scene, rbbench.hf, rbbench.cli
+        import rbbench, rbbench.registry, rbbench.scene.loading, rbbench.hf.model, rbbench.cli
         import rbbench.testing, rbbench.testing.contract
         reg = rbbench.registry.default_registry()
         assert reg.names("backend"), "no backend declared"

@@ -1,7 +1,7 @@
-"""``rbbench.report``: figures and summaries of a run directory, and run comparison.
+"""``rbbench.bench.report``: figures and summaries of a run directory, and run comparison.
 
 The run directories are synthetic (layout of ``rbbench run``): rows built with
-:func:`rbbench.schema.normalise_row`, numbers chosen so that the answers are known.
+:func:`rbbench.bench.schema.normalise_row`, numbers chosen so that the answers are known.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rbbench import schema
-from rbbench.report import (
+from rbbench.bench import schema
+from rbbench.bench.report import (
     IDENTITY,
     best_per_level,
     compare,

@@ -15,10 +15,10 @@ import pandas as pd
 import pytest
 
 import rbbench.testing.faulty as faulty
-from rbbench import schema
-from rbbench.matrix import MatrixError, load_matrix
+from rbbench.bench import schema
+from rbbench.bench.matrix import MatrixError, load_matrix
+from rbbench.bench.runner import load_rows, run_matrix
 from rbbench.registry import default_registry, discover
-from rbbench.runner import load_rows, run_matrix
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -218,8 +218,8 @@ repeats = 2
 def test_component_options_are_matrix_parameters(tmp_path):
     """Backend / formulation constructor options: a parameter grid, part of the case id and
     of the HF snapshot cache key (empty options keep the old keys)."""
-    from rbbench.scene import load_scene
-    from rbbench.snapshots import snapshot_key
+    from rbbench.hf.snapshots import snapshot_key
+    from rbbench.scene.loading import load_scene
 
     p = tmp_path / "opt.toml"
     p.write_text(TINY.format(duals='["cpg"]', stabs='["none"]', hyper='["auto"]', timeout=120)

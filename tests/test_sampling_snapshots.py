@@ -1,4 +1,5 @@
-"""Training / validation sets (rbbench.sampling) and the HF snapshot cache (rbbench.snapshots)."""
+"""Training / validation sets (rbbench.scene.sampling) and the HF snapshot cache
+(rbbench.hf.snapshots)."""
 
 from __future__ import annotations
 
@@ -8,10 +9,10 @@ import os
 import numpy as np
 import pytest
 
-import rbbench.snapshots as snapshots
-from rbbench.sampling import latin_hypercube, parameter_set, uniform_count
-from rbbench.scene import load_scene
-from rbbench.snapshots import SnapshotError, compute_snapshots, snapshot_key
+import rbbench.hf.snapshots as snapshots
+from rbbench.hf.snapshots import SnapshotError, compute_snapshots, snapshot_key
+from rbbench.scene.loading import load_scene
+from rbbench.scene.sampling import latin_hypercube, parameter_set, uniform_count
 
 FAST = ["discretization.n_cells=6"]
 
@@ -114,7 +115,7 @@ def test_snapshot_set_contents(scene, tmp_path):
     assert np.all(S.LAM >= 0) and np.all(S.times > 0)
     assert len(_files(tmp_path / S.key)) == 9
     # the files hold the free-dof vectors of solve_hf
-    from rbbench.hf import solve_hf
+    from rbbench.hf.model import solve_hf
 
     sol = solve_hf(scene, mus[4])
     np.testing.assert_allclose(S.U[:, 4], sol.result.u[sol.problem.free], rtol=0, atol=1e-13)
@@ -261,7 +262,7 @@ def test_mu_file_name_round_trips(tmp_path):
 
 
 def test_out_of_domain_rejected(scene, tmp_path):
-    from rbbench.scene import SceneError
+    from rbbench.scene.loading import SceneError
 
     with pytest.raises(SceneError):
         compute_snapshots(scene, [[0.5, 4.0]], cache_dir=tmp_path, n_jobs=1, progress=False)
@@ -269,8 +270,8 @@ def test_out_of_domain_rejected(scene, tmp_path):
 
 def test_snapshots_feed_pod_and_greedy(scene, tmp_path):
     """End to end on the fast scene: X must be restricted to the free dofs of U."""
-    from rbbench.hf import solve_hf
-    from rbbench.pod import pod, projection_errors, weak_greedy
+    from rbbench.hf.model import solve_hf
+    from rbbench.rb.pod import pod, projection_errors, weak_greedy
 
     S = compute_snapshots(scene, parameter_set(scene, "train"), cache_dir=tmp_path, n_jobs=1,
                           progress=False)

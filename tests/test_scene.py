@@ -9,7 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rbbench.scene import PROBLEMS_DIR, SCHEMA, Scene, SceneError, load_scene, parse_override
+from rbbench.scene.loading import (
+    PROBLEMS_DIR,
+    SCHEMA,
+    Scene,
+    SceneError,
+    load_scene,
+    parse_override,
+)
 
 HERTZ = PROBLEMS_DIR / "hertz_halfdisks.toml"
 MEMBRANE = PROBLEMS_DIR / "membrane_obstacle.toml"

@@ -7,7 +7,7 @@
 * PGA (slide "Some details"): ``max_train sigma_{S^n}`` is non-increasing and reaches 0
   after at most ``P x R`` additions ("Finite termination"); with ``delta < 1`` the
   offline space is inf-sup stable on the training set ("Main result", Riesz form).
-* :func:`rbbench.stability_study.beta_dec_study` on the membrane: the relations between
+* :func:`rbbench.studies.beta_dec.beta_dec_study` on the membrane: the relations between
   the constants that must hold whatever the data.
 
 Hertz runs on a coarse mesh (``HERTZ_COARSE``, 9 training parameters) by default; the same
@@ -22,15 +22,15 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rbbench import infsup as inf
-from rbbench.compressors import pga_default_delta
-from rbbench.hf import make_components
-from rbbench.pga import supremizers
+from rbbench.hf.model import make_components
+from rbbench.hf.snapshots import compute_snapshots
+from rbbench.rb import infsup as inf
+from rbbench.rb.compressors import pga_default_delta
+from rbbench.rb.pga import supremizers
 from rbbench.registry import default_registry
-from rbbench.sampling import parameter_set
-from rbbench.scene import load_scene
-from rbbench.snapshots import compute_snapshots
-from rbbench.stability_study import beta_dec_study
+from rbbench.scene.loading import load_scene
+from rbbench.scene.sampling import parameter_set
+from rbbench.studies.beta_dec import beta_dec_study
 from rbbench.testing import HERTZ_COARSE
 
 pytestmark = pytest.mark.timeout(900)

@@ -44,7 +44,7 @@ import scipy.sparse as sp
 from netgen.occ import ArcOfCircle, Face, OCCGeometry, Pnt, Segment, Wire, WorkPlane
 from rbbench_plugins.backends import common
 
-from rbbench.contact_geometry import (
+from rbbench.hf.contact_geometry import (
     AffineMap,
     FacetChain,
     SlaveStress,
@@ -56,7 +56,7 @@ from rbbench.interfaces import (
     Discretization,
     Factorize,
 )
-from rbbench.scene import Scene
+from rbbench.scene.loading import Scene
 
 #: Valid values of the ``mesh`` option (besides arrays).
 MESH_SOURCES = ("netgen", "skfem")

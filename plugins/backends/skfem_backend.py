@@ -28,9 +28,9 @@ from skfem import (
 from skfem.helpers import dot, grad
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-from rbbench.contact_geometry import AffineMap, FacetChain, SlaveStress
+from rbbench.hf.contact_geometry import AffineMap, FacetChain, SlaveStress
 from rbbench.interfaces import Backend, BodyMesh, Discretization
-from rbbench.scene import Scene
+from rbbench.scene.loading import Scene
 
 
 @BilinearForm

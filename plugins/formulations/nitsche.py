@@ -2,7 +2,7 @@
 
 Chouly & Hild (2013), Chouly, Hild & Renard (2015): the Alart-Curnier
 equation ``sigma_nn(u) = [sigma_nn(u) - gamma (u_n - d^n)]_-`` imposed weakly
-(:mod:`rbbench.nitsche`). Only the backend's contact evaluation matrices are
+(:mod:`rbbench.hf.nitsche_algebra`). Only the backend's contact evaluation matrices are
 used (``Un``, ``Snn``, weights, gap, facet lengths), so the formulation runs on
 every backend that builds ``Snn`` on request (``needs = {"stress"}``).
 """
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from rbbench.hf.nitsche_algebra import gamma_scaling
 from rbbench.interfaces import Discretization, Formulation, NitscheProblem
-from rbbench.nitsche import gamma_scaling
 
 #: Default dimensionless Nitsche parameter (``gamma = gamma0 E / h``).
 GAMMA0 = 10.0
@@ -49,7 +49,7 @@ class NitscheFormulation(Formulation):
 
     def cache_params(self) -> dict[str, float]:
         """What, besides the scene and the components, determines a solution (the HF
-        snapshot cache key, :mod:`rbbench.snapshots`)."""
+        snapshot cache key, :mod:`rbbench.hf.snapshots`)."""
         return {"theta": self.theta, "gamma0": self.gamma0}
 
     def build(self, disc: Discretization) -> NitscheProblem:

@@ -1,7 +1,7 @@
 """Condensed VI solvers: semismooth Newton (primal-dual active set) and Uzawa.
 
 Both factorise the stiffness once per mu and work on the LCP of the contact
-unknowns (:mod:`rbbench.lcp`).
+unknowns (:mod:`rbbench.hf.lcp`).
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 
-from rbbench import lcp
+from rbbench.hf import lcp
 from rbbench.interfaces import ContactProblem, Solver, SolveResult
 
 
@@ -31,7 +31,7 @@ class _CondensedSolver(Solver):
 
 
 class SemismoothNewtonSolver(_CondensedSolver):
-    """Primal-dual active set / semismooth Newton (see :func:`rbbench.lcp.pdas`)."""
+    """Primal-dual active set / semismooth Newton (see :func:`rbbench.hf.lcp.pdas`)."""
 
     name = "ssn"
 
@@ -43,7 +43,7 @@ class SemismoothNewtonSolver(_CondensedSolver):
 
 
 class UzawaSolver(_CondensedSolver):
-    """Uzawa (seed 000 baseline; see :func:`rbbench.lcp.uzawa`)."""
+    """Uzawa (seed 000 baseline; see :func:`rbbench.hf.lcp.uzawa`)."""
 
     name = "uzawa"
 

@@ -8,7 +8,7 @@ The problem (seed 000, "Mixed formulation"; :class:`rbbench.interfaces.ContactPr
   ``x = (u, lam)`` and solves it with a PETSc SNES variational-inequality
   Newton method (``vinewtonrsls``, reduced-space active set, by default).
 * :class:`PetscTaoSolver` condenses it on the contact unknowns with
-  :func:`rbbench.lcp.condense` and solves the bound-constrained dual QP
+  :func:`rbbench.hf.lcp.condense` and solves the bound-constrained dual QP
   ``min_{lam >= 0} 1/2 lam^T D lam + q^T lam`` with PETSc TAO (``tron``).
 
 ``petsc4py`` is imported only here, on first use, and PETSc is initialised
@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from rbbench import lcp
+from rbbench.hf import lcp
 from rbbench.interfaces import ContactProblem, Solver, SolveResult
 
 __all__ = ["PetscTaoSolver", "PetscVISolver", "petsc"]
@@ -535,7 +535,7 @@ class PetscVISolver(_PetscSolver):
 class PetscTaoSolver(_PetscSolver):
     """PETSc TAO bound-constrained QP on the condensed dual problem.
 
-    :func:`rbbench.lcp.condense` factorises ``A`` once and forms the Delassus
+    :func:`rbbench.hf.lcp.condense` factorises ``A`` once and forms the Delassus
     operator ``D = B A^{-1} B^T`` and ``q = G - B A^{-1} F``; the multipliers
     solve LCP(q, D), the optimality system of::
 

@@ -51,7 +51,7 @@ from rbbench.interfaces import (
     SolveResult,
 )
 from rbbench.registry import ROLES, ComponentSpec, Registry, default_registry
-from rbbench.scene import SCHEMA, Scene, SceneError, load_scene
+from rbbench.scene.loading import SCHEMA, Scene, SceneError, load_scene
 
 __all__ = [
     "ContractViolation",
@@ -408,7 +408,7 @@ def check_backend(factory: Callable[..., Any], scene: Scene, name: str | None = 
     ``A`` and ``X`` symmetric, positive definite on the free dofs, ``A`` the
     unconstrained operator; consistent contact operators with positive weights
     and an SPD multiplier Gram matrix ``W``; dof and multiplier counts
-    independent of mu; out-of-domain mu raises :class:`~rbbench.scene.SceneError`.
+    independent of mu; out-of-domain mu raises :class:`~rbbench.scene.loading.SceneError`.
     """
     label = f"backend {name or getattr(factory, '__name__', factory)!r} on {scene.name}"
     backend = factory(scene=scene)
@@ -838,7 +838,7 @@ def random_nitsche_problem(seed: int = 0, n: int = 30, n_q: int = 12, n_fixed: i
 
 def _nitsche_residual(prob: NitscheProblem, u: np.ndarray) -> tuple[float, np.ndarray]:
     """Relative residual of the Nitsche equations at ``u`` (free dofs) and the point
-    pressures ``-[P]_-``, written out here independently of :mod:`rbbench.nitsche`."""
+    pressures ``-[P]_-``, written out here independently of :mod:`rbbench.hf.nitsche_algebra`."""
     s = prob.Snn @ u + prob.snn_lift
     P = s - prob.gamma * (prob.Un @ u - prob.gap)
     neg = np.minimum(P, 0.0)
@@ -918,7 +918,7 @@ def check_nitsche_solver(factory: Callable[..., Any], options: dict | None = Non
 
 
 # ---------------------------------------------------------------------------
-# primal compressor, dual compressor, stabiliser (rbbench.compressors protocols)
+# primal compressor, dual compressor, stabiliser (rbbench.rb.compressors protocols)
 # ---------------------------------------------------------------------------
 #: ``capabilities["tol"]`` of a primal compressor: what its ``tol`` bounds.
 PRIMAL_TOL_KINDS = ("energy", "max")
@@ -998,7 +998,7 @@ def check_primal(factory: Callable[..., Any], capabilities: dict | None = None,
 
     On snapshots of exact rank ``r`` (:func:`primal_test_data`) and a non-diagonal SPD
     ``X``, ``compressor(U, X, tol=..., n=...)`` returns a
-    :class:`~rbbench.compressors.PrimalBasis` whose ``Z`` is X-orthonormal, spans a
+    :class:`~rbbench.rb.compressors.PrimalBasis` whose ``Z`` is X-orthonormal, spans a
     subspace of the snapshots, and:
 
     1. without ``tol`` and ``n``: ``N = r`` and every snapshot is reproduced;
@@ -1025,7 +1025,7 @@ def check_primal(factory: Callable[..., Any], capabilities: dict | None = None,
     span_U = np.linalg.svd(U, full_matrices=False)[0][:, :rank]
 
     def run(what: str, **kw) -> np.ndarray:
-        from rbbench.compressors import PrimalBasis
+        from rbbench.rb.compressors import PrimalBasis
 
         res = comp(U, X, **kw)
         where = f"{label}: {what}"
@@ -1085,7 +1085,7 @@ def check_dual(factory: Callable[..., Any], capabilities: dict | None = None,
 
     On non-negative snapshots ``Theta`` and a diagonal SPD ``W`` (:func:`dual_test_data`),
     ``compressor(Theta, W, tol=..., r_max=...)`` returns a
-    :class:`~rbbench.cones.DualBasis` with:
+    :class:`~rbbench.rb.cones.DualBasis` with:
 
     * ``1 <= R <= r_max`` finite generators of unit W-norm, shape ``(n, R)``;
     * ``is_cone == capabilities["cone"]``; a cone's generators are non-negative (the
@@ -1100,7 +1100,7 @@ def check_dual(factory: Callable[..., Any], capabilities: dict | None = None,
     """
     from scipy.optimize import nnls
 
-    from rbbench.cones import DualBasis
+    from rbbench.rb.cones import DualBasis
 
     caps = dict(capabilities or {})
     label = f"dual compressor {name or getattr(factory, '__name__', factory)!r}"
@@ -1221,7 +1221,7 @@ def check_stabilizer(factory: Callable[..., Any], capabilities: dict | None = No
       space) on the training matrices and on a new one (seed 000, "Parameter-dependent
       context"); ``"training set"``: ``beta >= sqrt(1 - delta^2) beta_on > 0`` on the
       training matrices (seed 000 "Main result"; the sharper Riesz form of
-      :func:`rbbench.pga.riesz_lower_bound`); ``"not guaranteed"``: nothing.
+      :func:`rbbench.rb.pga.riesz_lower_bound`); ``"not guaranteed"``: nothing.
     """
     caps = dict(capabilities or {})
     label = f"stabilizer {name or getattr(factory, '__name__', factory)!r}"
@@ -1357,14 +1357,14 @@ def check_executor(factory: Callable[..., Any], name: str | None = None) -> None
 
     Two tiny membrane cases, one of which uses a dual compressor that raises
     (:mod:`rbbench.testing.faulty`): ``run`` must call ``on_result`` exactly
-    once per case, with a row of :mod:`rbbench.schema` whose identity matches
+    once per case, with a row of :mod:`rbbench.bench.schema` whose identity matches
     the case; the good case is ``ok``, the failing one ``error`` with its
     traceback; ``on_stage`` receives strings only.
     """
     import tempfile
 
-    from rbbench import schema
-    from rbbench.matrix import Case
+    from rbbench.bench import schema
+    from rbbench.bench.matrix import Case
     from rbbench.registry import discover
     from rbbench.testing import faulty
 

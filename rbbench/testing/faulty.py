@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.compressors import CPG
 from rbbench.hookspecs import hookimpl
+from rbbench.rb.compressors import CPG
 from rbbench.registry import ComponentSpec
 
 _HERE = "rbbench.testing.faulty"

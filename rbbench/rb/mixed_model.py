@@ -10,9 +10,9 @@ with ``A_N = Z^T A Z``, ``B_N = Vg^T B Z``, ``F_N = Z^T F``, ``G_N = Vg^T G``.
 ``A_N`` and ``F_N`` are :class:`AffineOperator` ``sum_k theta_k(mu) M_k`` with
 a picklable coefficient map; the constraint pair ``(B_N, G_N)`` is either
 affine too (:class:`AffineConstraint`) or hyper-reduced by DEIM on the
-contact rows (:class:`rbbench.hyper.ContactEIM`). Online,
+contact rows (:class:`rbbench.rb.contact_eim.ContactEIM`). Online,
 ``c = A_N^{-1}(F_N - B_N^T alpha)`` condenses the problem to an R x R LCP
-solved by the primal-dual active set of :mod:`rbbench.lcp` (warm-startable),
+solved by the primal-dual active set of :mod:`rbbench.hf.lcp` (warm-startable),
 or the primal QP is handed to the compiled solver daqp (the default online).
 Nothing here depends on the HF size.
 """
@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from rbbench import lcp
+from rbbench.hf import lcp
 
 
 class NotAffineError(ValueError):
@@ -139,7 +139,7 @@ def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
     """Solve the reduced saddle point.
 
     ``method = "pdas"``: dense Cholesky of A_N, R x R LCP by the primal-dual
-    active set of :mod:`rbbench.lcp` (warm-startable; ``cho``: a Cholesky factor
+    active set of :mod:`rbbench.hf.lcp` (warm-startable; ``cho``: a Cholesky factor
     of ``A`` computed once when A_N is independent of mu). ``method = "daqp"``:
     the primal QP by :func:`_solve_daqp` (measured 16x faster at N + K = 60,
     R = 30 and equal to 1e-12), falling back to PDAS if daqp does not report
@@ -198,7 +198,7 @@ class ReducedModel:
         ``theta(mu)`` for A and F, picklable (e.g. :class:`LinearInMu`).
     constraint : callable
         ``mu -> (B_N (R x N), G_N (R,))``: :class:`AffineConstraint` (exact affine)
-        or a hyper-reduced evaluator (:class:`rbbench.hyper.ContactEIM`).
+        or a hyper-reduced evaluator (:class:`rbbench.rb.contact_eim.ContactEIM`).
     is_cone : bool
         True when the dual space is a cone (alpha >= 0 is the right constraint).
     info : dict

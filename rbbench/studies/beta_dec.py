@@ -9,21 +9,21 @@ and slides "Projected Greedy Algorithm (PGA)" / "(1/2)" / "(2/2)" build
 ``V_off = V_N + S_R^red`` offline so that ``beta_off > 0`` on the training set.
 :func:`beta_dec_study` measures both, for fixed generators (``R``) and ``N = 1, 2, ...``:
 
-* ``span``: :func:`rbbench.infsup.infsup_span` over ``span(Vg)``, exact, a LOWER bound of
+* ``span``: :func:`rbbench.rb.infsup.infsup_span` over ``span(Vg)``, exact, a LOWER bound of
   the cone value; it is 0 whenever ``N < R`` (``Z^T B^T Vg`` then has a null space);
-* ``cone``: :func:`rbbench.infsup.infsup_cone`, exact (face enumeration) for
+* ``cone``: :func:`rbbench.rb.infsup.infsup_cone`, exact (face enumeration) for
   ``R <= exact_max_r`` (kind ``"cone-exact"``), else a multistart UPPER estimate
   (``"cone-upper"``);
-* ``zero``: :func:`rbbench.infsup.beta_zero_test`, the EXACT LP test of ``beta = 0`` on the
+* ``zero``: :func:`rbbench.rb.infsup.beta_zero_test`, the EXACT LP test of ``beta = 0`` on the
   cone (``exists alpha >= 0, sum 1, Z^T B^T Vg alpha = 0``), independent of the kind.
 
-The same three numbers are computed for ``V_off = [V_N, S_PGA]`` (:func:`rbbench.pga.pga`
+The same three numbers are computed for ``V_off = [V_N, S_PGA]`` (:func:`rbbench.rb.pga.pga`
 on the supremizers of the training parameters, tolerance ``delta``), and ``beta_on`` (whole
 V against the reduced cone: the online-supremizer value) for scale.
 
 Run from the shell (prints the table)::
 
-    python -m rbbench.stability_study hertz_halfdisks --R 10 15 20
+    python -m rbbench.studies.beta_dec hertz_halfdisks --R 10 15 20
 """
 
 from __future__ import annotations
@@ -37,14 +37,14 @@ from typing import Any
 
 import numpy as np
 
-from rbbench import infsup as inf
-from rbbench.compressors import pga_default_delta
-from rbbench.hf import ProblemCache, make_components
-from rbbench.pga import pga, supremizers
+from rbbench.hf.model import ProblemCache, make_components
+from rbbench.hf.snapshots import compute_snapshots
+from rbbench.rb import infsup as inf
+from rbbench.rb.compressors import pga_default_delta
+from rbbench.rb.pga import pga, supremizers
 from rbbench.registry import default_registry
-from rbbench.sampling import parameter_set
-from rbbench.scene import Scene, load_scene
-from rbbench.snapshots import compute_snapshots
+from rbbench.scene.loading import Scene, load_scene
+from rbbench.scene.sampling import parameter_set
 
 __all__ = ["BetaDecStudy", "beta_dec_study", "main"]
 
@@ -70,7 +70,7 @@ class BetaDecStudy:
         ``dec_zero``, ``off_span``, ``off_cone``, ``off_zero``: arrays ``(n_N, n_mu)``;
         ``on_span``, ``on_cone``, ``c``: ``(n_mu,)``), the values for every parameter;
         ``c`` is the continuity constant of ``b`` on ``V x span(Vg)``
-        (:func:`rbbench.infsup.boundedness_constant`), the scale of all the constants.
+        (:func:`rbbench.rb.infsup.boundedness_constant`), the scale of all the constants.
     pga : dict
         ``pga[(R, N)]``: ``delta``, ``stop`` reason, ``K`` and the ``sigma_max`` history.
     config : dict
@@ -135,14 +135,14 @@ def beta_dec_study(scene: Scene | str, dual: str = "mcpg", R: int | Sequence[int
         Registered primal compressor; nested ones (``capabilities["nested"]``) are run
         once and truncated.
     delta_pga : float, optional
-        PGA tolerance; default :func:`rbbench.compressors.pga_default_delta` with its
+        PGA tolerance; default :func:`rbbench.rb.compressors.pga_default_delta` with its
         defaults (half the smallest ratio) on every fifth training parameter (the probes of
         ``rbbench reduce``, which takes the largest ratio), computed per ``R``.
     exact_max_r, n_starts : int
-        Passed to :func:`rbbench.infsup.infsup_cone` (exact face enumeration up to
+        Passed to :func:`rbbench.rb.infsup.infsup_cone` (exact face enumeration up to
         ``exact_max_r`` generators, ~0.7 s per call at R = 16).
     cache_dir, n_jobs, backend, formulation, solver
-        HF snapshot computation (:func:`rbbench.snapshots.compute_snapshots`).
+        HF snapshot computation (:func:`rbbench.hf.snapshots.compute_snapshots`).
     progress : callable, optional
         Receives one line per stage.
 
@@ -281,8 +281,8 @@ def beta_dec_study(scene: Scene | str, dual: str = "mcpg", R: int | Sequence[int
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m rbbench.stability_study SCENE [--R ...] [--set k=v ...]``: print the table."""
-    ap = argparse.ArgumentParser(prog="python -m rbbench.stability_study",
+    """``python -m rbbench.studies.beta_dec SCENE [--R ...] [--set k=v ...]``: print the table."""
+    ap = argparse.ArgumentParser(prog="python -m rbbench.studies.beta_dec",
                                  description=beta_dec_study.__doc__.splitlines()[0])
     ap.add_argument("scene")
     ap.add_argument("--set", dest="overrides", action="append", default=[],

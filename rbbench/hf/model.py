@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hertz import hertz_2d
+from rbbench.hf.references import hertz_2d
 from rbbench.interfaces import ContactProblem, Discretization, NitscheProblem, SolveResult
 from rbbench.registry import Registry, default_registry
-from rbbench.scene import Scene
+from rbbench.scene.loading import Scene
 
 #: Relative threshold on lam (w.r.t. max lam) above which a multiplier counts as active.
 ACTIVE_THRESHOLD = 1e-8
@@ -217,9 +217,9 @@ def _nitsche_metrics(prob: NitscheProblem, res: SolveResult, c: Any) -> dict[str
     of the Nitsche equation), their peak, and the seed's relative AC residual ``e_ac``.
 
     ``lam`` (hence ``max_pressure``, half-width, complementarity) is the L2 projection of
-    that pressure on the multiplier space (:func:`rbbench.nitsche.project_pressure`).
+    that pressure on the multiplier space (:func:`rbbench.hf.nitsche_algebra.project_pressure`).
     """
-    from rbbench import nitsche as nt
+    from rbbench.hf import nitsche_algebra as nt
 
     if not np.all(np.isfinite(res.u)):
         return {"contact_force": float("nan"), "e_ac": None,

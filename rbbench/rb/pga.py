@@ -1,7 +1,7 @@
 """Supremizers and the Projected Greedy Algorithm (PGA) for an offline inf-sup stable primal space.
 
 Seed 000, slides "Parameter-dependent context", "Approximation of S_R", "Main result",
-"Projected Greedy Algorithm (PGA)" and "Some details". Notation as in :mod:`rbbench.infsup`:
+"Projected Greedy Algorithm (PGA)" and "Some details". Notation as in :mod:`rbbench.rb.infsup`:
 ``X`` (n x n, SPD) is the primal Gram matrix, all norms and projections below are in the
 X-inner product ``(u, v)_X = u^T X v``.
 
@@ -52,7 +52,7 @@ def supremizers(B, X_solve: Callable[[np.ndarray], np.ndarray], Vg: np.ndarray) 
     B : (m, n) sparse or dense
     X_solve : callable
         Solves ``X y = rhs`` for ``rhs`` of shape (n, R) (e.g. ``splu(X).solve``, or
-        :func:`rbbench.infsup.make_solver`).
+        :func:`rbbench.rb.infsup.make_solver`).
     Vg : (m, R) ndarray
         Cone generators.
     """
@@ -386,8 +386,8 @@ def theorem_lower_bound(beta_on, c_hf, sigma):
     If ``sigma_S(mu) < beta_on(mu) / c_HF(mu)`` then ``beta_off(mu) >= beta*_S(mu) > 0``,
     where ``beta_off`` is the inf-sup over ``W_R^+`` (cone, or its span: the proof works for
     any multiplier set inside ``span Vg``) and ``V_N + S``, ``beta_on`` the same over
-    ``V_N + S_R(mu)`` (:mod:`rbbench.infsup`), and ``c_HF`` a continuity constant of
-    ``b(mu)`` on ``V x span(Vg)`` (:func:`rbbench.infsup.boundedness_constant`; the HF
+    ``V_N + S_R(mu)`` (:mod:`rbbench.rb.infsup`), and ``c_HF`` a continuity constant of
+    ``b(mu)`` on ``V x span(Vg)`` (:func:`rbbench.rb.infsup.boundedness_constant`; the HF
     constant on ``V x W`` is larger, hence also valid). Outside that condition the value is
     ``<= 0`` and guarantees nothing. Works elementwise on arrays. :func:`riesz_lower_bound`
     is sharper and needs no condition.

@@ -17,7 +17,7 @@ repetitions. Example (every table but ``[matrix]`` is optional)::
     [sizes]
     pairs = [[10, 10], [20, 20]]   # (N, R) pairs; or N = [...] and R = [...] (product)
 
-    [reduce]                   # rbbench.rb_pipeline.ReduceConfig fields for every case
+    [reduce]                   # rbbench.rb.offline.ReduceConfig fields for every case
     n_train = 21
     n_valid = 10
 
@@ -49,7 +49,7 @@ from pathlib import Path
 from typing import Any
 
 from rbbench.registry import Registry
-from rbbench.scene import PROBLEMS_DIR, Scene, load_scene, tomllib
+from rbbench.scene.loading import PROBLEMS_DIR, Scene, load_scene, tomllib
 
 __all__ = ["COMPONENT_ROLES", "Case", "Matrix", "MatrixError", "compatibility", "load_matrix"]
 
@@ -121,8 +121,8 @@ class Case:
                 + (f" rep {self.repetition}" if self.repetition else ""))
 
     def reduce_config(self, cache_dir: str) -> Any:
-        """The :class:`~rbbench.rb_pipeline.ReduceConfig` of this case."""
-        from rbbench.rb_pipeline import ReduceConfig
+        """The :class:`~rbbench.rb.offline.ReduceConfig` of this case."""
+        from rbbench.rb.offline import ReduceConfig
 
         return ReduceConfig(**self.components, N=self.N, R=self.R, cache_dir=cache_dir,
                             n_jobs=1, **self.params)
@@ -139,7 +139,7 @@ class Matrix:
 
 
 def _reduce_fields() -> dict[str, Any]:
-    from rbbench.rb_pipeline import ReduceConfig
+    from rbbench.rb.offline import ReduceConfig
 
     return {f.name: f for f in fields(ReduceConfig)}
 

@@ -16,10 +16,11 @@ from typing import Any
 
 import numpy as np
 
-from rbbench import infsup as inf
-from rbbench.compressors import pga_default_delta
-from rbbench.hf import ProblemCache, discretize_for, make_components
-from rbbench.reduced import (
+from rbbench.hf.model import ProblemCache, discretize_for, make_components
+from rbbench.hf.snapshots import compute_snapshots
+from rbbench.rb import infsup as inf
+from rbbench.rb.compressors import pga_default_delta
+from rbbench.rb.mixed_model import (
     ONLINE_METHODS,
     NotAffineError,
     build_affine_model,
@@ -27,9 +28,8 @@ from rbbench.reduced import (
     solve_reduced,
 )
 from rbbench.registry import Registry, default_registry
-from rbbench.sampling import parameter_set
-from rbbench.scene import Scene, SceneError
-from rbbench.snapshots import compute_snapshots
+from rbbench.scene.loading import Scene, SceneError
+from rbbench.scene.sampling import parameter_set
 
 HYPER = ("auto", "affine", "eim", "none")
 
@@ -72,11 +72,11 @@ class ReduceConfig:
     tol_eim: float = 1e-4
     m_eim: int | None = None
     n_eim_train: int | None = None  # default: 4 (n_train - 1) + 1 grid points (+ training);
-    # Nitsche: 2 (n_train - 1) + 1 (rbbench.nitsche_reduced)
+    # Nitsche: 2 (n_train - 1) + 1 (rbbench.rb.nitsche_model)
 
     @property
     def component_options(self) -> dict:
-        """``{"backend": ..., "formulation": ...}`` for :func:`rbbench.hf.make_components`."""
+        """``{"backend": ..., "formulation": ...}`` for :func:`rbbench.hf.model.make_components`."""
         return {"backend": dict(self.backend_options),
                 "formulation": dict(self.formulation_options)}
 
@@ -220,10 +220,10 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
 
     The primal and dual compressors and the stabiliser are the registered plugins named in
     ``config`` (``registry``: default, the discovered plugins). ``config.formulation ==
-    "nitsche"``: the reduced Nitsche model (:func:`rbbench.nitsche_reduced.reduce_nitsche`).
+    "nitsche"``: the reduced Nitsche model (:func:`rbbench.rb.nitsche_model.reduce_nitsche`).
     """
     if config.formulation == "nitsche":
-        from rbbench.nitsche_reduced import reduce_nitsche
+        from rbbench.rb.nitsche_model import reduce_nitsche
 
         return reduce_nitsche(scene, config, progress=progress,
                               snapshot_progress=snapshot_progress, registry=registry)
@@ -418,7 +418,7 @@ def fixed_contact_points(scene: Scene, hyper: str, plain_ok: bool = True) -> boo
     ``[discretization] contact_integration = "segmented"`` moves them with mu: an explicit
     ``hyper = "eim"`` (or any reduced model when ``plain_ok`` is false: the reduced
     Nitsche model evaluates its contact points at fixed positions) raises a
-    :class:`~rbbench.scene.SceneError`; ``"auto"`` falls back to the plain model.
+    :class:`~rbbench.scene.loading.SceneError`; ``"auto"`` falls back to the plain model.
     """
     disc = scene.data.get("discretization", {})
     rule = disc.get("contact_integration", "gauss")
@@ -470,7 +470,7 @@ def training_snapshots(scene: Scene, config: ReduceConfig, formulation: str, sol
                        snapshot_progress: bool = False,
                        registry: Registry | None = None) -> tuple[np.ndarray, Any, Any]:
     """``(mus_train, train, valid)``: the training / validation sets of ``config`` and their
-    HF snapshots (:func:`rbbench.snapshots.compute_snapshots`, cached on disk)."""
+    HF snapshots (:func:`rbbench.hf.snapshots.compute_snapshots`, cached on disk)."""
     mus_train = parameter_set(scene, "train", config.n_train)
     mus_valid = parameter_set(scene, "valid", config.n_valid)
     snap_kw = dict(backend=config.backend, formulation=formulation, solver=solver,
@@ -485,9 +485,10 @@ def training_snapshots(scene: Scene, config: ReduceConfig, formulation: str, sol
 
 def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_train,
                   mus_valid, Z: np.ndarray, Vg: np.ndarray, histories: dict):
-    """hyper = "eim": :func:`rbbench.hyper.contact_eim`, its error curves and validation."""
-    from rbbench.contact_geometry import contact_operators
-    from rbbench.hyper import contact_eim, entrywise_eim_error
+    """hyper = "eim": :func:`rbbench.rb.contact_eim.contact_eim`, its error curves and
+    validation."""
+    from rbbench.hf.contact_geometry import contact_operators
+    from rbbench.rb.contact_eim import contact_eim, entrywise_eim_error
 
     if not hasattr(backend, "contact_layout"):
         raise ValueError(f"hyper 'eim': backend {config.backend!r} provides no contact layout "

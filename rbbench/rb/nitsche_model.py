@@ -5,7 +5,7 @@ Seed 000, slides "RB model" (Nitsche): ``u_N = Z c``, a reduced Newton method
 parameter- and iteration-dependent contact arrays so that the online stage does
 not depend on the HF size.
 
-**Reduced residual.** With the point quantities of :mod:`rbbench.nitsche` projected on
+**Reduced residual.** With the point quantities of :mod:`rbbench.hf.nitsche_algebra` projected on
 ``Z`` (``SZ = Snn Z``, ``UZ = Un Z``, ``s = SZ c + s_lift``,
 ``P = s - gamma (UZ c + u_lift,n - d^n)``, ``dw = w / gamma``)::
 
@@ -13,14 +13,14 @@ not depend on the HF size.
     y_q(c) = dw_q ( [P_q]_- (theta SZ_q - gamma_q UZ_q) - theta s_q SZ_q )   (an N-vector)
 
 ``A_N``, ``F_N`` are affine in mu (verified by probing,
-:func:`rbbench.reduced.affine_decomposition`). The sum over all contact quadrature
+:func:`rbbench.rb.mixed_model.affine_decomposition`). The sum over all contact quadrature
 points is the HF-size-dependent part.
 
 **Hyper-reduction at contact quadrature points.** Online only some points are
 evaluated: their rows of ``Un``, ``Snn``, the gap, weights and facet lengths at
 mu come from the backend's contact layout restricted to the slave facets of
 those points and a window of master facets (:class:`PointEvaluator`, the
-machinery of :class:`rbbench.hyper.RowEvaluator`), so nothing scales with the
+machinery of :class:`rbbench.rb.contact_eim.RowEvaluator`), so nothing scales with the
 mesh. Two ways to replace the sum over all points (``ReduceConfig.hyper``):
 
 * ``"auto"`` -> **empirical cubature** (``"ecsw"``, Farhat et al.'s energy-conserving
@@ -32,13 +32,13 @@ mesh. Two ways to replace the sum over all points (``ReduceConfig.hyper``):
   problem stays the minimisation of a reduced energy (symmetric tangent).
 * ``"eim"`` -> **DEIM** of the point contributions (``"deim"``): ``Y(mu, c) =
   [y_q(c)]_q`` (n_q x N, flattened) interpolated by the greedy EIM of
-  :func:`rbbench.eim.deim`, ``Y ~ Q Q_I^{-1} Y_I`` at ``M`` magic entries
+  :func:`rbbench.rb.eim.deim`, ``Y ~ Q Q_I^{-1} Y_I`` at ``M`` magic entries
   ``(q_i, n_i)``, so ``sum_q y_q ~ T Q_I^{-1} Y_I`` with ``T = sum_q Q_q``; the
   tangent is the exact derivative of the interpolant. Measured on
   ``hertz_halfdisks`` (level 0, N = 20): validation ``e_EIM`` 16-37 % and 3 of 10
   online Newton solves not converging: ``[P_gamma]_-`` has a kink at the contact
   edge, which moves with mu and c, and an interpolation from a few point values
-  generalises badly (as the entrywise EIM of ``B(mu)`` in :mod:`rbbench.hyper`).
+  generalises badly (as the entrywise EIM of ``B(mu)`` in :mod:`rbbench.rb.contact_eim`).
   Kept for comparison with the seed's EIM.
 * ``"none"`` -> plain: the exact sum over all points online (HF-size dependent).
 
@@ -70,11 +70,11 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.contact_geometry import ContactLayout, contact_operators, normal_stress_terms
-from rbbench.eim import deim
-from rbbench.hyper import HyperReductionError, pair_in_windows, restrict_layout
-from rbbench.nitsche import gamma_scaling, pressure, state
-from rbbench.reduced import AffineOperator, LinearInMu, NotAffineError, affine_decomposition
+from rbbench.hf.contact_geometry import ContactLayout, contact_operators, normal_stress_terms
+from rbbench.hf.nitsche_algebra import gamma_scaling, pressure, state
+from rbbench.rb.contact_eim import HyperReductionError, pair_in_windows, restrict_layout
+from rbbench.rb.eim import deim
+from rbbench.rb.mixed_model import AffineOperator, LinearInMu, NotAffineError, affine_decomposition
 
 __all__ = ["NitscheOnlineResult", "NitscheReducedModel", "PointEvaluator", "ReducedPoints",
            "sparse_nnls",
@@ -144,7 +144,7 @@ class ReducedPoints:
 
 def full_points(layout: ContactLayout, mu: np.ndarray, Zfull: np.ndarray, u_lift: np.ndarray,
                 gamma0: float) -> ReducedPoints:
-    """All contact points at mu (offline): :func:`~rbbench.contact_geometry.contact_operators`
+    """All contact points at mu (offline): :func:`~rbbench.hf.contact_geometry.contact_operators`
     with the stress, projected on ``Zfull`` (n_dofs x N, zero rows at Dirichlet dofs)."""
     c = contact_operators(layout, mu, stress=True)
     E = layout.stress.material(mu)[0]
@@ -168,7 +168,7 @@ class PointEvaluator:
         the master facets of their windows, dofs renumbered ``0 .. n_local - 1``.
     windows : (lo, hi) or None
         Master-facet window of each point of the restricted facets (as in
-        :func:`rbbench.hyper.build_row_evaluator`).
+        :func:`rbbench.rb.contact_eim.build_row_evaluator`).
     select : (n_p,)
         The requested points among the points of the restricted facets.
     points : (n_p,)
@@ -209,7 +209,7 @@ def build_point_evaluator(layout: ContactLayout, points: np.ndarray, mus: np.nda
 
     Master windows: the range of master facets each point hits over ``mus`` (a
     dense sample of D), widened by ``margin``; online, a point leaving its window
-    raises :class:`~rbbench.hyper.HyperReductionError`.
+    raises :class:`~rbbench.rb.contact_eim.HyperReductionError`.
     """
     points = np.asarray(points, dtype=np.int64)
     ng = layout.n_gauss
@@ -367,7 +367,7 @@ class NitscheReducedModel:
     Attributes
     ----------
     A, F : AffineOperator
-        ``A_N``, ``F_N`` on :class:`~rbbench.reduced.LinearInMu` coefficients.
+        ``A_N``, ``F_N`` on :class:`~rbbench.rb.mixed_model.LinearInMu` coefficients.
     coefficients : LinearInMu
     evaluator : PointEvaluator
         The points evaluated online (all contact points for the plain model).
@@ -500,7 +500,7 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
                    snapshot_progress: bool = False, registry: Any = None) -> Any:
     """Offline stage of the reduced Nitsche model and its online validation.
 
-    ``config`` is a :class:`rbbench.rb_pipeline.ReduceConfig` (``primal``, ``N``,
+    ``config`` is a :class:`rbbench.rb.offline.ReduceConfig` (``primal``, ``N``,
     ``tol_pod``, ``hyper``, ``tol_eim``, ``m_eim``, ``n_eim_train``, sizes, cache,
     ``online_repeats``); the dual / stabiliser fields do not apply. ``hyper``:
     ``"auto"``: empirical cubature at the contact points (``"ecsw"``, tolerance
@@ -509,10 +509,10 @@ def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = la
     point contributions (``"deim"``); ``"none"``:
     plain. A solver that does not solve Nitsche (e.g. the default ``ssn``) is
     replaced by the formulation's (``newton``). Returns a
-    :class:`rbbench.rb_pipeline.ReduceResult`.
+    :class:`rbbench.rb.offline.ReduceResult`.
     """
-    from rbbench.hf import ProblemCache, default_solver, make_components
-    from rbbench.rb_pipeline import (
+    from rbbench.hf.model import ProblemCache, default_solver, make_components
+    from rbbench.rb.offline import (
         DivergedError,
         ReduceResult,
         _check_finite,

@@ -39,7 +39,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from rbbench.contact_geometry import gauss_legendre_01, normal_stress, pair
+from rbbench.hf.contact_geometry import gauss_legendre_01, normal_stress, pair
 from rbbench.interfaces import NitscheProblem
 
 __all__ = ["NitscheState", "ac_residual", "ac_residual_nodal", "ac_residual_variants",
@@ -153,7 +153,7 @@ def _facet_operators(layout, mu: np.ndarray, s_local: np.ndarray):
     """``(Un, gap, Snn, fq)`` at local coordinates ``s_local`` of every slave facet.
 
     Same pairing as the contact operators (ray cast along the slave normal,
-    :func:`rbbench.contact_geometry.pair`), evaluated at arbitrary points of the facets
+    :func:`rbbench.hf.contact_geometry.pair`), evaluated at arbitrary points of the facets
     instead of the contact quadrature; ``Snn`` is the stress of the slave element
     adjacent to each facet. Also returns the physical facet lengths ``L``.
     """
@@ -179,7 +179,7 @@ def ac_residual_variants(layout, prob: NitscheProblem, u: np.ndarray, mu,
     """The seed's relative Alart-Curnier residual under three readings of its norm.
 
     ``u``: all dofs (``result.u``); ``layout``: the backend's
-    :class:`~rbbench.contact_geometry.ContactLayout`. Returns fractions:
+    :class:`~rbbench.hf.contact_geometry.ContactLayout`. Returns fractions:
 
     ``quad``
         :func:`ac_residual`: L2(Gamma_c) by the contact quadrature of the solve

@@ -14,7 +14,7 @@ PGA modes make those columns rich), so its online cost grows with the mesh.
 What the reduced model needs is ``B_N(mu) = Vg^T C(mu)`` and
 ``G_N(mu) = Vg^T G(mu)``, and ``C(mu)`` (the normal jump of the primal modes,
 integrated against each multiplier) and ``G(mu)`` are smooth in mu. So the
-greedy EIM of Barrault-Maday-Nguyen-Patera (:func:`rbbench.eim.deim`) is
+greedy EIM of Barrault-Maday-Nguyen-Patera (:func:`rbbench.rb.eim.deim`) is
 applied to the *matrices* ``C(mu)`` (entries of the dense m x N matrix) and
 to the vectors ``G(mu)``::
 
@@ -25,7 +25,7 @@ so ``B_N(mu) = sum_k theta_k(mu) Vg^T C_k`` with the ``Vg^T C_k`` precomputed.
 Online, only the few magic rows of ``B(mu)`` and ``G(mu)`` are computed:
 :class:`RowEvaluator` pairs the slave facets of those rows against a
 window of master facets, from a restricted
-:class:`~rbbench.contact_geometry.ContactLayout` (small arrays, no backend).
+:class:`~rbbench.hf.contact_geometry.ContactLayout` (small arrays, no backend).
 """
 
 from __future__ import annotations
@@ -36,13 +36,13 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from rbbench.contact_geometry import (
+from rbbench.hf.contact_geometry import (
     ContactLayout,
     multiplier_basis,
     pair,
     window_tangent_ranges,
 )
-from rbbench.eim import deim, eim_error, matrix_eim
+from rbbench.rb.eim import deim, eim_error, matrix_eim
 
 __all__ = ["ContactEIM", "HyperReductionError", "RowEvaluator", "build_row_evaluator",
            "contact_eim", "entrywise_eim_error", "pair_in_windows", "restrict_layout"]
@@ -68,7 +68,7 @@ class RowEvaluator:
         contiguous chain ``layout.master``) hit over a dense sample of D,
         widened by a margin, and the range of facet directions in it; searched
         by bisection where the chain is monotone along the ray
-        (:func:`~rbbench.contact_geometry.ray_cast_window`).
+        (:func:`~rbbench.hf.contact_geometry.ray_cast_window`).
     local_dofs : (n_local,)
         Global dofs behind the local numbering.
     Mrows : (M, nq)
@@ -125,7 +125,7 @@ class RowEvaluator:
 
 def pair_in_windows(layout: ContactLayout, mu: np.ndarray,
                     windows: tuple[np.ndarray, ...] | None, what: str):
-    """:func:`~rbbench.contact_geometry.pair` in the master windows sampled offline; a point
+    """:func:`~rbbench.hf.contact_geometry.pair` in the master windows sampled offline; a point
     that left its window raises :class:`HyperReductionError` (``what`` names it)."""
     try:
         return pair(layout, mu, windows=windows)
@@ -144,7 +144,7 @@ def restrict_layout(layout: ContactLayout, facets: np.ndarray, mus: np.ndarray,
     ``0 .. n_local - 1`` (``local_dofs`` maps them back). ``windows = (lo, hi, ranges)``:
     per quadrature point the master facets it hits over ``mus`` (a dense sample of D,
     including its corners), widened by ``margin`` each side, and the facet directions in
-    that window (:func:`~rbbench.contact_geometry.window_tangent_ranges`, once: a
+    that window (:func:`~rbbench.hf.contact_geometry.window_tangent_ranges`, once: a
     similarity map keeps them). ``None`` for a rigid plane.
 
     Raises ``ValueError`` for ``integration = "segmented"`` (mu-dependent points), and

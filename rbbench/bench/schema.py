@@ -89,7 +89,7 @@ COLUMNS: tuple[Column, ...] = (
     _c("M_eim", "int", "sizes", "", "EIM magic rows evaluated online (hyper eim)"),
     # HF solve (mode hf; contact force also for reference in rb mode: not filled)
     _c("contact_force", "float", "accuracy", "N/m", "mode hf: total normal contact force per "
-       "unit thickness at the scene's default mu (rbbench.hf contact_force)"),
+       "unit thickness at the scene's default mu (rbbench.hf.model contact_force)"),
     _c("hf_iterations", "int", "accuracy", "", "mode hf: iterations of the HF VI solver"),
     # accuracy
     _c("err_u_max", "float", "accuracy", "1", _ERR_U + ", max " + _VALID),

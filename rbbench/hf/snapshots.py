@@ -36,9 +36,9 @@ from typing import Any
 import numpy as np
 
 import rbbench
-from rbbench.hf import make_components, solve_hf
+from rbbench.hf.model import make_components, solve_hf
 from rbbench.registry import default_registry
-from rbbench.scene import key_data
+from rbbench.scene.loading import key_data
 
 __all__ = ["Snapshot", "SnapshotError", "SnapshotSet", "atomic_write", "cache_path",
            "compute_snapshots", "limit_blas_threads", "load_snapshot", "n_cpus",
@@ -362,7 +362,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
         Passed to the solver; part of the cache key.
     component_options : dict, optional
         ``{"backend": {...}, "formulation": {...}}`` constructor options
-        (:func:`rbbench.hf.make_components`); part of the cache key when given.
+        (:func:`rbbench.hf.model.make_components`); part of the cache key when given.
     registry : Registry, optional
         Where the component names are looked up (default: the discovered plugins).
     mp_context : {"fork", "forkserver", "spawn"}, optional

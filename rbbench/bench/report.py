@@ -4,7 +4,7 @@ runs (``rbbench compare``).
 A run directory (written by ``rbbench run``) holds::
 
     manifest.json                 run id, matrix, column definitions, provenance
-    results.parquet               one row per case x repetition (rbbench.schema.COLUMNS)
+    results.parquet               one row per case x repetition (rbbench.bench.schema.COLUMNS)
     results.csv                   optional, the same rows
     cases/<case_id>-r<rep>.json   {"row": {...}, "details": {"per_mu", "histories",
                                   "valid_mus"}}
@@ -14,7 +14,7 @@ constants per validation parameter, compressor / PGA / EIM histories, speed-ups,
 counts) and ``summary.md`` / ``summary.html``. :func:`compare` matches the rows of two
 runs on the identity of the case and lists regressions and improvements.
 
-Only the columns declared in :mod:`rbbench.schema` are read, by name; labels and
+Only the columns declared in :mod:`rbbench.bench.schema` are read, by name; labels and
 footnotes come from their docs. Rows whose status is not ``ok`` are never plotted or
 tabulated as numbers. Matplotlib is used through :class:`matplotlib.figure.Figure` only
 (no pyplot): no backend is selected and no global figure state is touched.
@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rbbench import schema
+from rbbench.bench import schema
 
 __all__ = [
     "ERROR_LEVELS",
@@ -153,7 +153,7 @@ def _clean(v: Any) -> Any:
 
 
 def _coerce(raw: dict[str, Any], notes: list[str] | None = None) -> dict[str, Any]:
-    """One raw row -> :func:`rbbench.schema.normalise_row`, tolerant of file types."""
+    """One raw row -> :func:`rbbench.bench.schema.normalise_row`, tolerant of file types."""
     row: dict[str, Any] = {}
     for k, v in raw.items():
         if k not in _COL:
@@ -207,7 +207,7 @@ def load_results(path: str | Path, notes: list[str] | None = None) -> pd.DataFra
     Returns
     -------
     pandas.DataFrame
-        Every column of :data:`rbbench.schema.COLUMNS`, object dtype, ``None`` where empty.
+        Every column of :data:`rbbench.bench.schema.COLUMNS`, object dtype, ``None`` where empty.
 
     Raises
     ------
@@ -494,7 +494,7 @@ def status_counts(rows: pd.DataFrame | list[dict[str, Any]]) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        Index: scene; columns: the statuses that occur (in :data:`rbbench.schema.STATUSES`
+        Index: scene; columns: the statuses that occur (in :data:`rbbench.bench.schema.STATUSES`
         order) and ``total``.
     """
     recs = _records(rows) if isinstance(rows, pd.DataFrame) else rows

@@ -1,9 +1,9 @@
 """Run a matrix: one results row per case x repetition, incremental, resumable.
 
-Layout of a run directory (the contract with :mod:`rbbench.report`)::
+Layout of a run directory (the contract with :mod:`rbbench.bench.report`)::
 
     DIR/manifest.json            matrix, column definitions, provenance, progress
-    DIR/results.parquet          the table (rbbench.schema columns), rewritten atomically
+    DIR/results.parquet          the table (rbbench.bench.schema columns), rewritten atomically
     DIR/results.csv              the same, with --csv
     DIR/cases/<case_id>-r<k>.json  {"row": ..., "details": {per_mu, histories, valid_mus}}
 
@@ -11,7 +11,7 @@ A case's file is written (atomically) the moment the case ends, whatever its
 status, and is the truth: on a rerun (after Ctrl-C, a kill or a crash) every
 case with a file is kept and not recomputed (``retry`` names statuses to
 recompute, e.g. ``error``, ``timeout``). HF snapshots are cached on disk
-(:mod:`rbbench.snapshots`) and computed once per scene / HF components /
+(:mod:`rbbench.hf.snapshots`) and computed once per scene / HF components /
 parameter set before the cases that share them start.
 """
 
@@ -34,15 +34,15 @@ from typing import Any
 
 import numpy as np
 
-from rbbench import schema
-from rbbench.matrix import Case, Matrix
-from rbbench.output import _jsonable
+from rbbench.bench import schema
+from rbbench.bench.matrix import Case, Matrix
+from rbbench.hf.snapshots import atomic_write
+from rbbench.provenance import _jsonable
 from rbbench.registry import NotInstalledError, Registry, default_registry
-from rbbench.snapshots import atomic_write
 
 __all__ = ["CaseTimeout", "RunSummary", "execute_case", "load_rows", "run_matrix"]
 
-#: Summary keys of :meth:`rbbench.rb_pipeline.ReduceResult.summary` copied as they are.
+#: Summary keys of :meth:`rbbench.rb.offline.ReduceResult.summary` copied as they are.
 _COPIED = ("n_hf_dofs", "n_contact", "n_train", "n_valid", "N", "R", "M_eim", "err_u_max",
            "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
            "complementarity_max", "energy_err_max", "t_offline_s", "t_online_median_s",
@@ -79,7 +79,7 @@ def _provenance() -> dict[str, Any]:
     once; callers copy it into rows, never mutate it)."""
     import importlib.metadata as md
 
-    from rbbench.output import provenance
+    from rbbench.provenance import provenance
 
     p = provenance()
     versions = {k: p[k] for k in ("numpy", "scipy", "python")}
@@ -141,9 +141,9 @@ def execute_case(case: Case, run_id: str, cache_dir: str, executor: str = "seria
     missing); ``timeout`` (:class:`CaseTimeout`); ``error`` (any other exception,
     with its traceback).
     """
-    from rbbench.rb_pipeline import DivergedError
-    from rbbench.scene import load_scene
-    from rbbench.snapshots import SnapshotError
+    from rbbench.hf.snapshots import SnapshotError
+    from rbbench.rb.offline import DivergedError
+    from rbbench.scene.loading import load_scene
 
     t0 = time.perf_counter()
     row = base_row(case, run_id, executor)
@@ -178,7 +178,7 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
                 progress: Callable[[str], None] | None) -> dict[str, Any]:
     """Mode rb: the reduction and its online validation; fills the row's columns and
     status and returns the case's details (per-mu values, histories, validation mus)."""
-    from rbbench.rb_pipeline import reduce
+    from rbbench.rb.offline import reduce
 
     res = reduce(scene, case.reduce_config(cache_dir), progress=progress or _quiet,
                  registry=registry)
@@ -199,7 +199,7 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
 def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) -> None:
     """Mode hf: ``hf_repeats`` HF solves at the scene's default mu (components built once,
     meshing not timed); fills the sizes, force, iterations and HF time columns."""
-    from rbbench.hf import make_components, solve_hf
+    from rbbench.hf.model import make_components, solve_hf
 
     c = case.components
     comps = make_components(scene, c["backend"], c["formulation"], c["solver"], registry)
@@ -293,9 +293,9 @@ def _snapshot_group(c: Case) -> tuple:
 
 def _prepare_group(c: Case, cache_dir: str, jobs: int | None, registry: Any = None) -> None:
     """The HF snapshots (training + validation) of one case's group, into the cache."""
-    from rbbench.sampling import parameter_set
-    from rbbench.scene import load_scene
-    from rbbench.snapshots import compute_snapshots
+    from rbbench.hf.snapshots import compute_snapshots
+    from rbbench.scene.loading import load_scene
+    from rbbench.scene.sampling import parameter_set
 
     comp = c.components
     scene = load_scene(c.base_scene, c.overrides)

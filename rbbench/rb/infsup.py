@@ -32,8 +32,8 @@ Which number is which (seed 000, slide "Projected Greedy Algorithm (2/2)"), for 
   cone ``W^+`` this is a span *lower bound*, the cone value is not computed for ``m`` large);
 * ``beta_dec``: ``Z = V_N`` basis, ``Vg`` = reduced cone generators;
 * ``beta_on``: ``Z = [V_N, T(mu)]`` with ``T(mu) = X^{-1} B(mu)^T Vg`` (online supremizers,
-  :func:`rbbench.pga.supremizers`); equals the ``Z = None`` value with the same ``Vg``;
-* ``beta_off``: ``Z = [V_N, S_PGA]`` (:func:`rbbench.pga.pga`);
+  :func:`rbbench.rb.pga.supremizers`); equals the ``Z = None`` value with the same ``Vg``;
+* ``beta_off``: ``Z = [V_N, S_PGA]`` (:func:`rbbench.rb.pga.pga`);
 * ``c_HF``: :func:`boundedness_constant` with ``Z = None`` and ``Vg = I_m``.
 """
 
@@ -74,7 +74,7 @@ def make_solver(X) -> Solver:
     ----------
     X : sparse matrix, ndarray, object with a ``solve`` method, or callable
         A sparse matrix is factorised once with SuperLU in symmetric mode
-        (:func:`rbbench.lcp.factorize`), a dense one with a Cholesky factorisation; an
+        (:func:`rbbench.hf.lcp.factorize`), a dense one with a Cholesky factorisation; an
         existing factorisation (``scipy.sparse.linalg.splu`` result, ...) is used through its
         ``solve`` method; a callable is returned unchanged.
 
@@ -85,7 +85,7 @@ def make_solver(X) -> Solver:
     0.4 s.
     """
     if sp.issparse(X):
-        from rbbench.lcp import factorize
+        from rbbench.hf.lcp import factorize
 
         lu = factorize(X)
         return lambda rhs: lu.solve(np.asfortranarray(rhs, dtype=float))
@@ -260,7 +260,7 @@ def boundedness_constant(S: np.ndarray, M: np.ndarray, *, rtol: float = GRAM_RTO
     ``c = sup_{eta in span(Vg)} sup_{v in Y} b(v, eta) / (||v||_X ||eta||_W)``. With
     ``S, M`` built for ``Z = None`` and ``Vg = I_m`` (all HF multiplier dofs) it is
     ``c_HF(mu)``, the boundedness constant of ``b(mu; ., .)`` on ``V x W`` used by the PGA
-    theorem (:func:`rbbench.pga.theorem_lower_bound`). Over the cone ``Span+(Vg)`` the sup
+    theorem (:func:`rbbench.rb.pga.theorem_lower_bound`). Over the cone ``Span+(Vg)`` the sup
     can only be smaller, so ``c`` is also a valid continuity constant there.
     """
     A = _reduced_pencil(S, M, rtol)

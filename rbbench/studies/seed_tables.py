@@ -6,8 +6,8 @@ import time
 
 import numpy as np
 
-from rbbench.hf import solve_hf
-from rbbench.scene import load_scene
+from rbbench.hf.model import solve_hf
+from rbbench.scene.loading import load_scene
 
 
 def hertz_table(scene: str = "hertz_halfdisks", loads=(0.05, 0.01), levels=(0, 1, 2),
@@ -58,7 +58,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
     HF size, the reduced sizes, the median and inter-quartile range of the
     online time (s) and its ratio to the first level.
     """
-    from rbbench.rb_pipeline import reduce
+    from rbbench.rb.offline import reduce
 
     results = []
     for level in levels:
@@ -152,13 +152,13 @@ def nitsche_table(scene: str = "hertz_halfdisks", hs=SEED_H, mus=(0.7, 1.0, 1.3)
     Each ``h`` (m) maps to scene overrides by :func:`seed_h_overrides`; the row holds the
     measured mean slave facet length at mu (physical), ``e_ac`` (fraction; the contact
     quadrature of the solve), ``e_ac_nodal`` and ``e_ac_l2`` (the other readings of the
-    seed's norm, :func:`rbbench.nitsche.ac_residual_variants`), Newton iterations, stop
+    seed's norm, :func:`rbbench.hf.nitsche_algebra.ac_residual_variants`), Newton iterations, stop
     reason, time, the Nitsche contact force and, with ``mixed``, the mixed (LAC + ssn)
     force on the same mesh and their relative difference.
     """
     from rbbench_plugins.formulations.nitsche import GAMMA0
 
-    from rbbench.nitsche import ac_residual_variants
+    from rbbench.hf.nitsche_algebra import ac_residual_variants
     from rbbench.registry import default_registry
 
     reg = default_registry()
@@ -263,8 +263,8 @@ def formulation_comparison(scene: str = "hertz_halfdisks", overrides=(), n_train
        (same ``N``; no dual space), u in the X norm and the multiplier / pressure in
        L2(Gamma_c) (mixed: the W norm of ``lam``).
     """
-    from rbbench.rb_pipeline import ReduceConfig, reduce
-    from rbbench.sampling import parameter_set
+    from rbbench.rb.offline import ReduceConfig, reduce
+    from rbbench.scene.sampling import parameter_set
 
     sc = load_scene(scene, list(overrides))
     mus = parameter_set(sc, "train", n_train)

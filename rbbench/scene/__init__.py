@@ -1,0 +1,17 @@
+"""Scenes: the schema, loading and validation of scene files (:mod:`.loading`) and parameter
+sampling (:mod:`.sampling`)."""
+
+from rbbench.scene.loading import (
+    PROBLEMS_DIR,
+    Parameter,
+    Scene,
+    SceneError,
+    find_scene,
+    load_scene,
+    parse_override,
+    validate,
+)
+from rbbench.scene.sampling import parameter_set
+
+__all__ = ["PROBLEMS_DIR", "Parameter", "Scene", "SceneError", "find_scene", "load_scene",
+           "parameter_set", "parse_override", "validate"]
