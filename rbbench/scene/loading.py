@@ -23,16 +23,14 @@ from typing import Any
 
 import numpy as np
 
+from rbbench.scene.parameters import ParameterSpace, SceneError  # noqa: F401 - SceneError lives here
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
 PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
-
-
-class SceneError(ValueError):
-    """A scene file or override is invalid; the message says where and what is valid."""
 
 
 def _parameter_ref(raw: Any) -> str | None:
@@ -217,22 +215,17 @@ class Scene:
     def default_mu(self) -> np.ndarray:
         return np.array([p.default for p in self.parameters], dtype=float)
 
+    @property
+    def parameter_space(self) -> ParameterSpace:
+        """The domain D, small and picklable (held by HF and reduced models)."""
+        ps = self.parameters
+        return ParameterSpace(tuple(p.name for p in ps), tuple(float(p.low) for p in ps),
+                              tuple(float(p.high) for p in ps), tuple(p.unit for p in ps),
+                              where=str(self.path), scene=self.name)
+
     def check_mu(self, mu: Any) -> np.ndarray:
         """Return ``mu`` as an array, or raise :class:`SceneError` if out of the domain D."""
-        arr = np.atleast_1d(np.asarray(mu, dtype=float)).ravel()
-        if arr.size != len(self.parameters):
-            domains = ", ".join(f"{p.name} in [{p.low:g}, {p.high:g}]" for p in self.parameters)
-            raise SceneError(
-                f"{self.path}: scene {self.name!r} has {len(self.parameters)} parameter(s) "
-                f"({domains}); got {arr.size} value(s): {arr.tolist()}"
-            )
-        for value, p in zip(arr, self.parameters, strict=True):
-            if not np.isfinite(value) or value < p.low or value > p.high:  # D is closed
-                raise SceneError(
-                    f"{self.path}: parameter {p.name} = {float(value):g} is outside its domain "
-                    f"[{p.low:g}, {p.high:g}]{' ' + p.unit if p.unit else ''}"
-                )
-        return arr
+        return self.parameter_space.check(mu)
 
     def mu_dict(self, mu: np.ndarray) -> dict[str, float]:
         return {p.name: float(v) for p, v in zip(self.parameters, np.atleast_1d(mu), strict=True)}

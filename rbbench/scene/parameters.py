@@ -1,0 +1,63 @@
+"""The parameter domain D of a scene, small and picklable: what every model checks mu against.
+
+Both the HF model (:class:`rbbench.hf.model.HFModel`) and the reduced models
+(:mod:`rbbench.rb.mixed_model`, :mod:`rbbench.rb.nitsche_model`) hold one and call
+:meth:`ParameterSpace.check` in ``solve(mu)`` (pyMOR's ``Model.solve(mu)`` parses mu the
+same way), so a reduced model rejects what the HF solve rejects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+class SceneError(ValueError):
+    """A scene file or override is invalid; the message says where and what is valid."""
+
+
+@dataclass(frozen=True)
+class ParameterSpace:
+    """The box ``D = prod_i [low_i, high_i]`` (closed), with names and units.
+
+    ``where`` and ``scene`` (the scene file and name) only serve the error messages.
+    """
+
+    names: tuple[str, ...]
+    low: tuple[float, ...]
+    high: tuple[float, ...]
+    units: tuple[str, ...] = ()
+    where: str = "<scene>"
+    scene: str = ""
+
+    @property
+    def dim(self) -> int:
+        return len(self.names)
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """``(p, 2)`` array of ``[low, high]`` rows."""
+        return np.array([self.low, self.high], dtype=float).T.reshape(self.dim, 2)
+
+    def check(self, mu: Any) -> np.ndarray:
+        """``mu`` as a float array of length :attr:`dim`, or :class:`SceneError` naming the
+        parameter and its domain (wrong count, non-finite, or outside D)."""
+        arr = np.atleast_1d(np.asarray(mu, dtype=float)).ravel()
+        if arr.size != self.dim:
+            domains = ", ".join(f"{n} in [{lo:g}, {hi:g}]"
+                                for n, lo, hi in zip(self.names, self.low, self.high, strict=True))
+            raise SceneError(
+                f"{self.where}: scene {self.scene!r} has {self.dim} parameter(s) "
+                f"({domains}); got {arr.size} value(s): {arr.tolist()}"
+            )
+        units = self.units or ("",) * self.dim
+        for value, name, lo, hi, unit in zip(arr, self.names, self.low, self.high, units,
+                                             strict=True):
+            if not np.isfinite(value) or value < lo or value > hi:  # D is closed
+                raise SceneError(
+                    f"{self.where}: parameter {name} = {float(value):g} is outside its domain "
+                    f"[{lo:g}, {hi:g}]{' ' + unit if unit else ''}"
+                )
+        return arr
