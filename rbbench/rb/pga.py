@@ -296,88 +296,142 @@ def pga(T_list: Sequence[np.ndarray], Z: np.ndarray, X, delta: float,
     PGAResult
     """
     Z = np.asarray(Z, dtype=float)
-    n = Z.shape[0]
     if sp.issparse(X):
         X = sp.csr_matrix(X)
     Zo, XZo = x_orthonormalize(Z, X, rtol=rtol)
     if max_dim is None:
-        max_dim = n - Zo.shape[1]
-    # all residuals E_mu side by side in one Fortran-ordered array (one BLAS call per update)
-    Qs = [x_orthonormalize(np.asarray(T, dtype=float), X, rtol=rtol)[0] for T in T_list]
-    P = len(Qs)
-    bounds = np.cumsum([0] + [Q.shape[1] for Q in Qs])
-    E_all = np.zeros((n, bounds[-1]), order="F")
-    for p, Q in enumerate(Qs):
-        E_all[:, bounds[p]:bounds[p + 1]] = _residual(Q, Zo, XZo)
-    del Qs
-    E = [E_all[:, bounds[p]:bounds[p + 1]] for p in range(P)]  # views
-    G = [Ep.T @ _xmul(X, Ep) for Ep in E]
-    sig2 = np.array([_top_eig(g)[0] for g in G])
-    ref = sig2.copy()  # top eigenvalue at the last exact computation of G
-    frozen = sig2 <= sigma_zero**2
-
-    def refresh(p: int) -> None:
-        G[p] = E[p].T @ _xmul(X, E[p])
-        sig2[p] = ref[p] = _top_eig(G[p])[0]
-        frozen[p] = sig2[p] <= sigma_zero**2
-
-    # U = [Zo, S basis] and X U, in Fortran-ordered buffers grown by doubling
-    n0 = Zo.shape[1]
-    cap = n0 + min(max_dim, 32)
-    U = np.zeros((n, cap), order="F")
-    XU = np.zeros((n, cap), order="F")
-    U[:, :n0], XU[:, :n0] = Zo, XZo
-    k = n0
+        max_dim = Z.shape[0] - Zo.shape[1]
+    res = _Residuals(T_list, Zo, XZo, X, rtol=rtol, sigma_zero=sigma_zero)
+    space = _Space(Zo, XZo, max_dim)
     history: list[float] = []
     picks: list[int] = []
     while True:
-        if P == 0:
+        if res.P == 0:
             history.append(0.0)
             reason = "exhausted"
             break
-        # the argmax is taken on an exactly recomputed G (downdates are only screening)
-        p, exact = int(np.argmax(sig2)), set()
-        while not frozen[p] and p not in exact:
-            refresh(p)
-            exact.add(p)
-            p = int(np.argmax(sig2))
-        smax = float(np.sqrt(sig2[p]))
+        p = res.pick()
+        smax = float(np.sqrt(res.sig2[p]))
         history.append(smax)
-        if smax <= sigma_zero:
-            reason = "exhausted"
+        reason = _stop_reason(smax, delta, sigma_zero, space.dim >= max_dim)
+        if reason:
             break
-        if smax <= delta:
-            reason = "tolerance"
-            break
-        if k - n0 >= max_dim:
-            reason = "max_dim"
-            break
-        _, c = _top_eig(G[p])
-        v = _residual((E[p] @ c)[:, None], U[:, :k], XU[:, :k])[:, 0]
+        v = _residual(res.direction(p)[:, None], space.U[:, :space.k],
+                      space.XU[:, :space.k])[:, 0]
         xv = _xmul(X, v)
         nv = float(np.sqrt(max(v @ xv, 0.0)))
         if nv <= sigma_zero:  # pragma: no cover - guarded by smax > sigma_zero
             reason = "exhausted"
             break
-        if k == U.shape[1]:
-            U = np.asfortranarray(np.hstack([U, np.zeros_like(U)]))
-            XU = np.asfortranarray(np.hstack([XU, np.zeros_like(XU)]))
-        U[:, k], XU[:, k] = v / nv, xv / nv
-        s, xs = U[:, k], XU[:, k]
-        k += 1
+        s, xs = space.append(v, xv, nv)
         picks.append(p)
-        coef_all = xs @ E_all
-        E_all = _ger(-1.0, s, coef_all, E_all)  # in place: the views E[q] follow
-        for q in range(P):
-            if frozen[q] or E[q].shape[1] == 0:
+        res.downdate(s, xs)
+    return PGAResult(basis=space.basis(), sigma_max=np.array(history), picks=picks,
+                     stop_reason=reason, sigma=np.sqrt(res.sig2))
+
+
+def _stop_reason(smax: float, delta: float, sigma_zero: float, full: bool) -> str:
+    """Why :func:`pga` stops at ``max sigma = smax`` (``""``: go on)."""
+    if smax <= sigma_zero:
+        return "exhausted"
+    if smax <= delta:
+        return "tolerance"
+    if full:
+        return "max_dim"
+    return ""
+
+
+class _Residuals:
+    """The residuals ``E_mu = (I - Pi_{V_N + S}) Q_mu`` of :func:`pga` and their Gram matrices.
+
+    All ``E_mu`` live side by side in one Fortran-ordered array ``E_all`` (``E[p]`` are
+    views), downdated by one BLAS rank-one update per added basis vector; ``G[p]`` is
+    downdated alongside and recomputed exactly when needed (see :func:`pga`).
+    """
+
+    def __init__(self, T_list: Sequence[np.ndarray], Zo: np.ndarray, XZo: np.ndarray, X, *,
+                 rtol: float, sigma_zero: float) -> None:
+        self.X = X
+        self.sigma_zero = sigma_zero
+        Qs = [x_orthonormalize(np.asarray(T, dtype=float), X, rtol=rtol)[0] for T in T_list]
+        self.P = len(Qs)
+        self.bounds = np.cumsum([0] + [Q.shape[1] for Q in Qs])
+        self.E_all = np.zeros((Zo.shape[0], self.bounds[-1]), order="F")
+        for p, Q in enumerate(Qs):
+            self.E_all[:, self.bounds[p]:self.bounds[p + 1]] = _residual(Q, Zo, XZo)
+        del Qs
+        self.E = [self.E_all[:, self.bounds[p]:self.bounds[p + 1]]
+                  for p in range(self.P)]  # views
+        self.G = [Ep.T @ _xmul(X, Ep) for Ep in self.E]
+        self.sig2 = np.array([_top_eig(g)[0] for g in self.G])
+        self.ref = self.sig2.copy()  # top eigenvalue at the last exact computation of G
+        self.frozen = self.sig2 <= sigma_zero**2
+
+    def refresh(self, p: int) -> None:
+        """Recompute ``G[p]`` exactly from ``E[p]``."""
+        self.G[p] = self.E[p].T @ _xmul(self.X, self.E[p])
+        self.sig2[p] = self.ref[p] = _top_eig(self.G[p])[0]
+        self.frozen[p] = self.sig2[p] <= self.sigma_zero**2
+
+    def pick(self) -> int:
+        """``argmax_p sigma(mu_p)``, taken on an exactly recomputed ``G`` (downdates are only
+        screening)."""
+        p, exact = int(np.argmax(self.sig2)), set()
+        while not self.frozen[p] and p not in exact:
+            self.refresh(p)
+            exact.add(p)
+            p = int(np.argmax(self.sig2))
+        return p
+
+    def direction(self, p: int) -> np.ndarray:
+        """``E[p] c``, ``c`` the top eigenvector of ``G[p]`` (before orthogonalisation)."""
+        _, c = _top_eig(self.G[p])
+        return self.E[p] @ c
+
+    def downdate(self, s: np.ndarray, xs: np.ndarray) -> None:
+        """Project the new X-unit basis vector ``s`` (``xs = X s``) out of every residual."""
+        coef_all = xs @ self.E_all
+        self.E_all = _ger(-1.0, s, coef_all, self.E_all)  # in place: the views E[q] follow
+        for q in range(self.P):
+            if self.frozen[q] or self.E[q].shape[1] == 0:
                 continue
-            coef = coef_all[bounds[q]:bounds[q + 1]]
-            G[q] -= np.outer(coef, coef)
-            sig2[q] = _top_eig(G[q])[0]
-            if sig2[q] < 1e-4 * ref[q]:
-                refresh(q)
-    return PGAResult(basis=np.array(U[:, n0:k]), sigma_max=np.array(history), picks=picks,
-                     stop_reason=reason, sigma=np.sqrt(sig2))
+            coef = coef_all[self.bounds[q]:self.bounds[q + 1]]
+            self.G[q] -= np.outer(coef, coef)
+            self.sig2[q] = _top_eig(self.G[q])[0]
+            if self.sig2[q] < 1e-4 * self.ref[q]:
+                self.refresh(q)
+
+
+class _Space:
+    """``U = [Zo, S basis]`` and ``X U`` of :func:`pga`, in Fortran-ordered buffers grown by
+    doubling; ``k`` columns are in use."""
+
+    def __init__(self, Zo: np.ndarray, XZo: np.ndarray, max_dim: int) -> None:
+        n, self.n0 = Zo.shape
+        cap = self.n0 + min(max_dim, 32)
+        self.U = np.zeros((n, cap), order="F")
+        self.XU = np.zeros((n, cap), order="F")
+        self.U[:, :self.n0], self.XU[:, :self.n0] = Zo, XZo
+        self.k = self.n0
+
+    @property
+    def dim(self) -> int:
+        """``K = dim S`` so far."""
+        return self.k - self.n0
+
+    def append(self, v: np.ndarray, xv: np.ndarray, nv: float) -> tuple[np.ndarray, np.ndarray]:
+        """Add ``v / nv`` (``xv = X v``); return the stored column and its ``X`` image."""
+        if self.k == self.U.shape[1]:
+            self.U = np.asfortranarray(np.hstack([self.U, np.zeros_like(self.U)]))
+            self.XU = np.asfortranarray(np.hstack([self.XU, np.zeros_like(self.XU)]))
+        self.U[:, self.k], self.XU[:, self.k] = v / nv, xv / nv
+        s, xs = self.U[:, self.k], self.XU[:, self.k]
+        self.k += 1
+        return s, xs
+
+    def basis(self) -> np.ndarray:
+        """A copy of the basis of ``S``."""
+        return np.array(self.U[:, self.n0:self.k])
 
 
 def theorem_lower_bound(beta_on, c_hf, sigma):
