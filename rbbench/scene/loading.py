@@ -18,6 +18,7 @@ import json
 import math
 import sys
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +31,21 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
+
+def _shipped_dir(package: str = "rbbench.problems") -> Path:
+    """The directory of the scenes shipped with rbbench (package data on disk).
+
+    Found with :mod:`importlib.resources`, so it is the same in a wheel and in an
+    editable install (``pyproject.toml`` maps ``rbbench.problems`` to ``problems/``).
+    """
+    root = resources.files(package)
+    if not isinstance(root, Path):  # e.g. a zip import: scenes are read as files
+        raise ImportError(f"{package}: the shipped scenes are not files on disk ({root})")
+    return root
+
+
+#: The shipped scenes (``*.toml``) and run matrices (``matrices/*.toml``).
+PROBLEMS_DIR: Path = _shipped_dir()
 
 
 def _parameter_ref(raw: Any) -> str | None:
@@ -310,7 +325,24 @@ def key_data(data: dict) -> dict:
 # loading
 # ---------------------------------------------------------------------------
 def find_scene(name_or_path: str | Path) -> Path:
-    """A scene by file path, or by name in ``problems/``."""
+    """A scene file by path, or a shipped scene by name (:data:`PROBLEMS_DIR`).
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A ``.toml`` file (the user's own scene), or the name of a shipped scene
+        (``membrane_obstacle``).
+
+    Returns
+    -------
+    Path
+        The scene file.
+
+    Raises
+    ------
+    SceneError
+        If it is neither; the message lists the shipped scenes.
+    """
     path = Path(name_or_path)
     if path.suffix == ".toml" and path.exists():
         return path
