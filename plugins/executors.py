@@ -2,7 +2,7 @@
 
 Every executor has ``run(cases, run_id, cache_dir, registry, on_result, on_stage)``
 and calls ``on_result(case, record)`` once per case, whatever happens to it
-(``record`` from :func:`rbbench.bench.runner.execute_case`, or a ``timeout`` /
+(``record`` from :func:`rbbench.bench.execution.execute_case`, or a ``timeout`` /
 ``error`` row when the case's process was killed or died). Time limits
 (``Case.timeout_s``) are enforced by killing the case's process (processes,
 dask) or by SIGALRM (serial: Python-level, a long compiled call ends first).
@@ -21,8 +21,8 @@ from collections.abc import Callable
 from multiprocessing.connection import wait
 from typing import Any
 
+from rbbench.bench.execution import CaseTimeout, alarm, execute_case, failed_row
 from rbbench.bench.matrix import Case
-from rbbench.bench.runner import CaseTimeout, alarm, execute_case, failed_row
 from rbbench.hf.snapshots import n_cpus
 
 OnResult = Callable[[Case, dict], None]

@@ -185,6 +185,24 @@ def _selected(value: Any, patterns: list[str] | None) -> bool:
     return patterns is None or any(fnmatch.fnmatchcase(str(value), p) for p in patterns)
 
 
+@dataclass
+class _Plan:
+    """A matrix file read and checked, before its expansion into cases."""
+
+    name: str
+    scenes: list[str]
+    repetitions: int
+    seed: int | None  # [matrix] seed; None: each scene's own
+    mode: str
+    timeout_s: float
+    axes: dict[str, list[str]] = field(default_factory=dict)
+    hf_repeats: Any = 3
+    pairs: list[tuple[int | None, int | None]] = field(default_factory=list)
+    base: dict[str, Any] = field(default_factory=dict)
+    grids: dict[tuple[str, str], list[dict]] = field(default_factory=dict)
+    overrides: dict[str, list[str]] = field(default_factory=dict)
+
+
 def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
                 sets: list[str] | tuple[str, ...] = (),
                 registry: Registry | None = None) -> Matrix:
@@ -195,6 +213,24 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
     """
     path = _find_matrix(path)
     where = str(path)
+    data = _read_toml(path, where)
+    plan = _matrix_table(data["matrix"], path.stem, where)
+    plan.axes, plan.hf_repeats = _component_axes(data, plan.mode, registry, where)
+    plan.pairs = _size_pairs(data.get("sizes", {}), where)
+    rfields = _reduce_fields()
+    plan.base = _base_params(data.get("reduce", {}), sets, rfields, where)
+    plan.grids = _param_grids(data.get("params", {}), plan.axes, rfields, where)
+    plan.overrides = _scene_overrides(data.get("scene_overrides", {}), plan.scenes, where)
+    sel = _selectors(selectors)
+    cases = [case for sname in plan.scenes if _selected(sname, sel.get("scene"))
+             for case in _scene_cases(plan, sname, sel, registry, where)]
+    if not cases:
+        raise MatrixError(f"{where}: no case left after the selectors {list(selectors)}")
+    return Matrix(plan.name, str(path), data, cases)
+
+
+def _read_toml(path: Path, where: str) -> dict[str, Any]:
+    """The matrix file's tables, with the top-level ones and ``[matrix]`` checked."""
     try:
         with open(path, "rb") as fh:
             data = tomllib.load(fh)
@@ -203,9 +239,13 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
     _check_keys(data, _TOP, where)
     if "matrix" not in data:
         raise MatrixError(f"{where}: missing the [matrix] table (name, scenes)")
-    mtab = data["matrix"]
+    return data
+
+
+def _matrix_table(mtab: dict, default_name: str, where: str) -> _Plan:
+    """The ``[matrix]`` table: name, scenes, repetitions, seed, mode and time limit."""
     _check_keys(mtab, _MATRIX_KEYS, f"{where}: [matrix]")
-    name = str(mtab.get("name", path.stem))
+    name = str(mtab.get("name", default_name))
     scenes = _as_list(mtab.get("scenes", []) or [], f"{where}: [matrix] scenes")
     reps = int(mtab.get("repetitions", 1))
     if reps < 1:
@@ -217,10 +257,12 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
     timeout = float(mtab.get("timeout_s", 600))
     if timeout <= 0:
         raise MatrixError(f"{where}: [matrix] timeout_s = {timeout}; give seconds > 0")
+    return _Plan(name, scenes, reps, seed if "seed" in mtab else None, mode, timeout)
 
-    comps = data.get("components", {})
-    _check_keys(comps, set(_HF_ROLES) if mode == "hf" else set(COMPONENT_ROLES),
-                f"{where}: [components] (mode {mode})")
+
+def _hf_repeats(data: dict, mode: str, where: str) -> Any:
+    """The ``[hf]`` table's ``repeats`` (checked in mode ``hf``, whose matrices have no
+    ``[sizes]``, ``[params]`` nor ``[reduce]``)."""
     if mode == "hf":
         for t in ("sizes", "params", "reduce"):
             if t in data:
@@ -232,11 +274,28 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
         reps_hf = hf.get("repeats", 3)
         if not isinstance(reps_hf, int) or reps_hf < 1:
             raise MatrixError(f"{where}: [hf] repeats = {reps_hf!r}; give an integer >= 1")
+    return hf.get("repeats", 3)
+
+
+def _component_axes(data: dict, mode: str, registry: Registry | None,
+                    where: str) -> tuple[dict[str, list[str]], Any]:
+    """The component names per role (``[components]``, checked) and the HF repeats."""
+    comps = data.get("components", {})
+    _check_keys(comps, set(_HF_ROLES) if mode == "hf" else set(COMPONENT_ROLES),
+                f"{where}: [components] (mode {mode})")
+    hf_repeats = _hf_repeats(data, mode, where)
     axes = {role: [str(x) for x in _as_list(comps.get(role, default),
                                              f"{where}: [components] {role}")]
             for role, default in COMPONENT_ROLES.items()}
     if mode == "hf":  # the RB roles do not apply: empty names in the rows
         axes.update({r: [""] for r in COMPONENT_ROLES if r not in _HF_ROLES})
+    _check_names(axes, mode, registry, where)
+    return axes, hf_repeats
+
+
+def _check_names(axes: dict[str, list[str]], mode: str, registry: Registry | None,
+                 where: str) -> None:
+    """Hyper-reducer names, and the registered components' names with a registry."""
     for h in axes["hyper"]:
         if h not in _HYPER and not (mode == "hf" and h == ""):
             raise MatrixError(f"{where}: [components] hyper: {h!r}; valid: {', '.join(_HYPER)}")
@@ -248,7 +307,9 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
                     raise MatrixError(f"{where}: [components] {role}: unknown {role} {n!r}; "
                                       f"valid: {', '.join(valid)}")
 
-    sizes = data.get("sizes", {})
+
+def _size_pairs(sizes: dict, where: str) -> list[tuple[int | None, int | None]]:
+    """The ``(N, R)`` pairs of ``[sizes]``: its ``pairs``, or the product of ``N`` and ``R``."""
     _check_keys(sizes, {"pairs", "N", "R"}, f"{where}: [sizes]")
     if "pairs" in sizes:
         if "N" in sizes or "R" in sizes:
@@ -258,21 +319,28 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
             if not (isinstance(p, list) and len(p) == 2):
                 raise MatrixError(f"{where}: [sizes] pairs: {p!r}; each pair is [N, R]")
             pairs.append((_size(p[0], where, "N"), _size(p[1], where, "R")))
-    else:
-        Ns = [_size(v, where, "N") for v in _as_list(sizes.get("N", [None]), f"{where}: N")]
-        Rs = [_size(v, where, "R") for v in _as_list(sizes.get("R", [None]), f"{where}: R")]
-        pairs = list(itertools.product(Ns, Rs))
+        return pairs
+    Ns = [_size(v, where, "N") for v in _as_list(sizes.get("N", [None]), f"{where}: N")]
+    Rs = [_size(v, where, "R") for v in _as_list(sizes.get("R", [None]), f"{where}: R")]
+    return list(itertools.product(Ns, Rs))
 
-    rfields = _reduce_fields()
-    base = dict(data.get("reduce", {}))
+
+def _base_params(reduce: dict, sets: list[str] | tuple[str, ...], rfields: dict,
+                 where: str) -> dict[str, Any]:
+    """The ``[reduce]`` fields of every case, updated by ``--set FIELD=VALUE``."""
+    base = dict(reduce)
     for s in sets:
         if "=" not in s:
             raise MatrixError(f"--set {s!r}: write FIELD=VALUE (a [reduce] field)")
         k, v = s.split("=", 1)
         base[k.strip()] = _parse_value(v.strip())
     _check_params(base, rfields, f"{where}: [reduce] / --set")
+    return base
 
-    params = data.get("params", {})
+
+def _param_grids(params: dict, axes: dict[str, list[str]], rfields: dict,
+                 where: str) -> dict[tuple[str, str], list[dict]]:
+    """``{(role, name): [option dict, ...]}``: the product of each ``[params.role.name]``."""
     _check_keys(params, set(COMPONENT_ROLES), f"{where}: [params]")
     grids: dict[tuple[str, str], list[dict]] = {}
     for role, per_name in params.items():
@@ -286,8 +354,11 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
             vals = [_as_list(grid[k], f"{w} {k}") for k in keys]
             grids[(role, cname)] = [dict(zip(keys, combo, strict=True))
                                     for combo in itertools.product(*vals)]
+    return grids
 
-    overrides = data.get("scene_overrides", {})
+
+def _scene_overrides(overrides: dict, scenes: list[str], where: str) -> dict[str, list[str]]:
+    """The ``[scene_overrides]`` table, checked against the scenes."""
     for sname, ov in overrides.items():
         if sname not in scenes:
             raise MatrixError(f"{where}: [scene_overrides] {sname!r} is not in [matrix] scenes "
@@ -295,39 +366,46 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
         if not isinstance(ov, list) or not all(isinstance(x, str) for x in ov):
             raise MatrixError(f"{where}: [scene_overrides] {sname}: give a list of "
                               "'section.key=value' strings")
+    return overrides
 
-    sel = _selectors(selectors)
+
+def _scene_cases(plan: _Plan, sname: str, sel: dict[str, list[str]],
+                 registry: Registry | None, where: str) -> list[Case]:
+    """The selected cases of one scene entry: components x sizes x parameter grids x
+    repetitions, each with its compatibility status."""
+    ov = tuple(plan.overrides.get(sname, ()))
+    if plan.seed is not None:
+        ov = (*ov, f"sampling.seed={plan.seed}")
+    try:
+        scene = load_scene(sname.split("@", 1)[0], ov)
+    except Exception as exc:  # noqa: BLE001 - name the matrix too
+        raise MatrixError(f"{where}: [matrix] scenes: {sname!r}: {exc}") from None
+    scene_seed, fingerprint = int(scene.data["sampling"]["seed"]), scene.fingerprint()
     cases: list[Case] = []
-    for sname in scenes:
-        if not _selected(sname, sel.get("scene")):
+    for combo in itertools.product(*plan.axes.values()):
+        comp = dict(zip(plan.axes, combo, strict=True))
+        if not all(_selected(comp[r], sel.get(r)) for r in COMPONENT_ROLES):
             continue
-        ov = tuple(overrides.get(sname, ()))
-        if "seed" in mtab:
-            ov = (*ov, f"sampling.seed={seed}")
-        try:
-            scene = load_scene(sname.split("@", 1)[0], ov)
-        except Exception as exc:  # noqa: BLE001 - name the matrix too
-            raise MatrixError(f"{where}: [matrix] scenes: {sname!r}: {exc}") from None
-        scene_seed, fingerprint = int(scene.data["sampling"]["seed"]), scene.fingerprint()
-        for combo in itertools.product(*axes.values()):
-            comp = dict(zip(axes, combo, strict=True))
-            if not all(_selected(comp[r], sel.get(r)) for r in COMPONENT_ROLES):
+        status, reason = compatibility(scene, comp, registry)
+        option_sets = [plan.grids.get((r, comp[r]), [{}]) for r in COMPONENT_ROLES]
+        for N, R in plan.pairs:  # mode hf: no [sizes], the one pair (None, None)
+            if not (_selected(N, sel.get("N")) and _selected(R, sel.get("R"))):
                 continue
-            status, reason = compatibility(scene, comp, registry)
-            option_sets = [grids.get((r, comp[r]), [{}]) for r in COMPONENT_ROLES]
-            for N, R in pairs:  # mode hf: no [sizes], the one pair (None, None)
-                if not (_selected(N, sel.get("N")) and _selected(R, sel.get("R"))):
-                    continue
-                for opts in itertools.product(*option_sets):
-                    p = dict(base) if mode == "rb" else {"hf_repeats": hf.get("repeats", 3)}
-                    for o in opts:
-                        p.update(o)
-                    for rep in range(reps):
-                        cases.append(Case(sname, ov, comp, N, R, p, rep, scene_seed, timeout,
-                                          fingerprint, mode, status, reason))
-    if not cases:
-        raise MatrixError(f"{where}: no case left after the selectors {list(selectors)}")
-    return Matrix(name, str(path), data, cases)
+            for opts in itertools.product(*option_sets):
+                p = _case_params(plan, opts)
+                cases += [Case(sname, ov, comp, N, R, p, rep, scene_seed, plan.timeout_s,
+                               fingerprint, plan.mode, status, reason)
+                          for rep in range(plan.repetitions)]
+    return cases
+
+
+def _case_params(plan: _Plan, opts: tuple[dict, ...]) -> dict[str, Any]:
+    """A case's parameters: the ``[reduce]`` fields (mode ``hf``: the HF repeats) updated
+    by its component options."""
+    p = dict(plan.base) if plan.mode == "rb" else {"hf_repeats": plan.hf_repeats}
+    for o in opts:
+        p.update(o)
+    return p
 
 
 def _size(v: Any, where: str, what: str) -> int | None:
