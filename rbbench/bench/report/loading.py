@@ -1,0 +1,103 @@
+"""A run directory read for the report: the typed results table, the manifest and the
+per-case details."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from rbbench.bench.results import ResultsNotFoundError, load_results, records
+
+
+@dataclass
+class RunData:
+    """One run directory, read.
+
+    Attributes
+    ----------
+    run_dir : Path
+        The directory.
+    rows : pandas.DataFrame
+        Every schema column, typed (:func:`rbbench.bench.results.load_results`), one row
+        per case x repetition, in file order.
+    manifest : dict
+        ``manifest.json`` (empty if absent).
+    details : dict
+        ``(case_id, repetition) -> details`` from ``cases/*.json`` (``per_mu``,
+        ``histories``, ``valid_mus``); absent cases have no entry.
+    notes : list of str
+        What was odd while reading (unknown columns, unreadable case files).
+    """
+
+    run_dir: Path
+    rows: pd.DataFrame
+    manifest: dict = field(default_factory=dict)
+    details: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+    def records(self) -> list[dict[str, Any]]:
+        """The rows as a list of dicts (``None`` for empty cells)."""
+        return records(self.rows)
+
+
+def _manifest(d: Path, notes: list[str]) -> dict:
+    if not (d / "manifest.json").is_file():
+        return {}
+    try:
+        return json.loads((d / "manifest.json").read_text())
+    except ValueError as exc:
+        notes.append(f"manifest.json unreadable ({exc})")
+        return {}
+
+
+def _details(d: Path, notes: list[str]) -> dict[tuple[str, int], dict]:
+    """``(case_id, repetition) -> details`` of the readable ``cases/*.json``."""
+    details: dict[tuple[str, int], dict] = {}
+    if not (d / "cases").is_dir():
+        return details
+    for f in sorted((d / "cases").glob("*.json")):
+        try:
+            doc = json.loads(f.read_text())
+        except (OSError, ValueError) as exc:
+            notes.append(f"cases/{f.name}: unreadable ({exc})")
+            continue
+        row = doc.get("row") or {}
+        det = doc.get("details") or {}
+        cid, rep = row.get("case_id"), row.get("repetition")
+        if cid is None or rep is None:
+            stem, _, r = f.stem.rpartition("-r")
+            cid, rep = (stem, r) if r.isdigit() else (cid, rep)
+        if cid is not None and rep is not None and det:
+            details[(str(cid), int(rep))] = det
+    return details
+
+
+def load_run(run_dir: str | Path) -> RunData:
+    """Read a run directory: results, manifest and per-case details.
+
+    Parameters
+    ----------
+    run_dir : str or Path
+        The directory written by ``rbbench run``.
+
+    Returns
+    -------
+    RunData
+
+    Raises
+    ------
+    rbbench.bench.results.ResultsNotFoundError
+        (a :class:`FileNotFoundError`) If ``run_dir`` is not a directory or holds no
+        results.
+    """
+    d = Path(run_dir)
+    if not d.is_dir():
+        raise ResultsNotFoundError(f"{d}: not a run directory")
+    notes: list[str] = []
+    rows = load_results(d, notes)
+    manifest = _manifest(d, notes)
+    return RunData(d, rows, manifest, _details(d, notes), notes)

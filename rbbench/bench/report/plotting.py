@@ -1,0 +1,52 @@
+"""Matplotlib plumbing of the report figures (through :class:`matplotlib.figure.Figure`
+only: no pyplot, no backend selected, no global figure state)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rbbench.bench.report.analysis import _Ctx
+
+_PANEL_W, _PANEL_H = 4.4, 3.3
+
+
+class _Skip(Exception):
+    """A figure has nothing to show (the message says why)."""
+
+
+def _figure(nrows: int, ncols: int, w: float = _PANEL_W, h: float = _PANEL_H):
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(max(w * ncols + 2.6, 9.0), h * nrows + 0.6), layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    return fig, axes
+
+
+def _empty(ax, text: str) -> None:
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes,
+            fontsize=9, color="0.4", wrap=True)
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
+def _combo_handles(ctx: _Ctx, recs: list[dict[str, Any]], line: bool) -> list:
+    from matplotlib.lines import Line2D
+
+    seen: dict[str, Any] = {}
+    for r in sorted(recs, key=ctx.combos.label):
+        lab = ctx.combos.label(r)
+        if lab not in seen:
+            st = ctx.combos.style(r)
+            seen[lab] = Line2D([], [], color=st["color"], marker=st["marker"],
+                               linestyle=st["linestyle"] if line else "none", label=lab)
+    return list(seen.values())
+
+
+def _log_axes(ax) -> None:
+    """Log scale on both axes, major grid, no minor tick labels (they collide)."""
+    from matplotlib.ticker import NullFormatter
+
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.grid(True, which="major", alpha=0.3)
