@@ -24,7 +24,7 @@ from rbbench.testing import (
     random_contact_problem,
     reference_discretization,
 )
-from rbbench.testing import contract as C
+from rbbench.testing.contract_base import check_spd
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -301,14 +301,14 @@ def test_spec_check_rejects_bad_declarations():
 def test_spd_check_sparse_path():
     n = 2500  # above the dense limit: LDL^T pivots
     lap = sp.diags([-np.ones(n - 1), 2 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1]).tocsr()
-    C._check_spd(lap, "Dirichlet Laplacian")  # SPD, lambda_min ~ (pi / n)^2
+    check_spd(lap, "Dirichlet Laplacian")  # SPD, lambda_min ~ (pi / n)^2
     shifted = (lap - 1e-4 * sp.identity(n)).tocsr()  # one negative eigenvalue at least
     with pytest.raises(ContractViolation, match="not positive definite"):
-        C._check_spd(shifted, "shifted")
+        check_spd(shifted, "shifted")
     neumann = lap.tolil()
     neumann[0, 0] = neumann[n - 1, n - 1] = 1.0  # singular: constants in the kernel
     with pytest.raises(ContractViolation, match="not positive definite"):
-        C._check_spd(neumann.tocsr(), "Neumann Laplacian")
+        check_spd(neumann.tocsr(), "Neumann Laplacian")
 
 
 # ---------------------------------------------------------------------------
