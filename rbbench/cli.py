@@ -134,7 +134,16 @@ def cmd_solve(args) -> int:
 
 
 def cmd_plugins(args) -> int:
-    reg = default_registry()
+    rows = _plugin_rows(default_registry())
+    if args.json:
+        print(json.dumps(rows, indent=2, default=str))
+        return 0
+    _print_plugin_table(rows)
+    return 0
+
+
+def _plugin_rows(reg) -> list[dict]:
+    """One row per registered component (and per broken plugin) for ``rbbench plugins``."""
     rows = []
     for spec in reg.specs():
         ok, why = reg.availability(spec)
@@ -146,9 +155,11 @@ def cmd_plugins(args) -> int:
         rows.append({"role": "?", "name": ep_name, "package": pkg, "version": "", "extras": [],
                      "importable": False, "hint": msg, "description": "BROKEN plugin",
                      "capabilities": {}})
-    if args.json:
-        print(json.dumps(rows, indent=2, default=str))
-        return 0
+    return rows
+
+
+def _print_plugin_table(rows: list[dict]) -> None:
+    """The rows of :func:`_plugin_rows` as a table, with a hint under each unimportable one."""
     w = max([len(r["name"]) for r in rows] + [4]) + 2
     print(f"{'role':<12}{'name':<{w}}{'package':<22}{'extras':<10}{'importable':<11}description")
     for r in rows:
@@ -157,7 +168,6 @@ def cmd_plugins(args) -> int:
               f"{'yes' if r['importable'] else 'NO':<11}{r['description']}")
         if not r["importable"]:
             print(f"{'':<12}-> {r['hint']}")
-    return 0
 
 
 def cmd_scenes(args) -> int:
@@ -187,7 +197,7 @@ def _reduce_config(args):
 
 
 def cmd_online_scaling(args) -> int:
-    from rbbench.studies.seed_tables import online_scaling, scaling_markdown
+    from rbbench.studies.scaling import online_scaling, scaling_markdown
 
     rows = online_scaling(args.scene, _reduce_config(args), tuple(args.levels),
                           tuple(args.set or ()), repeats=args.repeats,
@@ -213,6 +223,13 @@ def cmd_reduce(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     (out / "result.json").write_text(json.dumps(_jsonable({**s, "provenance": provenance()}),
                                                 indent=2) + "\n")
+    _print_reduce_summary(s, cfg.formulation)
+    print(f"wrote: {out / 'result.json'}")
+    return 0
+
+
+def _print_reduce_summary(s: dict, formulation: str) -> None:
+    """The main numbers of ``rbbench reduce`` (``s``: the reduction's summary)."""
     keys = ["N", "R", "K_pga", "hyper", "M_eim", "n_train", "n_valid", "n_hf_dofs", "err_u_max",
             "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
             "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min", "beta_kind",
@@ -220,7 +237,7 @@ def cmd_reduce(args) -> int:
     for k in keys:
         if k in s:
             print(f"  {k:<20} {_fmt(s[k])}")
-    if cfg.formulation == "nitsche":
+    if formulation == "nitsche":
         eim = s["histories"].get("eim", {})
         for k in ("method", "rows", "e_eim_valid", "e_eim_cv_valid", "e_eim_tangent_cv_valid"):
             if k in eim:
@@ -230,22 +247,20 @@ def cmd_reduce(args) -> int:
     else:
         print("  (errors: relative, u in the X norm, lam in the W norm, max/mean over the "
               "validation set; beta: min over the validation set, see result.json definitions)")
-    print(f"wrote: {out / 'result.json'}")
-    return 0
 
 
 def cmd_hertz_table(args) -> int:
-    from rbbench.studies.seed_tables import hertz_table, markdown
+    from rbbench.studies.hertz import hertz_markdown, hertz_table
 
     progress = _Progress(args.quiet)
     rows = hertz_table(args.scene, tuple(args.loads), tuple(args.levels), args.mu,
                        tuple(args.set or ()), progress=progress)
-    print(markdown(rows))
+    print(hertz_markdown(rows))
     return 0
 
 
 def cmd_nitsche_table(args) -> int:
-    from rbbench.studies.seed_tables import NITSCHE_COLUMNS, nitsche_markdown, nitsche_table
+    from rbbench.studies.nitsche_eac import NITSCHE_COLUMNS, nitsche_markdown, nitsche_table
 
     overrides = [f"load.displacement={args.load!r}", f"discretization.degree={args.degree}",
                  f"discretization.quadrature={args.quadrature}",
@@ -264,7 +279,7 @@ def cmd_nitsche_table(args) -> int:
 
 
 def cmd_nitsche_compare(args) -> int:
-    from rbbench.studies.seed_tables import comparison_markdown, formulation_comparison
+    from rbbench.studies.nitsche_compare import comparison_markdown, formulation_comparison
 
     res = formulation_comparison(args.scene, tuple(args.set or ()), n_train=args.n_train,
                                  n_valid=args.n_valid, N=args.N, Rs=tuple(args.R),
@@ -287,11 +302,7 @@ def cmd_run(args) -> int:
     except MatrixError as exc:
         raise SceneError(str(exc)) from None
     if args.dry_run:
-        counts: dict[str, int] = {}
-        for c in matrix.cases:
-            print(f"{c.key}  {c.status:<13} {c.label}" + (f"  ({c.reason})" if c.reason else ""))
-            counts[c.status] = counts.get(c.status, 0) + 1
-        print(f"{len(matrix.cases)} cases: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
+        _print_cases(matrix)
         return 0
     out = Path(args.out) if args.out else Path("results") / matrix.name
     opts = {"address": args.scheduler} if args.scheduler else {}
@@ -306,11 +317,25 @@ def cmd_run(args) -> int:
         return 130
     except ValueError as exc:
         raise SceneError(str(exc)) from None
+    _print_run_summary(summary, out)
+    return 0
+
+
+def _print_run_summary(summary, out: Path) -> None:
+    """``rbbench run``: cases computed and kept, counts per status, wall time, files."""
     print(f"{len(summary.computed)} computed, {len(summary.kept)} kept from before; "
           + ", ".join(f"{v} {k}" for k, v in sorted(summary.counts.items()))
           + f"; {summary.wall_s:.0f} s")
     print(f"wrote: {out / 'results.parquet'} (report: rbbench report {out})")
-    return 0
+
+
+def _print_cases(matrix) -> None:
+    """``rbbench run --dry-run``: one line per case, then the counts per status."""
+    counts: dict[str, int] = {}
+    for c in matrix.cases:
+        print(f"{c.key}  {c.status:<13} {c.label}" + (f"  ({c.reason})" if c.reason else ""))
+        counts[c.status] = counts.get(c.status, 0) + 1
+    print(f"{len(matrix.cases)} cases: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
 
 
 def cmd_report(args) -> int:
@@ -411,6 +436,22 @@ def _add_study_tail(p, func) -> None:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rbbench", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
+    _add_solve_parser(sub)
+    pl = sub.add_parser("plugins", help="registered components and whether they are importable")
+    pl.add_argument("--json", action="store_true")
+    pl.set_defaults(func=cmd_plugins)
+    _add_reduce_parser(sub)
+    _add_hertz_table_parser(sub)
+    _add_nitsche_table_parser(sub)
+    _add_nitsche_compare_parser(sub)
+    _add_online_scaling_parser(sub)
+    _add_run_parsers(sub)
+    sc = sub.add_parser("scenes", help="list the scenes in problems/")
+    sc.set_defaults(func=cmd_scenes)
+    return p
+
+
+def _add_solve_parser(sub) -> None:
     s = sub.add_parser("solve", help="one HF contact solve: summary, contact.csv, VTU, PNG")
     s.add_argument("scene", help="scene name in problems/ or path to a .toml file")
     s.add_argument("--mu", type=float, nargs="+", help="parameter value(s) (default: scene's)")
@@ -425,9 +466,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-plot", action="store_true", help="skip the PNG")
     s.add_argument("--quiet", action="store_true", help="no progress lines")
     s.set_defaults(func=cmd_solve)
-    pl = sub.add_parser("plugins", help="registered components and whether they are importable")
-    pl.add_argument("--json", action="store_true")
-    pl.set_defaults(func=cmd_plugins)
+
+
+def _add_reduce_parser(sub) -> None:
     rd = sub.add_parser("reduce", help="offline RB stage + online validation (mixed or "
                         "nitsche formulation): errors, inf-sup constants, timings -> result.json")
     rd.add_argument("scene")
@@ -435,6 +476,9 @@ def build_parser() -> argparse.ArgumentParser:
     rd.add_argument("--out")
     rd.add_argument("--quiet", action="store_true")
     rd.set_defaults(func=cmd_reduce)
+
+
+def _add_hertz_table_parser(sub) -> None:
     ht = sub.add_parser("hertz-table",
                         help="2D Hertz errors against load and mesh level (Markdown table)")
     ht.add_argument("scene", nargs="?", default="hertz_halfdisks")
@@ -444,13 +488,16 @@ def build_parser() -> argparse.ArgumentParser:
                     help="uniform refinement levels (sizes divided by 2**level)")
     ht.add_argument("--mu", type=float, default=1.0)
     _add_study_tail(ht, cmd_hertz_table)
+
+
+def _add_nitsche_table_parser(sub) -> None:
     nt = sub.add_parser("nitsche-table",
                         help="the seed's Alart-Curnier residual e_AC^n of the Nitsche solve "
                              "against h and mu, side by side with the seed (Markdown table)")
     nt.add_argument("scene", nargs="?", default="hertz_halfdisks")
     nt.add_argument("--h", type=float, nargs="+", default=[5.0, 2.5, 1.25],
                     help="the seed's mesh sizes (mm), mapped to discretization.h_contact by "
-                         "rbbench.studies.seed_tables.seed_h_overrides")
+                         "rbbench.studies.nitsche_eac.seed_h_overrides")
     nt.add_argument("--mu", type=float, nargs="+", default=[0.7, 1.0, 1.3])
     nt.add_argument("--backend", default="skfem")
     nt.add_argument("--theta", type=float, default=1.0)
@@ -468,6 +515,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="contact quadrature per slave facet (GPTS) or per piece between "
                          "master-vertex rays (segment-to-segment)")
     _add_study_tail(nt, cmd_nitsche_table)
+
+
+def _add_nitsche_compare_parser(sub) -> None:
     nc = sub.add_parser("nitsche-compare",
                         help="Nitsche against mixed: HF energies over D_train and reduced "
                              "errors for several R (Markdown tables)")
@@ -477,6 +527,9 @@ def build_parser() -> argparse.ArgumentParser:
     nc.add_argument("--n-train", type=int, default=61, help="|D_train| (the seed: 61)")
     nc.add_argument("--n-valid", type=int, default=10)
     _add_study_tail(nc, cmd_nitsche_compare)
+
+
+def _add_online_scaling_parser(sub) -> None:
     osc = sub.add_parser("online-scaling",
                          help="online time of one reduction at several mesh levels, timed "
                               "side by side (is it flat in the HF size?)")
@@ -486,10 +539,6 @@ def build_parser() -> argparse.ArgumentParser:
     osc.add_argument("--repeats", type=int, default=30)
     osc.add_argument("--quiet", action="store_true")
     osc.set_defaults(func=cmd_online_scaling, hyper="eim")
-    _add_run_parsers(sub)
-    sc = sub.add_parser("scenes", help="list the scenes in problems/")
-    sc.set_defaults(func=cmd_scenes)
-    return p
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,2 +1,41 @@
-"""Reproductions of seed figures (Hertz and Nitsche e_AC tables, online scaling, the beta_dec
-stability study): built on the core, never imported by it."""
+"""Reproductions of seed figures, built on the core and never imported by it.
+
+One module per study: :mod:`~rbbench.studies.hertz` (the 2D Hertz table),
+:mod:`~rbbench.studies.nitsche_eac` (the seed's e_AC^n table of the Nitsche solve),
+:mod:`~rbbench.studies.nitsche_compare` (Nitsche against mixed),
+:mod:`~rbbench.studies.scaling` (online time against the HF size) and
+:mod:`~rbbench.studies.beta_dec` (the beta_dec stability study); Markdown helpers in
+:mod:`~rbbench.studies.formatting`. The studies' public names are importable from here
+too (loaded on first use).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: public name -> the module defining it
+_NAMES = {
+    "hertz_table": "hertz", "hertz_markdown": "hertz",
+    "nitsche_table": "nitsche_eac", "nitsche_markdown": "nitsche_eac",
+    "seed_h_overrides": "nitsche_eac", "NITSCHE_COLUMNS": "nitsche_eac",
+    "SEED_EAC": "nitsche_eac", "SEED_H": "nitsche_eac",
+    "online_scaling": "scaling", "scaling_markdown": "scaling",
+    "formulation_comparison": "nitsche_compare", "comparison_markdown": "nitsche_compare",
+    "beta_dec_study": "beta_dec", "BetaDecStudy": "beta_dec",
+}
+#: former names (the flat ``rbbench/studies.py``) -> (module, name)
+_ALIASES = {"markdown": ("hertz", "hertz_markdown")}
+
+__all__ = sorted([*_NAMES, *_ALIASES])
+
+
+def __getattr__(name: str) -> Any:
+    module, attr = _ALIASES.get(name, (_NAMES.get(name), name))
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{module}"), attr)
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])

@@ -45,6 +45,7 @@ from rbbench.rb.pga import pga, supremizers
 from rbbench.registry import default_registry
 from rbbench.scene.loading import Scene, load_scene
 from rbbench.scene.sampling import parameter_set
+from rbbench.studies.formatting import markdown_table
 
 __all__ = ["BetaDecStudy", "beta_dec_study", "main"]
 
@@ -89,13 +90,10 @@ class BetaDecStudy:
 
     def table(self) -> str:
         """The rows as a Markdown table (``%.3e`` floats)."""
-        head = "| " + " | ".join(COLUMNS) + " |"
-        sep = "|" + "---|" * len(COLUMNS)
-        lines = [head, sep]
-        for r in self.rows:
-            cells = [f"{r[c]:.3e}" if isinstance(r[c], float) else str(r[c]) for c in COLUMNS]
-            lines.append("| " + " | ".join(cells) + " |")
-        return "\n".join(lines)
+        cells = ([f"{r[c]:.3e}" if isinstance(r[c], float) else str(r[c]) for c in COLUMNS]
+                 for r in self.rows)
+        return markdown_table("| " + " | ".join(COLUMNS) + " |", len(COLUMNS),
+                              ("| " + " | ".join(c) + " |" for c in cells))
 
 
 def _cone(S: np.ndarray, M: np.ndarray, C: np.ndarray, exact_max_r: int,
@@ -150,134 +148,227 @@ def beta_dec_study(scene: Scene | str, dual: str = "mcpg", R: int | Sequence[int
     -------
     BetaDecStudy
     """
-    say = progress or (lambda _msg: None)
     t0 = time.perf_counter()
-    timings: dict[str, float] = {}
     if isinstance(scene, str):
         scene = load_scene(scene)
-    R_list = [int(R)] if np.isscalar(R) else [int(r) for r in R]
-    reg = default_registry()
-    mus = {"train": parameter_set(scene, "train", n_train),
-           "valid": parameter_set(scene, "valid", n_valid)}
-    for s in sets:
-        if s not in mus:
-            raise ValueError(f"unknown parameter set {s!r}: 'train' or 'valid'")
-    say(f"HF snapshots: {len(mus['train'])} training parameters")
-    train = compute_snapshots(scene, mus["train"], backend=backend, formulation=formulation,
-                              solver=solver, cache_dir=Path(cache_dir), n_jobs=n_jobs,
-                              progress=False)
-    timings["snapshots_s"] = time.perf_counter() - t0
+    opts = _Options(dual, [int(R)] if np.isscalar(R) else [int(r) for r in R],
+                    None if N_list is None else list(N_list), n_train, n_valid, list(sets),
+                    primal, delta_pga, exact_max_r, n_starts, cache_dir, n_jobs, backend,
+                    formulation, solver)
+    run = _Run(scene, opts, progress or (lambda _msg: None), t0)
+    run.prepare()
+    for R_req in opts.R_list:
+        Vg, Ns, Z_dec, Z_off = run.offline(R_req)
+        for s in opts.sets:
+            run.constants(R_req, s, Vg, Ns, Z_dec, Z_off)
+    return run.result()
 
-    b, f, _ = make_components(scene, backend, formulation, solver)
-    problem_at = ProblemCache(b, f)
-    X = problem_at.X_free(scene.default_mu)
-    x_solve = inf.make_solver(X)
 
-    t1 = time.perf_counter()
-    n_max = max(max(N_list) if N_list is not None else r for r in R_list)
-    primal_spec = reg.get("primal", primal)
+@dataclass(frozen=True)
+class _Options:
+    """The arguments of :func:`beta_dec_study` (``R_list``: the requested ``R``)."""
+
+    dual: str
+    R_list: list[int]
+    N_list: list[int] | None
+    n_train: int | None
+    n_valid: int | None
+    sets: list[str]
+    primal: str
+    delta_pga: float | None
+    exact_max_r: int
+    n_starts: int
+    cache_dir: str | Path
+    n_jobs: int | None
+    backend: str
+    formulation: str
+    solver: str
+
+
+@dataclass
+class _Run:
+    """A :func:`beta_dec_study` in progress: the HF operators it reuses and its results."""
+
+    scene: Scene
+    opts: _Options
+    say: Callable[[str], None]
+    t0: float
+    timings: dict[str, float] = field(default_factory=dict)
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    per_mu: dict[tuple[int, str], dict[str, Any]] = field(default_factory=dict)
+    pga: dict[tuple[int, int], dict[str, Any]] = field(default_factory=dict)
+    R_actual: dict[int, int] = field(default_factory=dict)
+    #: B X^-1 B^T = H H^T per mu: m solves per mu, reused per R
+    H_cache: dict[bytes, np.ndarray] = field(default_factory=dict)
+    # set by prepare(): registry, parameter sets, training snapshots, HF problems per mu,
+    # X and its solver, N -> primal basis, the snapshots' rank, B(mu) on the training set
+    reg: Any = field(init=False)
+    mus: dict[str, np.ndarray] = field(init=False)
+    train: Any = field(init=False)
+    problem_at: ProblemCache = field(init=False)
+    X: Any = field(init=False)
+    x_solve: Any = field(init=False)
+    basis: Callable[[int], np.ndarray] = field(init=False)
+    rank: int = field(init=False)
+    train_B: list[Any] = field(init=False)
+
+    def prepare(self) -> None:
+        """Parameter sets, training snapshots, the HF problems and the primal bases."""
+        o, scene = self.opts, self.scene
+        self.reg = default_registry()
+        self.mus = {"train": parameter_set(scene, "train", o.n_train),
+                    "valid": parameter_set(scene, "valid", o.n_valid)}
+        for s in o.sets:
+            if s not in self.mus:
+                raise ValueError(f"unknown parameter set {s!r}: 'train' or 'valid'")
+        self.say(f"HF snapshots: {len(self.mus['train'])} training parameters")
+        self.train = compute_snapshots(scene, self.mus["train"], backend=o.backend,
+                                       formulation=o.formulation, solver=o.solver,
+                                       cache_dir=Path(o.cache_dir), n_jobs=o.n_jobs,
+                                       progress=False)
+        self.timings["snapshots_s"] = time.perf_counter() - self.t0
+        b, f, _ = make_components(scene, o.backend, o.formulation, o.solver)
+        self.problem_at = ProblemCache(b, f)
+        self.X = self.problem_at.X_free(scene.default_mu)
+        self.x_solve = inf.make_solver(self.X)
+        t1 = time.perf_counter()
+        n_max = max(max(o.N_list) if o.N_list is not None else r for r in o.R_list)
+        self.basis, self.rank = _primal_bases(self.reg, o.primal, self.train.U, self.X, n_max)
+        self.timings["primal_s"] = time.perf_counter() - t1
+        self.train_B = [self.problem_at(mu).B for mu in self.mus["train"]]
+
+    def H_at(self, mu: np.ndarray) -> np.ndarray:
+        """The supremizer operator ``H`` at ``mu`` (cached)."""
+        key = np.asarray(mu, float).tobytes()
+        if key not in self.H_cache:
+            self.H_cache[key] = inf.supremizer_operator(self.problem_at(mu).B, self.x_solve)
+        return self.H_cache[key]
+
+    def offline(self, R_req: int) -> tuple[np.ndarray, list[int], dict[int, np.ndarray],
+                                           dict[int, np.ndarray]]:
+        """The cone generators ``Vg`` for ``R_req``, the primal sizes ``Ns``, and per ``N``
+        the bases of ``V_N`` and of ``V_off = [V_N, S_PGA]``."""
+        o = self.opts
+        t1 = time.perf_counter()
+        self.say(f"dual compressor {o.dual}, R = {R_req}")
+        Vg = self.reg.create("dual", o.dual)(
+            self.train.LAM, self.problem_at(self.scene.default_mu).W, tol=0.0,
+            r_max=R_req).generators
+        self.R_actual[R_req] = int(Vg.shape[1])
+        Ns = [N for N in (o.N_list if o.N_list is not None else range(1, R_req + 1))
+              if 1 <= N <= self.rank]
+        T_list = [supremizers(B, self.x_solve, Vg) for B in self.train_B]
+        delta = self._pga_delta(Vg)
+        self.say(f"PGA for N in {Ns[0]}..{Ns[-1]} (delta = {delta:.3g})")
+        Z_dec: dict[int, np.ndarray] = {}  # once per N (a non-nested primal recompresses)
+        Z_off: dict[int, np.ndarray] = {}
+        for N in Ns:
+            Z = Z_dec[N] = self.basis(N)
+            res = pga(T_list, Z, self.X, delta)
+            Z_off[N] = np.hstack([Z, res.basis])
+            self.pga[(R_req, N)] = {"delta": delta, "stop": res.stop_reason, "K": res.dim,
+                                    "sigma_max": res.sigma_max.tolist()}
+        self.timings[f"offline_R{R_req}_s"] = time.perf_counter() - t1
+        return Vg, Ns, Z_dec, Z_off
+
+    def _pga_delta(self, Vg: np.ndarray) -> float:
+        """``delta_pga``, or the default on every fifth training parameter."""
+        if self.opts.delta_pga is not None:
+            return float(self.opts.delta_pga)
+        probe = self.mus["train"][:: max(1, len(self.mus["train"]) // 5)]
+        return pga_default_delta([self.problem_at(mu).B for mu in probe],
+                                 [self.problem_at(mu).W for mu in probe], self.x_solve, Vg)
+
+    def constants(self, R_req: int, s: str, Vg: np.ndarray, Ns: list[int],
+                  Z_dec: dict[int, np.ndarray], Z_off: dict[int, np.ndarray]) -> None:
+        """The constants on parameter set ``s``: per-mu values and one row per ``N``."""
+        t1 = time.perf_counter()
+        Rg, mus = self.R_actual[R_req], self.mus[s]
+        self.say(f"inf-sup constants, R = {Rg}, {s} set ({len(mus)} parameters)")
+        shape = (len(Ns), len(mus))
+        d = {k: np.zeros(shape) for k in ("dec_span", "dec_cone", "off_span", "off_cone")}
+        d.update(dec_zero=np.zeros(shape, bool), off_zero=np.zeros(shape, bool))
+        d.update({k: np.zeros(len(mus)) for k in ("on_span", "on_cone", "c")})
+        kinds: dict[str, set[str]] = {"dec": set(), "off": set(), "on": set()}
+        for j, mu in enumerate(mus):
+            self._values_at(mu, j, Vg, Ns, Z_dec, Z_off, d, kinds)
+        d["mus"] = mus
+        self.per_mu[(R_req, s)] = d
+        self.rows += [_table_row(d, kinds, i, N, Rg, s, self.pga[(R_req, N)]["K"])
+                      for i, N in enumerate(Ns)]
+        self.timings[f"infsup_R{R_req}_{s}_s"] = time.perf_counter() - t1
+
+    def _values_at(self, mu: np.ndarray, j: int, Vg: np.ndarray, Ns: list[int],
+                   Z_dec: dict[int, np.ndarray], Z_off: dict[int, np.ndarray],
+                   d: dict[str, np.ndarray], kinds: dict[str, set[str]]) -> None:
+        """Column ``j`` of the per-mu values: ``beta_on``, ``c``, then ``beta_dec`` and
+        ``beta_off`` for every ``N``."""
+        o = self.opts
+        p = self.problem_at(mu)
+        BtV = np.asarray(p.B.T @ Vg)
+        C_on = inf.cone_coupling(self.H_at(mu), Vg)
+        S_on, M_on = C_on.T @ C_on, Vg.T @ (p.W @ Vg)
+        v, k, sp_, _ = _cone(S_on, M_on, C_on, o.exact_max_r, o.n_starts)
+        d["on_cone"][j], d["on_span"][j] = v, sp_
+        d["c"][j] = inf.boundedness_constant(S_on, M_on)
+        kinds["on"].add(k)
+        for i, N in enumerate(Ns):
+            for tag, Y in (("dec", Z_dec[N]), ("off", Z_off[N])):
+                S, M = inf.quotient_matrices(p.B, self.X, Vg, p.W, Z=Y)
+                v, k, sp_, zero = _cone(S, M, Y.T @ BtV, o.exact_max_r, o.n_starts)
+                d[f"{tag}_cone"][i, j], d[f"{tag}_span"][i, j] = v, sp_
+                d[f"{tag}_zero"][i, j] = zero
+                kinds[tag].add(k)
+
+    def result(self) -> BetaDecStudy:
+        """The study, with the total time and the run's configuration."""
+        o = self.opts
+        self.timings["total_s"] = time.perf_counter() - self.t0
+        config = {"dual": o.dual, "primal": o.primal, "R": o.R_list, "R_actual": self.R_actual,
+                  "N_list": o.N_list, "sets": o.sets,
+                  "n_train": len(self.mus["train"]), "n_valid": len(self.mus["valid"]),
+                  "delta_pga": o.delta_pga, "exact_max_r": o.exact_max_r,
+                  "n_starts": o.n_starts, "overrides": list(self.scene.overrides),
+                  "primal_rank": self.rank}
+        return BetaDecStudy(scene=self.scene.name, dual=o.dual, rows=self.rows,
+                            per_mu=self.per_mu, pga=self.pga, config=config,
+                            timings=self.timings)
+
+
+def _primal_bases(reg: Any, primal: str, U: np.ndarray, X: Any,
+                  n_max: int) -> tuple[Callable[[int], np.ndarray], int]:
+    """``N -> Z`` (the primal basis of size ``N``; a nested compressor runs once and is
+    truncated) and the rank of the snapshots."""
+    spec = reg.get("primal", primal)
     compress = reg.create("primal", primal)
-    if primal_spec.capabilities.get("nested"):
-        Z_all = compress(train.U, X, n=n_max).Z
+    if spec.capabilities.get("nested"):
+        Z_all = compress(U, X, n=n_max).Z
 
         def basis(N: int) -> np.ndarray:
             return Z_all[:, :N]
     else:
         def basis(N: int) -> np.ndarray:
-            return compress(train.U, X, n=N).Z
-    rank = compress(train.U, X).N
-    timings["primal_s"] = time.perf_counter() - t1
+            return compress(U, X, n=N).Z
+    return basis, compress(U, X).N
 
-    H_cache: dict[bytes, np.ndarray] = {}  # B X^-1 B^T = H H^T: m solves per mu, reused per R
 
-    def H_at(mu: np.ndarray) -> np.ndarray:
-        key = np.asarray(mu, float).tobytes()
-        if key not in H_cache:
-            H_cache[key] = inf.supremizer_operator(problem_at(mu).B, x_solve)
-        return H_cache[key]
-
-    rows: list[dict[str, Any]] = []
-    per_mu: dict[tuple[int, str], dict[str, Any]] = {}
-    pga_info: dict[tuple[int, int], dict[str, Any]] = {}
-    R_actual: dict[int, int] = {}
-    train_B = [problem_at(mu).B for mu in mus["train"]]
-    for R_req in R_list:
-        t1 = time.perf_counter()
-        say(f"dual compressor {dual}, R = {R_req}")
-        Vg = reg.create("dual", dual)(train.LAM, problem_at(scene.default_mu).W, tol=0.0,
-                                      r_max=R_req).generators
-        Rg = int(Vg.shape[1])
-        R_actual[R_req] = Rg
-        Ns = [N for N in (N_list if N_list is not None else range(1, R_req + 1))
-              if 1 <= N <= rank]
-        T_list = [supremizers(B, x_solve, Vg) for B in train_B]
-        if delta_pga is None:
-            probe = mus["train"][:: max(1, len(mus["train"]) // 5)]
-            delta = pga_default_delta([problem_at(mu).B for mu in probe],
-                                      [problem_at(mu).W for mu in probe], x_solve, Vg)
-        else:
-            delta = float(delta_pga)
-        say(f"PGA for N in {Ns[0]}..{Ns[-1]} (delta = {delta:.3g})")
-        Z_dec: dict[int, np.ndarray] = {}  # once per N (a non-nested primal recompresses)
-        Z_off: dict[int, np.ndarray] = {}
-        for N in Ns:
-            Z = Z_dec[N] = basis(N)
-            res = pga(T_list, Z, X, delta)
-            Z_off[N] = np.hstack([Z, res.basis])
-            pga_info[(R_req, N)] = {"delta": delta, "stop": res.stop_reason, "K": res.dim,
-                                    "sigma_max": res.sigma_max.tolist()}
-        timings[f"offline_R{R_req}_s"] = time.perf_counter() - t1
-
-        for s in sets:
-            t1 = time.perf_counter()
-            say(f"inf-sup constants, R = {Rg}, {s} set ({len(mus[s])} parameters)")
-            shape = (len(Ns), len(mus[s]))
-            d = {k: np.zeros(shape) for k in ("dec_span", "dec_cone", "off_span", "off_cone")}
-            d.update(dec_zero=np.zeros(shape, bool), off_zero=np.zeros(shape, bool))
-            d.update({k: np.zeros(len(mus[s])) for k in ("on_span", "on_cone", "c")})
-            kinds: dict[str, set[str]] = {"dec": set(), "off": set(), "on": set()}
-            for j, mu in enumerate(mus[s]):
-                p = problem_at(mu)
-                BtV = np.asarray(p.B.T @ Vg)
-                C_on = inf.cone_coupling(H_at(mu), Vg)
-                S_on, M_on = C_on.T @ C_on, Vg.T @ (p.W @ Vg)
-                v, k, sp_, _ = _cone(S_on, M_on, C_on, exact_max_r, n_starts)
-                d["on_cone"][j], d["on_span"][j] = v, sp_
-                d["c"][j] = inf.boundedness_constant(S_on, M_on)
-                kinds["on"].add(k)
-                for i, N in enumerate(Ns):
-                    for tag, Y in (("dec", Z_dec[N]), ("off", Z_off[N])):
-                        S, M = inf.quotient_matrices(p.B, X, Vg, p.W, Z=Y)
-                        v, k, sp_, zero = _cone(S, M, Y.T @ BtV, exact_max_r, n_starts)
-                        d[f"{tag}_cone"][i, j], d[f"{tag}_span"][i, j] = v, sp_
-                        d[f"{tag}_zero"][i, j] = zero
-                        kinds[tag].add(k)
-            d["mus"] = mus[s]
-            per_mu[(R_req, s)] = d
-            for i, N in enumerate(Ns):
-                rows.append({
-                    "R": Rg, "N": N, "set": s, "n_mu": len(mus[s]),
-                    "dec_span_min": float(d["dec_span"][i].min()),
-                    "dec_cone_min": float(d["dec_cone"][i].min()),
-                    "dec_kind": "/".join(sorted(kinds["dec"])),
-                    "dec_zero_count": int(d["dec_zero"][i].sum()),
-                    "K_pga": pga_info[(R_req, N)]["K"],
-                    "off_span_min": float(d["off_span"][i].min()),
-                    "off_cone_min": float(d["off_cone"][i].min()),
-                    "off_kind": "/".join(sorted(kinds["off"])),
-                    "off_zero_count": int(d["off_zero"][i].sum()),
-                    "on_span_min": float(d["on_span"].min()),
-                    "on_cone_min": float(d["on_cone"].min()),
-                })
-            timings[f"infsup_R{R_req}_{s}_s"] = time.perf_counter() - t1
-    timings["total_s"] = time.perf_counter() - t0
-    config = {"dual": dual, "primal": primal, "R": R_list, "R_actual": R_actual,
-              "N_list": None if N_list is None else list(N_list), "sets": list(sets),
-              "n_train": len(mus["train"]), "n_valid": len(mus["valid"]),
-              "delta_pga": delta_pga, "exact_max_r": exact_max_r, "n_starts": n_starts,
-              "overrides": list(scene.overrides), "primal_rank": rank}
-    return BetaDecStudy(scene=scene.name, dual=dual, rows=rows, per_mu=per_mu, pga=pga_info,
-                        config=config, timings=timings)
+def _table_row(d: dict[str, np.ndarray], kinds: dict[str, set[str]], i: int, N: int, Rg: int,
+               s: str, K: int) -> dict[str, Any]:
+    """The row (keys :data:`COLUMNS`) of primal size ``N`` (index ``i``) on set ``s``."""
+    return {
+        "R": Rg, "N": N, "set": s, "n_mu": len(d["mus"]),
+        "dec_span_min": float(d["dec_span"][i].min()),
+        "dec_cone_min": float(d["dec_cone"][i].min()),
+        "dec_kind": "/".join(sorted(kinds["dec"])),
+        "dec_zero_count": int(d["dec_zero"][i].sum()),
+        "K_pga": K,
+        "off_span_min": float(d["off_span"][i].min()),
+        "off_cone_min": float(d["off_cone"][i].min()),
+        "off_kind": "/".join(sorted(kinds["off"])),
+        "off_zero_count": int(d["off_zero"][i].sum()),
+        "on_span_min": float(d["on_span"].min()),
+        "on_cone_min": float(d["on_cone"].min()),
+    }
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,0 +1,25 @@
+"""Formatting shared by the studies' Markdown tables."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+
+def markdown_table(head: str, n_cols: int, body: Iterable[str]) -> str:
+    """A Markdown table: the header line, the separator of ``n_cols`` columns, the rows."""
+    return "\n".join([head, "|" + "---|" * n_cols, *body])
+
+
+def percent(x: float | None) -> str:
+    """A fraction in percent with three decimals; empty for ``None``."""
+    return "" if x is None else f"{100 * x:.3f}"
+
+
+def observed_order(e_prev: float | None, e: float | None, h_prev: float, h: float) -> str:
+    """The observed order ``log(e_prev / e) / log(h_prev / h)`` (two decimals); empty when an
+    error is missing or not positive."""
+    if not e_prev or not e or e_prev <= 0 or e <= 0:
+        return ""
+    return f"{np.log(e_prev / e) / np.log(h_prev / h):.2f}"

@@ -1,0 +1,62 @@
+"""Online time of one reduction at several mesh levels (``rbbench online-scaling``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rbbench.scene.loading import load_scene
+from rbbench.studies.formatting import markdown_table
+
+__all__ = ["online_scaling", "scaling_markdown"]
+
+
+def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int = 30,
+                   progress=print) -> list[dict]:
+    """Online time of the same reduction at several mesh levels, timed side by side.
+
+    One reduced model is built per ``discretization.level``; then every model
+    solves every validation mu ``repeats`` times, the models interleaved in
+    each round so that machine load hits them alike. Reports per level the
+    HF size, the reduced sizes, the median and inter-quartile range of the
+    online time (s) and its ratio to the first level.
+    """
+    from rbbench.rb.offline import reduce
+
+    results = []
+    for level in levels:
+        sc = load_scene(scene, [*overrides, f"discretization.level={level}"])
+        progress(f"level {level}: offline")
+        res = reduce(sc, config)
+        if res.model is None:
+            raise ValueError(f"hyper {res.hyper!r} builds no HF-independent model; use 'eim' "
+                             "or 'affine'")
+        results.append(res)
+    times: list[list[float]] = [[] for _ in results]
+    for _ in range(repeats):
+        for k, res in enumerate(results):
+            for mu in res.valid_mus:
+                times[k].append(res.model.solve(mu).time_s)
+    rows = []
+    base = float(np.median(times[0]))
+    for level, res, t in zip(levels, results, times, strict=True):
+        s = res.summary()
+        med = float(np.median(t))
+        rows.append({"level": level, "n_hf_dofs": s["n_hf_dofs"], "n_contact": s["n_contact"],
+                     "N": s["N"], "K_pga": s["K_pga"], "R": s["R"], "M_eim": s["M_eim"],
+                     "err_u_max": s["err_u_max"], "err_lam_max": s["err_lam_max"],
+                     "t_online_median_s": med,
+                     "t_online_iqr_s": float(np.subtract(*np.percentile(t, [75, 25]))),
+                     "ratio_to_first": med / base, "t_hf_median_s": s["t_hf_median_s"]})
+    return rows
+
+
+def scaling_markdown(rows: list[dict]) -> str:
+    """The rows of :func:`online_scaling` as a Markdown table (times in ms)."""
+    head = ("| level | HF dofs | contact rows | N + K | R | EIM rows | err u max | "
+            "err lam max | online median (ms) | IQR (ms) | ratio | HF median (s) |")
+    return markdown_table(head, 12, (
+        f"| {r['level']} | {r['n_hf_dofs']} | {r['n_contact']} | {r['N']} + {r['K_pga']} | "
+        f"{r['R']} | {r['M_eim']} | {r['err_u_max']:.2e} | {r['err_lam_max']:.2e} | "
+        f"{1e3 * r['t_online_median_s']:.3f} | {1e3 * r['t_online_iqr_s']:.3f} | "
+        f"{r['ratio_to_first']:.2f} | {r['t_hf_median_s']:.2f} |"
+        for r in rows))
