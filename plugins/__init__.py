@@ -24,10 +24,29 @@ _DUALS = (
      "non-negative matrix factorisation (HALS) baseline, refitted per rank"),
 )
 
+#: Hyper-reducers: (name, class, formulations, description).
+_HYPERS = (
+    ("affine", "ExactAffine", ("mixed",),
+     "exact affine decomposition of the reduced operators, verified by probing"),
+    ("eim", "ContactRowEIM", ("mixed", "nitsche"),
+     "EIM of the contact rows B(mu) Z, G(mu) (mixed); DEIM of the point terms (Nitsche)"),
+    ("ecsw", "ECSW", ("nitsche",),
+     "empirical cubature at the contact points, sparse NNLS weights (Nitsche default)"),
+    ("deim", "DEIM", ("nitsche",), "DEIM of the Nitsche contact point contributions"),
+    ("none", "NoHyper", ("mixed", "nitsche"),
+     "plain: HF operators at mu projected online (online cost grows with the HF size)"),
+)
+
 
 @hookimpl
 def rbbench_register(registry):
-    add = registry.add
+    for declare in (_backends, _formulations, _solvers, _executors, _compressors, _hypers,
+                    _stabilizers):
+        declare(registry.add)
+
+
+def _backends(add):
+    """Declare the built-in HF backends."""
     add(ComponentSpec(
         name="skfem", role="backend",
         target="rbbench_plugins.backends.skfem_backend:SkfemBackend",
@@ -45,6 +64,10 @@ def rbbench_register(registry):
         description="NGSolve: Netgen meshes (or arrays), P1/P2, sparse Cholesky, "
                     "GPTS contact pairing",
     ))
+
+
+def _formulations(add):
+    """Declare the built-in formulations."""
     add(ComponentSpec(
         name="mixed", role="formulation",
         target="rbbench_plugins.formulations.mixed:MixedFormulation",
@@ -60,6 +83,10 @@ def rbbench_register(registry):
         description="Nitsche (Alart-Curnier, theta = 1 / 0 / -1, gamma = gamma0 E / h): "
                     "unconstrained, from the contact evaluation matrices Un, Snn",
     ))
+
+
+def _solvers(add):
+    """Declare the built-in algebraic VI solvers."""
     add(ComponentSpec(
         name="newton", role="solver",
         target="rbbench_plugins.solvers.newton:NewtonSolver",
@@ -94,6 +121,9 @@ def rbbench_register(registry):
         description="PETSc TAO bound-constrained QP (tron) on the condensed dual problem",
     ))
 
+
+def _executors(add):
+    """Declare the built-in executors: where the cases of a run matrix run."""
     # executors: where the cases of a run matrix run
     add(ComponentSpec(
         name="serial", role="executor", target="rbbench_plugins.executors:SerialExecutor",
@@ -112,6 +142,9 @@ def rbbench_register(registry):
         description="Dask distributed: a LocalCluster, or a scheduler address for a cluster",
     ))
 
+
+def _compressors(add):
+    """Declare the built-in primal and dual compressors."""
     # primal compressors: V_N from displacement snapshots
     add(ComponentSpec(
         name="pod", role="primal", target=f"{_COMP}:PODPrimal",
@@ -130,6 +163,21 @@ def rbbench_register(registry):
             name=name, role="dual", target=f"{_COMP}:{cls}", modules=modules,
             capabilities={"cone": cone, "nested": nested}, description=text,
         ))
+
+
+def _hypers(add):
+    """Declare the built-in hyper-reducers."""
+    # hyper-reducers: HF-size independent online stage (declarations; the formulation's
+    # offline steps carry them out)
+    for name, cls, forms, text in _HYPERS:
+        add(ComponentSpec(
+            name=name, role="hyper", target=f"rbbench.rb.hyper_reducers:{cls}",
+            capabilities={"formulations": forms}, description=text,
+        ))
+
+
+def _stabilizers(add):
+    """Declare the built-in stabilisers."""
     # stabilisers: inf-sup stable primal space over the reduced cone
     add(ComponentSpec(
         name="none", role="stabilizer", target=f"{_COMP}:NoStabilizer",

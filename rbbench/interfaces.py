@@ -302,6 +302,13 @@ class Formulation(ABC):
     @abstractmethod
     def build(self, disc: Discretization) -> ContactProblem | NitscheProblem: ...
 
+    def reduction(self) -> Any:
+        """The formulation's steps in the offline skeleton (:mod:`rbbench.rb.offline`):
+        an object with ``prepare(scene, config, registry) -> config`` (checks before any HF
+        work) and ``reduce(context) -> ReducedStage`` (:mod:`rbbench.rb.validation`).
+        Import them lazily here, so that registering the plugin stays cheap."""
+        raise NotImplementedError(f"formulation {self.name!r} has no reduced model")
+
 
 class Solver(ABC):
     """Algebraic VI solver role."""

@@ -18,6 +18,12 @@ class MixedFormulation(Formulation):
         if options:
             raise TypeError(f"mixed formulation: unknown options {sorted(options)}")
 
+    def reduction(self):
+        """Offline steps of the reduced model (:class:`rbbench.rb.mixed_offline.MixedReduction`)."""
+        from rbbench.rb.mixed_offline import MixedReduction
+
+        return MixedReduction()
+
     def build(self, disc: Discretization) -> ContactProblem:
         n = disc.n_dofs
         free = np.setdiff1d(np.arange(n), disc.dirichlet_dofs)

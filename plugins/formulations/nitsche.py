@@ -52,6 +52,13 @@ class NitscheFormulation(Formulation):
         snapshot cache key, :mod:`rbbench.hf.snapshots`)."""
         return {"theta": self.theta, "gamma0": self.gamma0}
 
+    def reduction(self):
+        """Offline steps of the reduced model
+        (:class:`rbbench.rb.nitsche_offline.NitscheReduction`)."""
+        from rbbench.rb.nitsche_offline import NitscheReduction
+
+        return NitscheReduction()
+
     def build(self, disc: Discretization) -> NitscheProblem:
         c = disc.contact
         if c.Snn is None or c.facet_length is None:

@@ -103,39 +103,67 @@ class ProblemCache:
         return p.X[p.free][:, p.free].tocsr()
 
 
+class HFModel:
+    """The HF model of a scene and a choice of components (the model interface it shares
+    with the reduced models, as pyMOR's ``Model.solve(mu)``).
+
+    ``solve(mu)`` parses mu and checks it against the scene's domain D
+    (:attr:`parameters`, a :class:`~rbbench.scene.parameters.ParameterSpace`), then
+    discretises, formulates and solves. The components (mesh included) are built at the
+    first solve and reused.
+    """
+
+    def __init__(self, scene: Scene, backend: str = "skfem", formulation: str = "mixed",
+                 solver: str | None = None, registry: Registry | None = None,
+                 solver_options: dict | None = None, components: Any = None) -> None:
+        self.scene = scene
+        self.parameters = scene.parameter_space
+        self.names = {"backend": backend, "formulation": formulation,
+                      "solver": default_solver(formulation, registry) if solver is None
+                      else solver}
+        self.registry, self.solver_options = registry, solver_options
+        self.components = components
+
+    def solve(self, mu: Any = None, progress: Callable[[str], None] = _noop) -> HFSolution:
+        """Solve at ``mu`` (default: the scene default); a
+        :class:`~rbbench.scene.parameters.SceneError` names a parameter outside D."""
+        scene, names = self.scene, self.names
+        mu = scene.default_mu if mu is None else self.parameters.check(mu)
+        t0 = time.perf_counter()
+        if self.components is None:
+            progress("meshing the reference configuration")
+            self.components = make_components(scene, names["backend"], names["formulation"],
+                                              names["solver"], self.registry,
+                                              self.solver_options)
+        b, f, s = self.components
+        t1 = time.perf_counter()
+        progress("assembling operators")
+        disc = discretize_for(b, f, mu)
+        t2 = time.perf_counter()
+        problem = f.build(disc)
+        progress(f"solving ({disc.n_dofs} dofs, {disc.contact.n_mult} contact unknowns)")
+        t3 = time.perf_counter()
+        result = s.solve(problem)
+        t4 = time.perf_counter()
+        times = {"setup_s": t1 - t0, "discretize_s": t2 - t1, "formulate_s": t3 - t2,
+                 "solve_s": t4 - t3, "total_s": t4 - t0}
+        sol = HFSolution(scene, mu, dict(names), disc, problem, result, times)
+        sol.metrics = contact_metrics(sol)
+        return sol
+
+
 def solve_hf(scene: Scene, mu: Any = None, backend: str = "skfem", formulation: str = "mixed",
              solver: str | None = None, registry: Registry | None = None,
              solver_options: dict | None = None,
              progress: Callable[[str], None] = _noop, components=None) -> HFSolution:
-    """Solve the HF contact problem of ``scene`` at ``mu`` (default: the scene default).
+    """Solve the HF contact problem of ``scene`` at ``mu`` (default: the scene default):
+    :meth:`HFModel.solve`.
 
     ``solver = None``: the formulation's declared solver (``ssn`` for mixed, ``newton``
     for Nitsche).
     """
-    mu = scene.default_mu if mu is None else scene.check_mu(mu)
-    if solver is None:
-        solver = default_solver(formulation, registry)
-    t0 = time.perf_counter()
-    if components is None:
-        progress("meshing the reference configuration")
-        components = make_components(scene, backend, formulation, solver, registry,
-                                     solver_options)
-    b, f, s = components
-    t1 = time.perf_counter()
-    progress("assembling operators")
-    disc = discretize_for(b, f, mu)
-    t2 = time.perf_counter()
-    problem = f.build(disc)
-    progress(f"solving ({disc.n_dofs} dofs, {disc.contact.n_mult} contact unknowns)")
-    t3 = time.perf_counter()
-    result = s.solve(problem)
-    t4 = time.perf_counter()
-    times = {"setup_s": t1 - t0, "discretize_s": t2 - t1, "formulate_s": t3 - t2,
-             "solve_s": t4 - t3, "total_s": t4 - t0}
-    sol = HFSolution(scene, mu, {"backend": backend, "formulation": formulation,
-                                 "solver": solver}, disc, problem, result, times)
-    sol.metrics = contact_metrics(sol)
-    return sol
+    return HFModel(scene, backend, formulation, solver, registry, solver_options,
+                   components).solve(mu, progress)
 
 
 def contact_metrics(sol: HFSolution) -> dict[str, Any]:

@@ -150,6 +150,8 @@ class ReducedModel:
         True when the dual space is a cone (alpha >= 0 is the right constraint).
     info : dict
         Sizes and provenance (compressor names, tolerances).
+    parameters : ParameterSpace or None
+        The domain D that :meth:`solve` checks mu against (set by the offline skeleton).
     """
 
     A: AffineOperator
@@ -158,6 +160,7 @@ class ReducedModel:
     constraint: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
     is_cone: bool = True
     info: dict = field(default_factory=dict)
+    parameters: ParameterSpace | None = None
 
     def __post_init__(self) -> None:
         # A_N independent of mu (e.g. a dilation, which leaves 2D stiffness invariant):
@@ -182,8 +185,12 @@ class ReducedModel:
 
     def solve(self, mu: np.ndarray, warm_start: np.ndarray | None = None,
               max_iter: int = 100, method: str = "daqp") -> OnlineResult:
-        """Online solve: assemble the reduced arrays, then :func:`solve_reduced`."""
+        """Online solve: check mu against D (:attr:`parameters`, a
+        :class:`~rbbench.scene.parameters.SceneError` outside it, as the HF solve), assemble
+        the reduced arrays, then :func:`solve_reduced`."""
         t0 = time.perf_counter()
+        if self.parameters is not None:
+            mu = self.parameters.check(mu)
         res = solve_reduced(*self.arrays(mu), warm_start=warm_start, max_iter=max_iter,
                             cho=self._cho, method=method)
         res.time_s = time.perf_counter() - t0

@@ -65,20 +65,18 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from rbbench.hf.contact_geometry import ContactLayout, contact_operators, normal_stress_terms
-from rbbench.hf.nitsche_algebra import gamma_scaling, pressure, state
-from rbbench.rb.contact_eim import HyperReductionError, pair_in_windows, restrict_layout
-from rbbench.rb.eim import deim
-from rbbench.rb.mixed_model import AffineOperator, LinearInMu, NotAffineError, affine_decomposition
+from rbbench.hf.nitsche_algebra import gamma_scaling
+from rbbench.rb.affine import AffineOperator, LinearInMu
+from rbbench.rb.contact_eim import pair_in_windows, restrict_layout
+from rbbench.scene.parameters import ParameterSpace
 
 __all__ = ["NitscheOnlineResult", "NitscheReducedModel", "PointEvaluator", "ReducedPoints",
-           "sparse_nnls",
-           "build_point_evaluator", "full_points", "reduce_nitsche", "reduced_newton"]
+           "sparse_nnls", "build_point_evaluator", "full_points", "reduced_newton"]
 
 
 # ---------------------------------------------------------------------------
@@ -387,6 +385,8 @@ class NitscheReducedModel:
     start_mus, start_c : (P, p), (P, N)
         Reduced solutions at the training parameters (the online initial guess).
     info : dict
+    parameters : ParameterSpace or None
+        The domain D that :meth:`solve` checks mu against (set by the offline skeleton).
     """
 
     A: AffineOperator
@@ -405,6 +405,7 @@ class NitscheReducedModel:
     entry_col: np.ndarray | None = None
     TQinv: np.ndarray | None = None
     info: dict = field(default_factory=dict)
+    parameters: ParameterSpace | None = None
 
     @property
     def N(self) -> int:
@@ -441,318 +442,14 @@ class NitscheReducedModel:
 
     def solve(self, mu: np.ndarray, c0: np.ndarray | None = None, max_iter: int = 50,
               tol: float = 1e-10, keep_iterates: bool = False) -> NitscheOnlineResult:
-        """Online solve: evaluate the points at mu, then :func:`reduced_newton`."""
+        """Online solve: check mu against D (:attr:`parameters`; a
+        :class:`~rbbench.scene.parameters.SceneError` outside it, as the HF solve), evaluate
+        the points at mu, then :func:`reduced_newton`."""
         t0 = time.perf_counter()
-        mu = np.atleast_1d(np.asarray(mu, dtype=float))
+        mu = (np.atleast_1d(np.asarray(mu, dtype=float)) if self.parameters is None
+              else self.parameters.check(mu))
         _, _, system = self.system(mu)
         res = reduced_newton(system, self.initial_guess(mu) if c0 is None else c0,
                              max_iter=max_iter, tol=tol, keep_iterates=keep_iterates)
         res.time_s = time.perf_counter() - t0
         return res
-
-
-# ---------------------------------------------------------------------------
-# offline stage
-# ---------------------------------------------------------------------------
-DEFINITIONS = {
-    "err_u": "relative error ||u - u_N||_X / ||u||_X per validation mu (X: the scene's V inner "
-             "product on free dofs; u: the HF Nitsche solution); *_max / *_mean over the "
-             "validation set (the seed's e_N^u)",
-    "err_lam": "Nitsche: relative L2(Gamma_c) error of the contact pressure -[P_gamma]_- at the "
-               "quadrature points, ||p(u) - p(u_N)|| / ||p(u)|| (the Nitsche multiplier)",
-    "err_snn": "the seed's e_N^nn: ||sigma_nn(u) - sigma_nn(u_N)|| / ||sigma_nn(u)|| in "
-               "L2(Gamma_c) (contact quadrature), per validation mu",
-    "penetration": "largest pointwise penetration max_q (Un u_N - gap)_+ (m) per validation mu",
-    "energy_err": "|J(u_N) - J(u)| / |J(u)|, J = 1/2 a(u, u) - f(u) (the seed's HF energy)",
-    "t_online": "wall time of one online solve: evaluate the hyper-reduction points at mu "
-                "(pairing restricted to their facets), reduced Newton from the nearest "
-                "training solution; median and IQR over validation mus x repeats (s)",
-    "speedup": "median HF Nitsche Newton solve time (discretise + formulate + solve) / median "
-               "online time",
-    "eim_error": "training error of the hyper-reduction after each added term: ECSW: relative "
-                 "l2 residual of the weighted training sums; DEIM: greedy EIM relative max-norm "
-                 "error of the point contributions (ratio of maxima)",
-    "eim": "rows: points evaluated online; e_eim_valid: the seed's e_EIM of the reduced "
-           "contact residual r_c = sum_q y_q over the validation set and every online Newton "
-           "iterate (max over mu and k of ||r_c - r_c^hyper||_inf / max of ||r_c||_inf); "
-           "e_eim_cv_valid: at convergence only; *_by_iteration: per iteration index; "
-           "e_eim_tangent_*: the same for the reduced contact tangent dr_c/dc (N x N)",
-    "err_u_plain": "err_u of the plain reduced model (exact sums over all contact points, "
-                   "no hyper-reduction), per validation mu: the floor for this V_N",
-}
-
-
-#: Default cap on the empirical cubature points, per primal mode (``m_eim`` overrides).
-#: With a tolerance only, the NNLS keeps adding points as the mesh is refined (hertz,
-#: N = 20, tol 1e-4: 221 points at level 0, 435 at level 1) while err_u is already at the
-#: plain model's floor; with 6 N = 120 points err_u_max is 1.0e-4 / 1.4e-4 at levels 0 / 1
-#: (plain: 8.9e-5 / 5.6e-5) and the online time stays flat (measured, README "Nitsche").
-ECSW_POINTS_PER_MODE = 6
-
-
-def _nearest_other(mus: np.ndarray) -> np.ndarray:
-    d = np.linalg.norm(mus[:, None, :] - mus[None, :, :], axis=2)
-    np.fill_diagonal(d, np.inf)
-    return np.argmin(d, axis=1)
-
-
-def reduce_nitsche(scene: Any, config: Any, progress: Callable[[str], None] = lambda m: None,
-                   snapshot_progress: bool = False, registry: Any = None) -> Any:
-    """Offline stage of the reduced Nitsche model and its online validation.
-
-    ``config`` is a :class:`rbbench.rb.offline.ReduceConfig` (``primal``, ``N``,
-    ``tol_pod``, ``hyper``, ``tol_eim``, ``m_eim``, ``n_eim_train``, sizes, cache,
-    ``online_repeats``); the dual / stabiliser fields do not apply. ``hyper``:
-    ``"auto"``: empirical cubature at the contact points (``"ecsw"``, tolerance
-    ``tol_eim`` on the relative residual of the training sums, at most ``m_eim``
-    points, default :data:`ECSW_POINTS_PER_MODE` ``* N``); ``"eim"``: DEIM of the
-    point contributions (``"deim"``); ``"none"``:
-    plain. A solver that does not solve Nitsche (e.g. the default ``ssn``) is
-    replaced by the formulation's (``newton``). Returns a
-    :class:`rbbench.rb.offline.ReduceResult`.
-    """
-    from rbbench.hf.model import ProblemCache, default_solver, make_components
-    from rbbench.rb.offline import (
-        DivergedError,
-        ReduceResult,
-        _check_finite,
-        _xn,
-        eim_grid,
-        fixed_contact_points,
-        primal_basis,
-        training_snapshots,
-    )
-    from rbbench.registry import default_registry
-
-    reg = registry or default_registry()
-    if config.hyper == "affine":
-        raise ValueError("hyper 'affine': the Nitsche contact term is nonlinear; use 'auto' "
-                         "(empirical cubature), 'eim' (DEIM) or 'none' (plain)")
-    fixed_contact_points(scene, config.hyper, plain_ok=False)
-    solver = config.solver
-    if "nitsche" not in reg.get("solver", solver).capabilities.get("formulations", ()):
-        solver = default_solver("nitsche", reg)
-        config = replace(config, solver=solver)
-    reg.get("primal", config.primal)
-    t0 = time.perf_counter()
-    timings: dict[str, float] = {}
-    mus_train, train, valid = training_snapshots(scene, config, "nitsche", solver, progress,
-                                                 snapshot_progress, reg)
-    mus_valid = valid.mus
-    timings["snapshots_s"] = time.perf_counter() - t0
-
-    b, f, _ = make_components(scene, config.backend, "nitsche", solver, registry=reg,
-                              component_options=config.component_options)
-    if not hasattr(b, "contact_layout"):
-        raise ValueError(f"backend {config.backend!r} provides no contact layout: the reduced "
-                         "Nitsche model evaluates the contact points from it")
-    layout = b.contact_layout()
-    problem_at = ProblemCache(b, f)
-    p0 = problem_at(scene.default_mu)
-    X = problem_at.X_free(scene.default_mu)
-    theta, gamma0 = float(f.theta), float(f.gamma0)
-
-    t1 = time.perf_counter()
-    primal = primal_basis(reg, config, train.U, X, progress)
-    Z = primal.Z
-    N = Z.shape[1]
-    Zfull = np.zeros((p0.u_lift.size, N))
-    Zfull[p0.free] = Z
-    u_lift = p0.u_lift
-    timings["primal_s"] = time.perf_counter() - t1
-
-    t1 = time.perf_counter()
-    progress("affine decomposition of A_N, F_N (verified by probing)")
-    try:  # problem_at caches the HF problem at each probe
-        A_op = AffineOperator(affine_decomposition(lambda mu: Z.T @ (problem_at(mu).A @ Z),
-                                                   scene.bounds))
-        F_op = AffineOperator(affine_decomposition(lambda mu: Z.T @ problem_at(mu).F,
-                                                   scene.bounds))
-    except NotAffineError as exc:
-        raise ValueError(f"reduced Nitsche model: A_N or F_N is {exc}") from None
-    coef = LinearInMu(np.asarray(scene.bounds).shape[0])
-    timings["affine_s"] = time.perf_counter() - t1
-
-    # ---- plain reduced Newton iterates: the hyper-reduction's training data ----
-    t1 = time.perf_counter()
-    grid = eim_grid(scene, config, len(mus_train), per_interval=2)
-    c_hf_train = (Z.T @ (X @ train.U)).T  # projections (X-orthonormal Z), (P, N)
-    plain_c = np.zeros_like(c_hf_train)
-    progress(f"plain reduced Newton on {len(mus_train)} training + {len(grid)} grid parameters")
-    Ysnap: list[np.ndarray] = []  # point contributions (n_q, N) per training state
-    plain_stops: dict[str, int] = {}
-
-    def plain_solve(mu, c0):
-        th = coef(mu)
-        rp = full_points(layout, mu, Zfull, u_lift, gamma0)
-        res = reduced_newton(_plain_system(A_op(th), F_op(th), rp, theta), c0,
-                             keep_iterates=True)
-        plain_stops[res.stop_reason] = plain_stops.get(res.stop_reason, 0) + 1
-        return res, rp
-
-    near = _nearest_other(mus_train) if len(mus_train) > 1 else np.zeros(1, dtype=int)
-    for j, mu in enumerate(mus_train):
-        res, rp = plain_solve(mu, c_hf_train[near[j]])
-        plain_c[j] = res.c
-        Ysnap.extend(rp.contributions(c, theta) for c in res.iterates)
-        Ysnap.append(rp.contributions(c_hf_train[j], theta))
-    for mu in grid:
-        k = int(np.argmin(np.linalg.norm(mus_train - mu, axis=1)))
-        res, rp = plain_solve(mu, plain_c[k])
-        Ysnap.extend(rp.contributions(c, theta) for c in res.iterates)
-    for Y in Ysnap:
-        _check_finite("Nitsche hyper-reduction snapshots", Y)
-    timings["plain_training_s"] = time.perf_counter() - t1
-
-    t1 = time.perf_counter()
-    hyper = {"none": "none", "eim": "deim"}.get(config.hyper, "ecsw")
-    nq = layout.slave.n * layout.n_gauss
-    histories: dict[str, Any] = {
-        "pod_singular_values": primal.history.get("singular_values", []),
-        "primal": {k: v for k, v in primal.history.items() if k != "singular_values"},
-        "plain_training_stops": plain_stops}
-    sample = np.vstack([mus_train, grid, mus_valid])
-    extra: dict[str, Any] = {}
-    if hyper == "ecsw":
-        progress("empirical cubature (ECSW) at the contact points")
-        H = np.zeros((nq, nq))
-        g = np.zeros(nq)
-        n_sums = 0  # b^T b: each non-zero training sum is scaled to norm 1
-        for Y in Ysnap:  # rows of G: the N entries of one training sum, scaled to norm 1
-            bj = Y.sum(axis=0)
-            nb = float(np.linalg.norm(bj))
-            n_sums += nb > 0
-            sc = nb or 1.0
-            H += (Y @ Y.T) / sc**2
-            g += (Y @ bj) / sc**2
-        bb = float(n_sums) or 1.0
-        cap = config.m_eim or ECSW_POINTS_PER_MODE * N
-        omega, errors = sparse_nnls(H, g, bb, tol=config.tol_eim, max_terms=cap)
-        pts = np.flatnonzero(omega > 0)
-        if pts.size == 0:
-            raise HyperReductionError("ECSW selected no point: the contact sums are zero")
-        ev = build_point_evaluator(layout, pts, sample)
-        extra["omega"] = omega[pts]
-        histories["eim_error"] = errors
-        histories["eim"] = {"method": "ecsw", "rows": int(pts.size), "M": int(pts.size),
-                            "tol": config.tol_eim, "max_points": int(cap),
-                            "e_train": float(errors[-1]),
-                            "weights_sum_over_all": float(omega.sum() / nq)}
-    elif hyper == "deim":
-        progress("DEIM of the contact point contributions")
-        eim = deim(np.stack([Y.ravel() for Y in Ysnap], axis=1), tol=config.tol_eim,
-                   m_max=config.m_eim)
-        if eim.m == 0:
-            raise HyperReductionError("DEIM found no term: the contact contributions are zero")
-        e_pt, e_col = np.divmod(eim.magic, N)
-        pts = np.unique(e_pt)
-        ev = build_point_evaluator(layout, pts, sample)
-        T = eim.Q.reshape(nq, N, eim.m).sum(axis=0)  # (N, M)
-        extra.update(entry_pt=np.searchsorted(pts, e_pt), entry_col=e_col,
-                     TQinv=T @ np.linalg.inv(eim.Q[eim.magic]))
-        histories["eim_error"] = eim.errors.tolist()
-        histories["eim"] = {"method": "deim", "rows": int(pts.size), "M": int(eim.m),
-                            "tol": config.tol_eim, "e_train": float(eim.errors[-1])}
-    else:
-        ev = build_point_evaluator(layout, np.arange(nq), sample)
-        histories["eim"] = {"method": "none", "rows": int(nq), "M": None}
-    histories["eim"].update({"n_train_states": len(Ysnap),
-                             "n_train_mus": int(len(grid) + len(mus_train)),
-                             "n_local_dofs": int(ev.local_dofs.size),
-                             "master_facets": 0 if ev.layout.master is None
-                             else int(ev.layout.master.n)})
-    del Ysnap
-    model = NitscheReducedModel(A=A_op, F=F_op, coefficients=coef, evaluator=ev,
-                                Z_loc=np.ascontiguousarray(Zfull[ev.local_dofs]),
-                                lift_loc=u_lift[ev.local_dofs].copy(), theta=theta,
-                                gamma0=gamma0, mode=hyper,
-                                start_mus=np.asarray(mus_train, dtype=float),
-                                start_c=plain_c.copy(),
-                                info={"N": N, "hyper": hyper, "theta": theta,
-                                      "gamma0": gamma0}, **extra)
-    timings["hyper_s"] = time.perf_counter() - t1
-    timings["offline_s"] = time.perf_counter() - t0
-
-    # ---- online validation ----
-    progress("online validation")
-    err_u, err_p, err_s, pen, e_en, t_on, err_plain = [], [], [], [], [], [], []
-    stops: dict[str, int] = {}
-    iters: list[int] = []
-    num_k: dict[int, float] = {}
-    acc = {"den": 0.0, "num_cv": 0.0, "den_cv": 0.0, "num_t": 0.0, "den_t": 0.0,
-           "num_tcv": 0.0, "den_tcv": 0.0}
-    for j, mu in enumerate(valid.mus):
-        p = problem_at(mu)
-        u = valid.U[:, j]
-        runs = []
-        for _ in range(max(1, config.online_repeats)):
-            res = model.solve(mu)
-            runs.append(res.time_s)
-        t_on.extend(runs)
-        stops[res.stop_reason] = stops.get(res.stop_reason, 0) + 1
-        iters.append(res.iterations)
-        if not np.all(np.isfinite(res.c)):
-            raise DivergedError(f"online Nitsche solve at mu = {mu.tolist()}: non-finite "
-                                f"({res.stop_reason})")
-        uN = Z @ res.c
-        err_u.append(float(np.sqrt(_xn(X, u - uN) / _xn(X, u))))
-        w = p.weights
-        pu, pN = pressure(p, u), pressure(p, uN)
-        err_p.append(_l2rel(w, pu - pN, pu))
-        su, sN = state(p, u).s, state(p, uN).s
-        err_s.append(_l2rel(w, su - sN, su))
-        pen.append(float(max(0.0, np.max(p.Un @ uN - p.gap))))
-        J = 0.5 * u @ (p.A @ u) - p.F @ u
-        JN = 0.5 * uN @ (p.A @ uN) - p.F @ uN
-        e_en.append(float(abs(JN - J) / abs(J)) if J != 0 else float("nan"))
-        # the plain model and the seed's e_EIM along the online iterates
-        rp = full_points(layout, mu, Zfull, u_lift, gamma0)
-        th = coef(mu)
-        exact = _plain_system(A_op(th), F_op(th), rp, theta)
-        plain = reduced_newton(exact, model.initial_guess(mu))
-        err_plain.append(float(np.sqrt(_xn(X, u - Z @ plain.c) / _xn(X, u))))
-        walk = model.solve(mu, keep_iterates=True).iterates
-        A_mu, F_mu, system = model.system(mu)
-        for k, c in enumerate(walk):
-            Rx, Kx, _ = exact(c)
-            Rh, Kh, _ = system(c)
-            e_r, m_r = float(np.abs(Rx - Rh).max()), float(np.abs(Rx - A_mu @ c + F_mu).max())
-            e_t, m_t = float(np.abs(Kx - Kh).max()), float(np.abs(Kx - A_mu).max())
-            num_k[k] = max(num_k.get(k, 0.0), e_r)
-            acc["den"] = max(acc["den"], m_r)
-            acc["num_t"], acc["den_t"] = max(acc["num_t"], e_t), max(acc["den_t"], m_t)
-            if k == len(walk) - 1:
-                acc["num_cv"], acc["den_cv"] = max(acc["num_cv"], e_r), max(acc["den_cv"], m_r)
-                acc["num_tcv"] = max(acc["num_tcv"], e_t)
-                acc["den_tcv"] = max(acc["den_tcv"], m_t)
-
-    def ratio(a, b_):
-        return float(a / b_) if b_ > 0 else 0.0
-
-    histories["eim"].update({
-        "e_eim_valid": ratio(max(num_k.values(), default=0.0), acc["den"]),
-        "e_eim_cv_valid": ratio(acc["num_cv"], acc["den_cv"]),
-        "e_eim_valid_by_iteration": [ratio(num_k[k], acc["den"]) for k in sorted(num_k)],
-        "e_eim_tangent_valid": ratio(acc["num_t"], acc["den_t"]),
-        "e_eim_tangent_cv_valid": ratio(acc["num_tcv"], acc["den_tcv"])})
-    histories["online_stops"] = stops
-    histories["online_iterations"] = iters
-    histories["err_u_plain"] = err_plain
-    histories["err_snn"] = err_s
-    histories["formulation"] = {"name": "nitsche", "theta": theta, "gamma0": gamma0}
-    timings["total_s"] = time.perf_counter() - t0
-    cfg = asdict(config)
-    cfg.update(formulation="nitsche", solver=solver, dual=None, stabilizer=None)
-    return ReduceResult(
-        scene=scene.name, config=cfg, N=N, R=0, K_pga=0, hyper=hyper,
-        n_train=len(mus_train), n_valid=len(mus_valid), n_hf_dofs=int(train.n_dofs),
-        n_contact=int(nq), err_u=err_u, err_lam=err_p, penetration=pen, complementarity=[],
-        energy_err=e_en, beta={}, t_online=t_on,
-        t_hf=[float(t) for t in np.concatenate([train.times, valid.times])],
-        timings=timings, histories=histories, definitions=DEFINITIONS, model=model,
-        valid_mus=np.asarray(valid.mus))
-
-
-def _l2rel(w: np.ndarray, diff: np.ndarray, ref: np.ndarray) -> float:
-    d = float(np.sqrt(np.sum(w * ref**2)))
-    return float(np.sqrt(np.sum(w * diff**2)) / d) if d > 0 else 0.0

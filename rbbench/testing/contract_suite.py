@@ -22,13 +22,14 @@ from rbbench.testing.contract_base import (
 from rbbench.testing.contract_dual import CONTRACT as DUAL
 from rbbench.testing.contract_executor import CONTRACT as EXECUTOR
 from rbbench.testing.contract_formulation import CONTRACT as FORMULATION
+from rbbench.testing.contract_hyper import CONTRACT as HYPER
 from rbbench.testing.contract_primal import CONTRACT as PRIMAL
 from rbbench.testing.contract_solver import CONTRACT as SOLVER
 from rbbench.testing.contract_stabilizer import CONTRACT as STABILIZER
 
 #: The role contracts, by role, in the order ``ROLE_CHECKS`` lists them.
 ROLE_CONTRACTS: dict[str, RoleContract] = {c.role: c for c in (
-    BACKEND, FORMULATION, SOLVER, PRIMAL, DUAL, STABILIZER, EXECUTOR)}
+    BACKEND, FORMULATION, SOLVER, PRIMAL, DUAL, STABILIZER, HYPER, EXECUTOR)}
 
 #: Roles with a role-specific contract (the others get the declaration check only).
 ROLE_CHECKS = tuple(ROLE_CONTRACTS)

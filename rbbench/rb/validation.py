@@ -1,0 +1,195 @@
+"""The shared validation step: a reduced model against HF snapshots on the validation set.
+
+Whatever the formulation, :func:`validate` solves the reduced model online at every
+validation parameter (``config.online_repeats`` timed repetitions), and measures what every
+reduced model has: the relative error of u in the X norm, the energy error, the online
+time and stop reasons. The formulation's :class:`ReducedStage` adds its own per-mu
+numbers (multiplier errors, penetration, inf-sup constants, hyper-reduction errors).
+The result is a :class:`ReduceResult`; its :meth:`~ReduceResult.summary` is the row.
+"""
+
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class ReduceResult:
+    """Everything ``rbbench reduce`` reports (``result.json``)."""
+
+    scene: str
+    config: dict
+    N: int
+    R: int
+    K_pga: int
+    hyper: str
+    n_train: int
+    n_valid: int
+    n_hf_dofs: int
+    n_contact: int
+    err_u: list[float]
+    err_lam: list[float]
+    penetration: list[float]
+    complementarity: list[float]
+    energy_err: list[float]
+    beta: dict[str, list]
+    t_online: list[float]
+    t_hf: list[float]
+    timings: dict[str, float]
+    histories: dict[str, Any] = field(default_factory=dict)
+    definitions: dict[str, str] = field(default_factory=dict)
+    model: Any = field(default=None, repr=False)  # the reduced model (None: plain online)
+    valid_mus: Any = field(default=None, repr=False)
+
+    def summary(self) -> dict[str, Any]:
+        """The flat summary (``result.json``, one results row): max / mean / min over the
+        validation set of the per-mu lists, each labelled in :attr:`definitions`."""
+        mx, mean, mn = _finite(np.max), _finite(np.mean), _finite(np.min)
+        t_on = float(np.median(self.t_online))
+        t_hf = float(np.median(self.t_hf))
+        out = {
+            "scene": self.scene, "N": self.N, "R": self.R, "K_pga": self.K_pga,
+            "dim_primal_online": self.N + (self.K_pga if self.config["stabilizer"] == "pga"
+                                           else 0),
+            "hyper": self.hyper, "M_eim": self.histories.get("eim", {}).get("rows"),
+            "n_train": self.n_train, "n_valid": self.n_valid,
+            "n_hf_dofs": self.n_hf_dofs, "n_contact": self.n_contact,
+            "err_u_max": mx(self.err_u), "err_u_mean": mean(self.err_u),
+            "err_lam_max": mx(self.err_lam), "err_lam_mean": mean(self.err_lam),
+            "penetration_max": mx(self.penetration), "energy_err_max": mx(self.energy_err),
+            "complementarity_max": mx(self.complementarity),
+            "lam_best_max": mx(self.histories.get("lam_best_valid", [])),
+            "online_stops": self.histories.get("online_stops", {}),
+            "beta_kind": {k: _kind_at_min(v) for k, v in self.beta.items()},
+            "t_offline_s": self.timings.get("offline_s"),
+            "t_online_median_s": t_on,
+            "t_online_iqr_s": float(np.subtract(*np.percentile(self.t_online, [75, 25]))),
+            "t_hf_median_s": t_hf, "speedup": t_hf / t_on if t_on > 0 else None,
+        }
+        for name, rows in self.beta.items():
+            out[f"beta_{name}_min"] = mn([r["value"] for r in rows])
+            out[f"beta_{name}_span_min"] = mn([r["span"] for r in rows])
+            out[f"beta_{name}_zero_any"] = bool(any(r["is_zero"] for r in rows))
+        out["config"] = self.config
+        out["timings"] = self.timings
+        out["histories"] = self.histories
+        out["per_mu"] = {"err_u": self.err_u, "err_lam": self.err_lam,
+                         "penetration": self.penetration,
+                         "complementarity": self.complementarity, "beta": self.beta}
+        out["definitions"] = self.definitions
+        return out
+
+
+def _finite(reduce_):
+    """``reduce_`` over the finite, non-None values (None if there are none)."""
+
+    def f(v):
+        v = [x for x in v if x is not None and np.isfinite(x)]
+        return float(reduce_(v)) if v else None
+
+    return f
+
+
+def _kind_at_min(rows: list[dict]) -> str | None:
+    """Kind of the beta value at which the minimum over the validation set is reached."""
+    ok = [r for r in rows if r["value"] is not None and np.isfinite(r["value"])]
+    return min(ok, key=lambda r: r["value"])["kind"] if ok else None
+
+
+def xnorm2(X: Any, v: np.ndarray) -> float:
+    """``v^T X v`` (a squared norm)."""
+    return float(v @ (X @ v))
+
+
+def energy(p: Any, u_free: np.ndarray) -> float:
+    """``J(u) = 1/2 u^T A u - F^T u`` on the free dofs (lifted problem)."""
+    return float(0.5 * u_free @ (p.A @ u_free) - p.F @ u_free)
+
+
+class ReducedStage(ABC):
+    """A formulation's reduced model with what validating it needs (the offline steps'
+    output, :meth:`rbbench.interfaces.Formulation.reduction`).
+
+    Attributes
+    ----------
+    model : picklable reduced model with ``solve(mu)``, or None (plain online: the HF
+        operators at mu are projected online).
+    hyper : str
+        The hyper-reducer actually used.
+    N, R, K : int
+        Primal, dual and stabiliser sizes; ``n_contact`` the HF contact unknowns.
+    config : dict
+        The configuration as run (``dataclasses.asdict`` of the ReduceConfig, amended).
+    histories : dict
+        Offline histories (singular values, greedy errors, EIM errors, ...).
+    definitions : dict
+        What each reported number is.
+    """
+
+    model: Any = None
+    hyper: str = "none"
+    N: int = 0
+    R: int = 0
+    K: int = 0
+    n_contact: int = 0
+    config: dict
+    histories: dict
+    definitions: dict
+    beta: dict
+
+    @abstractmethod
+    def online(self, mu: np.ndarray, problem: Any) -> tuple[Any, np.ndarray, list[float]]:
+        """Timed online solves at mu: ``(last result, u_N on the free dofs, times in s)``;
+        the result has ``stop_reason``."""
+
+    @abstractmethod
+    def metrics(self, mu: np.ndarray, problem: Any, u: np.ndarray, lam: np.ndarray,
+                result: Any, u_n: np.ndarray) -> dict[str, float]:
+        """The formulation's per-mu numbers: ``err_lam``, ``penetration`` and
+        ``complementarity`` (when defined); anything else is kept in the stage."""
+
+    def finish(self, histories: dict, timings: dict) -> None:  # noqa: B027 - optional hook
+        """Add the stage's validation histories and timings (after the last mu)."""
+
+
+def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
+    """Validate ``stage`` on ``ctx.valid`` (the shared step of :func:`rbbench.rb.offline.reduce`).
+
+    ``ctx`` is the :class:`rbbench.rb.offline.OfflineContext` the stage was built from.
+    """
+    ctx.progress("online validation")
+    per_mu: dict[str, list[float]] = {"err_lam": [], "penetration": [], "complementarity": []}
+    err_u, e_en, t_on = [], [], []
+    stops: dict[str, int] = {}
+    X = ctx.X
+    for j, mu in enumerate(ctx.valid.mus):
+        p = ctx.problem_at(mu)
+        u, lam = ctx.valid.U[:, j], ctx.valid.LAM[:, j]
+        res, u_n, times = stage.online(mu, p)
+        t_on.extend(times)
+        stops[res.stop_reason] = stops.get(res.stop_reason, 0) + 1
+        err_u.append(float(np.sqrt(xnorm2(X, u - u_n) / xnorm2(X, u))))
+        for key, value in stage.metrics(mu, p, u, lam, res, u_n).items():
+            per_mu[key].append(value)
+        J = energy(p, u)
+        e_en.append(float(abs(energy(p, u_n) - J) / abs(J)) if J != 0 else float("nan"))
+    histories = dict(stage.histories)
+    histories["online_stops"] = stops
+    timings = ctx.timings
+    stage.finish(histories, timings)
+    timings["total_s"] = time.perf_counter() - ctx.t0
+    return ReduceResult(
+        scene=ctx.scene.name, config=stage.config, N=stage.N, R=stage.R, K_pga=stage.K,
+        hyper=stage.hyper, n_train=len(ctx.mus_train), n_valid=len(ctx.valid.mus),
+        n_hf_dofs=int(ctx.train.n_dofs), n_contact=stage.n_contact, err_u=err_u,
+        err_lam=per_mu["err_lam"], penetration=per_mu["penetration"],
+        complementarity=per_mu["complementarity"], energy_err=e_en, beta=stage.beta,
+        t_online=t_on,
+        t_hf=[float(t) for t in np.concatenate([ctx.train.times, ctx.valid.times])],
+        timings=timings, histories=histories, definitions=stage.definitions,
+        model=stage.model, valid_mus=np.asarray(ctx.valid.mus))

@@ -1,0 +1,121 @@
+"""One model interface (issue 12): ``solve(mu)`` checks mu against D in the HF model and in
+both reduced models; a reduced model is built without validation, pickles, and solves the
+same as the validated one; the formulations are peers over one offline skeleton."""
+
+from __future__ import annotations
+
+import ast
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rbbench.hf.model import HFModel
+from rbbench.rb.offline import ReduceConfig, offline, reduce
+from rbbench.registry import default_registry
+from rbbench.scene.loading import load_scene
+from rbbench.scene.parameters import ParameterSpace, SceneError
+
+MEMBRANE = ("discretization.n_cells=10",)
+HERTZ = ("discretization.level=0", "discretization.h_contact=0.02", "discretization.h_max=0.25")
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return str(tmp_path_factory.mktemp("model_cache"))
+
+
+def _config(cache, **kw):
+    base = dict(n_train=5, n_valid=3, N=4, R=4, dual="cpg", stabilizer="none",
+                online_repeats=1, cache_dir=cache, n_jobs=1)
+    return ReduceConfig(**{**base, **kw})
+
+
+@pytest.mark.parametrize("bad, match", [
+    ([99.0, 3.0], "height = 99 is outside its domain"),
+    ([0.2, -5.0], "curvature = -5 is outside its domain"),
+    ([0.2], "has 2 parameter"),
+    ([np.nan, 3.0], "height = nan is outside"),
+])
+def test_hf_and_reduced_models_reject_the_same_mu(cache, bad, match):
+    sc = load_scene("membrane_obstacle", MEMBRANE)
+    off = offline(sc, _config(cache), validation_snapshots=False)
+    hf = HFModel(sc)
+    for model in (hf, off.model):
+        assert model.parameters == sc.parameter_space
+        with pytest.raises(SceneError, match=match):
+            model.solve(bad)
+
+
+def test_reduced_model_without_validation_pickles_and_matches_the_validated_one(cache):
+    sc = load_scene("membrane_obstacle", MEMBRANE)
+    cfg = _config(cache, stabilizer="pga")
+    off = offline(sc, cfg, validation_snapshots=False)
+    assert off.context.valid is None
+    res = reduce(sc, cfg)
+    mu = np.array([0.23, 4.1])
+    a = pickle.loads(pickle.dumps(off.model)).solve(mu)
+    b = res.model.solve(mu)
+    assert a.stop_reason == b.stop_reason == "converged"
+    np.testing.assert_array_equal(a.c, b.c)
+    np.testing.assert_array_equal(a.alpha, b.alpha)
+    # the reduced solution approximates the HF one at a parameter outside the training set
+    sol = HFModel(sc).solve(mu)
+    Z = off.stage.Z_off
+    u_hf = sol.result.u[sol.problem.free] if sol.result.u.size != Z.shape[0] else sol.result.u
+    err = np.linalg.norm(Z @ a.c - u_hf) / np.linalg.norm(u_hf)
+    assert err < 0.2
+
+
+def test_parameter_space_is_the_scenes_domain():
+    sc = load_scene("hertz_halfdisks", HERTZ)
+    ps = sc.parameter_space
+    assert isinstance(ps, ParameterSpace) and ps.names == ("mu",)
+    np.testing.assert_array_equal(ps.bounds, sc.bounds)
+    assert pickle.loads(pickle.dumps(ps)) == ps
+    np.testing.assert_array_equal(ps.check(1.3), [1.3])  # D is closed
+    with pytest.raises(SceneError, match=r"mu = 1.3001 is outside its domain \[0.7, 1.3\]"):
+        ps.check(1.3001)
+
+
+def test_formulations_supply_their_steps_and_are_peers():
+    reg = default_registry()
+    mixed = reg.create("formulation", "mixed").reduction()
+    nitsche = reg.create("formulation", "nitsche").reduction()
+    assert (mixed.name, nitsche.name) == ("mixed", "nitsche")
+    import rbbench.rb.mixed_offline as mo
+    import rbbench.rb.nitsche_offline as no
+    import rbbench.rb.offline as skeleton
+
+    def imported(mod):
+        tree = ast.parse(Path(mod.__file__).read_text())
+        return {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+
+    assert not {m for m in imported(mo) if "nitsche" in m}
+    assert not {m for m in imported(no) if "mixed_offline" in m}
+    # the skeleton knows no formulation: it asks the plugin for its steps
+    assert not {m for m in imported(skeleton) if m.endswith("_offline")}
+
+
+@pytest.mark.parametrize("formulation, hyper, ok", [
+    ("mixed", "ecsw", False), ("mixed", "deim", False), ("nitsche", "affine", False),
+    ("mixed", "affine", True), ("nitsche", "ecsw", True), ("nitsche", "deim", True),
+])
+def test_hyper_reducers_declare_their_formulations(formulation, hyper, ok):
+    reg = default_registry()
+    spec = reg.get("hyper", hyper)
+    assert (formulation in spec.capabilities["formulations"]) is ok
+    h = reg.create("hyper", hyper)
+    if ok:
+        h.check(formulation)
+    else:
+        with pytest.raises(ValueError, match=f"not '{formulation}'"):
+            h.check(formulation)
+
+
+def test_mixed_refuses_a_nitsche_hyper_reducer_before_any_hf_work(tmp_path):
+    sc = load_scene("membrane_obstacle", MEMBRANE)
+    with pytest.raises(ValueError, match="hyper 'ecsw' applies to the formulation"):
+        offline(sc, _config(str(tmp_path), hyper="ecsw"))
+    assert not any(tmp_path.iterdir())  # no snapshot was computed
