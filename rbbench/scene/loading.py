@@ -458,9 +458,8 @@ def _unknown(path: str, where: str, key: str, valid: list[str]) -> SceneError:
     return _err(path, where, f"unknown key {key!r}; valid keys: {', '.join(sorted(valid))}")
 
 
-def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, ...] = ()) -> Scene:
-    """Validate raw scene data; fill defaults; return a :class:`Scene`."""
-    data = copy.deepcopy(data)
+def _check_sections(data: dict[str, Any], path: str) -> None:
+    """Every top-level key is a known section holding a table."""
     valid_sections = sorted(list(SCHEMA) + ["parameters"])
     for section in data:
         if section not in SCHEMA and section != "parameters":
@@ -468,7 +467,9 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
         if not isinstance(data[section], dict):
             raise _err(path, f"[{section}]", f"expected a table, got {data[section]!r}")
 
-    # parameters first: other keys may reference them
+
+def _parameters(data: dict[str, Any], path: str) -> dict[str, Parameter]:
+    """The declared parameters (checked; each default filled into ``data``)."""
     raw_params = data.get("parameters", {})
     if not raw_params:
         raise _err(path, "[parameters]", "declare at least one parameter, e.g. "
@@ -491,7 +492,11 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
         table["default"] = default
         params[name] = Parameter(name, lo, hi, default, str(table.get("unit", "")),
                                  str(table.get("description", "")))
+    return params
 
+
+def _fill_schema(data: dict[str, Any], path: str, params: dict[str, Parameter]) -> None:
+    """Check the keys of every :data:`SCHEMA` section and fill their defaults."""
     for section, fields in SCHEMA.items():
         table = data.setdefault(section, {})
         for key in table:
@@ -507,6 +512,9 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
                 continue
             table[key] = _check_value(path, where, f, table[key], params)
 
+
+def _check_materials(data: dict[str, Any], path: str, params: dict[str, Parameter]) -> None:
+    """Check the elastic tables ``[material.upper]`` / ``[material.lower]`` when given."""
     for body in ("upper", "lower"):
         mat = data["material"].get(body)
         if mat is None:
@@ -520,6 +528,9 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
                            f"is required; expected {f.describe()}")
             mat[key] = _check_value(path, f"[material.{body}] {key}", f, mat[key], params)
 
+
+def _check_kind(data: dict[str, Any], path: str) -> None:
+    """The keys and the physics that the geometry kind requires."""
     kind = data["geometry"]["kind"]
     for section, keys in _KIND_REQUIRES[kind].items():
         for key in keys:
@@ -542,5 +553,14 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
     if kind == "unit_square" and data["scene"]["physics"] != "poisson":
         raise _err(path, "[scene] physics", "geometry kind 'unit_square' needs 'poisson'")
 
+
+def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, ...] = ()) -> Scene:
+    """Validate raw scene data; fill defaults; return a :class:`Scene`."""
+    data = copy.deepcopy(data)
+    _check_sections(data, path)
+    params = _parameters(data, path)  # first: other keys may reference them
+    _fill_schema(data, path, params)
+    _check_materials(data, path, params)
+    _check_kind(data, path)
     return Scene(name=data["scene"]["name"], path=path, data=data,
                  parameters=list(params.values()), overrides=tuple(overrides))
