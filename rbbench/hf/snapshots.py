@@ -376,12 +376,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     -------
     SnapshotSet
     """
-    mus = np.asarray(mus, dtype=float)
-    if mus.size == 0:
-        mus = mus.reshape(0, len(scene.parameters))
-    elif mus.ndim == 1:
-        mus = mus.reshape(-1, 1) if len(scene.parameters) == 1 else mus.reshape(1, -1)
-    mus = np.array([scene.check_mu(m) for m in mus]).reshape(len(mus), len(scene.parameters))
+    mus = _parameter_rows(scene, mus)
     names = (backend, formulation, solver)
     payload = _key_payload(scene, backend, formulation, solver, solver_options,
                            component_options, registry)
@@ -395,58 +390,116 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     n_jobs = n_cpus() if n_jobs is None else int(n_jobs)
     n_jobs = max(1, min(n_jobs, len(todo)))
     if todo:  # unknown component names fail here, not once per parameter in the workers
-        reg = registry or default_registry()
-        for role, name in zip(("backend", "formulation", "solver"), names, strict=True):
-            reg.get(role, name)
+        _check_names(registry, names)
 
-    bar = None
-    try:
-        if todo and n_jobs == 1:
-            bar = _progress_bar(progress, scene.name, len(mus), len(todo))
-            components = make_components(scene, *names, solver_options=solver_options,
-                                         component_options=component_options,
-                                         registry=registry)
+    run = _Run(scene, mus, paths, names, solver_options, component_options, registry, progress)
+    if todo and n_jobs == 1:
+        run.serial(snaps, todo)
+    elif todo:
+        threads = max(1, n_cpus() // n_jobs) if blas_threads is None \
+            else int(blas_threads)
+        run.parallel(snaps, todo, n_jobs, mp_context, threads)
+
+    out = _assemble(mus, snaps, key, root, n_computed=len(todo))
+    if strict:
+        _raise_failures(scene, mus, snaps, names, root / key, out)
+    return out
+
+
+def _check_names(registry: Any, names: tuple[str, str, str]) -> None:
+    """Raise the registry's error for an unknown backend / formulation / solver name."""
+    reg = registry or default_registry()
+    for role, name in zip(("backend", "formulation", "solver"), names, strict=True):
+        reg.get(role, name)
+
+
+def _raise_failures(scene: Any, mus: np.ndarray, snaps: list[Snapshot | None],
+                    names: tuple[str, str, str], where: Path, out: SnapshotSet) -> None:
+    """:class:`SnapshotError` listing the snapshots that did not converge, if any."""
+    failed = [(mus[i], s.error or s.stop_reason) for i, s in enumerate(snaps)
+              if s is not None and not s.converged]
+    if failed:
+        backend, formulation, solver = names
+        lines = "\n".join(f"  mu = {m.tolist()}: {why}" for m, why in failed)
+        raise SnapshotError(
+            f"{len(failed)} of {len(mus)} HF snapshots did not converge (scene "
+            f"{scene.name!r}, {backend}/{formulation}/{solver}); every solve that returned is "
+            f"cached under {where}. Pass strict=False to get the set anyway.\n{lines}",
+            failed, out)
+
+
+def _parameter_rows(scene: Any, mus: Sequence | np.ndarray) -> np.ndarray:
+    """``mus`` as checked (P, p) rows (a 1-D array: one value per row for one parameter)."""
+    mus = np.asarray(mus, dtype=float)
+    if mus.size == 0:
+        mus = mus.reshape(0, len(scene.parameters))
+    elif mus.ndim == 1:
+        mus = mus.reshape(-1, 1) if len(scene.parameters) == 1 else mus.reshape(1, -1)
+    return np.array([scene.check_mu(m) for m in mus]).reshape(len(mus), len(scene.parameters))
+
+
+@dataclass
+class _Run:
+    """The solves of :func:`compute_snapshots` that the cache did not hold, in this process
+    or in worker processes; results go into ``snaps[i]`` for ``i`` in ``todo``."""
+
+    scene: Any
+    mus: np.ndarray
+    paths: list[Path]
+    names: tuple[str, str, str]
+    solver_options: dict | None
+    component_options: dict | None
+    registry: Any
+    progress: bool
+
+    def serial(self, snaps: list[Snapshot | None], todo: list[int]) -> None:
+        """Solve in this process (one set of components)."""
+        bar = None
+        try:
+            bar = _progress_bar(self.progress, self.scene.name, len(self.mus), len(todo))
+            components = make_components(self.scene, *self.names,
+                                         solver_options=self.solver_options,
+                                         component_options=self.component_options,
+                                         registry=self.registry)
             for i in todo:
-                snaps[i] = _solve_one(scene, mus[i], names, components, paths[i])
+                snaps[i] = _solve_one(self.scene, self.mus[i], self.names, components,
+                                      self.paths[i])
                 if bar is not None:
                     bar.update()
-        elif todo:
+        finally:
+            if bar is not None:
+                bar.close()
+
+    def parallel(self, snaps: list[Snapshot | None], todo: list[int], n_jobs: int,
+                 mp_context: str | None, threads: int) -> None:
+        """Solve in ``n_jobs`` worker processes (each builds its components once)."""
+        bar = None
+        try:
             ctx = multiprocessing.get_context(mp_context) if mp_context else None
-            threads = max(1, n_cpus() // n_jobs) if blas_threads is None \
-                else int(blas_threads)
             with ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
-                                     initargs=(scene, names, solver_options, threads,
-                                               component_options, registry)) as pool:
-                futures = {pool.submit(_worker_task, mus[i], paths[i]): i for i in todo}
+                                     initargs=(self.scene, self.names, self.solver_options,
+                                               threads, self.component_options,
+                                               self.registry)) as pool:
+                futures = {pool.submit(_worker_task, self.mus[i], self.paths[i]): i
+                           for i in todo}
                 # the bar only after the workers started: no fork with extra threads alive
-                bar = _progress_bar(progress, scene.name, len(mus), len(todo))
+                bar = _progress_bar(self.progress, self.scene.name, len(self.mus), len(todo))
                 try:
                     for fut in as_completed(futures):
                         i = futures[fut]
                         try:
                             snaps[i] = fut.result()
                         except BrokenProcessPool as exc:  # a worker died (e.g. killed)
-                            snaps[i] = _error_snapshot(mus[i], f"worker process died: {exc}")
+                            snaps[i] = _error_snapshot(self.mus[i],
+                                                       f"worker process died: {exc}")
                         if bar is not None:
                             bar.update()
                 except BaseException:
                     pool.shutdown(wait=True, cancel_futures=True)
                     raise
-    finally:
-        if bar is not None:
-            bar.close()
-
-    out = _assemble(mus, snaps, key, root, n_computed=len(todo))
-    failed = [(mus[i], s.error or s.stop_reason) for i, s in enumerate(snaps)
-              if s is not None and not s.converged]
-    if strict and failed:
-        lines = "\n".join(f"  mu = {m.tolist()}: {why}" for m, why in failed)
-        raise SnapshotError(
-            f"{len(failed)} of {len(mus)} HF snapshots did not converge (scene "
-            f"{scene.name!r}, {backend}/{formulation}/{solver}); every solve that returned is "
-            f"cached under {root / key}. Pass strict=False to get the set anyway.\n{lines}",
-            failed, out)
-    return out
+        finally:
+            if bar is not None:
+                bar.close()
 
 
 def n_cpus() -> int:
