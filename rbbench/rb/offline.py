@@ -75,7 +75,7 @@ class ReduceConfig:
     tol_eim: float = 1e-4
     m_eim: int | None = None
     n_eim_train: int | None = None  # default: 4 (n_train - 1) + 1 grid points (+ training);
-    # Nitsche: 2 (n_train - 1) + 1 (rbbench.rb.nitsche_model)
+    # Nitsche: 2 (n_train - 1) + 1 (rbbench.rb.nitsche_offline)
 
     @property
     def component_options(self) -> dict:
