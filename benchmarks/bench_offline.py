@@ -18,7 +18,8 @@ from rbbench.hf.model import ProblemCache, make_components
 from rbbench.hf.snapshots import compute_snapshots
 from rbbench.rb import infsup as inf
 from rbbench.rb.contact_eim import contact_eim
-from rbbench.rb.offline import eim_training_set, make_stabilizer, pga_delta, primal_basis
+from rbbench.rb.mixed_offline import make_stabilizer, pga_delta
+from rbbench.rb.offline import eim_training_set, primal_basis
 from rbbench.registry import default_registry
 from rbbench.scene.sampling import parameter_set
 
