@@ -352,3 +352,15 @@ def test_scenes(capsys):
     assert re.search(r"^hertz_halfdisks\s+mu in \[0\.7, 1\.3\]", out, re.M)
     assert re.search(r"^membrane_obstacle\s+height in \[0\.1, 0\.4\], curvature in \[2, 6\]",
                      out, re.M)
+
+
+@pytest.mark.parametrize("argv", [["report", "{missing}"], ["report", "{garbage}"],
+                                  ["compare", "{missing}", "{garbage}"]])
+def test_report_and_compare_on_a_bad_directory_exit_2_naming_it(tmp_path, capsys, argv):
+    garbage = tmp_path / "garbage"
+    garbage.mkdir()
+    (garbage / "results.parquet").write_text("not parquet")
+    paths = {"missing": str(tmp_path / "missing"), "garbage": str(garbage)}
+    assert main([a.format(**paths) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rbbench: error: ") and str(tmp_path) in err

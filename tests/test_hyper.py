@@ -153,7 +153,7 @@ def test_pipeline_with_eim_matches_the_plain_reduced_model(tmp_path):
 
 
 def test_online_scaling_study_runs_on_two_levels(tmp_path, monkeypatch):
-    from rbbench.studies.seed_tables import online_scaling, scaling_markdown
+    from rbbench.studies.scaling import online_scaling, scaling_markdown
 
     monkeypatch.chdir(tmp_path)
     cfg = ReduceConfig(dual="mcpg", stabilizer="none", hyper="eim", N=4, R=4, n_train=5,

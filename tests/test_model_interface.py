@@ -119,3 +119,21 @@ def test_mixed_refuses_a_nitsche_hyper_reducer_before_any_hf_work(tmp_path):
     with pytest.raises(ValueError, match="hyper 'ecsw' applies to the formulation"):
         offline(sc, _config(str(tmp_path), hyper="ecsw"))
     assert not any(tmp_path.iterdir())  # no snapshot was computed
+
+
+def test_matrices_prune_hyper_reducers_by_their_declared_formulations(tmp_path):
+    from rbbench.bench.matrix import load_matrix
+
+    path = tmp_path / "mx.toml"
+    path.write_text('[matrix]\nname = "mx"\nscenes = ["hertz_halfdisks"]\n[components]\n'
+                    'formulation = ["mixed", "nitsche"]\nsolver = ["ssn", "newton"]\n'
+                    'dual = ["cpg"]\nstabilizer = ["none"]\n'
+                    'hyper = ["affine", "ecsw", "deim", "eim"]\n[sizes]\nN = [4]\nR = [4]\n')
+    m = load_matrix(path, registry=default_registry())
+    run = sorted((c.components["formulation"], c.components["hyper"])
+                 for c in m.cases if c.status == "run")
+    assert run == [("mixed", "affine"), ("mixed", "eim"), ("nitsche", "deim"),
+                   ("nitsche", "ecsw"), ("nitsche", "eim")]
+    skipped = [c.reason for c in m.cases if c.components["solver"] in ("ssn", "newton")
+               and c.status == "skip" and "hyper" in c.reason]
+    assert "hyper 'ecsw' does not apply to the 'mixed' formulation" in " ".join(skipped)

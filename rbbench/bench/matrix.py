@@ -48,6 +48,7 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from rbbench.rb.hyper_reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.registry import Registry
 from rbbench.scene.loading import PROBLEMS_DIR, Scene, load_scene, tomllib
 
@@ -58,7 +59,7 @@ COMPONENT_ROLES = {"backend": "skfem", "formulation": "mixed", "solver": "ssn",
                    "primal": "pod", "dual": "mcpg", "stabilizer": "pga", "hyper": "auto"}
 #: Axes that name registered components (their registry role has the same name).
 _REGISTRY_ROLES = ("backend", "formulation", "solver", "primal", "dual", "stabilizer")
-_HYPER = ("auto", "affine", "eim", "none")
+_HYPER = ("auto", *BUILTIN_HYPER)  # "auto" and the built-in hyper-reducers (role "hyper")
 _TOP = {"matrix", "components", "sizes", "reduce", "scene_overrides", "params", "hf"}
 _MATRIX_KEYS = {"name", "description", "scenes", "repetitions", "timeout_s", "seed", "mode"}
 MODES = ("rb", "hf")
@@ -458,6 +459,12 @@ def compatibility(scene: Scene, comp: dict[str, str],
                             f"{comp['formulation']!r} formulation (solves {forms})")
         if "stabilizer" in caps:
             stab_online = bool(caps["stabilizer"].get("online_hf", stab_online))
+    hyper = comp["hyper"]
+    if registry is not None and hyper not in ("", "auto") and hyper in registry.names("hyper"):
+        forms = registry.get("hyper", hyper).capabilities.get("formulations")
+        if forms is not None and comp["formulation"] not in forms:
+            return "skip", (f"hyper {hyper!r} does not apply to the {comp['formulation']!r} "
+                            f"formulation (applies to {forms})")
     if stab_online and comp["hyper"] in ("affine", "eim"):
         return "skip", (f"stabilizer {comp['stabilizer']!r} needs the HF B(mu) online: "
                         f"incompatible with hyper {comp['hyper']!r}")

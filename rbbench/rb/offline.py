@@ -23,6 +23,7 @@ import numpy as np
 
 from rbbench.hf.model import ProblemCache, make_components
 from rbbench.hf.snapshots import SnapshotSet, compute_snapshots
+from rbbench.rb.hyper_reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.rb.mixed_model import ONLINE_METHODS
 from rbbench.rb.validation import ReducedStage, ReduceResult, validate
 from rbbench.registry import Registry, default_registry
@@ -33,7 +34,7 @@ __all__ = ["DivergedError", "HYPER", "OfflineContext", "Offline", "ReduceConfig"
            "ReduceResult", "check_finite", "eim_grid", "eim_training_set",
            "fixed_contact_points", "offline", "primal_basis", "reduce", "training_snapshots"]
 
-HYPER = ("auto", "affine", "eim", "ecsw", "deim", "none")  # "auto" + rb.hyper_reducers
+HYPER = ("auto", *BUILTIN_HYPER)  # "auto" (the formulation's rule) + the hyper-reducers
 
 
 class DivergedError(RuntimeError):
