@@ -185,16 +185,11 @@ class NewtonSolver(Solver):
                            residuals=residuals, times={"newton_s": time.perf_counter() - t0},
                            info=info)
 
-    # -------------------------------------------------------------------- solve
-    def solve(self, problem: NitscheProblem, warm_start: np.ndarray | None = None
-              ) -> SolveResult:
-        """Newton from ``warm_start`` (a displacement on the free or on all dofs) or 0."""
-        t0 = time.perf_counter()
-        prob = problem
+    @staticmethod
+    def _initial_guess(prob: NitscheProblem, warm_start: np.ndarray | None
+                       ) -> tuple[np.ndarray, str]:
+        """``(u, how)``: the warm start on the free dofs if usable, else 0."""
         nf = prob.A.shape[0]
-        if not _finite_problem(prob):
-            return self._result(prob, np.full(nf, np.nan), 0, "nan",
-                                "non-finite entries in the problem data", [], t0)
         u = np.zeros(nf)
         start = "cold (u = 0)"
         if warm_start is not None:
@@ -205,6 +200,54 @@ class NewtonSolver(Solver):
                 u, start = w.copy(), "warm"
             else:
                 start = f"cold (warm start of size {w.size} or non-finite ignored)"
+        return u, start
+
+    def _stop(self, prob: NitscheProblem, rel: float, residuals: list[float], settled: int,
+              best: float, it: int) -> tuple[str, str] | None:
+        """``(reason, why)`` if the iteration stops at relative residual ``rel``, else None."""
+        if not np.isfinite(rel):
+            return "nan", "non-finite residual"
+        if rel <= self.tol:
+            return "converged", f"relative residual {rel:.2e} <= tol {self.tol:g}"
+        stuck = settled >= 2 and rel >= 0.1 * residuals[-2]
+        if stuck and rel <= FLOOR_TOL:
+            return "converged", (f"active set settled, relative residual {rel:.2e} at "
+                                 f"the rounding floor (<= {FLOOR_TOL:g}; tol {self.tol:g} not "
+                                 "reachable: ill-conditioned tangent)")
+        if stuck and settled >= 4:
+            return "diverged", (f"active set settled but the relative residual "
+                                f"stagnates at {rel:.2e} > {FLOOR_TOL:g}: the tangent is too "
+                                f"ill-conditioned (gamma0 = {prob.gamma0:g} too large?)")
+        if rel > self.blowup * best:
+            return "diverged", (f"the residual grew {rel / best:.1e} times above its "
+                                f"best value {best:.2e}")
+        if it >= self.max_iter:
+            return "max_iterations", (f"no convergence in {self.max_iter} Newton steps "
+                                      f"(relative residual {rel:.2e})")
+        return None
+
+    def _newton_direction(self, prob: NitscheProblem, u: np.ndarray, st: nt.NitscheState,
+                          R: np.ndarray) -> tuple[np.ndarray | None, str]:
+        """``(d, "")``, or ``(None, why)`` when the tangent is singular."""
+        K = nt.tangent(prob, u, st)
+        try:
+            d = self._direction(prob, K, R)
+        except RuntimeError as exc:  # SuperLU: exactly singular
+            return None, f"singular tangent ({exc})"
+        if not np.all(np.isfinite(d)):
+            return None, "singular tangent (non-finite Newton direction)"
+        return d, ""
+
+    # -------------------------------------------------------------------- solve
+    def solve(self, problem: NitscheProblem, warm_start: np.ndarray | None = None
+              ) -> SolveResult:
+        """Newton from ``warm_start`` (a displacement on the free or on all dofs) or 0."""
+        t0 = time.perf_counter()
+        prob = problem
+        if not _finite_problem(prob):
+            return self._result(prob, np.full(prob.A.shape[0], np.nan), 0, "nan",
+                                "non-finite entries in the problem data", [], t0)
+        u, start = self._initial_guess(prob, warm_start)
         theta = float(prob.theta)
         residuals: list[float] = []
         steps: list[float] = []
@@ -220,36 +263,16 @@ class NewtonSolver(Solver):
         while True:
             rel = self._relative(prob, u, R)
             residuals.append(rel)
-            if not np.isfinite(rel):
-                return done("nan", "non-finite residual")
-            if rel <= self.tol:
-                return done("converged", f"relative residual {rel:.2e} <= tol {self.tol:g}")
             same = prev_active is not None and np.array_equal(prev_active, st.active)
             settled = settled + 1 if same and steps and steps[-1] == 1.0 else 0
-            stuck = settled >= 2 and rel >= 0.1 * residuals[-2]
-            if stuck and rel <= FLOOR_TOL:
-                return done("converged", f"active set settled, relative residual {rel:.2e} at "
-                            f"the rounding floor (<= {FLOOR_TOL:g}; tol {self.tol:g} not "
-                            "reachable: ill-conditioned tangent)")
-            if stuck and settled >= 4:
-                return done("diverged", f"active set settled but the relative residual "
-                            f"stagnates at {rel:.2e} > {FLOOR_TOL:g}: the tangent is too "
-                            f"ill-conditioned (gamma0 = {prob.gamma0:g} too large?)")
             prev_active = st.active
             best = min(best, rel)
-            if rel > self.blowup * best:
-                return done("diverged", f"the residual grew {rel / best:.1e} times above its "
-                            f"best value {best:.2e}")
-            if it >= self.max_iter:
-                return done("max_iterations", f"no convergence in {self.max_iter} Newton steps "
-                            f"(relative residual {rel:.2e})")
-            K = nt.tangent(prob, u, st)
-            try:
-                d = self._direction(prob, K, R)
-            except RuntimeError as exc:  # SuperLU: exactly singular
-                return done("diverged", f"singular tangent ({exc})")
-            if not np.all(np.isfinite(d)):
-                return done("diverged", "singular tangent (non-finite Newton direction)")
+            stop = self._stop(prob, rel, residuals, settled, best, it)
+            if stop is not None:
+                return done(*stop)
+            d, why = self._newton_direction(prob, u, st, R)
+            if d is None:
+                return done("diverged", why)
             it += 1
             if rel <= FLOOR_TOL:  # near the solution: the full (piecewise exact) step
                 st = nt.state(prob, u + d)
@@ -258,20 +281,12 @@ class NewtonSolver(Solver):
                 u = u + d
                 failures = 0
                 continue
-            if theta == 1.0:
-                slope = float(R @ d)
-                if slope >= 0.0:
-                    return done("diverged", "the Newton direction is not a descent direction "
-                                "of the Nitsche energy: the tangent is not positive definite "
-                                f"(gamma0 = {prob.gamma0:g} is too small for theta = 1)")
-                t = _energy_step(prob, d, st, R)
-            else:
-                t = _residual_step(prob, d, st, R)
-            st_new = nt.state(prob, u + t * d)
-            R_new = nt.residual(prob, u + t * d, st_new)
-            decrease = (nt.energy(prob, u + t * d, st_new) < nt.energy(prob, u, st)
-                        if theta == 1.0 else np.linalg.norm(R_new) < np.linalg.norm(R))
-            if t > 0.0 and np.all(np.isfinite(R_new)) and decrease:
+            if theta == 1.0 and float(R @ d) >= 0.0:
+                return done("diverged", "the Newton direction is not a descent direction "
+                            "of the Nitsche energy: the tangent is not positive definite "
+                            f"(gamma0 = {prob.gamma0:g} is too small for theta = 1)")
+            t, st_new, R_new = _line_search(prob, u, d, st, R)
+            if t is not None:
                 failures = 0
             else:  # no decrease: take the full step (piecewise affine residual)
                 failures += 1
@@ -284,3 +299,18 @@ class NewtonSolver(Solver):
             steps.append(t)
             u = u + t * d
             st, R = st_new, R_new
+
+
+def _line_search(prob: NitscheProblem, u: np.ndarray, d: np.ndarray, st: nt.NitscheState,
+                 R: np.ndarray) -> tuple[float | None, nt.NitscheState, np.ndarray]:
+    """``(t, state, residual)`` at ``u + t d`` after the exact line search (energy for
+    theta = 1, residual norm otherwise); ``t = None`` when it brought no decrease."""
+    theta = float(prob.theta)
+    t = _energy_step(prob, d, st, R) if theta == 1.0 else _residual_step(prob, d, st, R)
+    st_new = nt.state(prob, u + t * d)
+    R_new = nt.residual(prob, u + t * d, st_new)
+    decrease = (nt.energy(prob, u + t * d, st_new) < nt.energy(prob, u, st)
+                if theta == 1.0 else np.linalg.norm(R_new) < np.linalg.norm(R))
+    if t > 0.0 and np.all(np.isfinite(R_new)) and decrease:
+        return t, st_new, R_new
+    return None, st_new, R_new
