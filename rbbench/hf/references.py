@@ -6,6 +6,10 @@ half-width ``a = sqrt(4 P R* / (pi E*))``, peak pressure ``p0 = 2 P / (pi a)``,
 profile ``p(x) = p0 sqrt(1 - x^2/a^2)``. A rigid flat has ``R2 = inf`` and
 ``E2 = inf``. 2D Hertz gives no unique approach-load law, so the comparison is
 made at the force the solver itself reports.
+
+Cattaneo-Mindlin (science.md section 6; Johnson, *Contact Mechanics*, 1985, section 7.1):
+elastically similar bodies pressed by ``P`` then sheared by ``Q < F P`` stick on
+``|x| < c = a sqrt(1 - Q / (F P))`` and slip on ``c <= |x| <= a``.
 """
 
 from __future__ import annotations
@@ -53,3 +57,64 @@ def hertz_2d(P: float, R1: float, R2: float | None, E1: float, nu1: float,
     a = math.sqrt(4.0 * P * Rs / (math.pi * Es))
     p0 = 2.0 * P / (math.pi * a)
     return Hertz2D(P=P, R_star=Rs, E_star=Es, a=a, p0=p0)
+
+
+@dataclass
+class Mindlin2D:
+    """Cattaneo-Mindlin partial slip for a 2D Hertz contact (plane strain).
+
+    ``c``: stick half-width; :meth:`shear_traction` ``q(x) = F p0 sqrt(1 - x^2/a^2)
+    - F p0 (c/a) sqrt(1 - x^2/c^2)`` for ``|x| < c``, ``F p(x)`` for ``c <= |x| <= a``,
+    0 outside; its integral over ``[-a, a]`` is ``Q``.
+    """
+
+    P: float
+    Q: float
+    F: float
+    a: float
+    p0: float
+    c: float
+
+    def shear_traction(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        full = self.F * self.p0 * np.sqrt(np.clip(1.0 - (x / self.a) ** 2, 0.0, None))
+        if self.c <= 0.0:
+            return full
+        stick = self.F * self.p0 * (self.c / self.a) * np.sqrt(
+            np.clip(1.0 - (x / self.c) ** 2, 0.0, None))
+        return full - stick
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def mindlin_2d(P: float, Q: float, F: float, a: float, p0: float) -> Mindlin2D:
+    """Cattaneo-Mindlin stick half-width and shear traction at loads ``P``, ``Q``.
+
+    ``a``, ``p0`` are the Hertz half-width and peak pressure at ``P`` (e.g. from
+    :func:`hertz_2d`); they must satisfy ``p0 = 2 P / (pi a)`` (relative 1e-6) so that the
+    traction integrates to ``Q``. Raises ``ValueError`` naming the quantity unless all are
+    finite, ``P, a, p0 > 0``, ``F >= 0`` and ``0 <= Q < F P``.
+    """
+    vals = {"P": P, "Q": Q, "F": F, "a": a, "p0": p0}
+    for name, v in vals.items():
+        if not math.isfinite(v):
+            raise ValueError(f"mindlin_2d: {name} = {v!r} is not finite")
+    for name in ("P", "a", "p0"):
+        if vals[name] <= 0:
+            raise ValueError(f"mindlin_2d: {name} = {vals[name]!r} must be > 0")
+    if F < 0 or Q < 0:
+        raise ValueError(f"mindlin_2d: F = {F!r} and Q = {Q!r} must be >= 0")
+    if not Q < F * P:
+        raise ValueError(f"mindlin_2d: the tangential load Q = {Q!r} must be below "
+                         f"F P = {F * P!r} (F = {F!r}, P = {P!r}): full sliding otherwise")
+    if abs(p0 - 2.0 * P / (math.pi * a)) > 1e-6 * p0:
+        raise ValueError(f"mindlin_2d: p0 = {p0!r} and a = {a!r} are not the Hertz values "
+                         f"at P = {P!r} (p0 = 2 P / (pi a) = {2.0 * P / (math.pi * a)!r})")
+    c = a * math.sqrt(1.0 - Q / (F * P))
+    return Mindlin2D(P=P, Q=Q, F=F, a=a, p0=p0, c=c)
+
+
+def mindlin_from_hertz(hertz: Hertz2D, Q: float, F: float) -> Mindlin2D:
+    """:func:`mindlin_2d` at the load, half-width and peak pressure of ``hertz``."""
+    return mindlin_2d(hertz.P, Q, F, hertz.a, hertz.p0)
