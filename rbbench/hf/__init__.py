@@ -1,6 +1,9 @@
-"""High fidelity: contact geometry, the condensed LCP, Nitsche algebra, analytic references
-(Hertz), the HF model (:func:`rbbench.hf.model.solve_hf`), snapshots and the files of a solve.
+"""High fidelity: contact geometry, the condensed LCP, friction and Nitsche algebra, analytic
+references (Hertz, Cattaneo-Mindlin), the HF model (:class:`rbbench.hf.model.HFModel`),
+snapshots and the files of a solve.
 
-Data flow: scene -> backend operators (:mod:`.contact_geometry`) -> formulation + solver
-(:mod:`.model`, :mod:`.lcp`, :mod:`.nitsche_algebra`) -> snapshots (:mod:`.snapshots`).
+Data flow: scene -> backend operators (:mod:`.contact_geometry`: :mod:`.facets`,
+:mod:`.facet_chains`, :mod:`.pairing`) -> formulation + solver (:mod:`.model`, :mod:`.lcp`,
+:mod:`.friction_algebra` and :mod:`.friction_solvers`, :mod:`.nitsche_algebra`) -> snapshots
+(:mod:`.snapshots`).
 """
