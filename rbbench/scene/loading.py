@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from rbbench.scene.friction import check_friction, key_neutral
 from rbbench.scene.parameters import ParameterSpace, SceneError  # noqa: F401 - SceneError lives here
 
 if sys.version_info >= (3, 11):
@@ -130,6 +131,9 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "displacement": Field("float", low=0.0, parametric=True,
                               doc="imposed downward displacement d of the upper flat face (m)"),
         "source": Field("float", parametric=True, doc="source term f of -Laplace u = f"),
+        "tangential_displacement": Field("float", parametric=True, doc="imposed displacement "
+                                         "along +x of the upper flat face (m; friction only)"),
+        "load_steps": Field("list", doc="load steps (friction only; rbbench.scene.friction)"),
     },
     "obstacle": {
         "kind": Field("str", default="paraboloid", choices=("paraboloid",)),
@@ -313,7 +317,7 @@ KEY_NEUTRAL_DEFAULTS = {("discretization", "normals"): "facet",
 def key_data(data: dict) -> dict:
     """``data`` without the :data:`KEY_NEUTRAL_DEFAULTS` fields that hold their default
     (a shallow copy per touched section; ``data`` is not modified)."""
-    out = dict(data)
+    out = key_neutral(dict(data))  # a frictionless [friction] section
     for (section, field), default in KEY_NEUTRAL_DEFAULTS.items():
         sec = out.get(section)
         if isinstance(sec, dict) and sec.get(field, default) == default and field in sec:
@@ -460,9 +464,9 @@ def _unknown(path: str, where: str, key: str, valid: list[str]) -> SceneError:
 
 def _check_sections(data: dict[str, Any], path: str) -> None:
     """Every top-level key is a known section holding a table."""
-    valid_sections = sorted(list(SCHEMA) + ["parameters"])
+    valid_sections = sorted(list(SCHEMA) + ["parameters", "friction"])
     for section in data:
-        if section not in SCHEMA and section != "parameters":
+        if section not in valid_sections:
             raise _unknown(path, "top level", section, valid_sections)
         if not isinstance(data[section], dict):
             raise _err(path, f"[{section}]", f"expected a table, got {data[section]!r}")
@@ -562,5 +566,6 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
     _fill_schema(data, path, params)
     _check_materials(data, path, params)
     _check_kind(data, path)
+    check_friction(data, path, params)  # [friction], tangential load, load steps
     return Scene(name=data["scene"]["name"], path=path, data=data,
                  parameters=list(params.values()), overrides=tuple(overrides))
