@@ -67,6 +67,19 @@ class ContactOperators:
     facet_length : (n_q,) or None
         Physical length (m) of the slave facet holding each point (built with
         ``Snn``: the ``h`` of the Nitsche parameter ``gamma = gamma0 E / h``).
+    Mt : (n_q, n_nodes) sparse or None
+        The tangential (friction) multiplier basis at the quadrature points: continuous
+        P1 hat functions of the slave contact nodes, whatever ``multiplier`` is (seed 000,
+        "Collocation method": P1 multipliers, ``S = (d-1) R``, ``S_0 = R``). Built with
+        ``Ut``.
+    colloc_points : (n_nodes, 2) or None
+        The collocation nodes ``C(mu) = h(mu)(C_hat)`` of the tangential constraint: the
+        slave contact nodes (the vertices of the slave chain, in its order) mapped by the
+        geometry at mu. Built with ``Ut``.
+
+    The tangent is ``t = (-n_y, n_x)`` (``n`` rotated by +90 degrees): on the bottom of
+    the upper body (``n = (0, -1)``) it is ``+x``. ``lam_t`` enters
+    ``A u + B^T lam_n + Bt^T lam_t = F`` as ``lam_n`` does (:mod:`rbbench.hf.friction_algebra`).
     """
 
     Un: sp.csr_matrix
@@ -81,6 +94,8 @@ class ContactOperators:
     Ut: sp.csr_matrix | None = None
     Snn: sp.csr_matrix | None = None
     facet_length: np.ndarray | None = None
+    Mt: sp.csr_matrix | None = None
+    colloc_points: np.ndarray | None = None
 
     @property
     def n_quad(self) -> int:
@@ -101,6 +116,32 @@ class ContactOperators:
     def W(self) -> sp.csr_matrix:
         """Gram matrix of the multiplier space in L2(Gamma_c): ``Mlam^T diag(w) Mlam``."""
         return (self.Mlam.T @ sp.diags(self.weights) @ self.Mlam).tocsr()
+
+    def _tangential(self) -> sp.csr_matrix:
+        if self.Ut is None or self.Mt is None:
+            raise ValueError("no tangential contact operators: they are built for friction "
+                             "scenes only (Backend.discretize(mu, needs={'tangential'}))")
+        return self.Mt
+
+    def Bt(self) -> sp.csr_matrix:
+        """``Bt = Mt^T diag(w) Ut`` (n_nodes x n_dofs): the tangential jump tested with the
+        P1 friction multipliers (``ValueError`` for a frictionless scene)."""
+        return (self._tangential().T @ sp.diags(self.weights) @ self.Ut).tocsr()
+
+    def B_nodal(self) -> sp.csr_matrix:
+        """``Mt^T diag(w) Un``: the normal constraint on the friction (P1) multipliers, so
+        that ``(lam_n, lam_t)`` pair up per collocation node (equal to :meth:`B` when
+        ``multiplier = "p1"``)."""
+        return (self._tangential().T @ sp.diags(self.weights) @ self.Un).tocsr()
+
+    def G_nodal(self) -> np.ndarray:
+        """``Mt^T diag(w) gap`` (n_nodes,): :meth:`G` on the friction multipliers."""
+        return np.asarray(self._tangential().T @ (self.weights * self.gap)).ravel()
+
+    def Wt(self) -> sp.csr_matrix:
+        """Gram matrix of the friction multipliers in L2(Gamma_c): ``Mt^T diag(w) Mt``."""
+        Mt = self._tangential()
+        return (Mt.T @ sp.diags(self.weights) @ Mt).tocsr()
 
 
 @dataclass
@@ -129,6 +170,8 @@ class Discretization:
     ``factorize`` optionally supplies the backend's own direct solver
     (:data:`Factorize`) for stiffness matrices of this discretization, e.g. on
     the free dofs; ``None`` leaves the choice to the solver (scipy).
+    ``dirichlet_steps``: for a friction scene, the Dirichlet values at each load step
+    (``[load] load_steps``; ``dirichlet_values`` is the full load); ``None`` otherwise.
     """
 
     mu: np.ndarray
@@ -142,6 +185,7 @@ class Discretization:
     physics: str
     info: dict[str, Any] = field(default_factory=dict)
     factorize: Factorize | None = None
+    dirichlet_steps: list[np.ndarray] | None = None
 
     @property
     def n_dofs(self) -> int:

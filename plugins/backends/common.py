@@ -14,7 +14,10 @@ mesh and dof numbering:
   (:func:`halfdisk_contact`), the slave elements behind the normal stress
   ``Snn`` (:func:`slave_stress`), the layout and operators of a backend's
   ``halfdisks`` scenes (the mixin :class:`HalfDiskContact`), and the
-  collocation operators of the scalar obstacle problem (:func:`obstacle_contact`).
+  collocation operators of the scalar obstacle problem (:func:`obstacle_contact`);
+* what a scene requires of ``discretize`` (:func:`scene_needs`: the tangential
+  operators of a friction scene) and the Dirichlet values of its load steps
+  (:func:`dirichlet_loads`).
 
 Meshes are arrays: ``points`` (n, 2) in reference coordinates, ``facets``
 (n_f, 2) vertex indices of edges, ``triangles`` (n_t, 3).
@@ -38,6 +41,7 @@ from rbbench.hf.contact_geometry import (
     with_vertex_normals,
 )
 from rbbench.interfaces import ContactOperators
+from rbbench.scene.friction import friction_of, tangential_displacement
 from rbbench.scene.loading import Scene, SceneError
 
 #: Relative tolerance (to the unit reference radius) of the flat-face test.
@@ -312,6 +316,38 @@ def check_multiplier(scene: Scene) -> None:
 
 #: Optional operators a backend builds on request (``Backend.discretize(mu, needs=...)``).
 NEEDS = ("tangential", "stress")
+
+
+def scene_needs(scene: Scene, needs: frozenset[str]) -> frozenset[str]:
+    """``needs`` and what the scene requires: ``"tangential"`` when it declares friction
+    (``[friction] law != "none"``); a frictionless scene adds nothing."""
+    if friction_of(scene).active:
+        return frozenset(needs) | {"tangential"}
+    return frozenset(needs)
+
+
+def dirichlet_loads(scene: Scene, mu: np.ndarray, down: np.ndarray, along: np.ndarray
+                    ) -> tuple[np.ndarray, list[np.ndarray] | None]:
+    """Dirichlet values of a ``halfdisks`` scene and, with friction, those of each load step.
+
+    The upper flat face moves by ``(t, -d)``: ``-d`` on the Dirichlet entries ``down``
+    (its y dofs), the tangential displacement ``t`` (``[load] tangential_displacement``,
+    0 if not given) on ``along`` (its x dofs), 0 elsewhere. A load step ``(a, b)``
+    (:attr:`rbbench.scene.friction.Friction.steps`) moves it by ``(b t, -a d)``.
+
+    Returns
+    -------
+    values : the full load; steps : the values per load step, ``None`` without friction.
+    """
+    d = float(scene.value("load", "displacement", mu))
+    values = np.where(down, -d, 0.0)
+    friction = friction_of(scene)
+    if not friction.active:
+        return values, None
+    t = tangential_displacement(scene, mu)
+    steps = [np.where(down, -a * d, 0.0) + np.where(along, b * t, 0.0)
+             for a, b in friction.steps]
+    return values + np.where(along, t, 0.0), steps
 
 
 def check_needs(backend: str, scene: Scene, needs: frozenset[str]) -> None:

@@ -288,7 +288,7 @@ class NGSolveBackend(common.HalfDiskContact, Backend):
         common.check_needs(self.name, self.scene, needs)
         if self.kind == "unit_square":
             return self._discretize_square(mu)
-        return self._discretize_halfdisks(mu, needs)
+        return self._discretize_halfdisks(mu, common.scene_needs(self.scene, needs))
 
     def _discretize_halfdisks(self, mu: np.ndarray, needs=frozenset()) -> Discretization:
         t0 = time.perf_counter()
@@ -296,14 +296,16 @@ class NGSolveBackend(common.HalfDiskContact, Backend):
         geo = common.halfdisk_geometry(self.scene, maps, mu)
         A = self._elastic_operator(mu)
         t_asm = time.perf_counter() - t0
-        d = float(self.scene.value("load", "displacement", mu))
-        # Dirichlet: upper flat face moves by (0, -d); lower flat face clamped.
-        dofs, vals = [], []
+        # Dirichlet: upper flat face moves by (t, -d) (t = 0 without friction); lower
+        # flat face clamped.
+        dofs, down, along = [], [], []
         for body, flat in zip(self._bodies(), self._flat_dofs, strict=True):
             for c in range(2):
                 dofs.append(flat[c])
-                value = -d if (body.name == "upper" and c == 1) else 0.0
-                vals.append(np.full(flat[c].size, value))
+                down.append(np.full(flat[c].size, body.name == "upper" and c == 1))
+                along.append(np.full(flat[c].size, body.name == "upper" and c == 0))
+        vals, steps = common.dirichlet_loads(self.scene, mu, np.concatenate(down),
+                                             np.concatenate(along))
         contact = self._contact(mu, needs)
         bodies = []
         for body in self._bodies():
@@ -316,9 +318,9 @@ class NGSolveBackend(common.HalfDiskContact, Backend):
                 "mesh": self.mesh_source}
         return Discretization(mu=mu, A=A, F=np.zeros(self.ndofs),
                               dirichlet_dofs=np.concatenate(dofs),
-                              dirichlet_values=np.concatenate(vals), X=self.inner_product(),
+                              dirichlet_values=vals, X=self.inner_product(),
                               contact=contact, bodies=bodies, physics="elasticity", info=info,
-                              factorize=self._factorize())
+                              factorize=self._factorize(), dirichlet_steps=steps)
 
     @staticmethod
     def _chain(body: Body, amap: AffineMap) -> FacetChain:

@@ -133,7 +133,8 @@ class SkfemBackend(common.HalfDiskContact, Backend):
             self.master_zone = np.asarray(self.lower.chain_zone)
         self.ndofs = offset
         # Dirichlet dofs (independent of mu): the flat face of each body; the upper one
-        # moves by (0, -d) (``_moving``: its y dofs), the lower one is clamped
+        # moves by (t, -d) (``_moving``: its y dofs; ``_sliding``: its x dofs, t = 0
+        # without friction), the lower one is clamped
         up = self.upper.basis_hat.get_dofs(facets=self.upper.flat_facets())
         dofs = [up.all("u^1"), up.all("u^2")]
         if self.lower is not None:
@@ -142,6 +143,8 @@ class SkfemBackend(common.HalfDiskContact, Backend):
         self._dirichlet = np.concatenate(dofs)
         self._moving = np.zeros(self._dirichlet.size, dtype=bool)
         self._moving[dofs[0].size:dofs[0].size + dofs[1].size] = True
+        self._sliding = np.zeros(self._dirichlet.size, dtype=bool)  # its x dofs
+        self._sliding[:dofs[0].size] = True
 
     def _init_square(self) -> None:
         n = int(self.scene.data["discretization"]["n_cells"]) * 2 ** int(
@@ -192,21 +195,21 @@ class SkfemBackend(common.HalfDiskContact, Backend):
         """Operators at ``mu``; ``needs`` may ask for ``"tangential"`` (friction) and
         ``"stress"`` (Nitsche: ``Snn``, ``facet_length``) operators.
 
-        Only what is asked for is built ("model only what a scene requires").
+        Only what is asked for, or what the scene requires, is built ("model only what
+        a scene requires": the tangential operators of a friction scene).
         """
         mu = self.scene.check_mu(mu)
         common.check_needs(self.name, self.scene, needs)
         if self.kind == "unit_square":
             return self._discretize_square(mu)
-        return self._discretize_halfdisks(mu, needs)
+        return self._discretize_halfdisks(mu, common.scene_needs(self.scene, needs))
 
     def _discretize_halfdisks(self, mu, needs=frozenset()) -> Discretization:
         t0 = time.perf_counter()
         geo = self._geometry(mu)
         A = self._elastic_operator(mu)
         t_asm = time.perf_counter() - t0
-        d = float(self.scene.value("load", "displacement", mu))
-        dvals = np.where(self._moving, -d, 0.0)
+        dvals, steps = common.dirichlet_loads(self.scene, mu, self._moving, self._sliding)
         contact = self._contact(mu, needs)
         bodies = []
         for body in self._bodies():
@@ -218,7 +221,8 @@ class SkfemBackend(common.HalfDiskContact, Backend):
                 "h_contact": self.h_contact, "degree": self.degree, "backend": self.name}
         return Discretization(mu=mu, A=A, F=np.zeros(self.ndofs), dirichlet_dofs=self._dirichlet,
                               dirichlet_values=dvals, X=self.inner_product(), contact=contact,
-                              bodies=bodies, physics="elasticity", info=info)
+                              bodies=bodies, physics="elasticity", info=info,
+                              dirichlet_steps=steps)
 
     def _chain(self, body: _Body, amap: AffineMap) -> FacetChain:
         m = body.mesh_hat

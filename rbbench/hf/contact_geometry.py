@@ -68,8 +68,10 @@ __all__ = [
     "Pairing",
     "PairingError",
     "SlaveStress",
+    "collocation_nodes",
     "contact_operators",
     "facet_shape",
+    "friction_multipliers",
     "gauss_legendre_01",
     "lagrange_gradients",
     "lame_parameters",
@@ -113,7 +115,9 @@ def contact_operators(layout: ContactLayout, mu: np.ndarray,
     on request).
 
     ``Un`` evaluates the normal jump ``(u1 - u2 o pi) . n1``; with
-    ``tangential``, ``Ut`` evaluates ``(u1 - u2 o pi) . t1``, ``t1 = (-n_y, n_x)``;
+    ``tangential``, ``Ut`` evaluates ``(u1 - u2 o pi) . t1``, ``t1 = (-n_y, n_x)``, and
+    ``Mt``, ``colloc_points`` are the P1 friction multipliers and the collocation nodes
+    (:func:`friction_multipliers`);
     with ``stress``, ``Snn`` the slave normal stress (:func:`normal_stress`) and
     ``facet_length`` the physical length of each point's slave facet.
     """
@@ -135,6 +139,29 @@ def contact_operators(layout: ContactLayout, mu: np.ndarray,
     fa, fb = p.a[p.fq][coo.row, 0], p.b[p.fq][coo.row, 0]
     np.minimum.at(ext[:, 0], coo.col, np.minimum(np.minimum(fa, fb), xs))
     np.maximum.at(ext[:, 1], coo.col, np.maximum(np.maximum(fa, fb), xs))
+    Mt, colloc = (friction_multipliers(layout, p, mu) if tangential else (None, None))
     return ContactOperators(Un=Un, gap=p.gap, weights=p.w, points=p.x, normals=p.nrm,
                             Mlam=Mlam, multiplier=layout.multiplier, mult_points=mpts,
-                            mult_extent=ext, Ut=Ut, Snn=Snn, facet_length=hq)
+                            mult_extent=ext, Ut=Ut, Snn=Snn, facet_length=hq, Mt=Mt,
+                            colloc_points=colloc)
+
+
+def collocation_nodes(layout: ContactLayout) -> np.ndarray:
+    """``C_hat`` (n_facets + 1, 2): the slave contact nodes in reference coordinates, in
+    the order of the chain (the start of every facet, then the end of the last one)."""
+    slave = layout.slave
+    if slave.n != layout.n_facets or not np.array_equal(slave.ids, np.arange(slave.n)):
+        raise ValueError("collocation nodes need the full slave chain of the layout")
+    return np.vstack([slave.a, slave.b[-1:]])
+
+
+def friction_multipliers(layout: ContactLayout, p: Pairing, mu: np.ndarray
+                         ) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``(Mt, C(mu))``: the P1 friction multipliers at the points of pairing ``p`` and the
+    collocation nodes ``C(mu) = h(mu)(C_hat)`` (:func:`collocation_nodes`).
+
+    Seed 000, "Algebraic formulation / Collocation method": P1 multipliers, one
+    tangential multiplier per slave contact node (``S = (d-1) R = R`` in 2D).
+    """
+    Mt = multiplier_basis("p1", layout.n_facets, layout.slave.ids[p.fq], p.sq)
+    return Mt, layout.slave.map(mu, collocation_nodes(layout))
