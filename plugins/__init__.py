@@ -52,7 +52,8 @@ def _backends(add):
         target="rbbench_plugins.backends.skfem_backend:SkfemBackend",
         modules=("skfem",),
         capabilities={"physics": _ALL_PHYSICS, "degree": (1, 2),
-                      "multiplier": ("lac", "p0", "p1", "nodal"), "friction": ("none",)},
+                      "multiplier": ("lac", "p0", "p1", "nodal"),
+                      "friction": ("none", "tresca", "coulomb")},
         description="scikit-fem: graded triangle meshes, P1/P2, GPTS contact pairing",
     ))
     add(ComponentSpec(
@@ -60,7 +61,8 @@ def _backends(add):
         target="rbbench_plugins.backends.ngsolve_backend:NGSolveBackend",
         extras=("ngsolve",), modules=("ngsolve",),
         capabilities={"physics": _ALL_PHYSICS, "degree": (1, 2),
-                      "multiplier": ("lac", "p0", "p1", "nodal"), "friction": ("none",)},
+                      "multiplier": ("lac", "p0", "p1", "nodal"),
+                      "friction": ("none", "tresca", "coulomb")},
         description="NGSolve: Netgen meshes (or arrays), P1/P2, sparse Cholesky, "
                     "GPTS contact pairing",
     ))
@@ -71,7 +73,7 @@ def _formulations(add):
     add(ComponentSpec(
         name="mixed", role="formulation",
         target="rbbench_plugins.formulations.mixed:MixedFormulation",
-        capabilities={"physics": _ALL_PHYSICS,
+        capabilities={"physics": _ALL_PHYSICS, "friction": ("none",),
                       "solvers": ("ssn", "uzawa", "petsc-vi", "petsc-tao")},
         description="Lagrange multipliers: A u + B^T lam = F, 0 <= lam _|_ G - B u >= 0",
     ))
@@ -79,7 +81,7 @@ def _formulations(add):
         name="nitsche", role="formulation",
         target="rbbench_plugins.formulations.nitsche:NitscheFormulation",
         capabilities={"physics": ("elasticity",), "solvers": ("newton",),
-                      "needs": ("stress",)},
+                      "needs": ("stress",), "friction": ("none",)},
         description="Nitsche (Alart-Curnier, theta = 1 / 0 / -1, gamma = gamma0 E / h): "
                     "unconstrained, from the contact evaluation matrices Un, Snn",
     ))

@@ -137,3 +137,20 @@ def test_matrices_prune_hyper_reducers_by_their_declared_formulations(tmp_path):
     skipped = [c.reason for c in m.cases if c.components["solver"] in ("ssn", "newton")
                and c.status == "skip" and "hyper" in c.reason]
     assert "hyper 'ecsw' does not apply to the 'mixed' formulation" in " ".join(skipped)
+
+
+def test_a_friction_scene_is_refused_until_a_formulation_declares_its_law(tmp_path):
+    """No silently frictionless solve: the HF model and the matrix refuse a friction law
+    the formulation does not declare (``capabilities["friction"]``)."""
+    from rbbench.bench.matrix import compatibility
+
+    sc = load_scene("hertz_halfdisks", [*HERTZ, 'friction.law="coulomb"',
+                                        "friction.coefficient=0.2"])
+    with pytest.raises(SceneError, match=r"\[friction\] law = 'coulomb'.*'mixed'"):
+        HFModel(sc).solve()
+    comp = {"backend": "skfem", "formulation": "mixed", "solver": "ssn", "primal": "pod",
+            "dual": "cpg", "stabilizer": "none", "hyper": "auto"}
+    status, reason = compatibility(sc, comp, default_registry())
+    assert status == "skip" and "friction law 'coulomb'" in reason
+    frictionless = load_scene("hertz_halfdisks", HERTZ)
+    assert compatibility(frictionless, comp, default_registry())[0] == "run"

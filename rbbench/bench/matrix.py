@@ -50,6 +50,7 @@ from typing import Any
 
 from rbbench.rb.hyper_reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.registry import Registry
+from rbbench.scene.friction import friction_of
 from rbbench.scene.loading import PROBLEMS_DIR, Scene, load_scene, tomllib
 
 __all__ = ["COMPONENT_ROLES", "Case", "Matrix", "MatrixError", "compatibility", "load_matrix"]
@@ -453,6 +454,11 @@ def compatibility(scene: Scene, comp: dict[str, str],
             ok = caps[r].get("physics")
             if ok is not None and physics not in ok:
                 return "skip", f"{r} {comp[r]!r} does not support {physics} (supports {ok})"
+        law = friction_of(scene).law
+        laws = caps["formulation"].get("friction", ("none",))
+        if law not in laws:
+            return "skip", (f"formulation {comp['formulation']!r} does not support the "
+                            f"friction law {law!r} (supports {tuple(laws)})")
         forms = caps["solver"].get("formulations")
         if forms is not None and comp["formulation"] not in forms:
             return "skip", (f"solver {comp['solver']!r} does not solve the "

@@ -17,7 +17,8 @@ import numpy as np
 from rbbench.hf.references import hertz_2d
 from rbbench.interfaces import ContactProblem, Discretization, NitscheProblem, SolveResult
 from rbbench.registry import Registry, default_registry
-from rbbench.scene.loading import Scene
+from rbbench.scene.friction import friction_of
+from rbbench.scene.loading import Scene, SceneError
 
 #: Relative threshold on lam (w.r.t. max lam) above which a multiplier counts as active.
 ACTIVE_THRESHOLD = 1e-8
@@ -55,7 +56,7 @@ def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mi
         raise ValueError(f"component options: unknown role(s) {sorted(bad)}; valid: backend, "
                          "formulation (solver options are solver_options)")
     reg = registry or default_registry()
-    reg.get("formulation", formulation)
+    check_friction_support(scene, reg.get("formulation", formulation))
     solver = default_solver(formulation, reg) if solver is None else solver
     for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):
         reg.get(role, name)  # unknown names fail here, before any meshing
@@ -63,6 +64,17 @@ def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mi
     f = reg.create("formulation", formulation, **opts.get("formulation", {}))
     s = reg.create("solver", solver, **(solver_options or {}))
     return b, f, s
+
+
+def check_friction_support(scene: Scene, spec: Any) -> None:
+    """Refuse a scene whose ``[friction] law`` the formulation does not declare
+    (``capabilities["friction"]``, default ``("none",)``): never a silently frictionless
+    solve of a friction scene."""
+    law = friction_of(scene).law
+    laws = tuple(spec.capabilities.get("friction", ("none",)))
+    if law not in laws:
+        raise SceneError(f"{scene.path}: [friction] law = {law!r}: the {spec.name!r} "
+                         f"formulation supports {', '.join(repr(x) for x in laws)} only")
 
 
 def discretize_for(backend: Any, formulation: Any, mu: Any) -> Discretization:
