@@ -73,9 +73,11 @@ def _formulations(add):
     add(ComponentSpec(
         name="mixed", role="formulation",
         target="rbbench_plugins.formulations.mixed:MixedFormulation",
-        capabilities={"physics": _ALL_PHYSICS, "friction": ("none",),
-                      "solvers": ("ssn", "uzawa", "petsc-vi", "petsc-tao")},
-        description="Lagrange multipliers: A u + B^T lam = F, 0 <= lam _|_ G - B u >= 0",
+        capabilities={"physics": _ALL_PHYSICS, "friction": ("none", "tresca", "coulomb"),
+                      "solvers": ("ssn", "uzawa", "petsc-vi", "petsc-tao", "friction-ssn",
+                                  "friction-uzawa")},
+        description="Lagrange multipliers: A u + B^T lam = F, 0 <= lam _|_ G - B u >= 0; "
+                    "friction: P1 nodal (lam_n, lam_t), Tresca box / Coulomb wedge",
     ))
     add(ComponentSpec(
         name="nitsche", role="formulation",
@@ -106,6 +108,21 @@ def _solvers(add):
         target="rbbench_plugins.solvers.condensed:UzawaSolver",
         capabilities={"formulations": ("mixed",)},
         description="Uzawa projected dual iteration (seed 000 baseline), condensed",
+    ))
+    add(ComponentSpec(
+        name="friction-ssn", role="solver",
+        target="rbbench_plugins.solvers.friction:FrictionSSNSolver",
+        capabilities={"formulations": ("mixed",), "friction": ("none", "tresca", "coulomb")},
+        description="friction by active set on the condensed nodal problem: Tresca PDAS, "
+                    "Coulomb direct on the wedge (method='fixed_point': the seed's fixed "
+                    "point on Tresca), model B fixed point on the coefficient; load steps",
+    ))
+    add(ComponentSpec(
+        name="friction-uzawa", role="solver",
+        target="rbbench_plugins.solvers.friction:FrictionUzawaSolver",
+        capabilities={"formulations": ("mixed",), "friction": ("none", "tresca", "coulomb")},
+        description="the seed's Uzawa for friction (normal then tangential projection), "
+                    "condensed, over the load steps (baseline)",
     ))
     add(ComponentSpec(
         name="petsc-vi", role="solver",

@@ -227,6 +227,84 @@ class ContactProblem(_FreeDofs):
     factorize: Factorize | None = None
 
 
+@dataclass(frozen=True)
+class FrictionLaw:
+    """The friction law of a scene at one mu (``[friction]``, ``"mu.NAME"`` resolved).
+
+    ``law``: ``"tresca"`` (``threshold`` s, Pa) or ``"coulomb"`` (``coefficient`` nu_F, a
+    number, or ``coefficient_law`` the name of a slip law ``F(|u_t|)``, seed 001 model B).
+    """
+
+    law: str
+    threshold: float | None = None
+    coefficient: float | None = None
+    coefficient_law: str | None = None
+
+
+@dataclass
+class LoadStep:
+    """One load step of a :class:`FrictionProblem` (``Discretization.dirichlet_steps``).
+
+    ``F``: load on the free dofs with the step's lifting moved to the right-hand side;
+    ``Gn``: the lifted nodal normal gap ``G_nodal - B_nodal u_lift``; ``ut_lift``: the
+    tangential jump of the lifting ``Bt_full u_lift`` (so that the full tangential jump is
+    ``Bt u_free + ut_lift``); ``u_lift``: the global Dirichlet lifting of the step.
+    """
+
+    F: np.ndarray
+    Gn: np.ndarray
+    ut_lift: np.ndarray
+    u_lift: np.ndarray
+
+
+@dataclass
+class FrictionProblem(_FreeDofs):
+    """The algebraic HF friction problem on the free dofs (seed 000, "Coulomb contact
+    problem", "Algebraic formulation / Collocation method"; issue 13).
+
+    Per load step, find ``u, lam_n, lam_t`` (one pair per collocation node) with
+    ``A u + Bn^T lam_n + Bt^T lam_t = F``, Signorini on ``(lam_n, Gn - Bn u)`` and, with
+    the slip of the step ``v = Bt u + ut_lift - ut_prev``: ``|lam_t| <= s``,
+    ``|lam_t| < s => v = 0``, ``v != 0 => lam_t = +s sign(v)`` (the traction on the body
+    is ``-lam_t``, :mod:`rbbench.hf.friction_algebra`); ``s = threshold`` (Tresca) or
+    ``s = nu_F lam_n`` (Coulomb). ``ut_prev`` is the tangential jump at the end of the
+    previous step (0 before the first).
+
+    ``Bn = Mt^T diag(w) Un``, ``Bt = Mt^T diag(w) Ut`` on the free columns (P1 friction
+    multipliers, :meth:`ContactOperators.B_nodal`, :meth:`ContactOperators.Bt`): ``lam_n``,
+    ``lam_t`` are the nodal values of P1 traction fields (Pa), so the Tresca threshold
+    per node is ``s`` itself (Pa) and the Coulomb wedge ``|lam_t| <= nu_F lam_n`` is
+    nodal. ``Bt u`` is weighted by the hat functions (m^2); ``node_weights = int phi_i``
+    turns it into the mean jump near node i (m), the ``t`` of a slip law ``F(t)``.
+
+    ``F``, ``Gn``, ``u_lift`` are those of the last step (``expand`` gives its ``u``);
+    ``steps`` holds every step in order. ``W`` is the Gram matrix of the friction
+    multipliers (``Wt``).
+    """
+
+    A: sp.csr_matrix
+    F: np.ndarray
+    Bn: sp.csr_matrix
+    Gn: np.ndarray
+    Bt: sp.csr_matrix
+    free: np.ndarray
+    u_lift: np.ndarray
+    X: sp.csr_matrix
+    W: sp.csr_matrix
+    law: str
+    steps: list[LoadStep]
+    node_weights: np.ndarray
+    threshold: np.ndarray | None = None
+    coefficient: np.ndarray | None = None
+    coefficient_law: str | None = None
+    factorize: Factorize | None = None
+
+    @property
+    def n_nodes(self) -> int:
+        """The number of collocation nodes (friction multiplier pairs)."""
+        return int(self.Bn.shape[0])
+
+
 @dataclass
 class NitscheProblem(_FreeDofs):
     """The algebraic Nitsche contact problem on the free dofs (seed 000, "Nitsche's method").
@@ -344,7 +422,8 @@ class Formulation(ABC):
     needs: frozenset[str] = frozenset()
 
     @abstractmethod
-    def build(self, disc: Discretization) -> ContactProblem | NitscheProblem: ...
+    def build(self, disc: Discretization
+              ) -> ContactProblem | NitscheProblem | FrictionProblem: ...
 
     def reduction(self) -> Any:
         """The formulation's steps in the offline skeleton (:mod:`rbbench.rb.offline`):
@@ -360,6 +439,6 @@ class Solver(ABC):
     name: str = ""
 
     @abstractmethod
-    def solve(self, problem: ContactProblem | NitscheProblem,
+    def solve(self, problem: ContactProblem | NitscheProblem | FrictionProblem,
               warm_start: np.ndarray | None = None) -> SolveResult:
         """Solve; never hang: every return carries a stop reason."""

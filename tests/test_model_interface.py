@@ -139,18 +139,21 @@ def test_matrices_prune_hyper_reducers_by_their_declared_formulations(tmp_path):
     assert "hyper 'ecsw' does not apply to the 'mixed' formulation" in " ".join(skipped)
 
 
-def test_a_friction_scene_is_refused_until_a_formulation_declares_its_law(tmp_path):
-    """No silently frictionless solve: the HF model and the matrix refuse a friction law
-    the formulation does not declare (``capabilities["friction"]``)."""
+def test_a_friction_scene_is_refused_by_components_that_do_not_declare_its_law(tmp_path):
+    """No silently frictionless solve: the HF model refuses a frictionless-only solver
+    (``ssn``) and the matrix a formulation (``nitsche``) that does not declare the friction
+    law (``capabilities["friction"]``); the mixed formulation's friction solvers take it."""
     from rbbench.bench.matrix import compatibility
 
     sc = load_scene("hertz_halfdisks", [*HERTZ, 'friction.law="coulomb"',
                                         "friction.coefficient=0.2"])
     with pytest.raises(SceneError, match=r"\[friction\] law = 'coulomb'.*'mixed'"):
-        HFModel(sc).solve()
-    comp = {"backend": "skfem", "formulation": "mixed", "solver": "ssn", "primal": "pod",
+        HFModel(sc, solver="ssn").solve()
+    assert HFModel(sc).names["solver"] == "friction-ssn"
+    comp = {"backend": "skfem", "formulation": "nitsche", "solver": "newton", "primal": "pod",
             "dual": "cpg", "stabilizer": "none", "hyper": "auto"}
     status, reason = compatibility(sc, comp, default_registry())
     assert status == "skip" and "friction law 'coulomb'" in reason
     frictionless = load_scene("hertz_halfdisks", HERTZ)
+    comp = {**comp, "formulation": "mixed", "solver": "ssn"}
     assert compatibility(frictionless, comp, default_registry())[0] == "run"

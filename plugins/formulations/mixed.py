@@ -1,14 +1,22 @@
 """Mixed (Lagrange multiplier) formulation, seed 000 slide "Mixed formulation".
 
 ``B = Mlam^T diag(w) Un`` and ``G = Mlam^T diag(w) gap`` from the backend's
-contact operators; Dirichlet dofs are eliminated by lifting.
+contact operators; Dirichlet dofs are eliminated by lifting. A friction scene (``friction``
+given to :meth:`MixedFormulation.build`) gives a :class:`~rbbench.interfaces.FrictionProblem`
+instead (:mod:`rbbench_plugins.formulations.friction`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from rbbench.interfaces import ContactProblem, Discretization, Formulation
+from rbbench.interfaces import (
+    ContactProblem,
+    Discretization,
+    Formulation,
+    FrictionLaw,
+    FrictionProblem,
+)
 
 
 class MixedFormulation(Formulation):
@@ -24,7 +32,22 @@ class MixedFormulation(Formulation):
 
         return MixedReduction()
 
-    def build(self, disc: Discretization) -> ContactProblem:
+    def build(self, disc: Discretization, friction: FrictionLaw | None = None
+              ) -> ContactProblem | FrictionProblem:
+        """The contact problem at ``disc.mu``; with ``friction`` (the scene's law at mu,
+        :func:`rbbench.hf.model.friction_at`) the friction problem.
+
+        A discretisation with tangential operators (a friction scene) but no ``friction``
+        is refused: never a silently frictionless solve of a friction scene.
+        """
+        if friction is not None:
+            from rbbench_plugins.formulations.friction import build_friction_problem
+
+            return build_friction_problem(disc, friction)
+        if disc.dirichlet_steps is not None:
+            raise ValueError("mixed formulation: this discretisation has load steps (a "
+                             "friction scene) but no friction law was given: "
+                             "build(disc, friction=rbbench.hf.model.friction_at(scene, mu))")
         n = disc.n_dofs
         free = np.setdiff1d(np.arange(n), disc.dirichlet_dofs)
         u_lift = np.zeros(n)

@@ -15,9 +15,16 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.references import hertz_2d
-from rbbench.interfaces import ContactProblem, Discretization, NitscheProblem, SolveResult
+from rbbench.interfaces import (
+    ContactProblem,
+    Discretization,
+    FrictionLaw,
+    FrictionProblem,
+    NitscheProblem,
+    SolveResult,
+)
 from rbbench.registry import Registry, default_registry
-from rbbench.scene.friction import friction_of
+from rbbench.scene.friction import friction_of, friction_value
 from rbbench.scene.loading import Scene, SceneError
 
 #: Relative threshold on lam (w.r.t. max lam) above which a multiplier counts as active.
@@ -30,7 +37,7 @@ class HFSolution:
     mu: np.ndarray
     components: dict[str, str]
     disc: Discretization
-    problem: ContactProblem | NitscheProblem
+    problem: ContactProblem | NitscheProblem | FrictionProblem
     result: SolveResult
     times: dict[str, float]
     metrics: dict[str, Any] = field(default_factory=dict)
@@ -57,24 +64,58 @@ def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mi
                          "formulation (solver options are solver_options)")
     reg = registry or default_registry()
     check_friction_support(scene, reg.get("formulation", formulation))
-    solver = default_solver(formulation, reg) if solver is None else solver
+    solver = default_solver(formulation, reg, friction_of(scene).law) if solver is None \
+        else solver
     for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):
         reg.get(role, name)  # unknown names fail here, before any meshing
+    check_friction_support(scene, reg.get("solver", solver), formulation, reg)
     b = reg.create("backend", backend, scene=scene, **opts.get("backend", {}))
     f = reg.create("formulation", formulation, **opts.get("formulation", {}))
     s = reg.create("solver", solver, **(solver_options or {}))
     return b, f, s
 
 
-def check_friction_support(scene: Scene, spec: Any) -> None:
-    """Refuse a scene whose ``[friction] law`` the formulation does not declare
-    (``capabilities["friction"]``, default ``("none",)``): never a silently frictionless
-    solve of a friction scene."""
+def check_friction_support(scene: Scene, spec: Any, formulation: str | None = None,
+                           registry: Registry | None = None) -> None:
+    """Refuse a scene whose ``[friction] law`` the formulation or the solver ``spec`` does
+    not declare (``capabilities["friction"]``, default ``("none",)``): never a silently
+    frictionless solve of a friction scene. For a solver, ``formulation`` names the
+    formulation whose declared solvers supporting the law the message lists."""
     law = friction_of(scene).law
     laws = tuple(spec.capabilities.get("friction", ("none",)))
-    if law not in laws:
-        raise SceneError(f"{scene.path}: [friction] law = {law!r}: the {spec.name!r} "
-                         f"formulation supports {', '.join(repr(x) for x in laws)} only")
+    if law in laws:
+        return
+    msg = (f"{scene.path}: [friction] law = {law!r}: the {spec.name!r} {spec.role} "
+           f"supports {', '.join(repr(x) for x in laws)} only")
+    if formulation is not None:
+        ok = _solvers_for(formulation, registry or default_registry(), law)
+        msg += (f"; solvers of the {formulation!r} formulation for this law: "
+                + (", ".join(map(repr, ok)) or "none"))
+    raise SceneError(msg)
+
+
+def _solvers_for(formulation: str, registry: Registry, law: str) -> list[str]:
+    """The solvers a formulation declares whose ``capabilities["friction"]`` hold ``law``."""
+    names = registry.get("formulation", formulation).capabilities.get("solvers") or ("ssn",)
+    out = []
+    for name in names:
+        if name in registry.names("solver"):
+            laws = registry.get("solver", name).capabilities.get("friction", ("none",))
+            if law in laws:
+                out.append(str(name))
+    return out
+
+
+def friction_at(scene: Scene, mu: Any) -> FrictionLaw | None:
+    """The scene's friction law at ``mu`` (``None`` for a frictionless scene)."""
+    fr = friction_of(scene)
+    if not fr.active:
+        return None
+    if fr.law == "tresca":
+        return FrictionLaw("tresca", threshold=float(friction_value(scene, "threshold", mu)))
+    if fr.coefficient_law is not None:
+        return FrictionLaw("coulomb", coefficient_law=fr.coefficient_law)
+    return FrictionLaw("coulomb", coefficient=float(friction_value(scene, "coefficient", mu)))
 
 
 def discretize_for(backend: Any, formulation: Any, mu: Any) -> Discretization:
@@ -84,11 +125,17 @@ def discretize_for(backend: Any, formulation: Any, mu: Any) -> Discretization:
     return backend.discretize(mu, needs=needs) if needs else backend.discretize(mu)
 
 
-def default_solver(formulation: str, registry: Registry | None = None) -> str:
+def default_solver(formulation: str, registry: Registry | None = None,
+                   law: str = "none") -> str:
     """The first solver a formulation declares (``capabilities["solvers"]``): ``ssn`` for
-    mixed, ``newton`` for Nitsche."""
+    mixed, ``newton`` for Nitsche; for a friction ``law``, the first that declares it
+    (``friction-ssn`` for mixed), else the first declared (refused later, naming the law)."""
     reg = registry or default_registry()
     solvers = reg.get("formulation", formulation).capabilities.get("solvers") or ("ssn",)
+    if law != "none":
+        ok = _solvers_for(formulation, reg, law)
+        if ok:
+            return ok[0]
     return str(solvers[0])
 
 
@@ -131,8 +178,8 @@ class HFModel:
         self.scene = scene
         self.parameters = scene.parameter_space
         self.names = {"backend": backend, "formulation": formulation,
-                      "solver": default_solver(formulation, registry) if solver is None
-                      else solver}
+                      "solver": default_solver(formulation, registry, friction_of(scene).law)
+                      if solver is None else solver}
         self.registry, self.solver_options = registry, solver_options
         self.components = components
 
@@ -152,7 +199,8 @@ class HFModel:
         progress("assembling operators")
         disc = discretize_for(b, f, mu)
         t2 = time.perf_counter()
-        problem = f.build(disc)
+        friction = friction_at(scene, mu)
+        problem = f.build(disc) if friction is None else f.build(disc, friction=friction)
         progress(f"solving ({disc.n_dofs} dofs, {disc.contact.n_mult} contact unknowns)")
         t3 = time.perf_counter()
         result = s.solve(problem)
@@ -184,21 +232,21 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
     c = disc.contact
     lam = res.lam
     u = res.u
-    B = c.B()
-    G = c.G()
+    B, G, basis, extent = _normal_operators(prob, c)
     s = G - B @ u  # weighted gap per multiplier
-    support = np.asarray(c.Mlam.T @ c.weights).ravel()  # int phi_i
-    lam_q = np.asarray(c.Mlam @ lam).ravel()
+    support = np.asarray(basis.T @ c.weights).ravel()  # int phi_i
+    lam_q = np.asarray(basis @ lam).ravel()
     if disc.physics == "elasticity":
         force = float(np.sum(c.weights * lam_q * -c.normals[:, 1]))
     else:
         force = float(np.sum(c.weights * lam_q))
-    extra = _nitsche_metrics(prob, res, c) if isinstance(prob, NitscheProblem) else {}
+    extra = (_nitsche_metrics(prob, res, c) if isinstance(prob, NitscheProblem)
+             else _friction_metrics(prob, res, c) if isinstance(prob, FrictionProblem) else {})
     force = extra.get("contact_force", force)
     lam_max = float(np.max(lam)) if lam.size else 0.0
     active = lam > ACTIVE_THRESHOLD * max(lam_max, np.finfo(float).tiny)
     if active.any():
-        half_width = 0.5 * float(c.mult_extent[active, 1].max() - c.mult_extent[active, 0].min())
+        half_width = 0.5 * float(extent[active, 1].max() - extent[active, 0].min())
         saturated = bool(active[0] or active[-1]) if disc.physics == "elasticity" else False
     else:
         half_width, saturated = 0.0, False
@@ -209,14 +257,14 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
     m = {
         "n_dofs": int(disc.n_dofs),
         "n_free_dofs": int(prob.free.size),
-        "n_contact": int(c.n_mult),
+        "n_contact": int(basis.shape[1]),
         "n_contact_quadrature": int(c.n_quad),
         "n_active": int(active.sum()),
-        "multiplier": c.multiplier,
+        "multiplier": "p1 (friction nodes)" if basis is not c.Mlam else c.multiplier,
         "iterations": int(res.iterations),
         "converged": bool(res.converged),
         "stop_reason": res.stop_reason,
-        "solver_info": {k: v for k, v in res.info.items()},
+        "solver_info": {k: v for k, v in res.info.items() if k not in _ARRAY_INFO},
         "final_residual": float(res.residuals[-1]) if res.residuals else None,
         "solve_time_s": float(sol.times["total_s"]),
         "times_s": {**sol.times, **res.times},
@@ -250,6 +298,46 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
     m.update(extra)
     m["definitions"] = DEFINITIONS
     return m
+
+
+#: per-node arrays a friction solver leaves in ``SolveResult.info`` (not in solver_info)
+_ARRAY_INFO = ("lam_t", "states", "slip", "ut_prev")
+
+
+def _normal_operators(prob: Any, c: Any) -> tuple[Any, np.ndarray, Any, np.ndarray]:
+    """``(B, G, basis, extent)`` of the normal multipliers: the scene's multiplier space, or
+    for a :class:`FrictionProblem` the P1 friction nodes (``B_nodal``, ``G_nodal``, ``Mt``,
+    the hat supports ``[x_{i-1}, x_{i+1}]`` of the collocation nodes along the chain)."""
+    if not isinstance(prob, FrictionProblem):
+        return c.B(), c.G(), c.Mlam, c.mult_extent
+    x = np.asarray(c.colloc_points, float)[:, 0]
+    lo, hi = np.r_[x[:1], x[:-1]], np.r_[x[1:], x[-1:]]
+    ext = np.stack([np.minimum(np.minimum(lo, hi), x), np.maximum(np.maximum(lo, hi), x)], 1)
+    return c.B_nodal(), c.G_nodal(), c.Mt, ext
+
+
+def _friction_metrics(prob: FrictionProblem, res: SolveResult, c: Any) -> dict[str, Any]:
+    """Friction outputs (issue 13): tangential force, node states, stick-zone half-width,
+    the stick / slip residual of the last load step (see :data:`DEFINITIONS`)."""
+    info = res.info
+    lam_t = np.asarray(info.get("lam_t", np.zeros(prob.n_nodes)), float)
+    states = np.asarray(info.get("states", ["nan"] * prob.n_nodes), dtype=object)
+    stick = states == "stick"
+    xs = np.asarray(c.colloc_points, float)[stick, 0]
+    fr = info.get("friction_residuals", {})
+    lam_tq = np.asarray(c.Mt @ lam_t).ravel()
+    return {
+        "tangential_force": float(np.sum(c.weights * lam_tq * -c.normals[:, 1])),
+        "n_stick": int(stick.sum()), "n_slip": int(np.sum(states == "slip")),
+        "n_open": int(np.sum(states == "open")),
+        "stick_half_width": 0.5 * float(xs.max() - xs.min()) if xs.size else 0.0,
+        "friction_residual": max(float(fr.get("stick", np.nan)), float(fr.get("slip", np.nan))),
+        "friction": {"law": prob.law, "load_steps": len(prob.steps),
+                     "threshold": None if prob.threshold is None else float(prob.threshold[0]),
+                     "coefficient": None if prob.coefficient is None
+                     else float(prob.coefficient[0]),
+                     "coefficient_law": prob.coefficient_law},
+    }
 
 
 def _nitsche_metrics(prob: NitscheProblem, res: SolveResult, c: Any) -> dict[str, Any]:
@@ -295,6 +383,21 @@ DEFINITIONS = {
     "final_residual": "relative natural residual ||min(lam, c s)|| / ||c q|| of the condensed "
                       "LCP at the last iterate",
     "energy": "J(u) = 1/2 u^T A u - F^T u on all dofs (J/m)",
+    "tangential_force": "friction only: horizontal resultant int lam_t t_x over the slave zone "
+                        "(N/m), t = (-n_y, n_x) = +x under the upper body; lam_t enters A u + "
+                        "Bt^T lam_t = F as lam_n does, so this is the force the slave body "
+                        "exerts on the master, > 0 for a shear of the upper body along +x "
+                        "(the friction on the slave is its opposite)",
+    "n_stick": "friction only: collocation nodes in contact with |lam_t| < s at the last load "
+               "step (s = threshold, or nu_F lam_n)",
+    "n_slip": "friction only: collocation nodes in contact with |lam_t| = s (last load step)",
+    "n_open": "friction only: collocation nodes with lam_n = 0 (last load step)",
+    "stick_half_width": "friction only: half the horizontal extent of the stick nodes' "
+                        "collocation points C(mu) (m); 0 without stick nodes",
+    "friction_residual": "friction only: max of the relative stick and slip residuals of the "
+                         "condensed problem at the last load step (friction_residuals: "
+                         "min(|v|, s - |lam_t|) over sticking, min(|v|, |lam_t - s sign v|) "
+                         "over slipping nodes; slip v / max|q|, forces / force scale)",
     "zone_saturated": "true if the first or last multiplier of the potential zone is active: "
                       "the contact patch reaches the edge of the potential zone",
 }

@@ -11,7 +11,14 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from rbbench.interfaces import STOP_REASONS, ContactProblem, NitscheProblem, SolveResult
+from rbbench.interfaces import (
+    STOP_REASONS,
+    ContactProblem,
+    FrictionProblem,
+    LoadStep,
+    NitscheProblem,
+    SolveResult,
+)
 from rbbench.registry import ComponentSpec, Registry
 from rbbench.testing.contract_base import (
     ContractViolation,
@@ -432,13 +439,98 @@ def check_nitsche_solver(factory: Callable[..., Any], options: dict | None = Non
               what=f"theta = 1, gamma = {gamma:g}")
 
 
+# ---------------------------------------------------------------------------
+# friction solvers (mixed formulation, FrictionProblem)
+# ---------------------------------------------------------------------------
+def random_friction_problem(seed: int = 0, law: str = "coulomb", n: int = 30, m: int = 8,
+                            n_fixed: int = 4) -> FrictionProblem:
+    """A small friction problem with two load steps (the second adds a shear): SPD ``A``,
+    random ``Bn``, ``Bt`` (m x n), some negative gaps; Coulomb ``F = 0.3`` or Tresca
+    ``s = 0.3``."""
+    rng = np.random.default_rng(seed)
+    A = spd_matrix(rng, n)
+    Bn, Bt = rng.standard_normal((m, n)), rng.standard_normal((m, n))
+    Gn = rng.uniform(0.1, 1.0, m)
+    Gn[: max(1, m // 2)] *= -1.0
+    fixed = np.sort(rng.choice(n + n_fixed, size=n_fixed, replace=False))
+    free = np.setdiff1d(np.arange(n + n_fixed), fixed)
+    F0, shear = rng.standard_normal(n), rng.standard_normal(n)
+    steps = [LoadStep(F=F0 + a * shear, Gn=Gn.copy(), ut_lift=np.zeros(m),
+                      u_lift=np.zeros(n + n_fixed)) for a in (0.0, 1.0)]
+    law_data = {"threshold": np.full(m, 0.3)} if law == "tresca" else \
+        {"coefficient": np.full(m, 0.3)}
+    return FrictionProblem(A=sp.csr_matrix(A), F=steps[-1].F, Bn=sp.csr_matrix(Bn), Gn=Gn,
+                           Bt=sp.csr_matrix(Bt), free=free, u_lift=steps[-1].u_lift,
+                           X=sp.identity(n, format="csr"), W=sp.identity(m, format="csr"),
+                           law=law, steps=steps, node_weights=np.ones(m), **law_data)
+
+
+def friction_violations(prob: FrictionProblem, res: SolveResult, tol: float = 1e-7
+                        ) -> list[str]:
+    """The conditions of the last load step at ``res.u``, ``res.lam`` (= ``lam_n``),
+    ``res.info["lam_t"]``, ``res.info["ut_prev"]``, written out here independently."""
+    u, ln = np.asarray(res.u, float)[prob.free], np.asarray(res.lam, float)
+    lt, ut_prev = np.asarray(res.info["lam_t"], float), np.asarray(res.info["ut_prev"], float)
+    step = prob.steps[-1]
+    Au, Bl = prob.A @ u, prob.Bn.T @ ln + prob.Bt.T @ lt
+    eq_scale = max(np.linalg.norm(step.F), np.linalg.norm(Au), np.linalg.norm(Bl), 1e-300)
+    gap = step.Gn - prob.Bn @ u
+    v = prob.Bt @ u + step.ut_lift - ut_prev
+    s = prob.threshold if prob.law == "tresca" else prob.coefficient * ln
+    fs_ = max(np.abs(ln).max(initial=0.0), np.abs(lt).max(initial=0.0), 1e-300)
+    ds = max(np.abs(gap).max(initial=0.0), np.abs(v).max(initial=0.0),
+             np.abs(step.Gn).max(initial=0.0), 1e-300)
+    checks = {
+        "equilibrium": np.linalg.norm(Au + Bl - step.F) / eq_scale,
+        "non-penetration": max(0.0, -gap.min(initial=0.0)) / ds,
+        "lam_n >= 0": max(0.0, -ln.min(initial=0.0)) / fs_,
+        "normal complementarity": np.abs(ln * gap).max(initial=0.0) / (fs_ * ds),
+        "|lam_t| <= s": max(0.0, (np.abs(lt) - s).max(initial=0.0)) / fs_,
+        "stick / slip": np.abs(v * (s - lt * np.sign(v))).max(initial=0.0) / (fs_ * ds),
+    }
+    return [f"{k}: {val:.3e} > {tol:g}" for k, val in checks.items() if not val <= tol]
+
+
+def check_friction_solver(factory: Callable[..., Any], options: dict | None = None,
+                          name: str | None = None, timeout: float = 60.0,
+                          seed: int = 0) -> None:
+    """Contract of a friction solver (``capabilities["friction"]`` beyond ``"none"``).
+
+    On :func:`random_friction_problem` (Tresca and Coulomb, two load steps) it converges,
+    ``lam`` is ``lam_n`` (one per node), ``info`` holds ``lam_t``, ``states``, ``ut_prev``
+    and one record per load step, the conditions hold (:func:`friction_violations`) and
+    the lifting is kept; NaN in the load never gives ``"converged"``.
+    """
+    r = _Runner(factory, options, name, timeout)
+    r.n_mult = lambda prob: prob.n_nodes  # type: ignore[method-assign]
+    for law in ("tresca", "coulomb"):
+        prob = random_friction_problem(seed, law)
+        res = r.run(prob, what=f"random {law} problem")
+        require(res.converged, f"{r.label}: {law}: did not converge on a small friction "
+                f"problem ({res.stop_reason!r})")
+        for key in ("lam_t", "states", "ut_prev", "load_steps"):
+            require(key in res.info, f"{r.label}: {law}: info has no {key!r}")
+        require(len(res.info["load_steps"]) == 2, f"{r.label}: one record per load step")
+        bad = friction_violations(prob, res)
+        require(not bad, f"{r.label}: {law}: 'converged' but " + "; ".join(bad))
+        r.keeps_lifting(prob, res)
+    bad_prob = random_friction_problem(seed)
+    bad_prob.steps[0].F = bad_prob.steps[0].F.copy()
+    bad_prob.steps[0].F[0] = np.nan
+    rn = r.run(bad_prob, what="NaN in F")
+    require(rn.stop_reason != "converged", f"{r.label}: NaN in the data gave 'converged'")
+
+
 def _check_registered(obj: Any, spec: ComponentSpec, registry: Registry, name: str) -> None:
-    """A solver declares the formulations it solves; the mixed contract is the default."""
+    """A solver declares the formulations it solves; the mixed contract is the default.
+    A solver declaring friction laws also passes the friction contract."""
     forms = tuple(spec.capabilities.get("formulations", ("mixed",)))
     if "nitsche" in forms:
         check_nitsche_solver(obj, name=name)
     if "mixed" in forms or "nitsche" not in forms:
         check_solver(obj, name=name)
+    if set(spec.capabilities.get("friction", ("none",))) - {"none"}:
+        check_friction_solver(obj, name=name)
 
 
 CONTRACT = RoleContract("solver", "solve", _check_registered)

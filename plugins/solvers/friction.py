@@ -1,0 +1,217 @@
+"""Solvers of the mixed friction problem (issue 13): ``friction-ssn`` and ``friction-uzawa``.
+
+Both factorise the stiffness once per mu, condense on the contact nodes
+(``x = [lam_n; lam_t]``, ``D = B A^{-1} B^T``, ``B = [Bn; Bt]``;
+:mod:`rbbench.hf.friction_algebra`) and run the load steps in order: the slip of a step is
+measured from the tangential jump at the end of the previous one (``ut_prev``), and each
+step is warm-started from the multipliers of the previous one. A step that does not
+converge stops the sequence (its stop reason is the result's).
+
+Scaling: the law solvers see ``D / d`` and ``d x`` (``d`` the mean diagonal of ``D``, a
+Tresca threshold ``d s``): the physical ``D`` is tiny (m^2 / Pa), and the pattern systems of
+the direct Coulomb solve mix identity rows with rows of ``D``, which made them look
+singular. The relative residuals and the node states do not change.
+
+* ``friction-ssn``: Tresca by the primal-dual active set (:func:`pdas_tresca`); Coulomb
+  directly on the wedge (:func:`coulomb_direct`, ``method="direct"``) or by the seed's
+  fixed point on Tresca (:func:`coulomb_fixed_point`, ``method="fixed_point"``); a slip
+  law (model B) by a fixed point on the coefficient (:func:`coulomb_model_b`).
+* ``friction-uzawa``: the seed's Uzawa (:func:`uzawa_friction`; model B: the same fixed
+  point on the coefficient with Uzawa inside).
+
+A frictionless :class:`~rbbench.interfaces.ContactProblem` is handed to the frictionless
+solver of the same kind (``ssn``, ``uzawa``), so these solvers also run frictionless scenes.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from rbbench_plugins.solvers.condensed import SemismoothNewtonSolver, UzawaSolver
+
+from rbbench.hf import friction_algebra as fa
+from rbbench.hf import friction_solvers as fs
+from rbbench.hf import lcp
+from rbbench.interfaces import ContactProblem, FrictionProblem, Solver, SolveResult
+
+#: per-node arrays of ``SolveResult.info`` (kept out of the summary's ``solver_info``)
+ARRAY_INFO = ("lam_t", "states", "slip", "ut_prev")
+
+
+def scaled_law(name: str, node_weights: np.ndarray) -> fa.CoefficientLaw:
+    """The slip law ``name`` of the weighted jump ``Bt u``: ``F(t / int phi_i)``, so that
+    the law sees the mean tangential jump near each node (m)."""
+    law = fa.COEFFICIENT_LAWS[name]
+    w = np.where(node_weights > 0, node_weights, 1.0)
+    df = None if law.df is None else (lambda t: law.df(np.asarray(t) / w) / w)
+    return fa.CoefficientLaw(law.name, lambda t: law.f(np.asarray(t) / w), df)
+
+
+class _Condensed:
+    """One factorisation of ``A``, ``A^{-1} B^T`` and ``D`` for all load steps."""
+
+    def __init__(self, problem: FrictionProblem) -> None:
+        t0 = time.perf_counter()
+        self.solve = (problem.factorize(problem.A) if problem.factorize is not None
+                      else lcp.factorize(problem.A).solve)
+        t1 = time.perf_counter()
+        self.Bn, self.Bt = sp.csr_matrix(problem.Bn), sp.csr_matrix(problem.Bt)
+        B = sp.vstack([self.Bn, self.Bt]).tocsr()
+        self.AinvBt = (self.solve(np.asarray(B.T.toarray())) if B.shape[0]
+                       else np.zeros((problem.A.shape[0], 0)))
+        D = np.asarray(B @ self.AinvBt)
+        self.D = 0.5 * (D + D.T)
+        dm = float(np.mean(np.diag(self.D))) if self.D.size else 1.0
+        self.scale = dm if np.isfinite(dm) and dm > 0 else 1.0
+        self.t_factor, self.t_condense = t1 - t0, time.perf_counter() - t1
+
+    def step(self, step: Any, ut_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(u0, q)`` of a load step: ``q = [Gn - Bn u0; ut_prev - ut_lift - Bt u0]``."""
+        u0 = self.solve(np.asarray(step.F, float))
+        q = np.concatenate([step.Gn - self.Bn @ u0, ut_prev - step.ut_lift - self.Bt @ u0])
+        return u0, q
+
+
+def _warm(warm_start: np.ndarray | None, m: int) -> np.ndarray | None:
+    """A warm start of length ``2m`` (``[lam_n; lam_t]``) or ``m`` (``lam_n``, ``lam_t = 0``)."""
+    if warm_start is None:
+        return None
+    w = np.asarray(warm_start, float).ravel()
+    if w.size == 2 * m:
+        return w.copy()
+    if w.size == m:
+        return np.concatenate([w, np.zeros(m)])
+    raise ValueError(f"warm start has {w.size} entries; expected {m} (lam_n) or {2 * m} "
+                     "(lam_n, lam_t)")
+
+
+def _unscale(r: fa.FrictionResult, k: float) -> fa.FrictionResult:
+    """The multipliers of the scaled problem (``D / k``) back in physical units."""
+    r.lam_n, r.lam_t = r.lam_n / k, r.lam_t / k
+    return r
+
+
+def _step_record(r: fa.FrictionResult) -> dict:
+    return {"iterations": int(r.iterations), "stop_reason": r.stop_reason,
+            "residual": float(r.residuals["max"])}
+
+
+def _law_info(r: fa.FrictionResult) -> dict:
+    """The JSON-friendly scalars of a law solver's own info (contraction, fallbacks...)."""
+    out = {}
+    for k, v in r.info.items():
+        if isinstance(v, (str, bool, int, float, np.floating, np.integer)):
+            out[k] = v.item() if isinstance(v, (np.floating, np.integer)) else v
+        elif k == "ratios":
+            out[k] = [float(x) for x in v]
+    return out
+
+
+def solve_steps(problem: FrictionProblem, run: Callable[..., fa.FrictionResult],
+                warm_start: np.ndarray | None = None) -> SolveResult:
+    """Solve the load steps of ``problem`` in order with ``run(D, q, ut_prev, x0, k)``
+    (``k``: the scale of ``D``, thresholds are multiplied by it)."""
+    cond = _Condensed(problem)
+    m = problem.n_nodes
+    x, ut_prev = _warm(warm_start, m), np.zeros(m)
+    records, history, t0 = [], [], time.perf_counter()
+    for k, step in enumerate(problem.steps):
+        u0, q = cond.step(step, ut_prev)
+        k = cond.scale
+        r = _unscale(run(cond.D / k, q, ut_prev, None if x is None else x * k, k), k)
+        records.append(_step_record(r))
+        history = [float(h) for h in r.history]
+        u_free = u0 - cond.AinvBt @ r.x if np.all(np.isfinite(r.x)) else np.full_like(u0, np.nan)
+        if r.stop_reason != "converged" or k == len(problem.steps) - 1:
+            break
+        x, ut_prev = r.x, np.asarray(cond.Bt @ u_free).ravel() + step.ut_lift
+    u = step.u_lift.copy()
+    u[problem.free] = u_free
+    info = {**_law_info(r), "law": problem.law, "n_contact_unknowns": int(2 * m),
+            "load_steps": records, "steps_solved": len(records),
+            "friction_residuals": dict(r.residuals),
+            "lam_t": r.lam_t, "states": list(r.states), "ut_prev": ut_prev,
+            "slip": fa.slip(cond.D, q, r.lam_n, r.lam_t)}
+    times = {"factor_s": cond.t_factor, "condense_s": cond.t_condense,
+             "lcp_s": time.perf_counter() - t0}
+    return SolveResult(u=u, lam=r.lam_n, iterations=sum(s["iterations"] for s in records),
+                       stop_reason=r.stop_reason, residuals=history, times=times, info=info)
+
+
+class _FrictionSolver(Solver):
+    """Common driver: a ContactProblem goes to ``self.frictionless``, a FrictionProblem
+    through :func:`solve_steps` with :meth:`_runner`."""
+
+    frictionless: Solver
+
+    def solve(self, problem: Any, warm_start: np.ndarray | None = None) -> SolveResult:
+        if isinstance(problem, ContactProblem):
+            return self.frictionless.solve(problem, warm_start)
+        if not isinstance(problem, FrictionProblem):
+            raise TypeError(f"{self.name}: expected a FrictionProblem or a ContactProblem, "
+                            f"got {type(problem).__name__}")
+        return solve_steps(problem, self._runner(problem), warm_start)
+
+    def _runner(self, problem: FrictionProblem) -> Callable[..., fa.FrictionResult]:
+        raise NotImplementedError  # pragma: no cover - abstract
+
+
+class FrictionSSNSolver(_FrictionSolver):
+    """Active set / semismooth Newton for friction (Tresca: PDAS; Coulomb: ``method``
+    ``"direct"`` on the wedge or ``"fixed_point"`` on Tresca; model B: fixed point on
+    the coefficient with the direct Coulomb solve inside)."""
+
+    name = "friction-ssn"
+    METHODS = ("direct", "fixed_point")
+
+    def __init__(self, method: str = "direct", max_iter: int = 100, tol: float = 1e-10):
+        if method not in self.METHODS:
+            raise ValueError(f"friction-ssn: method {method!r} is not valid; expected one of "
+                             + ", ".join(map(repr, self.METHODS)))
+        self.method, self.max_iter, self.tol = method, int(max_iter), float(tol)
+        self.frictionless = SemismoothNewtonSolver(max_iter=max_iter, tol=tol)
+
+    def _runner(self, problem: FrictionProblem) -> Callable[..., fa.FrictionResult]:
+        kw = {"max_iter": self.max_iter, "tol": self.tol}
+        if problem.law == "tresca":
+            return lambda D, q, ut, x0, k: fs.pdas_tresca(D, q, problem.threshold * k, lam0=x0,
+                                                       **kw)
+        if problem.coefficient_law is not None:
+            law = scaled_law(problem.coefficient_law, problem.node_weights)
+            inner = fs.coulomb_direct if self.method == "direct" else fs.coulomb_fixed_point
+            return lambda D, q, ut, x0, k: fs.coulomb_model_b(D, q, law, ut_prev=ut, inner=inner,
+                                                              **kw)
+        solve = fs.coulomb_direct if self.method == "direct" else fs.coulomb_fixed_point
+        return lambda D, q, ut, x0, k: solve(D, q, problem.coefficient, lam0=x0, **kw)
+
+
+class FrictionUzawaSolver(_FrictionSolver):
+    """The seed's Uzawa for friction (normal then tangential projection; model B: a fixed
+    point on the coefficient with Uzawa inside)."""
+
+    name = "friction-uzawa"
+
+    def __init__(self, omega: float = 1.0, tol: float = 1e-9, max_iter: int = 200_000):
+        self.omega, self.tol, self.max_iter = float(omega), float(tol), int(max_iter)
+        self.frictionless = UzawaSolver(omega=omega, tol=tol, max_iter=max_iter)
+
+    def _uzawa(self, D, q, s=None, F=None, lam0=None) -> fa.FrictionResult:
+        return fa.uzawa_friction(D, q, s=s, F=F, lam0=lam0, omega=self.omega, tol=self.tol,
+                                 max_iter=self.max_iter)
+
+    def _runner(self, problem: FrictionProblem) -> Callable[..., fa.FrictionResult]:
+        if problem.law == "tresca":
+            return lambda D, q, ut, x0, k: self._uzawa(D, q, s=problem.threshold * k, lam0=x0)
+        if problem.coefficient_law is not None:
+            law = scaled_law(problem.coefficient_law, problem.node_weights)
+
+            def inner(D, q, F, lam0=None):
+                return self._uzawa(D, q, F=F, lam0=lam0)
+
+            return lambda D, q, ut, x0, k: fs.coulomb_model_b(D, q, law, ut_prev=ut, inner=inner,
+                                                              tol=self.tol)
+        return lambda D, q, ut, x0, k: self._uzawa(D, q, F=problem.coefficient, lam0=x0)
