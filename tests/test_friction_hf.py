@@ -192,3 +192,31 @@ def test_friction_solvers_solve_frictionless_problems_as_their_frictionless_kin(
     sol = HFModel(sc, solver="friction-ssn").solve()
     assert np.array_equal(sol.result.u, ref.result.u)
     assert np.array_equal(sol.result.lam, ref.result.lam)
+
+
+@pytest.mark.parametrize("method", ["direct", "fixed_point"])
+def test_coulomb_extremes_converge_or_stop_with_a_reason(shear, method):
+    """nu_F in {0, 1e-3, 0.2, 1, 10} (issue 13): each converges (and then satisfies the
+    conditions) or stops with a reason; more friction, fewer slipping nodes."""
+    _, disc, _ = shear
+    slipping = []
+    for nu in (0.0, 1e-3, 0.2, 1.0, 10.0):
+        law = FrictionLaw("coulomb", coefficient=nu)
+        prob, res = _solve(shear, law, method=method)
+        assert res.stop_reason in ("converged", "stagnation", "max_iterations", "diverged",
+                                   "nan")
+        _check(disc, prob, res, law)
+        slipping.append(_states(res)["slip"])
+    assert slipping == sorted(slipping, reverse=True) and slipping[-1] < slipping[0]
+
+
+@pytest.mark.parametrize("solver", ["friction-ssn", "friction-uzawa"])
+def test_tresca_thresholds(shear, solver):
+    """Tresca s in {0, 1e9 Pa (stick and slip), 1e15 (friction-ssn only: Uzawa is slow on
+    full stick)}: each converges."""
+    _, disc, _ = shear
+    opts = {"omega": 1.9, "tol": 1e-9} if solver == "friction-uzawa" else {}
+    for s in (0.0, 1e9) if opts else (0.0, 1e9, 1e15):
+        law = FrictionLaw("tresca", threshold=s)
+        prob, res = _solve(shear, law, solver, **opts)
+        _check(disc, prob, res, law, tol=1e-8 if solver == "friction-ssn" else 1e-6)
