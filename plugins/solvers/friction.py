@@ -39,7 +39,7 @@ from rbbench.hf import lcp
 from rbbench.interfaces import ContactProblem, FrictionProblem, Solver, SolveResult
 
 #: per-node arrays of ``SolveResult.info`` (kept out of the summary's ``solver_info``)
-ARRAY_INFO = ("lam_t", "states", "slip", "ut_prev")
+ARRAY_INFO = ("lam_t", "states", "slip", "ut_prev", "coefficient")
 
 
 def scaled_law(name: str, node_weights: np.ndarray) -> fa.CoefficientLaw:
@@ -136,6 +136,8 @@ def solve_steps(problem: FrictionProblem, run: Callable[..., fa.FrictionResult],
             "friction_residuals": dict(r.residuals),
             "lam_t": r.lam_t, "states": list(r.states), "ut_prev": ut_prev,
             "slip": fa.slip(cond.D, q, r.lam_n, r.lam_t)}
+    if "coefficient" in r.info:  # model B: the final coefficient per node
+        info["coefficient"] = np.asarray(r.info["coefficient"], float)
     times = {"factor_s": cond.t_factor, "condense_s": cond.t_condense,
              "lcp_s": time.perf_counter() - t0}
     return SolveResult(u=u, lam=r.lam_n, iterations=sum(s["iterations"] for s in records),

@@ -303,7 +303,7 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
 
 
 #: per-node arrays a friction solver leaves in ``SolveResult.info`` (not in solver_info)
-_ARRAY_INFO = ("lam_t", "states", "slip", "ut_prev")
+_ARRAY_INFO = ("lam_t", "states", "slip", "ut_prev", "coefficient")
 
 
 def _normal_operators(prob: Any, c: Any) -> tuple[Any, np.ndarray, Any, np.ndarray]:
@@ -383,7 +383,8 @@ DEFINITIONS = {
     "penetration_pointwise_max": "largest penetration (Un u - gap) at a contact quadrature "
                                  "point (m), clipped at 0; LAC only constrains patch means",
     "final_residual": "relative natural residual ||min(lam, c s)|| / ||c q|| of the condensed "
-                      "LCP at the last iterate",
+                      "LCP at the last iterate (friction: the largest relative residual of "
+                      "friction_residuals at the last iterate of the last load step)",
     "energy": "J(u) = 1/2 u^T A u - F^T u on all dofs (J/m)",
     "tangential_force": "friction only: horizontal resultant int lam_t t_x over the slave zone "
                         "(N/m), t = (-n_y, n_x) = +x under the upper body; lam_t enters A u + "
