@@ -110,13 +110,15 @@ def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None 
     from rbbench.hf.model import default_solver
     from rbbench.rb.offline import ReduceConfig
     from rbbench.rb.offline import reduce as reduce_offline
+    from rbbench.scene.friction import friction_of
 
+    scene = as_scene(scene)
     if "solver" not in config_fields:
         config_fields["solver"] = default_solver(config_fields.get("formulation", "mixed"),
-                                                 registry)
+                                                 registry, friction_of(scene).law)
     config = ReduceConfig(**config_fields)
     kwargs = {"progress": progress} if progress is not None else {}
-    return reduce_offline(as_scene(scene), config, registry=registry, **kwargs)
+    return reduce_offline(scene, config, registry=registry, **kwargs)
 
 
 def run(matrix: str | Path | Matrix, out: str | Path | None = None,

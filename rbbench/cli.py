@@ -79,13 +79,15 @@ def _backend_options(items: list[str] | None, flag: str = "--backend-option") ->
     return options
 
 
-def _resolve_solver(args) -> None:
+def _resolve_solver(args, scene=None) -> None:
     """``--solver`` not given: the formulation's declared solver (``ssn`` for mixed,
-    ``newton`` for Nitsche)."""
+    ``newton`` for Nitsche; for a friction ``scene``, the first declaring its law)."""
     if getattr(args, "solver", None) is None:
         from rbbench.hf.model import default_solver
+        from rbbench.scene.friction import friction_of
 
-        args.solver = default_solver(args.formulation)
+        law = friction_of(scene).law if scene is not None else "none"
+        args.solver = default_solver(args.formulation, law=law)
 
 
 def _solve_components(scene, args, options: dict, f_options: dict | None = None):
@@ -113,7 +115,7 @@ def cmd_solve(args) -> int:
     mu = scene.check_mu(args.mu) if args.mu is not None else scene.default_mu
     options = _backend_options(args.backend_option)
     f_options = _backend_options(args.formulation_option, "--formulation-option")
-    _resolve_solver(args)
+    _resolve_solver(args, scene)
     progress = _Progress(args.quiet)
     from rbbench.hf.model import solve_hf
     from rbbench.hf.output import write_all

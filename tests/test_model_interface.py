@@ -157,3 +157,42 @@ def test_a_friction_scene_is_refused_by_components_that_do_not_declare_its_law(t
     frictionless = load_scene("hertz_halfdisks", HERTZ)
     comp = {**comp, "formulation": "mixed", "solver": "ssn"}
     assert compatibility(frictionless, comp, default_registry())[0] == "run"
+
+
+def test_matrix_skips_a_frictionless_solver_and_reduce_refuses_a_friction_scene(tmp_path):
+    from rbbench.bench.matrix import compatibility
+
+    sc = load_scene("hertz_halfdisks", [*HERTZ, 'friction.law="coulomb"',
+                                        "friction.coefficient=0.2"])
+    comp = {"backend": "skfem", "formulation": "mixed", "solver": "ssn", "primal": "pod",
+            "dual": "cpg", "stabilizer": "none", "hyper": "auto"}
+    status, reason = compatibility(sc, comp, default_registry())
+    assert status == "skip" and reason.startswith("solver 'ssn' does not support the friction")
+    assert compatibility(sc, {**comp, "solver": "friction-ssn"}, default_registry())[0] == "run"
+    with pytest.raises(SceneError, match="reduced 'mixed' model is frictionless"):
+        offline(sc, _config(str(tmp_path), solver="friction-ssn"))
+    assert not any(tmp_path.iterdir())  # refused before any snapshot
+
+
+def test_friction_solve_writes_the_per_node_contact_table(tmp_path):
+    from rbbench.hf.output import contact_table, write_contact_csv
+
+    sc = load_scene("hertz_halfdisks", [*HERTZ, 'friction.law="coulomb"',
+                                        "friction.coefficient=0.2",
+                                        "load.tangential_displacement=0.002",
+                                        "load.load_steps=[{normal = 1.0}, "
+                                        "{normal = 1.0, tangential = 1.0}]"])
+    sol = HFModel(sc).solve()
+    assert sol.result.converged
+    table = contact_table(sol)
+    n = sol.disc.contact.Mt.shape[1]
+    assert all(len(v) == n for v in table.values())
+    states = set(table["state"])
+    assert states <= {"open", "stick", "slip"} and {"stick", "slip"} <= states
+    # slip nodes carry |lam_t| = nu_F lam_n (raw values, Coulomb's slip condition)
+    slip = table["state"] == "slip"
+    np.testing.assert_allclose(np.abs(table["lam_t"][slip]), 0.2 * table["pressure"][slip],
+                               rtol=1e-6, atol=1e-9 * table["pressure"].max())
+    text = write_contact_csv(sol, tmp_path).read_text().splitlines()
+    assert text[0].startswith("x (m),y (m),pressure (Pa),lam_t (Pa)")
+    assert len(text) == n + 1

@@ -455,10 +455,11 @@ def compatibility(scene: Scene, comp: dict[str, str],
             if ok is not None and physics not in ok:
                 return "skip", f"{r} {comp[r]!r} does not support {physics} (supports {ok})"
         law = friction_of(scene).law
-        laws = caps["formulation"].get("friction", ("none",))
-        if law not in laws:
-            return "skip", (f"formulation {comp['formulation']!r} does not support the "
-                            f"friction law {law!r} (supports {tuple(laws)})")
+        for r in ("formulation", "solver"):
+            laws = caps[r].get("friction", ("none",))
+            if law not in laws:
+                return "skip", (f"{r} {comp[r]!r} does not support the friction law "
+                                f"{law!r} (supports {tuple(laws)})")
         forms = caps["solver"].get("formulations")
         if forms is not None and comp["formulation"] not in forms:
             return "skip", (f"solver {comp['solver']!r} does not solve the "

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.model import HFSolution
+from rbbench.interfaces import FrictionProblem
 from rbbench.provenance import _jsonable, provenance
 
 
@@ -33,7 +34,10 @@ def write_summary(sol: HFSolution, out: Path) -> Path:
 
 
 def contact_table(sol: HFSolution) -> dict[str, np.ndarray]:
-    """Per-multiplier table: position, pressure, initial and final mean gaps."""
+    """Per-multiplier table: position, pressure, initial and final mean gaps; for a friction
+    solve, per P1 friction node (:func:`friction_table`)."""
+    if isinstance(sol.problem, FrictionProblem):
+        return friction_table(sol)
     c = sol.disc.contact
     support = np.asarray(c.Mlam.T @ c.weights).ravel()
     G = c.G()
@@ -42,17 +46,35 @@ def contact_table(sol: HFSolution) -> dict[str, np.ndarray]:
             "gap_initial": G / support, "gap": s_final / support}
 
 
+def friction_table(sol: HFSolution) -> dict[str, np.ndarray]:
+    """Per friction node (collocation node ``C(mu)``): position, ``lam_n`` (pressure),
+    ``lam_t``, initial and final mean gaps, the mean slip of the last load step
+    ``(Bt u - ut_prev)_i / int phi_i`` (m) and the node's state (open / stick / slip)."""
+    c, info = sol.disc.contact, sol.result.info
+    support = np.asarray(c.Mt.T @ c.weights).ravel()
+    G = c.G_nodal()
+    s_final = G - c.B_nodal() @ sol.result.u
+    n = support.size
+    return {"x": c.colloc_points[:, 0], "y": c.colloc_points[:, 1], "pressure": sol.result.lam,
+            "lam_t": np.asarray(info.get("lam_t", np.full(n, np.nan)), float),
+            "gap_initial": G / support, "gap": s_final / support,
+            "slip": np.asarray(info.get("slip", np.full(n, np.nan)), float) / support,
+            "state": np.asarray(info.get("states", ["nan"] * n), dtype=object)}
+
+
+_UNITS = {"x": "m", "y": "m", "pressure": "Pa", "lam_t": "Pa", "gap_initial": "m", "gap": "m",
+          "slip": "m", "state": ""}
+
+
 def write_contact_csv(sol: HFSolution, out: Path) -> Path:
     path = out / "contact.csv"
     table = contact_table(sol)
-    units = {"x": "m", "y": "m", "pressure": "Pa", "gap_initial": "m", "gap": "m"}
-    if sol.disc.physics == "poisson":
-        units = {k: "" for k in units}
+    units = {k: ("" if sol.disc.physics == "poisson" else _UNITS[k]) for k in table}
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow([f"{k} ({u})" if u else k for k, u in units.items()])
         for row in zip(*table.values(), strict=True):
-            w.writerow([f"{v:.10g}" for v in row])
+            w.writerow([v if isinstance(v, str) else f"{v:.10g}" for v in row])
     return path
 
 

@@ -27,6 +27,7 @@ from rbbench.rb.hyper_reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.rb.mixed_model import ONLINE_METHODS
 from rbbench.rb.validation import ReducedStage, ReduceResult, validate
 from rbbench.registry import Registry, default_registry
+from rbbench.scene.friction import friction_of
 from rbbench.scene.loading import Scene, SceneError
 from rbbench.scene.sampling import parameter_set
 
@@ -166,6 +167,11 @@ def offline(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] 
     validation parameters (the model is the same: only their values are used offline)."""
     reg = registry or default_registry()
     steps = reduction_steps(config, reg)
+    law = friction_of(scene).law
+    if law not in getattr(steps, "friction_laws", ("none",)):
+        raise SceneError(f"{scene.path}: [friction] law = {law!r}: the reduced "
+                         f"{steps.name!r} model is frictionless (reduced friction models: "
+                         "issue 14); solve the HF friction problem with `rbbench solve`")
     config = steps.prepare(scene, config, reg)  # early checks, before any HF work
     check_hyper(config, reg)
     t0 = time.perf_counter()
