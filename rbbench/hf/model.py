@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from rbbench.hf.mindlin_check import MINDLIN_DEFINITION, mindlin_metrics
 from rbbench.hf.references import hertz_2d
 from rbbench.interfaces import (
     ContactProblem,
@@ -298,8 +299,20 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
                         "relative: (computed - theory) / theory",
             }
     m.update(extra)
+    if sol.scene.data["reference"].get("mindlin") and isinstance(prob, FrictionProblem):
+        m["mindlin"] = _mindlin_block(sol, m)
     m["definitions"] = DEFINITIONS
     return m
+
+
+def _mindlin_block(sol: HFSolution, m: dict[str, Any]) -> dict[str, Any]:
+    """The ``mindlin`` block (:func:`rbbench.hf.mindlin_check.mindlin_metrics`) at the
+    solver's own ``contact_force`` and ``tangential_force``."""
+    info = sol.result.info
+    return mindlin_metrics(sol.disc.contact, np.asarray(info["lam_t"], float),
+                           np.asarray(info["states"], dtype=object), m["contact_force"],
+                           m["tangential_force"], m["friction"]["coefficient"],
+                           sol.disc.info["geometry"], sol.disc.bodies)
 
 
 #: per-node arrays a friction solver leaves in ``SolveResult.info`` (not in solver_info)
@@ -401,6 +414,7 @@ DEFINITIONS = {
                          "condensed problem at the last load step (friction_residuals: "
                          "min(|v|, s - |lam_t|) over sticking, min(|v|, |lam_t - s sign v|) "
                          "over slipping nodes; slip v / max|q|, forces / force scale)",
+    "mindlin": MINDLIN_DEFINITION,
     "zone_saturated": "true if the first or last multiplier of the potential zone is active: "
                       "the contact patch reaches the edge of the potential zone",
 }

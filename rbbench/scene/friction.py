@@ -155,9 +155,12 @@ def check_friction(data: dict[str, Any], path: str, params: dict[str, Any]) -> N
         Naming the file, the key, what was found and what is valid: an unknown law or
         key, a key of another law, ``threshold`` / ``coefficient`` negative, non-finite or
         missing, friction on a scalar scene, a tangential load or load steps without
-        friction.
+        friction, ``[reference] mindlin`` without Coulomb friction.
     """
     law = _check_law(data, path, params)
+    if data.get("reference", {}).get("mindlin") and law != "coulomb":
+        raise _err(path, "[reference] mindlin", "the Cattaneo-Mindlin check needs Coulomb "
+                   f"friction ([friction] law = 'coulomb'); this scene has law = {law!r}")
     load = data.get("load", {})
     if law == "none":
         for key in ("tangential_displacement", "load_steps"):

@@ -177,6 +177,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
     "reference": {
         "hertz": Field("bool", default=False,
                        doc="compare with 2D plane-strain Hertz theory"),
+        "mindlin": Field("bool", default=False,
+                         doc="compare a friction solve with Cattaneo-Mindlin partial slip"),
     },
 }
 
@@ -311,7 +313,8 @@ class Scene:
 #: Options added after scenes were first cached: (section, field) -> the default that
 #: reproduces the former behaviour. At that default they stay out of cache keys.
 KEY_NEUTRAL_DEFAULTS = {("discretization", "normals"): "facet",
-                        ("discretization", "contact_integration"): "gauss"}
+                        ("discretization", "contact_integration"): "gauss",
+                        ("reference", "mindlin"): False}
 
 
 def key_data(data: dict) -> dict:
