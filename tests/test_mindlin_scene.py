@@ -117,6 +117,7 @@ def test_mindlin_metrics_on_the_theory_itself():
                           [body, body])
     assert out["a"] == pytest.approx(a) and out["c_theory"] == pytest.approx(m.c)
     assert abs(out["c_rel_error"]) < 0.02 and out["traction_l2_rel_error"] < 0.01
+    assert out["traction_l2_rel_error_even"] == pytest.approx(out["traction_l2_rel_error"])
     full = mindlin_metrics(c, m.shear_traction(x), states.astype(object), P, F * P, F,
                            geometry, [body, body])
     assert full["c_theory"] is None and "full sliding" in full["reason"]
@@ -133,7 +134,7 @@ def test_coarse_solve_has_a_finite_mindlin_block(coarse_solution):
     b = m["mindlin"]
     assert b["P"] == m["contact_force"] and b["Q"] == m["tangential_force"]
     for key in ("a", "p0", "c", "c_theory", "c_rel_error", "traction_l2_rel_error",
-                "lam_t_odd_fraction"):
+                "traction_l2_rel_error_even", "lam_t_odd_fraction"):
         assert math.isfinite(b[key]), key
     assert b["a_over_R_star"] <= 0.02
     assert 0.3 < b["Q_over_FP"] < 0.7  # partial slip: the stick zone is inside
