@@ -8,13 +8,8 @@ import numpy as np
 import pytest
 
 from rbbench.hf.model import make_components, solve_hf
-from rbbench.rb.mixed_model import (
-    NotAffineError,
-    ReducedBasis,
-    affine_decomposition,
-    build_affine_model,
-    projector,
-)
+from rbbench.rb.affine import NotAffineError, affine_decomposition
+from rbbench.rb.mixed_model import ReducedBasis, build_affine_model, projector
 from rbbench.scene.loading import load_scene
 
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import itertools
 import sys
+import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -223,7 +225,7 @@ def _vec(PETSc: Any, values: np.ndarray) -> Any:
 
 class _PetscSolver(Solver):
     """What the PETSc solvers share: the option check, ``kkt_tol``, ``petsc_options`` under
-    a prefix of their own (``rbbench_<stem><k>_``), and the stop reason of a run."""
+    a prefix of their own (``rbbench_<stem><k>_``), the timed run, and its stop reason."""
 
     OPTIONS: tuple[str, ...] = ()
     _stem = ""
@@ -246,3 +248,21 @@ class _PetscSolver(Solver):
         else:
             reason = map_reason(info["petsc_reason"])
         return _finish(reason, kkt_errors(problem, u, lam), self.kkt_tol, info)
+
+    def _run(self, obj: Any, solve: Callable[[], Any], t0: float) -> tuple[float, float]:
+        """``obj.setFromOptions()`` with :attr:`petsc_options` set under :attr:`prefix` (for
+        this run only), then ``solve()``: ``(seconds since t0 to the solve, solve seconds)``."""
+        with _Options(self.prefix, self.petsc_options):
+            obj.setFromOptions()
+            t_setup = time.perf_counter() - t0
+            ts = time.perf_counter()
+            solve()
+            return t_setup, time.perf_counter() - ts
+
+    @staticmethod
+    def _failed(exc: Exception, t0: float, info: dict[str, Any]) -> tuple[float, float]:
+        """A PETSc error during the run: its reason in ``info``; ``(seconds since t0, 0)``."""
+        t_setup = time.perf_counter() - t0
+        info["petsc_reason"] = "PETSc.Error"
+        info["why"] = f"PETSc error {exc}"
+        return t_setup, 0.0

@@ -15,7 +15,6 @@ from rbbench_plugins.solvers.petsc_common import (
     _finish,
     _finite_problem,
     _nan_result,
-    _Options,
     _PetscSolver,
     _reason_name,
     _vec,
@@ -172,19 +171,11 @@ class PetscTaoSolver(_PetscSolver):
             tao.setVariableBounds((lo, hi))
             tao.setSolution(x)
             self._configure(tao, monitor, qnorm, m)
-            with _Options(self.prefix, self.petsc_options):
-                tao.setFromOptions()
-                t_setup = time.perf_counter() - t0
-                ts = time.perf_counter()
-                tao.solve()
-                t_solve = time.perf_counter() - ts
+            t_setup, t_solve = self._run(tao, tao.solve, t0)
             code, its = self._outcome(PETSc, tao, qnorm, counts, info)
             mu = x.getArray().copy()
         except PETSc.Error as exc:
-            t_setup = time.perf_counter() - t0
-            t_solve = 0.0
-            info["petsc_reason"] = "PETSc.Error"
-            info["why"] = f"PETSc error {exc}"
+            t_setup, t_solve = self._failed(exc, t0, info)
             code, its, mu = None, 0, np.full(m, np.nan)
         finally:
             for obj in (tao, H, x, lo, hi):

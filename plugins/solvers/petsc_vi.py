@@ -18,7 +18,6 @@ from rbbench_plugins.solvers.petsc_common import (
     _choice,
     _finite_problem,
     _nan_result,
-    _Options,
     _PetscSolver,
     _reason_name,
     _vec,
@@ -285,19 +284,11 @@ class PetscVISolver(_PetscSolver):
             snes.setJacobian(jacobian, J, J)
             snes.setVariableBounds(lo, hi)
             self._configure(PETSc, snes, kkt)
-            with _Options(self.prefix, self.petsc_options):
-                snes.setFromOptions()
-                t_setup = time.perf_counter() - t0
-                ts = time.perf_counter()
-                snes.solve(None, x)
-                t_solve = time.perf_counter() - ts
+            t_setup, t_solve = self._run(snes, lambda: snes.solve(None, x), t0)
             code, its, hist = self._outcome(PETSc, snes, counts, info)
             xs = x.getArray().copy()
         except PETSc.Error as exc:
-            t_setup = time.perf_counter() - t0
-            t_solve = 0.0
-            info["petsc_reason"] = "PETSc.Error"
-            info["why"] = f"PETSc error {exc}"
+            t_setup, t_solve = self._failed(exc, t0, info)
             code, its, hist, xs = None, 0, np.zeros(0), np.full(n + m, np.nan)
         finally:
             for obj in (snes, J, x, fvec, lo, hi):

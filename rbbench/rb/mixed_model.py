@@ -27,7 +27,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from rbbench.hf import lcp
-from rbbench.rb.affine import (  # noqa: F401 - re-exported (old home)
+from rbbench.rb.affine import (
     AffineOperator,
     LinearInMu,
     NotAffineError,

@@ -20,13 +20,15 @@ import numpy as np
 
 from rbbench.hf.model import discretize_for
 from rbbench.rb import infsup as inf
+from rbbench.rb.affine import NotAffineError
 from rbbench.rb.compressors import pga_default_delta
-from rbbench.rb.mixed_model import NotAffineError, build_affine_model, projector, solve_reduced
+from rbbench.rb.mixed_model import build_affine_model, projector, solve_reduced
 from rbbench.rb.offline import (
     ReduceConfig,
     check_finite,
     eim_training_set,
     fixed_contact_points,
+    primal_histories,
 )
 from rbbench.rb.validation import ReducedStage, xnorm2
 from rbbench.registry import Registry
@@ -84,14 +86,14 @@ class MixedReduction:
 
     def prepare(self, scene: Scene, config: ReduceConfig, registry: Registry) -> ReduceConfig:
         """Checks before any HF work: the named components exist, and the contact points
-        are fixed when hyper ``"eim"`` needs them."""
+        are fixed when hyper ``"eim"`` needs them (kept for :meth:`reduce`)."""
         for role in ("primal", "dual", "stabilizer"):
             registry.get(role, getattr(config, role))  # unknown names fail before HF work
-        fixed_contact_points(scene, config.hyper)
+        self.fixed_points = fixed_contact_points(scene, config.hyper)
         return config
 
     def reduce(self, ctx: Any) -> MixedStage:
-        return MixedStage(ctx)
+        return MixedStage(ctx, self.fixed_points)
 
 
 class MixedStage(ReducedStage):
@@ -100,7 +102,7 @@ class MixedStage(ReducedStage):
 
     definitions = DEFINITIONS
 
-    def __init__(self, ctx: Any) -> None:
+    def __init__(self, ctx: Any, fixed_points: bool) -> None:
         self.ctx, config = ctx, ctx.config
         self.x_solve = inf.make_solver(ctx.X)
         self.Z = ctx.Z
@@ -109,7 +111,7 @@ class MixedStage(ReducedStage):
         self.config = asdict(config)
         self._dual_step(ctx)
         self._stabilizer_step(ctx)
-        self._hyper_step(ctx)
+        self._hyper_step(ctx, fixed_points)
         self.beta: dict[str, list] = {"hf": [], "dec": [], "on": [], "off": []}
         self.lam_floor: list[float] = []
         self.t_asm: list[float] = []
@@ -135,10 +137,8 @@ class MixedStage(ReducedStage):
         if stabilizer.online and config.hyper in ("affine", "eim"):
             raise ValueError(f"stabilizer {config.stabilizer!r} builds its space online from "
                              f"the HF B(mu): use hyper 'none' or 'auto', not {config.hyper!r}")
-        self.histories = {
-            "pod_singular_values": primal.history.get("singular_values", []),
-            "primal": {k: v for k, v in primal.history.items() if k != "singular_values"},
-            "e_proj": list(self.dual.e_proj), "e_orth": list(self.dual.e_orth)}
+        self.histories = {**primal_histories(primal), "e_proj": list(self.dual.e_proj),
+                          "e_orth": list(self.dual.e_orth)}
         delta = None
         if config.stabilizer == "pga":
             ctx.progress("PGA (supremizers on the training set)")
@@ -154,11 +154,12 @@ class MixedStage(ReducedStage):
         self.histories.update({k: v for k, v in stab_hist.items() if k != "K"})
         ctx.timings["stabilizer_s"] = time.perf_counter() - t1
 
-    def _hyper_step(self, ctx: Any) -> None:
+    def _hyper_step(self, ctx: Any, fixed_points: bool) -> None:
+        """Exact affine, else (``"auto"``) EIM when the contact points are fixed
+        (``fixed_points``), else the plain model."""
         config, scene = ctx.config, ctx.scene
         t1 = time.perf_counter()
         hyper, model = config.hyper, None
-        fixed_points = fixed_contact_points(scene, config.hyper)
         if not self.stabilizer.online and hyper in ("auto", "affine", "eim"):
             reduced_ops = projector(ctx.problem_at, self.Z_off, self.Vg)
             if hyper in ("auto", "affine"):

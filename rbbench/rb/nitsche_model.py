@@ -13,7 +13,7 @@ not depend on the HF size.
     y_q(c) = dw_q ( [P_q]_- (theta SZ_q - gamma_q UZ_q) - theta s_q SZ_q )   (an N-vector)
 
 ``A_N``, ``F_N`` are affine in mu (verified by probing,
-:func:`rbbench.rb.mixed_model.affine_decomposition`). The sum over all contact quadrature
+:func:`rbbench.rb.affine.affine_decomposition`). The sum over all contact quadrature
 points is the HF-size-dependent part.
 
 **Hyper-reduction at contact quadrature points.** Online only some points are
@@ -365,7 +365,7 @@ class NitscheReducedModel:
     Attributes
     ----------
     A, F : AffineOperator
-        ``A_N``, ``F_N`` on :class:`~rbbench.rb.mixed_model.LinearInMu` coefficients.
+        ``A_N``, ``F_N`` on :class:`~rbbench.rb.affine.LinearInMu` coefficients.
     coefficients : LinearInMu
     evaluator : PointEvaluator
         The points evaluated online (all contact points for the plain model).

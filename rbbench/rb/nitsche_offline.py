@@ -35,6 +35,7 @@ from rbbench.rb.offline import (
     check_finite,
     eim_grid,
     fixed_contact_points,
+    primal_histories,
 )
 from rbbench.rb.validation import ReducedStage, xnorm2
 from rbbench.registry import Registry
@@ -196,10 +197,7 @@ class NitscheStage(ReducedStage):
         t1 = time.perf_counter()
         config, primal, nq = ctx.config, ctx.primal, self.n_contact
         hyper = {"none": "none", "eim": "deim", "deim": "deim"}.get(config.hyper, "ecsw")
-        self.histories = {
-            "pod_singular_values": primal.history.get("singular_values", []),
-            "primal": {k: v for k, v in primal.history.items() if k != "singular_values"},
-            "plain_training_stops": self.plain_stops}
+        self.histories = {**primal_histories(primal), "plain_training_stops": self.plain_stops}
         sample = np.vstack([ctx.mus_train, self.grid, ctx.mus_valid])
         if hyper == "ecsw":
             ctx.progress("empirical cubature (ECSW) at the contact points")

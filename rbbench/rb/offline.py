@@ -33,7 +33,8 @@ from rbbench.scene.sampling import parameter_set
 
 __all__ = ["DivergedError", "HYPER", "OfflineContext", "Offline", "ReduceConfig",
            "ReduceResult", "check_finite", "eim_grid", "eim_training_set",
-           "fixed_contact_points", "offline", "primal_basis", "reduce", "training_snapshots"]
+           "fixed_contact_points", "offline", "primal_basis", "primal_histories", "reduce",
+           "training_snapshots"]
 
 HYPER = ("auto", *BUILTIN_HYPER)  # "auto" (the formulation's rule) + the hyper-reducers
 
@@ -260,6 +261,13 @@ def primal_basis(reg: Registry, config: ReduceConfig, U: np.ndarray, X: Any,
         U, X, tol=None if config.N else config.tol_pod, n=config.N)
     check_finite(f"primal compressor {config.primal!r}: the basis", primal.Z)
     return primal
+
+
+def primal_histories(primal: Any) -> dict[str, Any]:
+    """The primal compressor's history as a stage reports it: ``pod_singular_values`` and
+    the rest under ``primal``."""
+    return {"pod_singular_values": primal.history.get("singular_values", []),
+            "primal": {k: v for k, v in primal.history.items() if k != "singular_values"}}
 
 
 def training_snapshots(scene: Scene, config: ReduceConfig, formulation: str, solver: str,
