@@ -17,6 +17,7 @@ import sys
 import time
 from pathlib import Path
 
+from rbbench.bench.errors import ResultsError
 from rbbench.registry import NotInstalledError, UnknownComponentError, default_registry
 from rbbench.scene.loading import PROBLEMS_DIR, SceneError, load_scene, tomllib
 
@@ -543,24 +544,12 @@ def _add_online_scaling_parser(sub) -> None:
     osc.set_defaults(func=cmd_online_scaling, hyper="eim")
 
 
-def _is_results_error(exc: BaseException) -> bool:
-    """A :class:`rbbench.bench.results.ResultsError` (a path holding no readable results),
-    without importing pandas for commands that never load results."""
-    results = sys.modules.get("rbbench.bench.results")
-    return results is not None and isinstance(exc, results.ResultsError)
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (SceneError, UnknownComponentError, NotInstalledError) as exc:
-        print(f"rbbench: error: {exc}", file=sys.stderr)
-        return 2
-    except ValueError as exc:
-        if not _is_results_error(exc):
-            raise
+    except (SceneError, UnknownComponentError, NotInstalledError, ResultsError) as exc:
         print(f"rbbench: error: {exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `rbbench plugins --json | head`

@@ -19,27 +19,19 @@ import numpy as np
 import pandas as pd
 
 from rbbench.bench import schema
+from rbbench.bench.errors import ResultsError, ResultsNotFoundError
 
 __all__ = ["DTYPES", "ResultsError", "ResultsNotFoundError", "load_results", "records",
            "results_frame"]
 
-#: pandas dtype of each schema column type (as :func:`rbbench.bench.runner.write_table`)
+#: pandas dtype of each schema column type (those of ``results.parquet``, written by
+#: :func:`rbbench.bench.runner.write_table` through :func:`results_frame`)
 DTYPES: dict[str, str] = {"float": "float64", "int": "Int64", "bool": "boolean",
                           "str": "string"}
 _COL = {c.name: c for c in schema.COLUMNS}
 _NA_TEXT = ("", "nan", "none", "null")
 _TRUE_TEXT = ("true", "1", "yes")
 _CAST = {"str": str, "int": int, "float": float, "bool": bool}
-
-
-class ResultsError(ValueError):
-    """A path that does not hold a readable results table (the message names the path
-    and what was expected)."""
-
-
-class ResultsNotFoundError(ResultsError, FileNotFoundError):
-    """No results at a path: no such file or directory, or a directory without
-    ``results.parquet``, ``results.csv`` or ``cases/*.json``."""
 
 
 def plain(v: Any) -> Any:

@@ -78,19 +78,10 @@ def load_rows(out_dir: Path) -> dict[str, dict]:
 
 def write_table(out_dir: Path, records: Iterable[dict], csv: bool = False) -> Path:
     """Rewrite ``results.parquet`` (and ``results.csv``) atomically from case records."""
-    import pandas as pd
+    from rbbench.bench.results import results_frame
 
-    rows = [schema.normalise_row(r["row"]) for r in records]
-    df = pd.DataFrame(rows, columns=schema.names())
-    for c in schema.COLUMNS:  # stable dtypes even for all-empty columns
-        if c.dtype == "float":
-            df[c.name] = pd.to_numeric(df[c.name], errors="coerce").astype("float64")
-        elif c.dtype == "int":
-            df[c.name] = df[c.name].astype("Int64")
-        elif c.dtype == "bool":
-            df[c.name] = df[c.name].astype("boolean")
-        else:
-            df[c.name] = df[c.name].astype("string")
+    # every column with its schema dtype (rbbench.bench.results.DTYPES), even all-empty ones
+    df = results_frame(schema.normalise_row(r["row"]) for r in records)
     df = df.sort_values(["scene", "case_id", "repetition"], kind="stable").reset_index(drop=True)
     path = Path(out_dir) / "results.parquet"
     atomic_write(path, lambda fh: df.to_parquet(fh, index=False))
@@ -211,13 +202,17 @@ def _split_finished(cases: list[Case], done: dict[str, dict],
 
 @dataclass
 class _Run:
-    """A run in progress: its records by case key, its summary and its progress bar."""
+    """A run in progress: its records by case key, its summary (with the run directory) and
+    its progress bar."""
 
-    out_dir: Path
     records: dict[str, dict]
     summary: RunSummary
     csv: bool
     bar: Any
+
+    @property
+    def out_dir(self) -> Path:
+        return self.summary.out_dir
 
     def finish(self, case: Case, record: dict) -> None:
         """A case ended: write its file, then the table (``on_result`` of the executors)."""
@@ -278,7 +273,7 @@ def run_matrix(matrix: Matrix, out_dir: str | Path, executor: str = "processes",
     t0 = time.perf_counter()
     records, kept, todo = _split_finished(matrix.cases, load_rows(out_dir), retry)
     _write_manifest(out_dir, matrix, {"state": "running", "executor": executor})
-    run = _Run(out_dir, records, RunSummary(out_dir, {}, kept=kept), csv,
+    run = _Run(records, RunSummary(out_dir, {}, kept=kept), csv,
                tqdm(total=len(matrix.cases), initial=len(kept), desc=f"{matrix.name}",
                     unit="case", disable=not progress, dynamic_ncols=True))
     runnable = [c for c in todo if c.status == "run"]

@@ -92,8 +92,7 @@ class BetaDecStudy:
         """The rows as a Markdown table (``%.3e`` floats)."""
         cells = ([f"{r[c]:.3e}" if isinstance(r[c], float) else str(r[c]) for c in COLUMNS]
                  for r in self.rows)
-        return markdown_table("| " + " | ".join(COLUMNS) + " |", len(COLUMNS),
-                              ("| " + " | ".join(c) + " |" for c in cells))
+        return markdown_table(COLUMNS, cells)
 
 
 def _cone(S: np.ndarray, M: np.ndarray, C: np.ndarray, exact_max_r: int,

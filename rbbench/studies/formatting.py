@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
 
-def markdown_table(head: str, n_cols: int, body: Iterable[str]) -> str:
-    """A Markdown table: the header line, the separator of ``n_cols`` columns, the rows."""
-    return "\n".join([head, "|" + "---|" * n_cols, *body])
+def markdown_table(head: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
+    """A Markdown table: the header cells, the separator, one line per row of cells (each
+    written with ``str``)."""
+
+    def line(cells: Sequence[Any]) -> str:
+        return "| " + " | ".join(str(c) for c in cells) + " |"
+
+    return "\n".join([line(head), "|" + "---|" * len(head), *(line(r) for r in rows)])
 
 
 def percent(x: float | None) -> str:

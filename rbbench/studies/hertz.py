@@ -41,13 +41,13 @@ def hertz_table(scene: str = "hertz_halfdisks", loads=(0.05, 0.01), levels=(0, 1
 
 def hertz_markdown(rows: list[dict]) -> str:
     """The rows of :func:`hertz_table` as a Markdown table (errors in %)."""
-    head = ("| d (m) | level | dofs | active | P (N/m) | a (m) | a Hertz | a err | "
-            "p0 (Pa) | p0 Hertz | p0 err | HF time (s) |")
-    return markdown_table(head, 12, (
-        f"| {r['d']:g} | {r['level']} | {r['n_dofs']} | {r['n_active']} | {r['P']:.4g} | "
-        f"{r['a']:.4g} | {r['a_hertz']:.4g} | {100 * r['a_err']:+.2f} % | {r['p0']:.4g} | "
-        f"{r['p0_hertz']:.4g} | {100 * r['p0_err']:+.2f} % | {r['time_s']:.2f} |"
-        for r in rows))
+    head = ("d (m)", "level", "dofs", "active", "P (N/m)", "a (m)", "a Hertz", "a err",
+            "p0 (Pa)", "p0 Hertz", "p0 err", "HF time (s)")
+    return markdown_table(head, (
+        (f"{r['d']:g}", r["level"], r["n_dofs"], r["n_active"], f"{r['P']:.4g}",
+         f"{r['a']:.4g}", f"{r['a_hertz']:.4g}", f"{100 * r['a_err']:+.2f} %",
+         f"{r['p0']:.4g}", f"{r['p0_hertz']:.4g}", f"{100 * r['p0_err']:+.2f} %",
+         f"{r['time_s']:.2f}") for r in rows))
 
 
 def _largest_facet(scene, disc) -> float:

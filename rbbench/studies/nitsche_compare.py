@@ -53,12 +53,13 @@ def formulation_comparison(scene: str = "hertz_halfdisks", overrides=(), n_train
 
 def comparison_markdown(res: dict) -> str:
     """The two tables of :func:`formulation_comparison`."""
-    energies = markdown_table("| mu (m) | J mixed (J/m) | J Nitsche (J/m) | rel. diff |", 4, (
-        f"| {r['mu']:.4g} | {r['J_mixed']:.6g} | {r['J_nitsche']:.6g} | "
-        f"{100 * r['rel_diff']:+.4f} % |" for r in res["energies"]))
+    energies = markdown_table(("mu (m)", "J mixed (J/m)", "J Nitsche (J/m)", "rel. diff"), (
+        (f"{r['mu']:.4g}", f"{r['J_mixed']:.6g}", f"{r['J_nitsche']:.6g}",
+         f"{100 * r['rel_diff']:+.4f} %") for r in res["energies"]))
     reduced = markdown_table(
-        "| formulation | N | R | K (PGA) | err u max | err lam / pressure max | online (ms) |",
-        7, (f"| {r['formulation']} | {r['N']} | {'' if r['R'] is None else r['R']} | "
-            f"{r['K']} | {r['err_u_max']:.3e} | {r['err_lam_max']:.3e} | "
-            f"{1e3 * r['t_online_s']:.3f} |" for r in res["reduced"]))
+        ("formulation", "N", "R", "K (PGA)", "err u max", "err lam / pressure max",
+         "online (ms)"),
+        ((r["formulation"], r["N"], "" if r["R"] is None else r["R"], r["K"],
+          f"{r['err_u_max']:.3e}", f"{r['err_lam_max']:.3e}", f"{1e3 * r['t_online_s']:.3f}")
+         for r in res["reduced"]))
     return energies + "\n\n" + reduced

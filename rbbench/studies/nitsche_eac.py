@@ -113,29 +113,27 @@ def nitsche_markdown(rows: list[dict]) -> str:
     """Side by side with the seed: the three e_AC readings (%) and their observed orders
     between successive h (ours from the measured facet lengths, the seed's from its h),
     the contact forces. Column definitions: :data:`NITSCHE_COLUMNS`."""
-    head = ("| mu (m) | h seed (mm) | facet (mm) | HF dofs | e_AC quad (%) | order | "
-            "e_AC nodal (%) | order | e_AC L2 (%) | order | seed e_AC (%) | seed order | "
-            "Newton it | F Nitsche (N/m) | F mixed (N/m) | rel. diff |")
+    head = ("mu (m)", "h seed (mm)", "facet (mm)", "HF dofs", "e_AC quad (%)", "order",
+            "e_AC nodal (%)", "order", "e_AC L2 (%)", "order", "seed e_AC (%)", "seed order",
+            "Newton it", "F Nitsche (N/m)", "F mixed (N/m)", "rel. diff")
     by_mu: dict[float, list[dict]] = {}
     for r in rows:
         by_mu.setdefault(r["mu"], []).append(r)
-    return markdown_table(head, 16, (_nitsche_line(mu, r, rs[k - 1] if k else None)
-                                     for mu, rs in by_mu.items() for k, r in enumerate(rs)))
+    return markdown_table(head, (_nitsche_cells(mu, r, rs[k - 1] if k else None)
+                                 for mu, rs in by_mu.items() for k, r in enumerate(rs)))
 
 
-def _nitsche_line(mu: float, r: dict, p: dict | None) -> str:
-    """The table line of row ``r``; orders against the previous ``h`` at the same mu,
+def _nitsche_cells(mu: float, r: dict, p: dict | None) -> list[str]:
+    """The table cells of row ``r``; orders against the previous ``h`` at the same mu,
     ``p`` (none for the first)."""
-    cols = []
+    cells = [f"{mu:g}", f"{1e3 * r['h_seed']:g}", f"{1e3 * r['facet']:.2f}", str(r["n_dofs"])]
     for key in ("e_ac", "e_ac_nodal", "e_ac_l2"):
         order = observed_order(p.get(key), r.get(key), p["facet"], r["facet"]) if p else ""
-        cols.append(f"{percent(r.get(key))} | {order}")
+        cells += [percent(r.get(key)), order]
     seed_order = observed_order(p["seed_e_ac"], r["seed_e_ac"], p["h_seed"], r["h_seed"]) \
         if p else ""
     seed = "" if r["seed_e_ac"] is None else f"{r['seed_e_ac']:g}"
     fm = r.get("force_mixed")
     fm_txt = "" if fm is None else f"{fm:.5g}"
     diff = "" if fm is None else f"{100 * r['force_rel_diff']:+.3f} %"
-    return (f"| {mu:g} | {1e3 * r['h_seed']:g} | {1e3 * r['facet']:.2f} | {r['n_dofs']} | "
-            f"{' | '.join(cols)} | {seed} | {seed_order} | {r['iterations']} | "
-            f"{r['force']:.5g} | {fm_txt} | {diff} |")
+    return [*cells, seed, seed_order, str(r["iterations"]), f"{r['force']:.5g}", fm_txt, diff]

@@ -32,11 +32,6 @@ from rbbench.bench.results import plain, records, results_frame
 RowsLike = pd.DataFrame | Iterable[dict[str, Any]]
 
 
-def _frame(rows: RowsLike) -> pd.DataFrame:
-    """Results rows as a typed results table (:func:`rbbench.bench.results.results_frame`)."""
-    return results_frame(rows)
-
-
 def _text(values: pd.Series, empty: str = "") -> pd.Series:
     """A column as text: ``str`` of each value, ``empty`` for an empty cell."""
     return pd.Series([empty if plain(v) is None else str(plain(v)) for v in values],
@@ -194,7 +189,7 @@ def status_counts(rows: RowsLike) -> pd.DataFrame:
         Index: scene; columns: the statuses that occur (in
         :data:`rbbench.bench.schema.STATUSES` order) and ``total``.
     """
-    df = _frame(rows)
+    df = results_frame(rows)
     scene = _text(df["scene"], empty="None")
     scenes = sorted(set(scene))
     sizes = df.groupby([scene, df["status"]]).size()  # rows without a status not counted
@@ -257,7 +252,7 @@ def best_per_level(rows: RowsLike, column: str = "err_u_max",
         ``t_online_median_s``, ``speedup`` (``None`` when no case reaches the level).
         Ties on time go to the smaller error.
     """
-    df = _frame(rows)
+    df = results_frame(rows)
     recs = records(df)
     ok = [r for r in recs if r.get("status") == "ok"]
     combos = _Combos(ok or recs)
