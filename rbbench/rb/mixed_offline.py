@@ -214,10 +214,10 @@ class MixedStage(ReducedStage):
     def metrics(self, mu: np.ndarray, p: Any, u: np.ndarray, lam: np.ndarray, res: Any,
                 u_n: np.ndarray) -> dict[str, float]:
         lam_r = self.Vg @ res.alpha
-        err_lam = float(np.sqrt(xnorm2(p.W, lam - lam_r) / xnorm2(p.W, lam)))
+        lam_w2 = xnorm2(p.W, lam)
+        err_lam = float(np.sqrt(xnorm2(p.W, lam - lam_r) / lam_w2))
         # the floor: best approximation of lam in the reduced cone (W-projection)
-        self.lam_floor.append(float(self.dual.project(lam, p.W)[2])
-                              / np.sqrt(xnorm2(p.W, lam)))
+        self.lam_floor.append(float(self.dual.project(lam, p.W)[2]) / np.sqrt(lam_w2))
         disc_gap = p.G - p.B @ u_n  # weighted, per multiplier
         pen = float(max(0.0, -(disc_gap / np.asarray(p.W.sum(axis=1)).ravel()).min()))
         den = np.linalg.norm(lam_r) * np.linalg.norm(p.G)
