@@ -94,10 +94,10 @@ def _resolve_solver(args, scene=None) -> None:
 def _solve_components(scene, args, options: dict, f_options: dict | None = None):
     """Backend (with ``options``), formulation (with ``f_options``) and solver for
     ``rbbench solve``."""
+    from rbbench.hf.model import check_names
+
     reg = default_registry()
-    for role, name in (("backend", args.backend), ("formulation", args.formulation),
-                       ("solver", args.solver)):
-        reg.get(role, name)  # unknown names fail here, before any meshing
+    check_names(scene, reg, args.backend, args.formulation, args.solver)  # before any meshing
     try:
         backend = reg.create("backend", args.backend, scene=scene, **options)
     except SceneError:

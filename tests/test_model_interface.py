@@ -196,3 +196,16 @@ def test_friction_solve_writes_the_per_node_contact_table(tmp_path):
     text = write_contact_csv(sol, tmp_path).read_text().splitlines()
     assert text[0].startswith("x (m),y (m),pressure (Pa),lam_t (Pa)")
     assert len(text) == n + 1
+
+
+def test_cli_solve_with_component_options_refuses_an_undeclared_friction_law(capsys):
+    """``--backend-option`` builds the components in the CLI: the same name and friction
+    checks as :func:`rbbench.hf.model.make_components` run before any meshing."""
+    from rbbench.cli import main
+
+    argv = ["solve", "hertz_halfdisks", *sum((["--set", s] for s in [
+        *HERTZ, 'friction.law="coulomb"', "friction.coefficient=0.2"]), []),
+        "--solver", "ssn", "--backend-option", "mesh=skfem", "--quiet"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "the 'ssn' solver supports 'none' only" in err and "'friction-ssn'" in err

@@ -64,16 +64,25 @@ def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mi
         raise ValueError(f"component options: unknown role(s) {sorted(bad)}; valid: backend, "
                          "formulation (solver options are solver_options)")
     reg = registry or default_registry()
-    check_friction_support(scene, reg.get("formulation", formulation))
-    solver = default_solver(formulation, reg, friction_of(scene).law) if solver is None \
-        else solver
-    for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):
-        reg.get(role, name)  # unknown names fail here, before any meshing
-    check_friction_support(scene, reg.get("solver", solver), formulation, reg)
+    solver = check_names(scene, reg, backend, formulation, solver)
     b = reg.create("backend", backend, scene=scene, **opts.get("backend", {}))
     f = reg.create("formulation", formulation, **opts.get("formulation", {}))
     s = reg.create("solver", solver, **(solver_options or {}))
     return b, f, s
+
+
+def check_names(scene: Scene, registry: Registry, backend: str, formulation: str,
+                solver: str | None) -> str:
+    """Check the three HF component names before any meshing (unknown names list the valid
+    ones; a friction law the formulation or the solver does not declare is refused) and
+    return the solver (``None``: :func:`default_solver` for the scene's friction law)."""
+    check_friction_support(scene, registry.get("formulation", formulation))
+    if solver is None:
+        solver = default_solver(formulation, registry, friction_of(scene).law)
+    for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):
+        registry.get(role, name)
+    check_friction_support(scene, registry.get("solver", solver), formulation, registry)
+    return solver
 
 
 def check_friction_support(scene: Scene, spec: Any, formulation: str | None = None,
