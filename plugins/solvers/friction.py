@@ -7,11 +7,6 @@ measured from the tangential jump at the end of the previous one (``ut_prev``), 
 step is warm-started from the multipliers of the previous one. A step that does not
 converge stops the sequence (its stop reason is the result's).
 
-Scaling: the law solvers see ``D / d`` and ``d x`` (``d`` the mean diagonal of ``D``, a
-Tresca threshold ``d s``): the physical ``D`` is tiny (m^2 / Pa), and the pattern systems of
-the direct Coulomb solve mix identity rows with rows of ``D``, which made them look
-singular. The relative residuals and the node states do not change.
-
 * ``friction-ssn``: Tresca by the primal-dual active set (:func:`pdas_tresca`); Coulomb
   directly on the wedge (:func:`coulomb_direct`, ``method="direct"``) or by the seed's
   fixed point on Tresca (:func:`coulomb_fixed_point`, ``method="fixed_point"``); a slip
@@ -38,9 +33,6 @@ from rbbench.hf import friction_solvers as fs
 from rbbench.hf import lcp
 from rbbench.interfaces import ContactProblem, FrictionProblem, Solver, SolveResult
 
-#: per-node arrays of ``SolveResult.info`` (kept out of the summary's ``solver_info``)
-ARRAY_INFO = ("lam_t", "states", "slip", "ut_prev", "coefficient")
-
 
 def scaled_law(name: str, node_weights: np.ndarray) -> fa.CoefficientLaw:
     """The slip law ``name`` of the weighted jump ``Bt u``: ``F(t / int phi_i)``, so that
@@ -65,8 +57,6 @@ class _Condensed:
                        else np.zeros((problem.A.shape[0], 0)))
         D = np.asarray(B @ self.AinvBt)
         self.D = 0.5 * (D + D.T)
-        dm = float(np.mean(np.diag(self.D))) if self.D.size else 1.0
-        self.scale = dm if np.isfinite(dm) and dm > 0 else 1.0
         self.t_factor, self.t_condense = t1 - t0, time.perf_counter() - t1
 
     def step(self, step: Any, ut_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -89,12 +79,6 @@ def _warm(warm_start: np.ndarray | None, m: int) -> np.ndarray | None:
                      "(lam_n, lam_t)")
 
 
-def _unscale(r: fa.FrictionResult, k: float) -> fa.FrictionResult:
-    """The multipliers of the scaled problem (``D / k``) back in physical units."""
-    r.lam_n, r.lam_t = r.lam_n / k, r.lam_t / k
-    return r
-
-
 def _step_record(r: fa.FrictionResult) -> dict:
     return {"iterations": int(r.iterations), "stop_reason": r.stop_reason,
             "residual": float(r.residuals["max"])}
@@ -113,16 +97,14 @@ def _law_info(r: fa.FrictionResult) -> dict:
 
 def solve_steps(problem: FrictionProblem, run: Callable[..., fa.FrictionResult],
                 warm_start: np.ndarray | None = None) -> SolveResult:
-    """Solve the load steps of ``problem`` in order with ``run(D, q, ut_prev, x0, k)``
-    (``k``: the scale of ``D``, thresholds are multiplied by it)."""
+    """Solve the load steps of ``problem`` in order with ``run(D, q, ut_prev, x0)``."""
     cond = _Condensed(problem)
     m = problem.n_nodes
     x, ut_prev = _warm(warm_start, m), np.zeros(m)
     records, history, t0 = [], [], time.perf_counter()
     for k, step in enumerate(problem.steps):
         u0, q = cond.step(step, ut_prev)
-        k = cond.scale
-        r = _unscale(run(cond.D / k, q, ut_prev, None if x is None else x * k, k), k)
+        r = run(cond.D, q, ut_prev, x)
         records.append(_step_record(r))
         history = [float(h) for h in r.history]
         u_free = u0 - cond.AinvBt @ r.x if np.all(np.isfinite(r.x)) else np.full_like(u0, np.nan)
@@ -180,15 +162,14 @@ class FrictionSSNSolver(_FrictionSolver):
     def _runner(self, problem: FrictionProblem) -> Callable[..., fa.FrictionResult]:
         kw = {"max_iter": self.max_iter, "tol": self.tol}
         if problem.law == "tresca":
-            return lambda D, q, ut, x0, k: fs.pdas_tresca(D, q, problem.threshold * k, lam0=x0,
-                                                       **kw)
+            return lambda D, q, ut, x0: fs.pdas_tresca(D, q, problem.threshold, lam0=x0, **kw)
         if problem.coefficient_law is not None:
             law = scaled_law(problem.coefficient_law, problem.node_weights)
             inner = fs.coulomb_direct if self.method == "direct" else fs.coulomb_fixed_point
-            return lambda D, q, ut, x0, k: fs.coulomb_model_b(D, q, law, ut_prev=ut, inner=inner,
-                                                              **kw)
+            return lambda D, q, ut, x0: fs.coulomb_model_b(D, q, law, ut_prev=ut, inner=inner,
+                                                           **kw)
         solve = fs.coulomb_direct if self.method == "direct" else fs.coulomb_fixed_point
-        return lambda D, q, ut, x0, k: solve(D, q, problem.coefficient, lam0=x0, **kw)
+        return lambda D, q, ut, x0: solve(D, q, problem.coefficient, lam0=x0, **kw)
 
 
 class FrictionUzawaSolver(_FrictionSolver):
@@ -207,13 +188,13 @@ class FrictionUzawaSolver(_FrictionSolver):
 
     def _runner(self, problem: FrictionProblem) -> Callable[..., fa.FrictionResult]:
         if problem.law == "tresca":
-            return lambda D, q, ut, x0, k: self._uzawa(D, q, s=problem.threshold * k, lam0=x0)
+            return lambda D, q, ut, x0: self._uzawa(D, q, s=problem.threshold, lam0=x0)
         if problem.coefficient_law is not None:
             law = scaled_law(problem.coefficient_law, problem.node_weights)
 
             def inner(D, q, F, lam0=None):
                 return self._uzawa(D, q, F=F, lam0=lam0)
 
-            return lambda D, q, ut, x0, k: fs.coulomb_model_b(D, q, law, ut_prev=ut, inner=inner,
-                                                              tol=self.tol)
-        return lambda D, q, ut, x0, k: self._uzawa(D, q, F=problem.coefficient, lam0=x0)
+            return lambda D, q, ut, x0: fs.coulomb_model_b(D, q, law, ut_prev=ut, inner=inner,
+                                                           tol=self.tol)
+        return lambda D, q, ut, x0: self._uzawa(D, q, F=problem.coefficient, lam0=x0)

@@ -40,7 +40,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.optimize import lsq_linear
 
-from rbbench.hf.lcp import Condensed, condense
+from rbbench.hf.lcp import Condensed, _scaling, condense
 from rbbench.interfaces import Factorize
 
 #: names of the per-condition residuals reported by every friction solver
@@ -131,6 +131,17 @@ def node_array(value: float | np.ndarray, m: int, name: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)) or np.any(arr < 0):
         raise ValueError(f"{name} must be finite and >= 0, got min {arr.min()!r}")
     return arr
+
+
+def delassus_scale(D: np.ndarray) -> float:
+    """The mean diagonal of ``D`` (1 when it is not finite and > 0): its order of magnitude.
+
+    The physical ``D`` is tiny (m^2 / Pa, ~1e-13); a system or tableau that mixes rows of
+    ``D`` with rows of order one (the Coulomb pattern systems, Lemke's tableau) is scaled by
+    it, else it looks singular.
+    """
+    d = float(np.mean(np.diag(D))) if D.size else 1.0
+    return d if math.isfinite(d) and d > 0 else 1.0
 
 
 def scales(D: np.ndarray, q: np.ndarray, x: np.ndarray) -> tuple[float, float]:
@@ -269,7 +280,7 @@ def uzawa_friction(D: np.ndarray, q: np.ndarray, s: float | np.ndarray | None = 
     F_arr = None if F is None else node_array(F, m, "F")
     lmax = float(sla.eigvalsh(D, subset_by_index=[2 * m - 1, 2 * m - 1])[0]) if m else 1.0
     rho = omega / lmax if lmax > 0 else 1.0
-    c = 1.0 / float(np.mean(np.diag(D))) if m and np.mean(np.diag(D)) > 0 else 1.0
+    c = _scaling(D)
     x = np.zeros(2 * m) if lam0 is None else _project(np.asarray(lam0, float), m, s_arr, F_arr)
     history: list[float] = []
     best, best_it, it, reason = math.inf, 0, 0, "max_iterations"
@@ -295,9 +306,6 @@ def uzawa_friction(D: np.ndarray, q: np.ndarray, s: float | np.ndarray | None = 
         elif it - best_it > stall_window:
             reason = "stagnation"
             break
-        x_new = x - rho * w
-        lam_n = np.maximum(x_new[:m], 0.0)
-        thr = s_arr if s_arr is not None else F_arr * lam_n
-        x = np.concatenate([lam_n, np.clip(x_new[m:], -thr, thr)])
+        x = _project(x - rho * w, m, s_arr, F_arr)
     thr = s_arr if s_arr is not None else F_arr * x[:m]
     return finish(D, q, x, thr, it, reason, history, {"rho": rho})

@@ -20,7 +20,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from rbbench.hf.friction_algebra import FrictionResult, check_problem, finish, node_array
+from rbbench.hf.friction_algebra import (
+    FrictionResult,
+    check_problem,
+    delassus_scale,
+    finish,
+    node_array,
+)
 
 
 def coulomb_lcp(D: np.ndarray, q: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -81,16 +87,22 @@ def coulomb_lemke(D: np.ndarray, q: np.ndarray, F: float | np.ndarray,
 
     ``iterations`` counts pivots. Converged when every residual is ``<= tol max(1, F)``;
     a secondary ray or the pivot cap stop with ``"stagnation"`` / ``"max_iterations"``.
+    The tableau mixes ``D`` with identity blocks under an absolute pivot tolerance: a ``D``
+    far from order one (mean diagonal outside ``[1e-6, 1e6]``, e.g. physical, ~1e-13
+    m^2 / Pa) is divided by its mean diagonal (:func:`delassus_scale`); an order-one ``D``
+    is taken as given (the pivot path, hence a secondary ray, depends on that scaling).
     """
     m = check_problem(D, q)
     F = node_array(F, m, "F")
-    M, r = coulomb_lcp(D, q, F)
+    k = delassus_scale(D)
+    k = k if not 1e-6 <= k <= 1e6 else 1.0  # see the docstring
+    M, r = coulomb_lcp(D / k, q, F)
     z, pivots, status = lemke(M, r)
     if z is None:
         reason = "stagnation" if status == "ray" else "max_iterations"
         return finish(D, q, np.zeros(2 * m), np.zeros(m), pivots, reason, [],
                       {"why": f"lemke: {status}"})
-    x = np.concatenate([z[:m], z[m:2 * m] - z[2 * m:3 * m]])
+    x = np.concatenate([z[:m], z[m:2 * m] - z[2 * m:3 * m]]) / k
     res = finish(D, q, x, F * x[:m], pivots, "converged", [], {"lemke": status})
     if res.residuals["max"] > tol * max(1.0, float(F.max(initial=0.0))):
         res.stop_reason = "stagnation"

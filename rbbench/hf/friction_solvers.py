@@ -33,6 +33,7 @@ from rbbench.hf.friction_algebra import (
     FrictionResult,
     box_bounds,
     check_problem,
+    delassus_scale,
     finish,
     friction_residuals,
     node_array,
@@ -145,20 +146,27 @@ def pdas_tresca(D: np.ndarray, q: np.ndarray, s: float | np.ndarray,
 
 # --------------------------------------------------------------------------- Coulomb
 
-def _increment_monitor(increments: list[float], window: int) -> str | None:
+def _increment_monitor(increments: list[float], window: int, what: str,
+                       info: dict) -> str | None:
     """``"diverged"`` if increments grew 1e6-fold, ``"stagnation"`` if no progress over
-    ``window`` iterations, else ``None``."""
+    ``window`` iterations (``info["why"]`` names the ``what`` increments), else ``None``."""
+    bad = None
     if not math.isfinite(increments[-1]):
-        return "nan"
-    if len(increments) > 2 and increments[-1] > 1e6 * max(increments[0], 1e-300):
-        return "diverged"
-    if len(increments) > window and min(increments[-window:]) >= min(increments[:-window]):
-        return "stagnation"
-    return None
+        bad = "nan"
+    elif len(increments) > 2 and increments[-1] > 1e6 * max(increments[0], 1e-300):
+        bad = "diverged"
+    elif len(increments) > window and min(increments[-window:]) >= min(increments[:-window]):
+        bad = "stagnation"
+    if bad:
+        info["why"] = f"{what} increments: {bad} (no contraction)"
+    return bad
 
 
-def _ratios(increments: list[float]) -> list[float]:
-    return [b / a if a > 0 else 0.0 for a, b in zip(increments[:-1], increments[1:], strict=True)]
+def _record_contraction(info: dict, increments: list[float]) -> None:
+    """``info["ratios"]`` of successive increments, ``info["contraction"]`` the last one."""
+    info["ratios"] = [b / a if a > 0 else 0.0
+                      for a, b in zip(increments[:-1], increments[1:], strict=True)]
+    info["contraction"] = info["ratios"][-1] if info["ratios"] else 0.0
 
 
 def coulomb_fixed_point(D: np.ndarray, q: np.ndarray, F: float | np.ndarray,
@@ -193,12 +201,11 @@ def coulomb_fixed_point(D: np.ndarray, q: np.ndarray, F: float | np.ndarray,
         if increments[-1] <= tol and res <= 10 * tol:
             reason = "converged"
             break
-        bad = _increment_monitor(increments, window)
+        bad = _increment_monitor(increments, window, "iterate", info)
         if bad:
-            reason, info["why"] = bad, f"iterate increments: {bad} (no contraction)"
+            reason = bad
             break
-    info["ratios"] = _ratios(increments)
-    info["contraction"] = info["ratios"][-1] if info["ratios"] else 0.0
+    _record_contraction(info, increments)
     return finish(D, q, x, F * x[:m], it, reason, increments, info)
 
 
@@ -207,14 +214,16 @@ def _coulomb_system(D: np.ndarray, q: np.ndarray, F: np.ndarray,
     """The linear system of one node pattern (non-symmetric on slipping nodes).
 
     open: ``lam_n = lam_t = 0``; stick: ``w_n = w_t = 0``; slip+-: ``w_n = 0``,
-    ``lam_t -+ F lam_n = 0``.
+    ``lam_t -+ F lam_n = 0``; the rows on multipliers times :func:`delassus_scale`, of the
+    order of the rows of ``D`` (a physical ``D`` made the system look singular).
     """
     m = F.size
     idx = np.arange(m)
+    k = delassus_scale(D)
     M, r = np.zeros((2 * m, 2 * m)), np.zeros(2 * m)
     contact = pattern != OPEN
-    M[idx[~contact], idx[~contact]] = 1.0
-    M[m + idx[~contact], m + idx[~contact]] = 1.0
+    M[idx[~contact], idx[~contact]] = k
+    M[m + idx[~contact], m + idx[~contact]] = k
     M[idx[contact]] = D[idx[contact]]
     r[idx[contact]] = -q[idx[contact]]
     st = idx[pattern == STICK]
@@ -222,8 +231,8 @@ def _coulomb_system(D: np.ndarray, q: np.ndarray, F: np.ndarray,
     r[m + st] = -q[m + st]
     for code, sign in ((SLIP_PLUS, 1.0), (SLIP_MINUS, -1.0)):
         sl = idx[pattern == code]
-        M[m + sl, m + sl] = 1.0
-        M[m + sl, sl] = -sign * F[sl]
+        M[m + sl, m + sl] = k
+        M[m + sl, sl] = -sign * F[sl] * k
     return M, r
 
 
@@ -367,12 +376,11 @@ def coulomb_model_b(D: np.ndarray, q: np.ndarray, law: CoefficientLaw = SEED001,
         if increments[-1] <= tol:
             reason = "converged"
             break
-        bad = _increment_monitor(increments, window)
+        bad = _increment_monitor(increments, window, "coefficient", info)
         if bad:
-            reason, info["why"] = bad, f"coefficient increments: {bad} (no contraction)"
+            reason = bad
             break
-    info["ratios"] = _ratios(increments)
-    info["contraction"] = info["ratios"][-1] if info["ratios"] else 0.0
+    _record_contraction(info, increments)
     info["coefficient"] = Fk
     if law.df is not None and x is not None:
         ut = ut_prev + slip(D, q, x[:m], x[m:])
