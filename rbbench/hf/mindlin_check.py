@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.references import hertz_2d, mindlin_from_hertz
+from rbbench.hf.references import hertz_of_bodies, mindlin_from_hertz
 
 #: definitions of the ``mindlin`` block of ``summary.json``
 MINDLIN_DEFINITION = (
@@ -120,9 +120,7 @@ def mindlin_metrics(c: Any, lam_t: np.ndarray, states: np.ndarray, P: float, Q: 
         reason = f"|Q| = {abs(Q)!r} >= F P = {coefficient * P!r}: full sliding"
     if reason is not None:
         return {**out, "c_theory": None, "reason": reason}
-    upper, lower = bodies[0], bodies[1] if len(bodies) > 1 else None
-    h = hertz_2d(P, geometry["R1"], geometry["R2"], upper.E, upper.nu,
-                 lower.E if lower else None, lower.nu if lower else None)
+    h = hertz_of_bodies(P, geometry, bodies)
     m = mindlin_from_hertz(h, abs(Q), coefficient)
     sign = 1.0 if Q >= 0 else -1.0
     return {**out, "a": h.a, "p0": h.p0, "R_star": h.R_star, "a_over_R_star": h.a / h.R_star,

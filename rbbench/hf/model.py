@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.mindlin_check import MINDLIN_DEFINITION, mindlin_metrics
-from rbbench.hf.references import hertz_2d
+from rbbench.hf.references import hertz_of_bodies
 from rbbench.interfaces import (
     ContactProblem,
     Discretization,
@@ -106,14 +106,18 @@ def check_friction_support(scene: Scene, spec: Any, formulation: str | None = No
 
 def _solvers_for(formulation: str, registry: Registry, law: str) -> list[str]:
     """The solvers a formulation declares whose ``capabilities["friction"]`` hold ``law``."""
-    names = registry.get("formulation", formulation).capabilities.get("solvers") or ("ssn",)
     out = []
-    for name in names:
+    for name in _declared_solvers(formulation, registry):
         if name in registry.names("solver"):
             laws = registry.get("solver", name).capabilities.get("friction", ("none",))
             if law in laws:
                 out.append(str(name))
     return out
+
+
+def _declared_solvers(formulation: str, registry: Registry) -> tuple:
+    """A formulation's ``capabilities["solvers"]`` (``("ssn",)`` when it declares none)."""
+    return registry.get("formulation", formulation).capabilities.get("solvers") or ("ssn",)
 
 
 def friction_at(scene: Scene, mu: Any) -> FrictionLaw | None:
@@ -141,12 +145,8 @@ def default_solver(formulation: str, registry: Registry | None = None,
     mixed, ``newton`` for Nitsche; for a friction ``law``, the first that declares it
     (``friction-ssn`` for mixed), else the first declared (refused later, naming the law)."""
     reg = registry or default_registry()
-    solvers = reg.get("formulation", formulation).capabilities.get("solvers") or ("ssn",)
-    if law != "none":
-        ok = _solvers_for(formulation, reg, law)
-        if ok:
-            return ok[0]
-    return str(solvers[0])
+    ok = _solvers_for(formulation, reg, law) if law != "none" else []
+    return ok[0] if ok else str(_declared_solvers(formulation, reg)[0])
 
 
 class ProblemCache:
@@ -244,7 +244,7 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
     c = disc.contact
     lam = res.lam
     u = res.u
-    B, G, basis, extent = _normal_operators(prob, c)
+    B, G, basis, extent = normal_operators(prob, c)
     s = G - B @ u  # weighted gap per multiplier
     support = np.asarray(basis.T @ c.weights).ravel()  # int phi_i
     lam_q = np.asarray(basis @ lam).ravel()
@@ -292,14 +292,11 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
     }
     if disc.physics == "elasticity":
         geo = disc.info["geometry"]
-        E1, nu1 = disc.bodies[0].E, disc.bodies[0].nu
-        lower = disc.bodies[1] if len(disc.bodies) > 1 else None
         m["material"] = {b.name: {"E": b.E, "nu": b.nu} for b in disc.bodies}
         m["material"]["plane_strain"] = True
         m["radii"] = {"R1": geo["R1"], "R2": geo["R2"]}
         if sol.scene.data["reference"]["hertz"] and force > 0:
-            h = hertz_2d(force, geo["R1"], geo["R2"], E1, nu1,
-                         lower.E if lower else None, lower.nu if lower else None)
+            h = hertz_of_bodies(force, geo, disc.bodies)
             m["hertz"] = {
                 "P": h.P, "R_star": h.R_star, "E_star": h.E_star, "a": h.a, "p0": h.p0,
                 "a_rel_error": (half_width - h.a) / h.a,
@@ -328,7 +325,7 @@ def _mindlin_block(sol: HFSolution, m: dict[str, Any]) -> dict[str, Any]:
 _ARRAY_INFO = ("lam_t", "states", "slip", "ut_prev", "coefficient")
 
 
-def _normal_operators(prob: Any, c: Any) -> tuple[Any, np.ndarray, Any, np.ndarray]:
+def normal_operators(prob: Any, c: Any) -> tuple[Any, np.ndarray, Any, np.ndarray]:
     """``(B, G, basis, extent)`` of the normal multipliers: the scene's multiplier space, or
     for a :class:`FrictionProblem` the P1 friction nodes (``B_nodal``, ``G_nodal``, ``Mt``,
     the hat supports ``[x_{i-1}, x_{i+1}]`` of the collocation nodes along the chain)."""

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.model import HFSolution
+from rbbench.hf.model import HFSolution, normal_operators
 from rbbench.interfaces import FrictionProblem
 from rbbench.provenance import _jsonable, provenance
 
@@ -34,32 +34,24 @@ def write_summary(sol: HFSolution, out: Path) -> Path:
 
 
 def contact_table(sol: HFSolution) -> dict[str, np.ndarray]:
-    """Per-multiplier table: position, pressure, initial and final mean gaps; for a friction
-    solve, per P1 friction node (:func:`friction_table`)."""
-    if isinstance(sol.problem, FrictionProblem):
-        return friction_table(sol)
-    c = sol.disc.contact
-    support = np.asarray(c.Mlam.T @ c.weights).ravel()
-    G = c.G()
-    s_final = G - c.B() @ sol.result.u
-    return {"x": c.mult_points[:, 0], "y": c.mult_points[:, 1], "pressure": sol.result.lam,
-            "gap_initial": G / support, "gap": s_final / support}
-
-
-def friction_table(sol: HFSolution) -> dict[str, np.ndarray]:
-    """Per friction node (collocation node ``C(mu)``): position, ``lam_n`` (pressure),
-    ``lam_t``, initial and final mean gaps, the mean slip of the last load step
-    ``(Bt u - ut_prev)_i / int phi_i`` (m) and the node's state (open / stick / slip)."""
+    """Per multiplier: position, pressure, initial and final mean gaps; for a friction solve,
+    per P1 friction node (collocation node ``C(mu)``), also ``lam_t``, the mean slip of the
+    last load step ``(Bt u - ut_prev)_i / int phi_i`` (m) and the node's state (open / stick
+    / slip). The operators are those of ``contact_metrics`` (:func:`normal_operators`)."""
     c, info = sol.disc.contact, sol.result.info
-    support = np.asarray(c.Mt.T @ c.weights).ravel()
-    G = c.G_nodal()
-    s_final = G - c.B_nodal() @ sol.result.u
+    friction = isinstance(sol.problem, FrictionProblem)
+    B, G, basis, _ = normal_operators(sol.problem, c)
+    support = np.asarray(basis.T @ c.weights).ravel()
     n = support.size
-    return {"x": c.colloc_points[:, 0], "y": c.colloc_points[:, 1], "pressure": sol.result.lam,
-            "lam_t": np.asarray(info.get("lam_t", np.full(n, np.nan)), float),
-            "gap_initial": G / support, "gap": s_final / support,
-            "slip": np.asarray(info.get("slip", np.full(n, np.nan)), float) / support,
-            "state": np.asarray(info.get("states", ["nan"] * n), dtype=object)}
+    pts = c.colloc_points if friction else c.mult_points
+    table = {"x": pts[:, 0], "y": pts[:, 1], "pressure": sol.result.lam}
+    if friction:
+        table["lam_t"] = np.asarray(info.get("lam_t", np.full(n, np.nan)), float)
+    table.update(gap_initial=G / support, gap=(G - B @ sol.result.u) / support)
+    if friction:
+        table["slip"] = np.asarray(info.get("slip", np.full(n, np.nan)), float) / support
+        table["state"] = np.asarray(info.get("states", ["nan"] * n), dtype=object)
+    return table
 
 
 _UNITS = {"x": "m", "y": "m", "pressure": "Pa", "lam_t": "Pa", "gap_initial": "m", "gap": "m",

@@ -20,6 +20,12 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 
+def _half_ellipse(x: np.ndarray, a: float, peak: float) -> np.ndarray:
+    """``peak sqrt(1 - x^2/a^2)`` on ``|x| <= a``, 0 outside."""
+    x = np.asarray(x, dtype=float)
+    return peak * np.sqrt(np.clip(1.0 - (x / a) ** 2, 0.0, None))
+
+
 @dataclass
 class Hertz2D:
     P: float  # load per unit thickness (N/m)
@@ -29,8 +35,7 @@ class Hertz2D:
     p0: float
 
     def pressure(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
-        return self.p0 * np.sqrt(np.clip(1.0 - (x / self.a) ** 2, 0.0, None))
+        return _half_ellipse(x, self.a, self.p0)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -76,16 +81,21 @@ class Mindlin2D:
     c: float
 
     def shear_traction(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
-        full = self.F * self.p0 * np.sqrt(np.clip(1.0 - (x / self.a) ** 2, 0.0, None))
+        full = _half_ellipse(x, self.a, self.F * self.p0)
         if self.c <= 0.0:
             return full
-        stick = self.F * self.p0 * (self.c / self.a) * np.sqrt(
-            np.clip(1.0 - (x / self.c) ** 2, 0.0, None))
-        return full - stick
+        return full - _half_ellipse(x, self.c, self.F * self.p0 * (self.c / self.a))
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+
+def hertz_of_bodies(P: float, geometry: dict, bodies: list) -> Hertz2D:
+    """:func:`hertz_2d` at ``P`` for the radii ``geometry["R1"]``, ``geometry["R2"]`` and
+    the materials (``.E``, ``.nu``) of the upper body and, if any, the lower one."""
+    upper, lower = bodies[0], bodies[1] if len(bodies) > 1 else None
+    return hertz_2d(P, geometry["R1"], geometry["R2"], upper.E, upper.nu,
+                    lower.E if lower else None, lower.nu if lower else None)
 
 
 def mindlin_2d(P: float, Q: float, F: float, a: float, p0: float) -> Mindlin2D:
