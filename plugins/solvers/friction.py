@@ -30,7 +30,6 @@ from rbbench_plugins.solvers.condensed import SemismoothNewtonSolver, UzawaSolve
 
 from rbbench.hf import friction_algebra as fa
 from rbbench.hf import friction_solvers as fs
-from rbbench.hf import lcp
 from rbbench.interfaces import ContactProblem, FrictionProblem, Solver, SolveResult
 
 
@@ -44,24 +43,20 @@ def scaled_law(name: str, node_weights: np.ndarray) -> fa.CoefficientLaw:
 
 
 class _Condensed:
-    """One factorisation of ``A``, ``A^{-1} B^T`` and ``D`` for all load steps."""
+    """One factorisation of ``A``, ``A^{-1} B^T`` and ``D`` for all load steps
+    (:func:`rbbench.hf.friction_algebra.condense_friction` at the first step)."""
 
     def __init__(self, problem: FrictionProblem) -> None:
-        t0 = time.perf_counter()
-        self.solve = (problem.factorize(problem.A) if problem.factorize is not None
-                      else lcp.factorize(problem.A).solve)
-        t1 = time.perf_counter()
+        first = problem.steps[0]
+        self.c = fa.condense_friction(problem.A, first.F, problem.Bn, problem.Bt, first.Gn,
+                                      -first.ut_lift, factorize=problem.factorize)
         self.Bn, self.Bt = sp.csr_matrix(problem.Bn), sp.csr_matrix(problem.Bt)
-        B = sp.vstack([self.Bn, self.Bt]).tocsr()
-        self.AinvBt = (self.solve(np.asarray(B.T.toarray())) if B.shape[0]
-                       else np.zeros((problem.A.shape[0], 0)))
-        D = np.asarray(B @ self.AinvBt)
-        self.D = 0.5 * (D + D.T)
-        self.t_factor, self.t_condense = t1 - t0, time.perf_counter() - t1
+        self.AinvBt, self.D = self.c.AinvBt, self.c.D
+        self.t_factor, self.t_condense = self.c.t_factor, self.c.t_condense
 
     def step(self, step: Any, ut_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(u0, q)`` of a load step: ``q = [Gn - Bn u0; ut_prev - ut_lift - Bt u0]``."""
-        u0 = self.solve(np.asarray(step.F, float))
+        u0 = self.c.solve(np.asarray(step.F, float))
         q = np.concatenate([step.Gn - self.Bn @ u0, ut_prev - step.ut_lift - self.Bt @ u0])
         return u0, q
 

@@ -41,6 +41,7 @@ class Condensed:
     q: np.ndarray  # G - B u0
     t_factor: float
     t_condense: float
+    solve: Callable[[np.ndarray], np.ndarray] | None = None  # A^{-1}, for further loads
 
     def displacement(self, lam: np.ndarray) -> np.ndarray:
         return self.u0 - self.AinvBt @ lam
@@ -73,7 +74,7 @@ def condense(A: sp.spmatrix, F: np.ndarray, B: sp.spmatrix, G: np.ndarray,
     D = np.asarray(B @ AinvBt)
     D = 0.5 * (D + D.T)
     q = np.asarray(G - B @ u0).ravel()
-    return Condensed(u0, AinvBt, D, q, t1 - t0, time.perf_counter() - t1)
+    return Condensed(u0, AinvBt, D, q, t1 - t0, time.perf_counter() - t1, solve)
 
 
 def natural_residual(D: np.ndarray, q: np.ndarray, lam: np.ndarray, c: float) -> float:
