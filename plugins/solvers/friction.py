@@ -79,10 +79,10 @@ def _step_record(r: fa.FrictionResult) -> dict:
             "residual": float(r.residuals["max"])}
 
 
-def _law_info(r: fa.FrictionResult) -> dict:
+def _law_info(info: dict) -> dict:
     """The JSON-friendly scalars of a law solver's own info (contraction, fallbacks...)."""
     out = {}
-    for k, v in r.info.items():
+    for k, v in info.items():
         if isinstance(v, (str, bool, int, float, np.floating, np.integer)):
             out[k] = v.item() if isinstance(v, (np.floating, np.integer)) else v
         elif k == "ratios":
@@ -108,7 +108,7 @@ def solve_steps(problem: FrictionProblem, run: Callable[..., fa.FrictionResult],
         x, ut_prev = r.x, np.asarray(cond.Bt @ u_free).ravel() + step.ut_lift
     u = step.u_lift.copy()
     u[problem.free] = u_free
-    info = {**_law_info(r), "law": problem.law, "n_contact_unknowns": int(2 * m),
+    info = {**_law_info(r.info), "law": problem.law, "n_contact_unknowns": int(2 * m),
             "load_steps": records, "steps_solved": len(records),
             "friction_residuals": dict(r.residuals),
             "lam_t": r.lam_t, "states": list(r.states), "ut_prev": ut_prev,
@@ -119,6 +119,43 @@ def solve_steps(problem: FrictionProblem, run: Callable[..., fa.FrictionResult],
              "lcp_s": time.perf_counter() - t0}
     return SolveResult(u=u, lam=r.lam_n, iterations=sum(s["iterations"] for s in records),
                        stop_reason=r.stop_reason, residuals=history, times=times, info=info)
+
+
+def tresca_runner(problem: FrictionProblem, tresca: Callable[..., fa.FrictionResult],
+                  tol: float = 1e-10) -> Callable[..., fa.FrictionResult]:
+    """The :func:`solve_steps` runner of ``problem`` around one Tresca solve
+    ``tresca(D, q, s, lam0=x0)`` (the box QP of :mod:`rbbench.hf.friction_algebra`).
+
+    Tresca: ``tresca`` itself; Coulomb: the seed's fixed point on Tresca
+    (:func:`~rbbench.hf.friction_solvers.coulomb_fixed_point` with ``tresca`` inside);
+    model B: the fixed point on the coefficient around that one. The scalar ``info`` of the
+    last Tresca solve is copied into the result's ``info`` under ``"inner_<key>"``.
+    """
+    last: dict = {}
+
+    def inner(D, q, s, lam0=None):
+        r = tresca(D, q, s, lam0=lam0)
+        last.clear()
+        last.update(r.info)
+        return r
+
+    def tagged(r: fa.FrictionResult) -> fa.FrictionResult:
+        if problem.law != "tresca":
+            r.info.update({f"inner_{k}": v for k, v in _law_info(last).items()})
+        return r
+
+    if problem.law == "tresca":
+        return lambda D, q, ut, x0: inner(D, q, problem.threshold, lam0=x0)
+    if problem.coefficient_law is not None:
+        law = scaled_law(problem.coefficient_law, problem.node_weights)
+
+        def coulomb(D, q, F, lam0=None):
+            return fs.coulomb_fixed_point(D, q, F, lam0=lam0, tol=tol, tresca=inner)
+
+        return lambda D, q, ut, x0: tagged(fs.coulomb_model_b(D, q, law, ut_prev=ut,
+                                                              inner=coulomb, tol=tol))
+    return lambda D, q, ut, x0: tagged(fs.coulomb_fixed_point(
+        D, q, problem.coefficient, lam0=x0, tol=tol, tresca=inner))
 
 
 class _FrictionSolver(Solver):

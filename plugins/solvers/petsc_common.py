@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from rbbench.interfaces import ContactProblem, Solver, SolveResult
+from rbbench.hf import friction_algebra as fa
+from rbbench.interfaces import ContactProblem, FrictionProblem, Solver, SolveResult
 
 __all__ = ["kkt_errors", "map_reason", "petsc"]
 
@@ -217,6 +218,23 @@ def _aij(PETSc: Any, M: sp.csr_matrix) -> Any:
                                       M.data.astype(PETSc.ScalarType)))
 
 
+def scaled_qp(D: np.ndarray, q: np.ndarray) -> tuple[float, np.ndarray, float, np.ndarray,
+                                                      float]:
+    """``(c, c D, sigma, q / sigma, ||q / sigma||)``: the QP ``1/2 x^T D x + q^T x`` in the
+    scaled unknowns ``mu = x / (c sigma)``, ``c = 1 / mean(diag D)``, ``sigma = max|q|``.
+
+    Its gradient is ``(D x + q) / sigma``: unit-mean Hessian diagonal, unit data (TAO's
+    trust region and SNES VI's "at the bound" test use absolute numbers).
+    """
+    d = np.diag(D)
+    c = 1.0 / float(np.mean(d)) if d.size and np.mean(d) > 0 else 1.0
+    Ds = np.ascontiguousarray(c * D)
+    sigma = float(np.abs(q).max(initial=0.0))
+    sigma = sigma if sigma > 0 else 1.0
+    qs = q / sigma
+    return c, Ds, sigma, qs, max(float(np.linalg.norm(qs)), _TINY)
+
+
 def _vec(PETSc: Any, values: np.ndarray) -> Any:
     v = PETSc.Vec().createSeq(len(values), comm=PETSc.COMM_SELF)
     v.setArray(np.asarray(values, dtype=PETSc.ScalarType))
@@ -249,15 +267,48 @@ class _PetscSolver(Solver):
             reason = map_reason(info["petsc_reason"])
         return _finish(reason, kkt_errors(problem, u, lam), self.kkt_tol, info)
 
-    def _run(self, obj: Any, solve: Callable[[], Any], t0: float) -> tuple[float, float]:
-        """``obj.setFromOptions()`` with :attr:`petsc_options` set under :attr:`prefix` (for
-        this run only), then ``solve()``: ``(seconds since t0 to the solve, solve seconds)``."""
-        with _Options(self.prefix, self.petsc_options):
+    def _run(self, obj: Any, solve: Callable[[], Any], t0: float,
+             defaults: dict[str, Any] | None = None) -> tuple[float, float]:
+        """``obj.setFromOptions()`` with ``defaults`` and :attr:`petsc_options` (which win)
+        set under :attr:`prefix` (for this run only), then ``solve()``: ``(seconds since t0
+        to the solve, solve seconds)``."""
+        with _Options(self.prefix, {**(defaults or {}), **self.petsc_options}):
             obj.setFromOptions()
             t_setup = time.perf_counter() - t0
             ts = time.perf_counter()
             solve()
             return t_setup, time.perf_counter() - ts
+
+    def tresca(self, D: np.ndarray, q: np.ndarray, s: float | np.ndarray,
+               lam0: np.ndarray | None = None) -> fa.FrictionResult:
+        """The condensed Tresca problem (box QP of :mod:`rbbench.hf.friction_algebra`)."""
+        raise NotImplementedError  # pragma: no cover - each PETSc solver defines it
+
+    def solve_friction(self, problem: FrictionProblem,
+                       warm_start: np.ndarray | None = None) -> SolveResult:
+        """A :class:`FrictionProblem` over its load steps
+        (:func:`rbbench_plugins.solvers.friction.solve_steps`): Tresca by :meth:`tresca`,
+        Coulomb by the seed's fixed point on it, model B by the fixed point on the
+        coefficient around that (:func:`~rbbench_plugins.solvers.friction.tresca_runner`)."""
+        from rbbench_plugins.solvers.friction import solve_steps, tresca_runner
+
+        return solve_steps(problem, tresca_runner(problem, self.tresca), warm_start)
+
+    def _tresca_result(self, D: np.ndarray, q: np.ndarray, x: np.ndarray, s: np.ndarray,
+                       code: int | None, its: int, history: list[float],
+                       info: dict[str, Any]) -> fa.FrictionResult:
+        """Pack a PETSc Tresca run (:func:`rbbench.hf.friction_algebra.finish`): the stop
+        reason as in :meth:`_stop_reason`, a "converged" whose largest friction residual
+        exceeds :attr:`kkt_tol` demoted to ``"stagnation"``."""
+        finite = bool(np.all(np.isfinite(x)))
+        reason = "diverged" if code is None else "nan" if not finite \
+            else map_reason(info["petsc_reason"])
+        r = fa.finish(D, q, x, s, its, reason, history, info)
+        if r.stop_reason == "converged" and not r.residuals["max"] <= self.kkt_tol:
+            r.stop_reason = "stagnation"
+            info["why"] = (f"PETSc reported {info['petsc_reason']} but the friction residual "
+                           f"{r.residuals['max']:.3e} exceeds kkt_tol = {self.kkt_tol:g}")
+        return r
 
     @staticmethod
     def _failed(exc: Exception, t0: float, info: dict[str, Any]) -> tuple[float, float]:

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 from rbbench_plugins.solvers.petsc_common import (
-    _TINY,
     _check_warm,
     _choice,
     _finish,
@@ -20,30 +19,17 @@ from rbbench_plugins.solvers.petsc_common import (
     _vec,
     kkt_errors,
     petsc,
+    scaled_qp,
 )
 
+from rbbench.hf import friction_algebra as fa
 from rbbench.hf import lcp
-from rbbench.interfaces import ContactProblem, SolveResult
+from rbbench.interfaces import ContactProblem, FrictionProblem, SolveResult
 
 __all__ = ["TAO_TYPES", "PetscTaoSolver"]
 
 #: TAO types offered by :class:`PetscTaoSolver` (bound-constrained QP solvers).
 TAO_TYPES = ("tron", "gpcg")
-
-
-def _scaled_dual(cond: lcp.Condensed) -> tuple[float, np.ndarray, float, np.ndarray, float]:
-    """``(c, c D, sigma, q / sigma, ||q / sigma||)``: the dual QP in the scaled unknowns
-    ``mu = lam / (c sigma)`` (:class:`PetscTaoSolver`)."""
-    d = np.diag(cond.D)
-    c = 1.0 / float(np.mean(d)) if np.mean(d) > 0 else 1.0
-    Ds = np.ascontiguousarray(c * cond.D)
-    # normalise the data too (max|q| = 1): TAO's trust-region radius and line search
-    # have absolute defaults; the problem is linear, mu scales with q
-    sigma = float(np.abs(cond.q).max(initial=0.0))
-    sigma = sigma if sigma > 0 else 1.0
-    q = cond.q / sigma
-    qnorm = max(float(np.linalg.norm(q)), _TINY)
-    return c, Ds, sigma, q, qnorm
 
 
 def _tao_callbacks(Ds: np.ndarray, q: np.ndarray, qnorm: float, counts: dict[str, int],
@@ -125,12 +111,14 @@ class PetscTaoSolver(_PetscSolver):
         self.max_iter = int(max_iter)
         self.pc_type = str(pc_type)
 
-    def solve(self, problem: ContactProblem, warm_start: np.ndarray | None = None) -> SolveResult:
+    def solve(self, problem: ContactProblem | FrictionProblem,
+              warm_start: np.ndarray | None = None) -> SolveResult:
         """Solve the contact problem; see the class docstring.
 
         Parameters
         ----------
-        problem : ContactProblem
+        problem : ContactProblem or FrictionProblem
+            A friction problem goes to :meth:`solve_friction` (:meth:`tresca` per step).
         warm_start : (m,) ndarray, optional
             Initial multipliers (clipped at 0).
 
@@ -139,6 +127,8 @@ class PetscTaoSolver(_PetscSolver):
         SolveResult
             ``info["petsc_reason"]`` holds the TAO converged reason.
         """
+        if isinstance(problem, FrictionProblem):
+            return self.solve_friction(problem, warm_start)
         if not _finite_problem(problem, warm_start):
             return _nan_result(problem, "non-finite data or warm start")
         m = problem.B.shape[0]
@@ -151,36 +141,13 @@ class PetscTaoSolver(_PetscSolver):
             return self._no_contact(problem, cond, times, info)
         PETSc = petsc()
         t0 = time.perf_counter()
-        c, Ds, sigma, q, qnorm = _scaled_dual(cond)
-        H = PETSc.Mat().createDense((m, m), array=Ds.copy(order="F"), comm=PETSc.COMM_SELF)
-        H.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        H.assemble()
-        x = _vec(PETSc, np.zeros(m) if lam0 is None else lam0 / (c * sigma))
-        lo = _vec(PETSc, np.zeros(m))
-        hi = _vec(PETSc, np.full(m, PETSc.INFINITY))
-        counts = {"objective": 0}
-        history: list[float] = []
-        objective_gradient, hessian, monitor = _tao_callbacks(Ds, q, qnorm, counts, history)
-
-        tao = PETSc.TAO().create(comm=PETSc.COMM_SELF)
-        try:
-            tao.setOptionsPrefix(self.prefix)
-            tao.setType(self.tao_type)
-            tao.setObjectiveGradient(objective_gradient, None)
-            tao.setHessian(hessian, H, H)
-            tao.setVariableBounds((lo, hi))
-            tao.setSolution(x)
-            self._configure(tao, monitor, qnorm, m)
-            t_setup, t_solve = self._run(tao, tao.solve, t0)
-            code, its = self._outcome(PETSc, tao, qnorm, counts, info)
-            mu = x.getArray().copy()
-        except PETSc.Error as exc:
-            t_setup, t_solve = self._failed(exc, t0, info)
-            code, its, mu = None, 0, np.full(m, np.nan)
-        finally:
-            for obj in (tao, H, x, lo, hi):
-                obj.destroy()
-
+        # normalise the data too (max|q| = 1): TAO's trust-region radius and line search
+        # have absolute defaults; the problem is linear, mu scales with q
+        qp = scaled_qp(cond.D, cond.q)
+        c, sigma = qp[0], qp[2]
+        mu0 = np.zeros(m) if lam0 is None else lam0 / (c * sigma)
+        code, its, mu, history, t_setup, t_solve = self._tao(
+            PETSc, qp, mu0, (np.zeros(m), np.full(m, PETSc.INFINITY)), info, t0)
         lam = (c * sigma) * mu
         tr = time.perf_counter()
         u = cond.displacement(lam)
@@ -202,6 +169,67 @@ class PetscTaoSolver(_PetscSolver):
         return SolveResult(u=problem.expand(u), lam=np.zeros(0), iterations=0,
                            stop_reason=reason, residuals=[0.0],
                            times={**times, "tao_s": 0.0}, info=info)
+
+    def tresca(self, D: np.ndarray, q: np.ndarray, s: float | np.ndarray,
+               lam0: np.ndarray | None = None) -> fa.FrictionResult:
+        """Condensed Tresca friction by TAO: the box QP ``min 1/2 x^T D x + q^T x``,
+        ``lam_n >= 0``, ``|lam_t| <= s`` of :mod:`rbbench.hf.friction_algebra`, scaled as the
+        contact dual (:func:`~rbbench_plugins.solvers.petsc_common.scaled_qp`), bounds
+        ``[0, inf) x [-s, s] / (c sigma)``. The stop reason is PETSc's
+        (``info["petsc_reason"]``), checked on the friction residuals (``kkt_tol``).
+        """
+        m = fa.check_problem(D, q)
+        s = fa.node_array(s, m, "s")
+        data = [D, q] if lam0 is None else [D, q, np.asarray(lam0, float)]
+        if not all(np.all(np.isfinite(a)) for a in data):
+            return fa.finish(D, q, np.full(2 * m, np.nan), s, 0, "nan", [],
+                             {"petsc_reason": "not run", "why": "non-finite data"})
+        PETSc, t0 = petsc(), time.perf_counter()
+        qp = scaled_qp(D, q)
+        k = qp[0] * qp[2]
+        lo, hi = (np.clip(b / k, PETSc.NINFINITY, PETSc.INFINITY) for b in fa.box_bounds(s))
+        mu0 = np.zeros(2 * m) if lam0 is None else np.clip(lam0 / k, lo, hi)
+        info: dict[str, Any] = {"tao_type": self.tao_type, "scale_data": k}
+        code, its, mu, history, _, info["tao_s"] = self._tao(PETSc, qp, mu0, (lo, hi), info,
+                                                             t0)
+        return self._tresca_result(D, q, k * mu, s, code, its, history, info)
+
+    def _tao(self, PETSc: Any, qp: tuple, mu0: np.ndarray,
+             bounds: tuple[np.ndarray, np.ndarray], info: dict[str, Any], t0: float
+             ) -> tuple[int | None, int, np.ndarray, list[float], float, float]:
+        """Run TAO on the scaled QP ``qp`` (:func:`scaled_qp`) from ``mu0`` within ``bounds``.
+
+        Returns ``(reason code or None after a PETSc error, iterations, mu, history,
+        setup seconds, solve seconds)``; every PETSc object is destroyed.
+        """
+        _, Ds, _, q, qnorm = qp
+        m = mu0.size
+        H = PETSc.Mat().createDense((m, m), array=Ds.copy(order="F"), comm=PETSc.COMM_SELF)
+        H.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        H.assemble()
+        x, lo, hi = _vec(PETSc, mu0), _vec(PETSc, bounds[0]), _vec(PETSc, bounds[1])
+        counts = {"objective": 0}
+        history: list[float] = []
+        objective_gradient, hessian, monitor = _tao_callbacks(Ds, q, qnorm, counts, history)
+        tao = PETSc.TAO().create(comm=PETSc.COMM_SELF)
+        try:
+            tao.setOptionsPrefix(self.prefix)
+            tao.setType(self.tao_type)
+            tao.setObjectiveGradient(objective_gradient, None)
+            tao.setHessian(hessian, H, H)
+            tao.setVariableBounds((lo, hi))
+            tao.setSolution(x)
+            self._configure(tao, monitor, qnorm, m)
+            t_setup, t_solve = self._run(tao, tao.solve, t0)
+            code, its = self._outcome(PETSc, tao, qnorm, counts, info)
+            mu = x.getArray().copy()
+        except PETSc.Error as exc:
+            t_setup, t_solve = self._failed(exc, t0, info)
+            code, its, mu = None, 0, np.full(m, np.nan)
+        finally:
+            for obj in (tao, H, x, lo, hi):
+                obj.destroy()
+        return code, its, mu, history, t_setup, t_solve
 
     def _configure(self, tao: Any, monitor: Callable[[Any], None], qnorm: float,
                    m: int) -> None:

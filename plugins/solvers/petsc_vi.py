@@ -22,10 +22,12 @@ from rbbench_plugins.solvers.petsc_common import (
     _reason_name,
     _vec,
     petsc,
+    scaled_qp,
 )
 
+from rbbench.hf import friction_algebra as fa
 from rbbench.hf import lcp
-from rbbench.interfaces import ContactProblem, SolveResult
+from rbbench.interfaces import ContactProblem, FrictionProblem, SolveResult
 
 __all__ = ["ORDERINGS", "SNES_TYPES", "PetscVISolver"]
 
@@ -33,6 +35,10 @@ __all__ = ["ORDERINGS", "SNES_TYPES", "PetscVISolver"]
 SNES_TYPES = ("vinewtonrsls", "vinewtonssls")
 #: Fill-reducing orderings of the stiffness block (PETSc ``MatOrderingType``).
 ORDERINGS = ("qmd", "nd", "rcm", "1wd")
+#: ``-snes_vi_zero_tolerance`` of the Tresca solve: ``x_i`` counts as at its bound only when
+#: it is (PETSc's default 1e-8 left lam_t within 1e-8 of a moving bound: the seed's fixed
+#: point on Tresca then stalled at a friction residual of 1e-8 on mindlin_cylinders)
+VI_ZERO_TOL = 0.0
 
 
 @dataclass
@@ -97,11 +103,33 @@ def _initial_point(kkt: _KKT, A: sp.csr_matrix, B: sp.csr_matrix, F: np.ndarray,
     return x0, t_warm
 
 
+def _refill(csr: tuple[Any, Any, Any], counts: dict[str, int]) -> Callable[..., None]:
+    """SNES Jacobian callback of a constant matrix (PETSc CSR arrays ``csr``)."""
+    indptr, indices, data = csr
+
+    def jacobian(snes: Any, xv: Any, Jm: Any, Pm: Any) -> None:
+        counts["jacobian"] += 1
+        # the Jacobian is constant, but vinewtonssls overwrites the matrix in place
+        # with its semismooth Jacobian: refill it at every evaluation
+        Pm.zeroEntries()
+        Pm.setValuesCSR(indptr, indices, data)
+        Pm.assemble()
+
+    return jacobian
+
+
+def _csr(PETSc: Any, K: sp.csr_matrix) -> tuple[Any, Any, Any]:
+    """PETSc CSR arrays of ``K`` (indices sorted)."""
+    K = sp.csr_matrix(K)
+    K.sort_indices()
+    return (K.indptr.astype(PETSc.IntType), K.indices.astype(PETSc.IntType),
+            K.data.astype(PETSc.ScalarType))
+
+
 def _kkt_callbacks(kkt: _KKT, csr: tuple[Any, Any, Any], dtol: float, counts: dict[str, int]
                    ) -> tuple[Callable[..., None], Callable[..., None]]:
     """SNES ``(residual, jacobian)`` of the KKT system; ``csr`` = PETSc arrays of ``K``."""
     K, rhs, n, m, r = kkt.K, kkt.rhs, kkt.n, kkt.m, kkt.r
-    indptr, indices, data = csr
     absB, absG = abs(kkt.Bp).tocsr(), np.abs(rhs[n:])
 
     def residual(snes: Any, xv: Any, fv: Any) -> None:
@@ -117,15 +145,7 @@ def _kkt_callbacks(kkt: _KKT, csr: tuple[Any, Any, Any], dtol: float, counts: di
             f[n:][flat] = np.maximum(np.abs(f[n:][flat]), _SUBNORMAL)
         fv.setArray(f)
 
-    def jacobian(snes: Any, xv: Any, Jm: Any, Pm: Any) -> None:
-        counts["jacobian"] += 1
-        # the Jacobian is constant, but vinewtonssls overwrites the matrix in place
-        # with its semismooth Jacobian: refill it at every evaluation
-        Pm.zeroEntries()
-        Pm.setValuesCSR(indptr, indices, data)
-        Pm.assemble()
-
-    return residual, jacobian
+    return residual, _refill(csr, counts)
 
 
 class PetscVISolver(_PetscSolver):
@@ -235,12 +255,14 @@ class PetscVISolver(_PetscSolver):
         self.pivot_shift = float(pivot_shift)
         self.degenerate_tol = float(degenerate_tol)
 
-    def solve(self, problem: ContactProblem, warm_start: np.ndarray | None = None) -> SolveResult:
+    def solve(self, problem: ContactProblem | FrictionProblem,
+              warm_start: np.ndarray | None = None) -> SolveResult:
         """Solve the contact problem; see the class docstring.
 
         Parameters
         ----------
-        problem : ContactProblem
+        problem : ContactProblem or FrictionProblem
+            A friction problem goes to :meth:`solve_friction` (:meth:`tresca` per step).
         warm_start : (m,) ndarray, optional
             Multipliers to start from (clipped at 0); the initial displacement
             is then ``A^{-1} (F - B^T lam)`` (one extra factorisation of ``A``).
@@ -250,6 +272,8 @@ class PetscVISolver(_PetscSolver):
         SolveResult
             ``info["petsc_reason"]`` holds the SNES converged reason.
         """
+        if isinstance(problem, FrictionProblem):
+            return self.solve_friction(problem, warm_start)
         if not _finite_problem(problem, warm_start):
             return _nan_result(problem, "non-finite data or warm start")
         PETSc = petsc()
@@ -261,45 +285,99 @@ class PetscVISolver(_PetscSolver):
         n, m, K = kkt.n, kkt.m, kkt.K
         x0, t_warm = _initial_point(kkt, A, B, problem.F, lam0)
 
-        csr = (K.indptr.astype(PETSc.IntType), K.indices.astype(PETSc.IntType),
-               K.data.astype(PETSc.ScalarType))
-        J = PETSc.Mat().createAIJ(size=K.shape, comm=PETSc.COMM_SELF, csr=csr)
-        x = _vec(PETSc, x0)
-        fvec = x.duplicate()
-        lo = _vec(PETSc, np.r_[np.full(n, PETSc.NINFINITY), np.zeros(m)])
-        hi = _vec(PETSc, np.full(n + m, PETSc.INFINITY))
+        csr = _csr(PETSc, K)
         counts = {"function": 0, "jacobian": 0, "degenerate": 0}
-        residual, jacobian = _kkt_callbacks(kkt, csr, self.degenerate_tol, counts)
-
-        snes = PETSc.SNES().create(comm=PETSc.COMM_SELF)
+        callbacks = _kkt_callbacks(kkt, csr, self.degenerate_tol, counts)
         info: dict[str, Any] = {"snes_type": self.snes_type, "ordering": self.ordering,
                                 "scale_lam": kkt.t, "scale_rows": kkt.r, "scale_data": kkt.sigma,
                                 "n_kkt": n + m,
                                 "n_contact_unknowns": m, "kkt_nnz": int(K.nnz),
                                 "options_prefix": self.prefix}
+        lo = np.r_[np.full(n, PETSc.NINFINITY), np.zeros(m)]
+        code, its, hist, xs, t_setup, t_solve = self._snes(
+            PETSc, csr, x0, (lo, np.full(n + m, PETSc.INFINITY)), callbacks,
+            (kkt.data_norm, kkt.amax), counts, info, t0)
+        # not "setup_s" / "solve_s": contact_metrics merges these into the HF driver's times
+        times = {"kkt_setup_s": t_setup, "warm_start_s": t_warm, "snes_s": t_solve}
+        return self._result(problem, kkt, xs, code, its, hist, info, times)
+
+    def tresca(self, D: np.ndarray, q: np.ndarray, s: float | np.ndarray,
+               lam0: np.ndarray | None = None) -> fa.FrictionResult:
+        """Condensed Tresca friction by SNES VI: the box QP ``min 1/2 x^T D x + q^T x``,
+        ``lam_n >= 0``, ``|lam_t| <= s`` of :mod:`rbbench.hf.friction_algebra` as the mixed
+        complementarity problem ``R(mu) = (c D) mu + q / sigma`` (the scaled gradient,
+        :func:`~rbbench_plugins.solvers.petsc_common.scaled_qp`; ``x = c sigma mu``) with
+        bounds ``[0, inf) x [-s, s] / (c sigma)``. Same SNES type, tolerances, line search
+        and LU as the contact solve (no ordering: ``D`` is dense). The stop reason is
+        PETSc's (``info["petsc_reason"]``), checked on the friction residuals (``kkt_tol``).
+        """
+        m = fa.check_problem(D, q)
+        s = fa.node_array(s, m, "s")
+        data = [D, q] if lam0 is None else [D, q, np.asarray(lam0, float)]
+        if not all(np.all(np.isfinite(a)) for a in data):
+            return fa.finish(D, q, np.full(2 * m, np.nan), s, 0, "nan", [],
+                             {"petsc_reason": "not run", "why": "non-finite data"})
+        PETSc, t0 = petsc(), time.perf_counter()
+        c, Ds, sigma, qs, qnorm = scaled_qp(D, q)
+        lo, hi = (np.clip(b / (c * sigma), PETSc.NINFINITY, PETSc.INFINITY)
+                  for b in fa.box_bounds(s))
+        y0 = np.zeros(2 * m) if lam0 is None else np.clip(lam0 / (c * sigma), lo, hi)
+        csr = _csr(PETSc, sp.csr_matrix(Ds))
+        counts = {"function": 0, "jacobian": 0, "degenerate": 0}
+
+        def residual(snes: Any, yv: Any, fv: Any) -> None:
+            counts["function"] += 1
+            fv.setArray(Ds @ yv.getArray(readonly=True) + qs)
+
+        info: dict[str, Any] = {"snes_type": self.snes_type, "scale_data": c * sigma}
+        amax = float(np.abs(Ds).max(initial=0.0)) or 1.0
+        code, its, hist, ys, _, t_solve = self._snes(
+            PETSc, csr, y0, (lo, hi), (residual, _refill(csr, counts)), (qnorm, amax), counts,
+            info, t0, {"snes_vi_zero_tolerance": VI_ZERO_TOL})
+        info["snes_s"] = t_solve
+        history = (hist[: its + 1] / qnorm).tolist() if hist.size else []
+        return self._tresca_result(D, q, (c * sigma) * ys, s, code, its, history, info)
+
+    def _snes(self, PETSc: Any, csr: tuple[Any, Any, Any], x0: np.ndarray,
+              bounds: tuple[np.ndarray, np.ndarray], callbacks: tuple[Callable[..., None], ...],
+              scales: tuple[float, float], counts: dict[str, int], info: dict[str, Any],
+              t0: float, options: dict[str, Any] | None = None
+              ) -> tuple[int | None, int, np.ndarray, np.ndarray, float, float]:
+        """Run SNES VI on ``R(x) >=< 0`` with bounds (``R``, Jacobian: ``callbacks``, the
+        Jacobian's PETSc CSR arrays ``csr``; ``scales = (||data||, max|J|)``; ``options``:
+        PETSc options for this run, under :attr:`petsc_options`).
+
+        Returns ``(reason code or None after a PETSc error, iterations, residual history,
+        x, setup seconds, solve seconds)``; every PETSc object is destroyed.
+        """
+        residual, jacobian = callbacks
+        n = x0.size
+        J = PETSc.Mat().createAIJ(size=(n, n), comm=PETSc.COMM_SELF, csr=csr)
+        x = _vec(PETSc, x0)
+        fvec = x.duplicate()
+        lo, hi = _vec(PETSc, bounds[0]), _vec(PETSc, bounds[1])
+        snes = PETSc.SNES().create(comm=PETSc.COMM_SELF)
         try:
             snes.setOptionsPrefix(self.prefix)
             snes.setType(self.snes_type)
             snes.setFunction(residual, fvec)
             snes.setJacobian(jacobian, J, J)
             snes.setVariableBounds(lo, hi)
-            self._configure(PETSc, snes, kkt)
-            t_setup, t_solve = self._run(snes, lambda: snes.solve(None, x), t0)
+            self._configure(PETSc, snes, *scales)
+            t_setup, t_solve = self._run(snes, lambda: snes.solve(None, x), t0, options)
             code, its, hist = self._outcome(PETSc, snes, counts, info)
             xs = x.getArray().copy()
         except PETSc.Error as exc:
             t_setup, t_solve = self._failed(exc, t0, info)
-            code, its, hist, xs = None, 0, np.zeros(0), np.full(n + m, np.nan)
+            code, its, hist, xs = None, 0, np.zeros(0), np.full(n, np.nan)
         finally:
             for obj in (snes, J, x, fvec, lo, hi):
                 obj.destroy()
-        # not "setup_s" / "solve_s": contact_metrics merges these into the HF driver's times
-        times = {"kkt_setup_s": t_setup, "warm_start_s": t_warm, "snes_s": t_solve}
-        return self._result(problem, kkt, xs, code, its, hist, info, times)
+        return code, its, hist, xs, t_setup, t_solve
 
-    def _configure(self, PETSc: Any, snes: Any, kkt: _KKT) -> None:
+    def _configure(self, PETSc: Any, snes: Any, data_norm: float, amax: float) -> None:
         """Tolerances, line search and the inner sparse LU (class docstring)."""
-        snes.setTolerances(rtol=self.rtol, atol=max(self.atol * kkt.data_norm, _TINY),
+        snes.setTolerances(rtol=self.rtol, atol=max(self.atol * data_norm, _TINY),
                            stol=self.stol, max_it=self.max_iter)
         snes.setConvergenceHistory(length=self.max_iter + 1)
         if self.linesearch is not None:
@@ -311,7 +389,7 @@ class PetscVISolver(_PetscSolver):
         pc.setFactorSolverType("petsc")
         pc.setFactorOrdering("natural")
         if self.pivot_shift > 0:
-            pc.setFactorShift(PETSc.Mat.FactorShiftType.NONZERO, self.pivot_shift * kkt.amax)
+            pc.setFactorShift(PETSc.Mat.FactorShiftType.NONZERO, self.pivot_shift * amax)
 
     @staticmethod
     def _outcome(PETSc: Any, snes: Any, counts: dict[str, int], info: dict[str, Any]

@@ -171,9 +171,13 @@ def _record_contraction(info: dict, increments: list[float]) -> None:
 
 def coulomb_fixed_point(D: np.ndarray, q: np.ndarray, F: float | np.ndarray,
                         lam0: np.ndarray | None = None, max_iter: int = 200,
-                        tol: float = 1e-10, window: int = 20) -> FrictionResult:
-    """The seed's fixed point: Tresca with ``s = F lam_n^k`` (:func:`pdas_tresca`) until
+                        tol: float = 1e-10, window: int = 20,
+                        tresca: Callable[..., FrictionResult] = pdas_tresca) -> FrictionResult:
+    """The seed's fixed point: Tresca with ``s = F lam_n^k`` until
     ``||x^{k+1} - x^k||_inf <= tol * fscale`` and the Coulomb residuals are ``<= 10 tol``.
+
+    ``tresca(D, q, s, lam0=x)`` solves each Tresca problem (:func:`pdas_tresca`, or any
+    solver of the box QP, e.g. PETSc's SNES VI).
 
     ``info["ratios"]`` holds the ratios of successive increments (the contraction;
     ``info["contraction"]`` is the last one), ``info["inner_iterations"]`` the PDAS total.
@@ -188,7 +192,7 @@ def coulomb_fixed_point(D: np.ndarray, q: np.ndarray, F: float | np.ndarray,
     reason, it = "max_iterations", 0
     while it < max_iter:
         it += 1
-        inner = pdas_tresca(D, q, F * np.maximum(x[:m], 0.0), lam0=x)
+        inner = tresca(D, q, F * np.maximum(x[:m], 0.0), lam0=x)
         info["inner_iterations"] += inner.iterations
         if inner.stop_reason != "converged":
             reason, info["why"] = inner.stop_reason, f"inner Tresca solve: {inner.stop_reason}"
