@@ -44,7 +44,9 @@ def _fmt(v) -> str:
 def print_summary(m: dict, mu: dict) -> None:
     keys = ["n_dofs", "n_contact", "n_active", "iterations", "stop_reason", "final_residual",
             "solve_time_s", "contact_force", "contact_half_width", "max_pressure",
-            "complementarity", "penetration_max", "zone_saturated", "e_ac"]
+            "complementarity", "penetration_max", "zone_saturated", "e_ac",
+            "tangential_force", "n_stick", "n_slip", "n_open", "stick_half_width",
+            "friction_residual"]
     print("mu: " + ", ".join(f"{k} = {v:g}" for k, v in mu.items()))
     for k in keys:
         if k in m:
@@ -56,11 +58,27 @@ def print_summary(m: dict, mu: dict) -> None:
               f"rel. error {100 * h['a_rel_error']:+.2f} %")
         print(f"    p0  = {h['p0']:.6g} Pa  computed {m['max_pressure']:.6g} Pa  "
               f"rel. error {100 * h['p0_rel_error']:+.2f} %")
+    _print_mindlin(m.get("mindlin"))
     reason = (m.get("solver_info") or {}).get("reason")
     if reason and m.get("stop_reason") != "converged":
         print(f"  reason: {reason}")
     if m.get("zone_saturated"):
         print("  WARNING: the contact patch reaches the edge of the potential contact zone")
+
+
+def _print_mindlin(b: dict | None) -> None:
+    """The Cattaneo-Mindlin lines of a friction solve (``summary.json`` ``mindlin``)."""
+    if not b:
+        return
+    if b.get("c_theory") is None:
+        print(f"  Cattaneo-Mindlin: not applicable ({b.get('reason')})")
+        return
+    print(f"  Cattaneo-Mindlin at the computed P = {b['P']:.6g} N/m, Q = {b['Q']:.6g} N/m "
+          f"(Q / F P = {b['Q_over_FP']:.3f}):")
+    print(f"    c   = {b['c_theory']:.6g} m   computed {b['c']:.6g} m   "
+          f"rel. error {100 * b['c_rel_error']:+.2f} %")
+    print(f"    shear traction: relative L2(-a, a) error {100 * b['traction_l2_rel_error']:.2f} "
+          f"% (even part {100 * b['traction_l2_rel_error_even']:.2f} %)")
 
 
 def _backend_options(items: list[str] | None, flag: str = "--backend-option") -> dict:

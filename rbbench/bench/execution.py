@@ -191,6 +191,8 @@ def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) ->
     row.update(n_hf_dofs=m["n_dofs"], n_contact=m["n_contact"],
                contact_force=m["contact_force"], hf_iterations=m["iterations"],
                t_hf_median_s=float(np.median(times)))
+    row.update({k: m[k] for k in ("tangential_force", "n_stick", "n_slip", "friction_residual")
+                if k in m})
     if not sol.result.converged:
         row.update(status="diverged", reason=f"HF solver stopped: {sol.result.stop_reason}")
     elif not np.isfinite(m["contact_force"]):

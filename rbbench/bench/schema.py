@@ -91,6 +91,12 @@ COLUMNS: tuple[Column, ...] = (
     _c("contact_force", "float", "accuracy", "N/m", "mode hf: total normal contact force per "
        "unit thickness at the scene's default mu (rbbench.hf.model contact_force)"),
     _c("hf_iterations", "int", "accuracy", "", "mode hf: iterations of the HF VI solver"),
+    _c("tangential_force", "float", "accuracy", "N/m", "mode hf, friction scenes: total "
+       "tangential force per unit thickness (sum of lam_t times the friction node weights)"),
+    _c("n_stick", "int", "accuracy", "", "mode hf, friction scenes: stick collocation nodes"),
+    _c("n_slip", "int", "accuracy", "", "mode hf, friction scenes: slip collocation nodes"),
+    _c("friction_residual", "float", "accuracy", "1", "mode hf, friction scenes: max of the "
+       "relative stick and slip residuals of the HF solution (rbbench.hf.model)"),
     # accuracy
     _c("err_u_max", "float", "accuracy", "1", _ERR_U + ", max " + _VALID),
     _c("err_u_mean", "float", "accuracy", "1", _ERR_U + ", mean " + _VALID),

@@ -120,20 +120,77 @@ def write_vtu(sol: HFSolution, out: Path) -> Path:
     return path
 
 
-def write_png(sol: HFSolution, out: Path) -> Path:
-    """Deformed mesh coloured by stress (or the membrane), and pressure vs Hertz."""
-    import matplotlib
+def _draw_pressure(ax: Any, table: dict, m: dict) -> None:
+    """Pressure (multiplier) along x, centred at the pressure centroid, against 2D Hertz."""
+    order = np.argsort(table["x"])
+    x = table["x"][order] - float(np.sum(table["x"] * table["pressure"])
+                                  / max(np.sum(table["pressure"]), 1e-300))
+    ax.step(x, table["pressure"][order], where="mid", label="computed (multiplier)")
+    if "hertz" in m:
+        h = m["hertz"]
+        xs = np.linspace(-1.3 * h["a"], 1.3 * h["a"], 400)
+        ax.plot(xs, h["p0"] * np.sqrt(np.clip(1 - (xs / h["a"]) ** 2, 0, None)), "r--",
+                label=f"2D Hertz at P = {h['P']:.3g} N/m")
+        ax.set_xlim(-1.5 * h["a"], 1.5 * h["a"])
+        ax.set_title(f"pressure: a err {100 * h['a_rel_error']:+.2f} %, "
+                     f"p0 err {100 * h['p0_rel_error']:+.2f} %")
+    ax.set_xlabel("x (m), centred")
+    ax.set_ylabel("normal pressure (Pa)")
+    ax.legend()
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def _draw_friction(ax: Any, sol: HFSolution, table: dict) -> None:
+    """The seed's friction figure: ``lam_t`` and ``+- F lam_n`` per friction node, stick
+    nodes marked; with a ``mindlin`` block, the Cattaneo-Mindlin shear traction ``q(x)``
+    (compared as ``sign(Q) lam_t t_x``, :mod:`rbbench.hf.mindlin_check`)."""
+    m = sol.metrics
+    order = np.argsort(table["x"])
+    x, lam_t, lam_n = table["x"][order], table["lam_t"][order], table["pressure"][order]
+    coef = sol.result.info.get("coefficient", getattr(sol.problem, "coefficient", None))
+    label = "F lam_n"
+    if coef is None:  # Tresca: the threshold
+        coef, label = getattr(sol.problem, "threshold", None), "s"
+        bound = None if coef is None else np.asarray(coef, float)[order] * (lam_n > 0)
+    else:
+        bound = np.asarray(coef, float)[order] * lam_n
+    ax.plot(x, lam_t, "b.-", ms=3, lw=0.8, label="lam_t (multiplier)")
+    if bound is not None:
+        ax.plot(x, bound, "k:", lw=1, label=f"+/- {label}")
+        ax.plot(x, -bound, "k:", lw=1)
+    stick = np.asarray(table["state"])[order] == "stick"
+    ax.plot(x[stick], lam_t[stick], "go", ms=3, mfc="none", label="stick nodes")
+    mind = m.get("mindlin") or {}
+    if mind.get("c_theory") is not None:
+        from rbbench.hf.references import mindlin_2d
+
+        th = mindlin_2d(mind["P"], abs(mind["Q"]), mind["F"], mind["a"], mind["p0"])
+        xs = np.linspace(-1.2 * th.a, 1.2 * th.a, 600)
+        sign = 1.0 if mind["Q"] >= 0 else -1.0
+        ax.plot(xs, sign * th.shear_traction(xs), "r--",
+                label=f"Cattaneo-Mindlin q(x), c = {th.c:.3g} m")
+        ax.set_xlim(-1.5 * th.a, 1.5 * th.a)
+        ax.set_title(f"shear traction: c err {100 * mind['c_rel_error']:+.2f} %, "
+                     f"L2 err {100 * mind['traction_l2_rel_error']:.2f} %")
+    else:
+        act = lam_n > 0
+        if act.any():
+            w = float(np.ptp(x[act]))
+            ax.set_xlim(x[act].min() - 0.25 * w, x[act].max() + 0.25 * w)
+        ax.set_title(f"friction ({sol.problem.law}): {m.get('n_stick')} stick, "
+                     f"{m.get('n_slip')} slip nodes")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("tangential multiplier (Pa)")
+    ax.legend(fontsize=8)
+
+
+def _draw_bodies(axes: Any, fig: Any, sol: HFSolution, table: dict) -> None:
+    """Deformed bodies coloured by von Mises stress (whole and zoomed on the contact), or
+    the membrane and its contact set."""
     from matplotlib.tri import Triangulation
 
-    table = contact_table(sol)
-    fig, axes = plt.subplots(1, 3, figsize=(16, 5))
     m = sol.metrics
     if sol.disc.physics == "elasticity":
-        vmax = 0.0
-        cols = []
+        vmax, cols = 0.0, []
         for body in sol.disc.bodies:
             vals = _vertex_values(sol, body)
             vm = von_mises(body.points, body.triangles, vals, body.E, body.nu)
@@ -153,40 +210,42 @@ def write_png(sol: HFSolution, out: Path) -> Path:
         axes[0].set_title("deformed configuration (scale 1), von Mises stress")
         axes[1].set_title("contact zone (zoom)")
         fig.colorbar(pc, ax=axes[1], label="von Mises stress (Pa)")
-    else:
-        body = sol.disc.bodies[0]
-        tri = Triangulation(*body.points.T, body.triangles)
-        pc = axes[0].tripcolor(tri, _vertex_values(sol, body)[:, 0], shading="gouraud")
-        fig.colorbar(pc, ax=axes[0], label="u")
-        axes[0].set_title("membrane displacement u")
-        act = table["pressure"] > 0
-        axes[1].scatter(table["x"][act], table["y"][act], s=8, c=table["pressure"][act])
-        axes[1].set_xlim(0, 1)
-        axes[1].set_ylim(0, 1)
-        axes[1].set_title("contact set (coloured by multiplier)")
-        for ax in axes[:2]:
-            ax.set_aspect("equal")
-    ax = axes[2]
+        return
+    body = sol.disc.bodies[0]
+    tri = Triangulation(*body.points.T, body.triangles)
+    pc = axes[0].tripcolor(tri, _vertex_values(sol, body)[:, 0], shading="gouraud")
+    fig.colorbar(pc, ax=axes[0], label="u")
+    axes[0].set_title("membrane displacement u")
+    act = table["pressure"] > 0
+    axes[1].scatter(table["x"][act], table["y"][act], s=8, c=table["pressure"][act])
+    axes[1].set_xlim(0, 1)
+    axes[1].set_ylim(0, 1)
+    axes[1].set_title("contact set (coloured by multiplier)")
+    for ax in axes[:2]:
+        ax.set_aspect("equal")
+
+
+def write_png(sol: HFSolution, out: Path) -> Path:
+    """Deformed mesh coloured by stress (or the membrane), pressure vs Hertz and, for a
+    friction solve, the tangential multiplier against ``F lam_n`` and Cattaneo-Mindlin."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = contact_table(sol)
+    friction = "lam_t" in table
+    fig, axes = plt.subplots(1, 4 if friction else 3, figsize=(21 if friction else 16, 5))
+    m = sol.metrics
+    _draw_bodies(axes, fig, sol, table)
     if sol.disc.physics == "elasticity":
-        order = np.argsort(table["x"])
-        x = table["x"][order] - float(np.sum(table["x"] * table["pressure"])
-                                      / max(np.sum(table["pressure"]), 1e-300))
-        ax.step(x, table["pressure"][order], where="mid", label="computed (multiplier)")
-        if "hertz" in m:
-            h = m["hertz"]
-            xs = np.linspace(-1.3 * h["a"], 1.3 * h["a"], 400)
-            ax.plot(xs, h["p0"] * np.sqrt(np.clip(1 - (xs / h["a"]) ** 2, 0, None)), "r--",
-                    label=f"2D Hertz at P = {h['P']:.3g} N/m")
-            ax.set_xlim(-1.5 * h["a"], 1.5 * h["a"])
-            ax.set_title(f"pressure: a err {100 * h['a_rel_error']:+.2f} %, "
-                         f"p0 err {100 * h['p0_rel_error']:+.2f} %")
-        ax.set_xlabel("x (m), centred")
-        ax.set_ylabel("normal pressure (Pa)")
-        ax.legend()
+        _draw_pressure(axes[2], table, m)
     else:
-        ax.hist(table["pressure"][table["pressure"] > 0], bins=30)
-        ax.set_xlabel("multiplier (active nodes)")
-        ax.set_title("multiplier distribution")
+        axes[2].hist(table["pressure"][table["pressure"] > 0], bins=30)
+        axes[2].set_xlabel("multiplier (active nodes)")
+        axes[2].set_title("multiplier distribution")
+    if friction:
+        _draw_friction(axes[3], sol, table)
     mu_txt = ", ".join(f"{k} = {v:g}" for k, v in sol.scene.mu_dict(sol.mu).items())
     fig.suptitle(f"{sol.scene.name}: {mu_txt}; {m['n_dofs']} dofs, {m['stop_reason']} "
                  f"in {m['iterations']} iterations")

@@ -37,7 +37,8 @@ _ROW_COLUMNS = ("scene", "backend", "formulation", "solver", "primal", "dual", "
                 "hyper_used", "params", "n_hf_dofs", "n_contact", "N", "R", "S", "M_eim",
                 "repetition", "status", "err_u_max", "err_lam_max", "lam_best_max",
                 "penetration_max", "beta_dec_min", "beta_on_min", "beta_off_min",
-                "contact_force", "hf_iterations", "t_hf_median_s", "t_offline_s",
+                "contact_force", "tangential_force", "n_stick", "n_slip",
+                "friction_residual", "hf_iterations", "t_hf_median_s", "t_offline_s",
                 "t_online_median_s", "speedup", "case_id")
 _TITLES = {"pareto": "Error against online time (Pareto fronts)",
            "error_vs_size": "Error against RB size", "infsup": "Inf-sup constants",
