@@ -179,10 +179,14 @@ class _FrictionSolver(Solver):
 class FrictionSSNSolver(_FrictionSolver):
     """Active set / semismooth Newton for friction (Tresca: PDAS; Coulomb: ``method``
     ``"direct"`` on the wedge or ``"fixed_point"`` on Tresca; model B: fixed point on
-    the coefficient with the direct Coulomb solve inside)."""
+    the coefficient with the direct Coulomb solve inside (``"direct"``) or the fixed point
+    on Tresca inside (``"fixed_point"``), or ``"newton"``: semismooth Newton with the law's
+    derivative, the fixed point as its fallback (:func:`~rbbench.hf.friction_solvers.
+    model_b_newton`; a constant coefficient then runs ``"direct"``, itself a semismooth
+    Newton on the wedge))."""
 
     name = "friction-ssn"
-    METHODS = ("direct", "fixed_point")
+    METHODS = ("direct", "fixed_point", "newton")
 
     def __init__(self, method: str = "direct", max_iter: int = 100, tol: float = 1e-10):
         if method not in self.METHODS:
@@ -197,10 +201,13 @@ class FrictionSSNSolver(_FrictionSolver):
             return lambda D, q, ut, x0: fs.pdas_tresca(D, q, problem.threshold, lam0=x0, **kw)
         if problem.coefficient_law is not None:
             law = scaled_law(problem.coefficient_law, problem.node_weights)
+            if self.method == "newton":
+                return lambda D, q, ut, x0: fs.model_b_newton(D, q, law, ut_prev=ut, lam0=x0,
+                                                              **kw)
             inner = fs.coulomb_direct if self.method == "direct" else fs.coulomb_fixed_point
             return lambda D, q, ut, x0: fs.coulomb_model_b(D, q, law, ut_prev=ut, inner=inner,
                                                            **kw)
-        solve = fs.coulomb_direct if self.method == "direct" else fs.coulomb_fixed_point
+        solve = fs.coulomb_fixed_point if self.method == "fixed_point" else fs.coulomb_direct
         return lambda D, q, ut, x0: solve(D, q, problem.coefficient, lam0=x0, **kw)
 
 

@@ -390,3 +390,91 @@ def coulomb_model_b(D: np.ndarray, q: np.ndarray, law: CoefficientLaw = SEED001,
         ut = ut_prev + slip(D, q, x[:m], x[m:])
         info["max_abs_dcoef"] = float(np.abs(law.df(np.abs(ut))).max(initial=0.0))
     return finish(D, q, x, Fk * x[:m], it, reason, increments, info)
+
+
+def _model_b_newton_system(D: np.ndarray, q: np.ndarray, law: CoefficientLaw,
+                           ut_prev: np.ndarray, x: np.ndarray,
+                           pattern: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Newton system of one node pattern of model B at ``x``, and ``F(x)``.
+
+    As :func:`_coulomb_system` with ``F = f(|u_t(x)|)``; a slipping row
+    ``g = k (lam_t -+ f(|u_t|) lam_n)`` is linearised with ``u_t = ut_prev - q_t - D_t x``:
+    ``dg/dx = k (e_t -+ f e_n -+ lam_n f'(|u_t|) sign(u_t) (-D_t))``, so row and right-hand
+    side gain ``+- k lam_n f' sign(u_t) D_t`` times ``x_new`` and ``x`` (Newton's
+    ``J x_new = J x - g(x)``; the rest of the row is linear).
+    """
+    m = pattern.size
+    ut = ut_prev + slip(D, q, x[:m], x[m:])
+    F = node_array(law.f(np.abs(ut)), m, f"coefficient law {law.name!r}")
+    M, r = _coulomb_system(D, q, F, pattern)
+    k = delassus_scale(D)
+    dF = k * x[:m] * np.asarray(law.df(np.abs(ut)), float) * np.sign(ut)  # per node
+    for code, sign in ((SLIP_PLUS, 1.0), (SLIP_MINUS, -1.0)):
+        sl = np.flatnonzero(pattern == code)
+        g = sign * dF[sl]
+        M[m + sl] += g[:, None] * D[m + sl]
+        r[m + sl] += g * (D[m + sl] @ x)
+    return M, r, F
+
+
+def _model_b_state(D: np.ndarray, q: np.ndarray, law: CoefficientLaw, ut_prev: np.ndarray,
+                   x: np.ndarray) -> tuple[np.ndarray, float]:
+    """``(F(x), max residual)`` of model B at ``x``: the Coulomb residuals with
+    ``s = f(|u_t(x)|) lam_n`` (:func:`friction_residuals`)."""
+    m = x.size // 2
+    F = law.f(np.abs(ut_prev + slip(D, q, x[:m], x[m:])))
+    return F, friction_residuals(D, q, x[:m], x[m:], F * x[:m])["max"]
+
+
+def model_b_newton(D: np.ndarray, q: np.ndarray, law: CoefficientLaw = SEED001,
+                   ut_prev: np.ndarray | None = None, lam0: np.ndarray | None = None,
+                   max_iter: int = 100, tol: float = 1e-10, window: int = 8,
+                   fallback: bool = True) -> FrictionResult:
+    """Seed 001's model B by a semismooth Newton with the derivative ``f'`` of the law.
+
+    Active set on the Coulomb wedge (Alart-Curnier predictor of :func:`coulomb_direct` with
+    ``F = f(|u_t(x)|)``); each iteration solves the pattern's system linearised in ``x``,
+    the ``f'`` term included (:func:`_model_b_newton_system`). Converged when every residual
+    with ``s = f(|u_t|) lam_n`` is ``<= tol max(1, F)``. Newton fails when the residual does
+    not reach a new minimum over ``window`` iterations, is not finite, or ``max_iter`` is
+    reached (``info["newton_why"]``); then, with ``fallback``, the fixed point
+    :func:`coulomb_model_b` runs from the start and its result is returned. ``info``:
+    ``"method"`` (``"newton"`` or ``"fixed_point"``: which one produced ``x``),
+    ``"newton_iterations"``, ``"newton_history"`` (residual per Newton iteration).
+    """
+    m = check_problem(D, q)
+    if law.df is None:
+        raise ValueError(f"model_b_newton: coefficient law {law.name!r} has no derivative")
+    ut_prev = np.zeros(m) if ut_prev is None else np.asarray(ut_prev, float).ravel()
+    c = _dof_constants(D)
+    x = np.zeros(2 * m) if lam0 is None else np.asarray(lam0, float).copy()
+    F, _ = _model_b_state(D, q, law, ut_prev, x)
+    pattern = _coulomb_predict(x, q + D @ x, c, F, None)
+    info: dict = {"law": law.name}
+    history: list[float] = []
+    best, best_it, why = math.inf, 0, f"max_iter = {max_iter} reached"
+    for it in range(1, max_iter + 1):
+        M, r, _ = _model_b_newton_system(D, q, law, ut_prev, x, pattern)
+        x = _solve(M, r, False, info)
+        F, res = _model_b_state(D, q, law, ut_prev, x)
+        history.append(res)
+        if res <= tol * max(1.0, float(F.max(initial=0.0))):
+            info.update(method="newton", newton_iterations=it, newton_history=history,
+                        pattern=[COULOMB_STATES[int(p)] for p in pattern], coefficient=F)
+            return finish(D, q, x, F * x[:m], it, "converged", history, info)
+        if not math.isfinite(res) or it - best_it > window:
+            why = "residual not finite" if not math.isfinite(res) else \
+                f"residual did not decrease over {window} iterations (best {best:.3e})"
+            break
+        if res < best:
+            best, best_it = res, it
+        pattern = _coulomb_predict(x, q + D @ x, c, F, pattern)
+    info.update(newton_iterations=len(history), newton_history=history, newton_why=why)
+    if not fallback:
+        info["method"] = "newton"
+        reason = "nan" if not math.isfinite(history[-1]) else \
+            "max_iterations" if len(history) == max_iter else "stagnation"
+        return finish(D, q, x, F * x[:m], len(history), reason, history, info)
+    fp = coulomb_model_b(D, q, law, ut_prev=ut_prev, max_iter=max_iter, tol=tol)
+    fp.info.update(info, method="fixed_point", fallback=f"fixed point ({why})")
+    return fp
