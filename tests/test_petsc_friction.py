@@ -154,14 +154,15 @@ def test_mindlin_tresca_extremes_converge_or_stop_with_a_reason(mindlin, cls, op
             assert "slip" not in res.info["states"]
 
 
-def test_mindlin_coulomb_and_model_b_by_the_fixed_point_on_petsc_tresca(mindlin):
-    """Coulomb (nu_F = 0.2) and model B: the seed's fixed point with SNES VI inside equals
-    friction-ssn's fixed point on PDAS (1e-9) and reports its contraction and the last
-    inner PETSc reason."""
+@pytest.mark.parametrize("cls", [PetscVISolver, PetscTaoSolver], ids=["vi", "tao"])
+def test_mindlin_coulomb_and_model_b_by_the_fixed_point_on_petsc_tresca(mindlin, cls):
+    """Coulomb (nu_F = 0.2) and model B: the seed's fixed point with SNES VI / TAO inside
+    equals friction-ssn's fixed point on PDAS (1e-9) and reports its contraction and the
+    last inner PETSc reason."""
     for law in (FrictionLaw("coulomb", coefficient=0.2),
                 FrictionLaw("coulomb", coefficient_law="seed001")):
         _, ref = _solve(mindlin, law, FrictionSSNSolver(method="fixed_point"))
-        _, res = _solve(mindlin, law, PetscVISolver())
+        _, res = _solve(mindlin, law, cls())
         assert res.converged and ref.converged, res.info.get("why")
         assert res.info["inner_petsc_reason"].startswith("CONVERGED_")
         assert "contraction" in res.info

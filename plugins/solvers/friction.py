@@ -10,9 +10,13 @@ converge stops the sequence (its stop reason is the result's).
 * ``friction-ssn``: Tresca by the primal-dual active set (:func:`pdas_tresca`); Coulomb
   directly on the wedge (:func:`coulomb_direct`, ``method="direct"``) or by the seed's
   fixed point on Tresca (:func:`coulomb_fixed_point`, ``method="fixed_point"``); a slip
-  law (model B) by a fixed point on the coefficient (:func:`coulomb_model_b`).
+  law (model B) by a fixed point on the coefficient (:func:`coulomb_model_b`) or, with
+  ``method="newton"``, by a semismooth Newton with the law's derivative
+  (:func:`model_b_newton`, the fixed point as its fallback).
 * ``friction-uzawa``: the seed's Uzawa (:func:`uzawa_friction`; model B: the same fixed
   point on the coefficient with Uzawa inside).
+* any Tresca solver of the box QP (PETSc's ``petsc-vi`` / ``petsc-tao``):
+  :func:`tresca_runner` builds the Coulomb and model-B fixed points around it.
 
 A frictionless :class:`~rbbench.interfaces.ContactProblem` is handed to the frictionless
 solver of the same kind (``ssn``, ``uzawa``), so these solvers also run frictionless scenes.

@@ -11,6 +11,14 @@ The problem (seed 000, "Mixed formulation"; :class:`rbbench.interfaces.ContactPr
   :func:`rbbench.hf.lcp.condense` and solves the bound-constrained dual QP
   ``min_{lam >= 0} 1/2 lam^T D lam + q^T lam`` with PETSc TAO (``tron``).
 
+Both also solve a :class:`rbbench.interfaces.FrictionProblem` (issue 13) over its load
+steps (:func:`rbbench_plugins.solvers.friction.solve_steps`): Tresca, the box QP
+``min 1/2 x^T D x + q^T x``, ``lam_n >= 0``, ``|lam_t| <= s`` on the condensed nodal
+problem (:mod:`rbbench.hf.friction_algebra`), by SNES VI as a mixed complementarity
+problem or by TAO with bounds (``tresca``); Coulomb by the seed's fixed point on it
+(``s = nu_F lam_n`` of the previous iterate), model B by the fixed point on the
+coefficient around that.
+
 ``petsc4py`` is imported on first use only (:func:`petsc`), and PETSc is initialised
 once without reading ``sys.argv``. Every PETSc object gets its own options
 prefix (``rbbench_<solver><k>_``); options passed through ``petsc_options``
