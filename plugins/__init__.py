@@ -83,9 +83,10 @@ def _formulations(add):
         name="nitsche", role="formulation",
         target="rbbench_plugins.formulations.nitsche:NitscheFormulation",
         capabilities={"physics": ("elasticity",), "solvers": ("newton",),
-                      "needs": ("stress",), "friction": ("none",)},
+                      "needs": ("stress",), "friction": ("none", "tresca", "coulomb")},
         description="Nitsche (Alart-Curnier, theta = 1 / 0 / -1, gamma = gamma0 E / h): "
-                    "unconstrained, from the contact evaluation matrices Un, Snn",
+                    "unconstrained, from the contact evaluation matrices Un, Snn; friction: "
+                    "Chouly-Hild-Renard [sigma_nt - gamma u_t]_S with Ut, Snt",
     ))
 
 
@@ -94,8 +95,9 @@ def _solvers(add):
     add(ComponentSpec(
         name="newton", role="solver",
         target="rbbench_plugins.solvers.newton:NewtonSolver",
-        capabilities={"formulations": ("nitsche",)},
-        description="generalised Newton (Heaviside tangent) with a line search, for Nitsche",
+        capabilities={"formulations": ("nitsche",), "friction": ("none", "tresca", "coulomb")},
+        description="generalised Newton (Heaviside tangent) with a line search, for Nitsche; "
+                    "friction (Tresca, Coulomb, model B) over the load steps",
     ))
     add(ComponentSpec(
         name="ssn", role="solver",

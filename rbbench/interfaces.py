@@ -72,6 +72,10 @@ class ContactOperators:
         P1 hat functions of the slave contact nodes, whatever ``multiplier`` is (seed 000,
         "Collocation method": P1 multipliers, ``S = (d-1) R``, ``S_0 = R``). Built with
         ``Ut``.
+    Snt : (n_q, n_dofs) sparse or None
+        Shear stress ``sigma_nt(u)(x_q) = t_1 . sigma(u) n_1`` of the slave body at the
+        quadrature points (Pa), ``t_1`` the tangent of ``Ut``; built only when both
+        ``"stress"`` and ``"tangential"`` are asked for (Nitsche friction).
     colloc_points : (n_nodes, 2) or None
         The collocation nodes ``C(mu) = h(mu)(C_hat)`` of the tangential constraint: the
         slave contact nodes (the vertices of the slave chain, in its order) mapped by the
@@ -96,6 +100,7 @@ class ContactOperators:
     facet_length: np.ndarray | None = None
     Mt: sp.csr_matrix | None = None
     colloc_points: np.ndarray | None = None
+    Snt: sp.csr_matrix | None = None
 
     @property
     def n_quad(self) -> int:
@@ -375,6 +380,68 @@ class NitscheProblem(_FreeDofs):
     def W(self) -> sp.csr_matrix:
         """Gram matrix of the multiplier space, ``Mlam^T diag(w) Mlam``."""
         return (self.Mlam.T @ sp.diags(self.weights) @ self.Mlam).tocsr()
+
+
+@dataclass
+class NitscheStep:
+    """One load step of a :class:`NitscheFrictionProblem` (``Discretization.dirichlet_steps``).
+
+    ``F``: load on the free dofs with the step's lifting moved to the right-hand side;
+    ``gap``, ``snn_lift``: as in :class:`NitscheProblem` for the step's lifting ``u_lift``;
+    ``snt_lift``: the shear stress of the lifting ``Snt u_lift``; ``ut_lift``: its
+    tangential jump ``Ut u_lift`` at the points (m).
+    """
+
+    F: np.ndarray
+    gap: np.ndarray
+    snn_lift: np.ndarray
+    snt_lift: np.ndarray
+    ut_lift: np.ndarray
+    u_lift: np.ndarray
+
+
+@dataclass
+class NitscheFrictionProblem(NitscheProblem):
+    """Nitsche contact with Tresca or Coulomb friction (Chouly 2014; Chouly, Hild & Renard
+    2015; Renard 2013): :class:`NitscheProblem` plus the tangential term
+    ``int 1/gamma [P_t(u)]_S P_theta,t(v) - theta int 1/gamma sigma_nt(u) sigma_nt(v)``
+    with ``P_t(u) = sigma_nt(u) - gamma (u_t - ut_prev)`` (the slip of the load step) and
+    ``[x]_S`` the projection on ``[-S, S]``, ``S = threshold`` (Tresca) or
+    ``S = -F min(P_gamma(u), 0)`` (Coulomb). Algebra: :mod:`rbbench.hf.nitsche_friction`.
+
+    The inherited fields ``F``, ``gap``, ``snn_lift``, ``u_lift`` and the fields
+    ``snt_lift``, ``ut_lift``, ``ut_prev`` are those of the current load step (the last
+    one as built; the solver replaces them step by step from ``steps``).
+
+    Attributes
+    ----------
+    Ut, Snt : (n_q, n_free) sparse
+        Tangential jump and slave shear stress ``sigma_nt`` at the points (free columns).
+    snt_lift, ut_lift : (n_q,)
+        ``Snt u_lift`` (Pa) and ``Ut u_lift`` (m) of the current step.
+    ut_prev : (n_q,)
+        Full tangential jump at the end of the previous step (0 before the first): the
+        slip of the step is ``Ut u_free + ut_lift - ut_prev``.
+    law : str
+        ``"tresca"`` or ``"coulomb"``.
+    steps : list of NitscheStep
+        Every load step in order.
+    threshold, coefficient : (n_q,) or None
+        Tresca ``s`` (Pa) or Coulomb ``nu_F`` per point.
+    coefficient_law : str or None
+        A slip law ``F(|u_t|)`` (seed 001 model B) of the full tangential jump per point.
+    """
+
+    Ut: sp.csr_matrix | None = None
+    Snt: sp.csr_matrix | None = None
+    snt_lift: np.ndarray | None = None
+    ut_lift: np.ndarray | None = None
+    ut_prev: np.ndarray | None = None
+    law: str = "tresca"
+    steps: list[NitscheStep] = field(default_factory=list)
+    threshold: np.ndarray | None = None
+    coefficient: np.ndarray | None = None
+    coefficient_law: str | None = None
 
 
 @dataclass

@@ -141,8 +141,9 @@ def test_matrices_prune_hyper_reducers_by_their_declared_formulations(tmp_path):
 
 def test_a_friction_scene_is_refused_by_components_that_do_not_declare_its_law(tmp_path):
     """No silently frictionless solve: the HF model refuses a frictionless-only solver
-    (``ssn``) and the matrix a formulation (``nitsche``) that does not declare the friction
-    law (``capabilities["friction"]``); the mixed formulation's friction solvers take it."""
+    (``ssn``) and the matrix a component that does not declare the friction law
+    (``capabilities["friction"]``: ``ssn`` under Nitsche, which now declares Tresca and
+    Coulomb, as ``newton`` does); the mixed formulation's friction solvers take it."""
     from rbbench.bench.matrix import compatibility
 
     sc = load_scene("hertz_halfdisks", [*HERTZ, 'friction.law="coulomb"',
@@ -152,7 +153,8 @@ def test_a_friction_scene_is_refused_by_components_that_do_not_declare_its_law(t
     assert HFModel(sc).names["solver"] == "friction-ssn"
     comp = {"backend": "skfem", "formulation": "nitsche", "solver": "newton", "primal": "pod",
             "dual": "cpg", "stabilizer": "none", "hyper": "auto"}
-    status, reason = compatibility(sc, comp, default_registry())
+    assert compatibility(sc, comp, default_registry())[0] == "run"  # Nitsche friction
+    status, reason = compatibility(sc, {**comp, "solver": "ssn"}, default_registry())
     assert status == "skip" and "friction law 'coulomb'" in reason
     frictionless = load_scene("hertz_halfdisks", HERTZ)
     comp = {**comp, "formulation": "mixed", "solver": "ssn"}

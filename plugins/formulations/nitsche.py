@@ -5,14 +5,29 @@ equation ``sigma_nn(u) = [sigma_nn(u) - gamma (u_n - d^n)]_-`` imposed weakly
 (:mod:`rbbench.hf.nitsche_algebra`). Only the backend's contact evaluation matrices are
 used (``Un``, ``Snn``, weights, gap, facet lengths), so the formulation runs on
 every backend that builds ``Snn`` on request (``needs = {"stress"}``).
+
+Friction (issue 13): Chouly-Hild-Renard's tangential term
+(:mod:`rbbench.hf.nitsche_friction`) with the slave shear stress ``Snt`` and the tangential
+jump ``Ut`` (built when a friction scene asks for the tangential operators), over the load
+steps of the scene (:func:`rbbench_plugins.formulations.friction.load_steps`).
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
+from rbbench_plugins.formulations.friction import _law_arrays, load_steps
 
 from rbbench.hf.nitsche_algebra import gamma_scaling
-from rbbench.interfaces import Discretization, Formulation, NitscheProblem
+from rbbench.interfaces import (
+    Discretization,
+    Formulation,
+    FrictionLaw,
+    NitscheFrictionProblem,
+    NitscheProblem,
+    NitscheStep,
+)
 
 #: Default dimensionless Nitsche parameter (``gamma = gamma0 E / h``).
 GAMMA0 = 10.0
@@ -59,7 +74,15 @@ class NitscheFormulation(Formulation):
 
         return NitscheReduction()
 
-    def build(self, disc: Discretization) -> NitscheProblem:
+    def build(self, disc: Discretization, friction: FrictionLaw | None = None
+              ) -> NitscheProblem | NitscheFrictionProblem:
+        """The Nitsche problem at ``disc.mu``; with a ``friction`` law, the
+        :class:`~rbbench.interfaces.NitscheFrictionProblem` (:func:`friction_problem`)."""
+        if friction is not None:
+            return friction_problem(self._frictionless(disc), disc, friction)
+        return self._frictionless(disc)
+
+    def _frictionless(self, disc: Discretization) -> NitscheProblem:
         c = disc.contact
         if c.Snn is None or c.facet_length is None:
             raise ValueError("nitsche formulation: the discretization has no normal stress "
@@ -83,3 +106,32 @@ class NitscheFormulation(Formulation):
             gamma=gamma_scaling(self.gamma0, E, c.facet_length), theta=self.theta,
             gamma0=self.gamma0, E=E, h=np.asarray(c.facet_length, dtype=float), free=free,
             u_lift=u_lift, X=disc.X, Mlam=c.Mlam.tocsr(), factorize=disc.factorize)
+
+
+def _step(disc: Discretization, u_lift: np.ndarray, F: np.ndarray) -> NitscheStep:
+    """The point data of one load step with the global lifting ``u_lift``."""
+    c = disc.contact
+    return NitscheStep(F=F, gap=np.asarray(c.gap - c.Un @ u_lift, dtype=float),
+                       snn_lift=np.asarray(c.Snn @ u_lift, dtype=float),
+                       snt_lift=np.asarray(c.Snt @ u_lift, dtype=float),
+                       ut_lift=np.asarray(c.Ut @ u_lift, dtype=float), u_lift=u_lift)
+
+
+def friction_problem(base: NitscheProblem, disc: Discretization, friction: FrictionLaw
+                     ) -> NitscheFrictionProblem:
+    """The Nitsche friction problem: ``base`` (the frictionless problem of the full load)
+    with the tangential operators, the law per point and the load steps, its step fields
+    those of the last step (``ut_prev = 0``)."""
+    c = disc.contact
+    if c.Snt is None or c.Ut is None:
+        raise ValueError("nitsche friction: the discretization has no shear stress operator "
+                         "Snt / tangential jump Ut; discretize with needs={'stress', "
+                         "'tangential'}")
+    steps = [_step(disc, s.u_lift, s.F) for s in load_steps(disc, base.free)]
+    last = steps[-1]
+    fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(base)}
+    fields.update(F=last.F, gap=last.gap, snn_lift=last.snn_lift, u_lift=last.u_lift)
+    return NitscheFrictionProblem(
+        **fields, Ut=c.Ut[:, base.free].tocsr(), Snt=c.Snt[:, base.free].tocsr(),
+        snt_lift=last.snt_lift, ut_lift=last.ut_lift, ut_prev=np.zeros(c.n_quad),
+        law=friction.law, steps=steps, **_law_arrays(friction, c.n_quad))

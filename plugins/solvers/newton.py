@@ -30,9 +30,16 @@ import time
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from rbbench_plugins.solvers.nitsche_friction_newton import solve_friction
 
 from rbbench.hf import nitsche_algebra as nt
-from rbbench.interfaces import NitscheProblem, Solver, SolveResult
+from rbbench.interfaces import (
+    FrictionProblem,
+    NitscheFrictionProblem,
+    NitscheProblem,
+    Solver,
+    SolveResult,
+)
 
 #: Rounding floor: with the active set settled (full steps, same active set) and no
 #: further progress, a relative residual below this is the solution to rounding
@@ -144,6 +151,8 @@ class NewtonSolver(Solver):
     """
 
     name = "newton"
+    #: :data:`FLOOR_TOL`, for the friction steps
+    FLOOR_TOL = FLOOR_TOL
 
     def __init__(self, max_iter: int = 50, tol: float = 1e-10, max_backtracks: int = 30,
                  blowup: float = 1e8):
@@ -159,10 +168,12 @@ class NewtonSolver(Solver):
         return float(np.linalg.norm(R) / scale)
 
     @staticmethod
-    def _direction(prob: NitscheProblem, K, R: np.ndarray) -> np.ndarray:
+    def _direction(prob: NitscheProblem, K, R: np.ndarray, symmetric: bool | None = None
+                   ) -> np.ndarray:
         """``K^{-1} (-R)``: the backend's direct solver for symmetric tangents (checked),
-        else SuperLU."""
-        if prob.factorize is not None and prob.theta == 1.0:
+        else SuperLU (``symmetric``: default ``theta == 1``)."""
+        symmetric = prob.theta == 1.0 if symmetric is None else symmetric
+        if prob.factorize is not None and symmetric:
             try:
                 d = prob.factorize(K)(-R)
                 if np.all(np.isfinite(d)) and \
@@ -239,9 +250,33 @@ class NewtonSolver(Solver):
         return d, ""
 
     # -------------------------------------------------------------------- solve
-    def solve(self, problem: NitscheProblem, warm_start: np.ndarray | None = None
-              ) -> SolveResult:
-        """Newton from ``warm_start`` (a displacement on the free or on all dofs) or 0."""
+    def solve(self, problem: NitscheProblem | NitscheFrictionProblem,
+              warm_start: np.ndarray | None = None) -> SolveResult:
+        """Newton from ``warm_start`` (a displacement on the free or on all dofs) or 0;
+        a :class:`~rbbench.interfaces.NitscheFrictionProblem` over its load steps
+        (:func:`rbbench_plugins.solvers.nitsche_friction_newton.solve_friction`)."""
+        if isinstance(problem, NitscheFrictionProblem):
+            return solve_friction(self, problem, warm_start)
+        if isinstance(problem, FrictionProblem):
+            return self._mixed_friction(problem, warm_start)
+        return self._solve_frictionless(problem, warm_start)
+
+    def _mixed_friction(self, problem: FrictionProblem, warm_start: np.ndarray | None
+                        ) -> SolveResult:
+        """A mixed :class:`~rbbench.interfaces.FrictionProblem` is not Newton's: it goes to
+        ``friction-ssn`` (as ``friction-ssn`` hands a frictionless problem to ``ssn``), so that
+        the solver contract of a solver declaring friction laws (mixed friction problems,
+        :mod:`rbbench.testing.contract_solver`) holds; ``info["delegated_to"]`` says so."""
+        from rbbench_plugins.solvers.friction import FrictionSSNSolver
+
+        res = FrictionSSNSolver(max_iter=self.max_iter, tol=self.tol).solve(problem,
+                                                                            warm_start)
+        res.info["delegated_to"] = "friction-ssn (a mixed friction problem)"
+        return res
+
+    def _solve_frictionless(self, problem: NitscheProblem, warm_start: np.ndarray | None
+                            ) -> SolveResult:
+        """The frictionless Newton (module docstring)."""
         t0 = time.perf_counter()
         prob = problem
         if not _finite_problem(prob):

@@ -84,9 +84,28 @@ __all__ = [
     "ray_cast",
     "ray_cast_window",
     "segmented_rule",
+    "tangential_stress",
     "window_tangent_ranges",
     "with_vertex_normals",
 ]
+
+
+def _stress_terms(layout: ContactLayout, p: Pairing, mu: np.ndarray, slave: FacetChain | None,
+                  direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`normal_stress_terms` of ``e . sigma(u) e`` along the unit vectors ``direction``
+    (n_q, 2) at the points of ``p`` (``ValueError`` without slave stress data)."""
+    if layout.stress is None:
+        raise ValueError("the contact layout carries no slave stress data (SlaveStress): "
+                         "the backend cannot evaluate sigma_nn")
+    slave = layout.slave if slave is None else slave
+    return normal_stress_terms(layout.stress, slave, layout.degree, p.fq, p.sq, direction, mu)
+
+
+def _point_matrix(coef: np.ndarray, dofs: np.ndarray, n_cols: int) -> sp.csr_matrix:
+    """The (n_q x n_cols) matrix with ``coef[q, j]`` at column ``dofs[q, j]`` of row ``q``."""
+    nq = coef.shape[0]
+    rows = np.repeat(np.arange(nq), coef.shape[1])
+    return sp.csr_matrix((coef.ravel(), (rows, dofs.ravel())), shape=(nq, n_cols))
 
 
 def normal_stress(layout: ContactLayout, p: Pairing, mu: np.ndarray,
@@ -97,16 +116,25 @@ def normal_stress(layout: ContactLayout, p: Pairing, mu: np.ndarray,
     ``slave`` (default ``layout.slave``) is the chain ``p`` was computed on, with
     ``layout.stress`` aligned with it (:func:`normal_stress_terms`).
     """
-    if layout.stress is None:
-        raise ValueError("the contact layout carries no slave stress data (SlaveStress): "
-                         "the backend cannot evaluate sigma_nn")
-    slave = layout.slave if slave is None else slave
-    coef, dofs = normal_stress_terms(layout.stress, slave, layout.degree, p.fq, p.sq,
-                                     p.nrm, mu)
-    nq = p.w.size
-    rows = np.repeat(np.arange(nq), coef.shape[1])
-    return sp.csr_matrix((coef.ravel(), (rows, dofs.ravel())),
-                         shape=(nq, layout.n_dofs if n_dofs is None else n_dofs))
+    coef, dofs = _stress_terms(layout, p, mu, slave, p.nrm)
+    return _point_matrix(coef, dofs, layout.n_dofs if n_dofs is None else n_dofs)
+
+
+def tangential_stress(layout: ContactLayout, p: Pairing, mu: np.ndarray,
+                      slave: FacetChain | None = None, n_dofs: int | None = None
+                      ) -> sp.csr_matrix:
+    """``Snt`` (n_q x n_dofs): the slave shear stress ``sigma_nt(u) = t . sigma(u) n`` at the
+    points of pairing ``p``, ``t = (-n_y, n_x)`` (the tangent of ``Ut``).
+
+    By polarisation of the symmetric ``sigma`` with the unit vectors ``e_+- = (n +- t) /
+    sqrt(2)``: ``sigma_nt = (e_+ . sigma e_+ - e_- . sigma e_-) / 2``, each term by
+    :func:`normal_stress_terms` (the ``lambda div u`` parts cancel; same dofs per point).
+    """
+    n = p.nrm
+    t = np.stack([-n[:, 1], n[:, 0]], axis=1)
+    cp, dofs = _stress_terms(layout, p, mu, slave, (n + t) / np.sqrt(2.0))
+    cm, _ = _stress_terms(layout, p, mu, slave, (n - t) / np.sqrt(2.0))
+    return _point_matrix(0.5 * (cp - cm), dofs, layout.n_dofs if n_dofs is None else n_dofs)
 
 
 def contact_operators(layout: ContactLayout, mu: np.ndarray,
@@ -119,13 +147,15 @@ def contact_operators(layout: ContactLayout, mu: np.ndarray,
     ``Mt``, ``colloc_points`` are the P1 friction multipliers and the collocation nodes
     (:func:`friction_multipliers`);
     with ``stress``, ``Snn`` the slave normal stress (:func:`normal_stress`) and
-    ``facet_length`` the physical length of each point's slave facet.
+    ``facet_length`` the physical length of each point's slave facet; with both,
+    ``Snt`` the slave shear stress ``sigma_nt`` (:func:`tangential_stress`, Nitsche friction).
     """
     p = pair(layout, mu)
     Un = p.jump(p.nrm, layout.n_dofs)
     Ut = (p.jump(np.stack([-p.nrm[:, 1], p.nrm[:, 0]], axis=1), layout.n_dofs)
           if tangential else None)
     Snn = normal_stress(layout, p, mu) if stress else None
+    Snt = tangential_stress(layout, p, mu) if stress and tangential else None
     hq = np.linalg.norm(p.b - p.a, axis=1)[p.fq] if stress else None
     Mlam = multiplier_basis(layout.multiplier, layout.n_facets, layout.slave.ids[p.fq], p.sq,
                             layout.patch)
@@ -143,7 +173,7 @@ def contact_operators(layout: ContactLayout, mu: np.ndarray,
     return ContactOperators(Un=Un, gap=p.gap, weights=p.w, points=p.x, normals=p.nrm,
                             Mlam=Mlam, multiplier=layout.multiplier, mult_points=mpts,
                             mult_extent=ext, Ut=Ut, Snn=Snn, facet_length=hq, Mt=Mt,
-                            colloc_points=colloc)
+                            colloc_points=colloc, Snt=Snt)
 
 
 def collocation_nodes(layout: ContactLayout) -> np.ndarray:

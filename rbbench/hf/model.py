@@ -10,9 +10,11 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from rbbench.hf.mindlin_check import MINDLIN_DEFINITION, mindlin_metrics
 from rbbench.hf.references import hertz_of_bodies
@@ -21,6 +23,7 @@ from rbbench.interfaces import (
     Discretization,
     FrictionLaw,
     FrictionProblem,
+    NitscheFrictionProblem,
     NitscheProblem,
     SolveResult,
 )
@@ -254,6 +257,8 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
         force = float(np.sum(c.weights * lam_q))
     extra = (_nitsche_metrics(prob, res, c) if isinstance(prob, NitscheProblem)
              else _friction_metrics(prob, res, c) if isinstance(prob, FrictionProblem) else {})
+    if isinstance(prob, NitscheFrictionProblem):
+        extra.update(_nitsche_friction_metrics(prob, res, c))
     force = extra.get("contact_force", force)
     lam_max = float(np.max(lam)) if lam.size else 0.0
     active = lam > ACTIVE_THRESHOLD * max(lam_max, np.finfo(float).tiny)
@@ -305,7 +310,8 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
                         "relative: (computed - theory) / theory",
             }
     m.update(extra)
-    if sol.scene.data["reference"].get("mindlin") and isinstance(prob, FrictionProblem):
+    if sol.scene.data["reference"].get("mindlin") and isinstance(
+            prob, (FrictionProblem, NitscheFrictionProblem)):
         m["mindlin"] = _mindlin_block(sol, m)
     m["definitions"] = DEFINITIONS
     return m
@@ -314,15 +320,25 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
 def _mindlin_block(sol: HFSolution, m: dict[str, Any]) -> dict[str, Any]:
     """The ``mindlin`` block (:func:`rbbench.hf.mindlin_check.mindlin_metrics`) at the
     solver's own ``contact_force`` and ``tangential_force``."""
-    info = sol.result.info
-    return mindlin_metrics(sol.disc.contact, np.asarray(info["lam_t"], float),
-                           np.asarray(info["states"], dtype=object), m["contact_force"],
-                           m["tangential_force"], m["friction"]["coefficient"],
-                           sol.disc.info["geometry"], sol.disc.bodies)
+    info, c = sol.result.info, sol.disc.contact
+    if isinstance(sol.problem, NitscheFrictionProblem):  # point values: Mt = identity
+        c = SimpleNamespace(colloc_points=c.points, Mt=sp.identity(c.n_quad, format="csr"),
+                            points=c.points, normals=c.normals, weights=c.weights)
+        lam_t, states = info["lam_t_points"], info["states_points"]
+    else:
+        lam_t, states = info["lam_t"], info["states"]
+    return mindlin_metrics(c, np.asarray(lam_t, float), np.asarray(states, dtype=object),
+                           m["contact_force"], m["tangential_force"],
+                           m["friction"]["coefficient"], sol.disc.info["geometry"],
+                           sol.disc.bodies)
 
 
-#: per-node arrays a friction solver leaves in ``SolveResult.info`` (not in solver_info)
-_ARRAY_INFO = ("lam_t", "states", "slip", "ut_prev", "coefficient")
+#: per-node arrays a friction solver leaves in ``SolveResult.info`` (not in solver_info);
+#: per-point arrays of the Nitsche friction Newton
+#: (``rbbench_plugins.solvers.nitsche_friction_newton.POINT_INFO``)
+_ARRAY_INFO = ("lam_t", "states", "slip", "ut_prev", "coefficient", "lam_n_points",
+               "lam_t_points", "slip_points", "states_points", "ut_prev_points", "S_points",
+               "coefficient_points")
 
 
 def normal_operators(prob: Any, c: Any) -> tuple[Any, np.ndarray, Any, np.ndarray]:
@@ -343,10 +359,18 @@ def _friction_metrics(prob: FrictionProblem, res: SolveResult, c: Any) -> dict[s
     info = res.info
     lam_t = np.asarray(info.get("lam_t", np.zeros(prob.n_nodes)), float)
     states = np.asarray(info.get("states", ["nan"] * prob.n_nodes), dtype=object)
-    stick = states == "stick"
-    xs = np.asarray(c.colloc_points, float)[stick, 0]
-    fr = info.get("friction_residuals", {})
     lam_tq = np.asarray(c.Mt @ lam_t).ravel()
+    return _friction_outputs(prob, c, lam_tq, states, np.asarray(c.colloc_points, float),
+                             info.get("friction_residuals", {}))
+
+
+def _friction_outputs(prob: FrictionProblem | NitscheFrictionProblem, c: Any,
+                      lam_tq: np.ndarray, states: np.ndarray, where: np.ndarray,
+                      fr: dict) -> dict[str, Any]:
+    """The friction outputs from ``lam_t`` at the contact quadrature (``lam_tq``), the
+    states at the positions ``where`` (friction nodes or points) and the residuals ``fr``."""
+    stick = states == "stick"
+    xs = where[stick, 0]
     return {
         "tangential_force": float(np.sum(c.weights * lam_tq * -c.normals[:, 1])),
         "n_stick": int(stick.sum()), "n_slip": int(np.sum(states == "slip")),
@@ -359,6 +383,19 @@ def _friction_metrics(prob: FrictionProblem, res: SolveResult, c: Any) -> dict[s
                      else float(prob.coefficient[0]),
                      "coefficient_law": prob.coefficient_law},
     }
+
+
+def _nitsche_friction_metrics(prob: NitscheFrictionProblem, res: SolveResult, c: Any
+                              ) -> dict[str, Any]:
+    """Friction outputs of a Nitsche solve from its point tractions ``-[P_t]_S`` and the
+    point states (counts of contact points, not nodes; see :data:`DEFINITIONS`)."""
+    info, nq = res.info, c.n_quad
+    lam_tq = np.asarray(info.get("lam_t_points", np.full(nq, np.nan)), float)
+    states = np.asarray(info.get("states_points", ["nan"] * nq), dtype=object)
+    out = _friction_outputs(prob, c, lam_tq, states, np.asarray(c.points, float),
+                            info.get("friction_residuals", {}))
+    out["friction"]["states_of"] = "contact quadrature points (Nitsche)"
+    return out
 
 
 def _nitsche_metrics(prob: NitscheProblem, res: SolveResult, c: Any) -> dict[str, Any]:
@@ -403,23 +440,32 @@ DEFINITIONS = {
                                  "point (m), clipped at 0; LAC only constrains patch means",
     "final_residual": "relative natural residual ||min(lam, c s)|| / ||c q|| of the condensed "
                       "LCP at the last iterate (friction: the largest relative residual of "
-                      "friction_residuals at the last iterate of the last load step)",
+                      "friction_residuals at the last iterate of the last load step; Nitsche: "
+                      "the relative Newton residual ||R(u)|| of the last load step)",
     "energy": "J(u) = 1/2 u^T A u - F^T u on all dofs (J/m)",
     "tangential_force": "friction only: horizontal resultant int lam_t t_x over the slave zone "
                         "(N/m), t = (-n_y, n_x) = +x under the upper body; lam_t enters A u + "
                         "Bt^T lam_t = F as lam_n does, so this is the force the slave body "
                         "exerts on the master, > 0 for a shear of the upper body along +x "
-                        "(the friction on the slave is its opposite)",
+                        "(the friction on the slave is its opposite); Nitsche: lam_t = "
+                        "-[sigma_nt(u) - gamma (u_t - ut_prev)]_S at the contact points",
     "n_stick": "friction only: collocation nodes in contact with |lam_t| < s at the last load "
-               "step (s = threshold, or nu_F lam_n)",
-    "n_slip": "friction only: collocation nodes in contact with |lam_t| = s (last load step)",
-    "n_open": "friction only: collocation nodes with lam_n = 0 (last load step)",
+               "step (s = threshold, or nu_F lam_n); Nitsche: contact points with "
+               "P_n < 0 and |P_t| < S",
+    "n_slip": "friction only: collocation nodes in contact with |lam_t| = s (last load step); "
+              "Nitsche: contact points with P_n < 0 and |P_t| >= S",
+    "n_open": "friction only: collocation nodes with lam_n = 0 (last load step); Nitsche: "
+              "contact points with P_n >= 0",
     "stick_half_width": "friction only: half the horizontal extent of the stick nodes' "
-                        "collocation points C(mu) (m); 0 without stick nodes",
+                        "collocation points C(mu) (m); 0 without stick nodes (Nitsche: of "
+                        "the stick contact points)",
     "friction_residual": "friction only: max of the relative stick and slip residuals of the "
                          "condensed problem at the last load step (friction_residuals: "
                          "min(|v|, s - |lam_t|) over sticking, min(|v|, |lam_t - s sign v|) "
-                         "over slipping nodes; slip v / max|q|, forces / force scale)",
+                         "over slipping nodes; slip v / max|q|, forces / force scale); "
+                         "Nitsche: the same at the contact points with the tractions "
+                         "-[P_n]_-, -[P_t]_S, not zero at the discrete solution (the weak "
+                         "conditions' consistency error)",
     "mindlin": MINDLIN_DEFINITION,
     "zone_saturated": "true if the first or last multiplier of the potential zone is active: "
                       "the contact patch reaches the edge of the potential zone",
