@@ -74,8 +74,8 @@ def _formulations(add):
         name="mixed", role="formulation",
         target="rbbench_plugins.formulations.mixed:MixedFormulation",
         capabilities={"physics": _ALL_PHYSICS, "friction": ("none", "tresca", "coulomb"),
-                      "solvers": ("ssn", "uzawa", "petsc-vi", "petsc-tao", "friction-ssn",
-                                  "friction-uzawa")},
+                      "solvers": ("ssn", "uzawa", "friction-ssn", "friction-uzawa",
+                                  "petsc-vi", "petsc-tao")},
         description="Lagrange multipliers: A u + B^T lam = F, 0 <= lam _|_ G - B u >= 0; "
                     "friction: P1 nodal (lam_n, lam_t), Tresca box / Coulomb wedge",
     ))
@@ -130,16 +130,19 @@ def _solvers(add):
         name="petsc-vi", role="solver",
         target="rbbench_plugins.solvers.petsc_solvers:PetscVISolver",
         extras=("petsc",), modules=("petsc4py",),
-        capabilities={"formulations": ("mixed",)},
+        capabilities={"formulations": ("mixed",), "friction": ("none", "tresca", "coulomb")},
         description="PETSc SNES VI (vinewtonrsls, reduced-space active set) on the "
-                    "sparse KKT system as a mixed complementarity problem",
+                    "sparse KKT system as a mixed complementarity problem; friction: Tresca "
+                    "box QP by SNES VI, Coulomb / model B by the seed's fixed point on it",
     ))
     add(ComponentSpec(
         name="petsc-tao", role="solver",
         target="rbbench_plugins.solvers.petsc_solvers:PetscTaoSolver",
         extras=("petsc",), modules=("petsc4py",),
-        capabilities={"formulations": ("mixed",)},
-        description="PETSc TAO bound-constrained QP (tron) on the condensed dual problem",
+        capabilities={"formulations": ("mixed",), "friction": ("none", "tresca", "coulomb")},
+        description="PETSc TAO bound-constrained QP (tron) on the condensed dual problem; "
+                    "friction: Tresca box QP by TAO tron, Coulomb / model B by the fixed "
+                    "point on it",
     ))
 
 
