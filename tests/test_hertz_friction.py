@@ -109,3 +109,19 @@ repeats = 1
     assert row["n_stick"] >= 10 and row["n_slip"] >= 10
     assert row["friction_residual"] < 1e-10
     assert abs(row["tangential_force"]) < 1e-4 * 0.2 * row["contact_force"]
+
+
+def test_nitsche_friction_contact_table_is_per_point():
+    """A Nitsche friction solve writes its point tractions (mixed signs) and states."""
+    from rbbench.hf.output import contact_table
+
+    sc = load_scene("mindlin_cylinders", ["discretization.h_contact=0.002"])
+    sol = solve_hf(sc, None, formulation="nitsche")
+    t = contact_table(sol)
+    c, info = sol.disc.contact, sol.result.info
+    assert t["x"].size == c.points.shape[0] == np.asarray(info["lam_t_points"]).size
+    assert set(t["state"]) <= {"open", "stick", "slip"} and "stick" in set(t["state"])
+    act = t["pressure"] > 0
+    F = 0.2
+    assert (np.abs(t["lam_t"]) - F * t["pressure"]).max() <= 1e-9 * t["pressure"].max()
+    assert np.all(t["lam_t"][~act] == 0.0)

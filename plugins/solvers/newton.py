@@ -258,21 +258,10 @@ class NewtonSolver(Solver):
         if isinstance(problem, NitscheFrictionProblem):
             return solve_friction(self, problem, warm_start)
         if isinstance(problem, FrictionProblem):
-            return self._mixed_friction(problem, warm_start)
+            raise TypeError("newton: a mixed FrictionProblem is solved by the mixed "
+                            "formulation's solvers (friction-ssn, friction-uzawa, petsc-vi, "
+                            "petsc-tao); newton solves the Nitsche formulation's problems")
         return self._solve_frictionless(problem, warm_start)
-
-    def _mixed_friction(self, problem: FrictionProblem, warm_start: np.ndarray | None
-                        ) -> SolveResult:
-        """A mixed :class:`~rbbench.interfaces.FrictionProblem` is not Newton's: it goes to
-        ``friction-ssn`` (as ``friction-ssn`` hands a frictionless problem to ``ssn``), so that
-        the solver contract of a solver declaring friction laws (mixed friction problems,
-        :mod:`rbbench.testing.contract_solver`) holds; ``info["delegated_to"]`` says so."""
-        from rbbench_plugins.solvers.friction import FrictionSSNSolver
-
-        res = FrictionSSNSolver(max_iter=self.max_iter, tol=self.tol).solve(problem,
-                                                                            warm_start)
-        res.info["delegated_to"] = "friction-ssn (a mixed friction problem)"
-        return res
 
     def _solve_frictionless(self, problem: NitscheProblem, warm_start: np.ndarray | None
                             ) -> SolveResult:

@@ -39,6 +39,8 @@ def contact_table(sol: HFSolution) -> dict[str, np.ndarray]:
     last load step ``(Bt u - ut_prev)_i / int phi_i`` (m) and the node's state (open / stick
     / slip). The operators are those of ``contact_metrics`` (:func:`normal_operators`)."""
     c, info = sol.disc.contact, sol.result.info
+    if "lam_t_points" in info:
+        return _point_table(sol)
     friction = isinstance(sol.problem, FrictionProblem)
     B, G, basis, _ = normal_operators(sol.problem, c)
     support = np.asarray(basis.T @ c.weights).ravel()
@@ -52,6 +54,21 @@ def contact_table(sol: HFSolution) -> dict[str, np.ndarray]:
         table["slip"] = np.asarray(info.get("slip", np.full(n, np.nan)), float) / support
         table["state"] = np.asarray(info.get("states", ["nan"] * n), dtype=object)
     return table
+
+
+def _point_table(sol: HFSolution) -> dict[str, np.ndarray]:
+    """A Nitsche friction solve, per contact point (its tractions are point values,
+    :mod:`rbbench_plugins.solvers.nitsche_friction_newton`): the normal and tangential
+    tractions in the mixed multipliers' signs, initial and final normal gaps, the slip of
+    the last load step ``u_t - ut_prev`` and the point's state."""
+    c, info = sol.disc.contact, sol.result.info
+    gap0 = np.asarray(c.gap, float)
+    return {"x": c.points[:, 0], "y": c.points[:, 1],
+            "pressure": np.asarray(info["lam_n_points"], float),
+            "lam_t": np.asarray(info["lam_t_points"], float),
+            "gap_initial": gap0, "gap": gap0 - np.asarray(c.Un @ sol.result.u).ravel(),
+            "slip": np.asarray(info["slip_points"], float),
+            "state": np.asarray(info["states_points"], dtype=object)}
 
 
 _UNITS = {"x": "m", "y": "m", "pressure": "Pa", "lam_t": "Pa", "gap_initial": "m", "gap": "m",
@@ -153,7 +170,7 @@ def _draw_friction(ax: Any, sol: HFSolution, table: dict) -> None:
         bound = None if coef is None else np.asarray(coef, float)[order] * (lam_n > 0)
     else:
         bound = np.asarray(coef, float)[order] * lam_n
-    ax.plot(x, lam_t, "b.-", ms=3, lw=0.8, label="lam_t (multiplier)")
+    ax.plot(x, lam_t, "b.-", ms=3, lw=0.8, label="lam_t (computed)")
     if bound is not None:
         ax.plot(x, bound, "k:", lw=1, label=f"+/- {label}")
         ax.plot(x, -bound, "k:", lw=1)
