@@ -205,7 +205,8 @@ def _reduce_config(args):
     _resolve_solver(args)
     try:
         return ReduceConfig(primal=args.primal, dual=args.dual, stabilizer=args.stabilizer,
-                            hyper=args.hyper, N=args.N, R=args.R, n_train=args.n_train,
+                            hyper=args.hyper, N=args.N, R=args.R, S=args.S,
+                            n_train=args.n_train,
                             n_valid=args.n_valid, n_jobs=args.jobs, solver=args.solver,
                             backend=args.backend, formulation=args.formulation,
                             tol_eim=args.tol_eim, delta_pga=args.delta_pga,
@@ -234,6 +235,7 @@ def cmd_reduce(args) -> int:
     from rbbench.rb.offline import reduce
 
     scene = load_scene(args.scene, overrides=args.set or [])
+    _resolve_solver(args, scene)  # a friction scene: the solver declaring its law
     cfg = _reduce_config(args)
     progress = _Progress(args.quiet)
     res = reduce(scene, cfg, progress=progress, snapshot_progress=not args.quiet)
@@ -254,7 +256,9 @@ def _print_reduce_summary(s: dict, formulation: str) -> None:
     keys = ["N", "R", "K_pga", "hyper", "M_eim", "n_train", "n_valid", "n_hf_dofs", "err_u_max",
             "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
             "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min", "beta_kind",
-            "t_offline_s", "t_online_median_s", "t_hf_median_s", "speedup"]
+            "t_offline_s", "t_online_median_s", "t_hf_median_s", "speedup", "S", "S_q",
+            "gcns_iterations", "gcns_stop", "err_lam_t_max", "err_lam_t_mean", "lam_t_best_max",
+            "friction_residual_max"]
     for k in keys:
         if k in s:
             print(f"  {k:<20} {_fmt(s[k])}")
@@ -437,6 +441,8 @@ def _add_reduce_args(rd) -> None:
                     help="cap on the PGA dimension K (online primal size N + K)")
     rd.add_argument("-N", type=int, default=None, help="primal size (default: POD tolerance)")
     rd.add_argument("-R", type=int, default=None, help="max dual size (default: tolerance)")
+    rd.add_argument("-S", type=int, default=None,
+                    help="friction: tangential size (POD of lam_t; default: R)")
     rd.add_argument("--n-train", type=int, default=None)
     rd.add_argument("--n-valid", type=int, default=None)
     rd.add_argument("--jobs", type=int, default=None, help="processes for HF snapshots")

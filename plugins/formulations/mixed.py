@@ -26,8 +26,14 @@ class MixedFormulation(Formulation):
         if options:
             raise TypeError(f"mixed formulation: unknown options {sorted(options)}")
 
-    def reduction(self):
-        """Offline steps of the reduced model (:class:`rbbench.rb.mixed_offline.MixedReduction`)."""
+    def reduction(self, friction: str = "none"):
+        """Offline steps of the reduced model: :class:`rbbench.rb.mixed_offline.MixedReduction`,
+        for a friction scene (``friction``: its law)
+        :class:`rbbench.rb.friction_offline.FrictionReduction`."""
+        if friction != "none":
+            from rbbench.rb.friction_offline import FrictionReduction
+
+            return FrictionReduction()
         from rbbench.rb.mixed_offline import MixedReduction
 
         return MixedReduction()

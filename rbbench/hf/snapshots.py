@@ -13,7 +13,9 @@ snapshot: the scene content (its validated data minus the parts that cannot
 change a solution: ``[sampling]``, ``[reference]`` and ``scene.description``;
 overrides are covered because they change the content), the backend,
 formulation and solver names, the solver options and the rbbench version. The
-parameter value is in the file name with full (round-trip) precision. Files
+parameter value is in the file name with full (round-trip) precision. A friction
+solve also stores the tangential multipliers ``lam_t`` (``SnapshotSet.LAM_T``; the key is
+unchanged, a cached friction snapshot without them is recomputed). Files
 are written atomically (temporary file + :func:`os.replace`), so an
 interrupted run loses nothing that finished and never leaves a partial file.
 """
@@ -38,6 +40,7 @@ import numpy as np
 import rbbench
 from rbbench.hf.model import make_components, solve_hf
 from rbbench.registry import default_registry
+from rbbench.scene.friction import friction_of
 from rbbench.scene.loading import key_data
 
 __all__ = ["Snapshot", "SnapshotError", "SnapshotSet", "atomic_write", "cache_path",
@@ -60,7 +63,8 @@ class SnapshotError(RuntimeError):
 
 @dataclass
 class Snapshot:
-    """One HF solution: free-dof displacement ``u`` and multipliers ``lam`` at ``mu``."""
+    """One HF solution: free-dof displacement ``u`` and multipliers ``lam`` at ``mu``
+    (a friction solve: ``lam`` = lam_n and ``lam_t`` per collocation node; else empty)."""
 
     mu: np.ndarray
     u: np.ndarray
@@ -71,6 +75,7 @@ class Snapshot:
     free: np.ndarray | None = None
     n_dofs: int = 0
     error: str = ""  # exception text when the solve raised (then u, lam are empty)
+    lam_t: np.ndarray = field(default_factory=lambda: np.empty(0))
 
     @property
     def converged(self) -> bool:
@@ -94,7 +99,9 @@ class SnapshotSet:
         Free-dof displacements (``problem.free`` gives their global numbers); a
         column is NaN where the solve raised.
     LAM : (m, P)
-        Contact multipliers.
+        Contact multipliers (friction: the normal ones, lam_n).
+    LAM_T : (m, P) or None
+        Tangential multipliers of a friction solve (None when the solver gives none).
     stop_reasons : list of str
         One of :data:`rbbench.interfaces.STOP_REASONS` per column, or ``"error"``.
     iterations, times : (P,)
@@ -123,6 +130,7 @@ class SnapshotSet:
     cache_dir: Path
     n_computed: int = 0
     errors: dict[int, str] = field(default_factory=dict)
+    LAM_T: np.ndarray | None = None
 
     @property
     def P(self) -> int:
@@ -233,25 +241,29 @@ def save_snapshot(path: Path, snap: Snapshot) -> None:
                  lam=np.asarray(snap.lam, dtype=float), iterations=np.int64(snap.iterations),
                  stop_reason=np.str_(snap.stop_reason), time_s=np.float64(snap.time_s),
                  free=np.asarray(snap.free if snap.free is not None else [], dtype=np.int64),
-                 n_dofs=np.int64(snap.n_dofs))
+                 n_dofs=np.int64(snap.n_dofs), lam_t=np.asarray(snap.lam_t, dtype=float))
 
     atomic_write(path, write)
 
 
-def load_snapshot(path: Path) -> Snapshot:
-    """Read a snapshot file written by :func:`save_snapshot`."""
+def load_snapshot(path: Path, need_lam_t: bool = False) -> Snapshot:
+    """Read a snapshot file written by :func:`save_snapshot` (``need_lam_t``: a KeyError
+    when the file predates the stored ``lam_t``)."""
     with np.load(path, allow_pickle=False) as z:
+        if need_lam_t and "lam_t" not in z.files:
+            raise KeyError(f"{path}: no lam_t")
+        lam_t = z["lam_t"] if "lam_t" in z.files else np.empty(0)
         return Snapshot(mu=z["mu"], u=z["u"], lam=z["lam"], iterations=int(z["iterations"]),
                         stop_reason=str(z["stop_reason"]), time_s=float(z["time_s"]),
-                        free=z["free"], n_dofs=int(z["n_dofs"]))
+                        free=z["free"], n_dofs=int(z["n_dofs"]), lam_t=lam_t)
 
 
-def _try_load(path: Path, mu: np.ndarray) -> Snapshot | None:
+def _try_load(path: Path, mu: np.ndarray, need_lam_t: bool = False) -> Snapshot | None:
     if not path.exists():
         return None
     try:
-        snap = load_snapshot(path)
-    except Exception:  # unreadable (e.g. written by an incompatible version): recompute
+        snap = load_snapshot(path, need_lam_t)
+    except Exception:  # unreadable, or a friction file without lam_t: recompute
         return None
     return snap if np.array_equal(snap.mu, mu) else None
 
@@ -274,7 +286,8 @@ def _solve_one(scene: Any, mu: np.ndarray, names: tuple[str, str, str], componen
                     u=np.asarray(res.u, dtype=float)[prob.free].copy(),
                     lam=np.asarray(res.lam, dtype=float).copy(), iterations=int(res.iterations),
                     stop_reason=str(res.stop_reason), time_s=float(sol.times["total_s"]),
-                    free=np.asarray(prob.free, dtype=np.int64), n_dofs=int(sol.disc.n_dofs))
+                    free=np.asarray(prob.free, dtype=np.int64), n_dofs=int(sol.disc.n_dofs),
+                    lam_t=np.asarray(res.info.get("lam_t", []), dtype=float).copy())
     save_snapshot(path, snap)  # non-converged solves are deterministic: cached too
     return snap
 
@@ -385,7 +398,9 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     _write_key_file(root / key, scene, payload)
     paths = [cache_path(root, key, mu) for mu in mus]
 
-    snaps: list[Snapshot | None] = [_try_load(p, mu) for p, mu in zip(paths, mus, strict=True)]
+    need_t = friction_of(scene).active
+    snaps: list[Snapshot | None] = [_try_load(p, mu, need_t)
+                                    for p, mu in zip(paths, mus, strict=True)]
     todo = [i for i, s in enumerate(snaps) if s is None]
     n_jobs = n_cpus() if n_jobs is None else int(n_jobs)
     n_jobs = max(1, min(n_jobs, len(todo)))
@@ -545,6 +560,8 @@ def _assemble(mus: np.ndarray, snaps: list[Snapshot | None], key: str, root: Pat
     P = len(snaps)
     U = np.full((n_free, P), np.nan)
     LAM = np.full((m, P), np.nan)
+    has_t = bool(ok) and all(s.lam_t.size == m for s in ok)
+    LAM_T = np.full((m, P), np.nan) if has_t else None
     errors: dict[int, str] = {}
     for j, s in enumerate(snaps):
         assert s is not None
@@ -553,9 +570,11 @@ def _assemble(mus: np.ndarray, snaps: list[Snapshot | None], key: str, root: Pat
             continue
         U[:, j] = s.u
         LAM[:, j] = s.lam
+        if LAM_T is not None:
+            LAM_T[:, j] = s.lam_t
     return SnapshotSet(
         mus=mus, U=U, LAM=LAM, stop_reasons=[s.stop_reason for s in snaps],  # type: ignore[union-attr]
         iterations=np.array([s.iterations for s in snaps], dtype=int),  # type: ignore[union-attr]
         times=np.array([s.time_s for s in snaps], dtype=float),  # type: ignore[union-attr]
         n_dofs=ok[0].n_dofs if ok else 0, free=free, key=key, cache_dir=root,
-        n_computed=n_computed, errors=errors)
+        n_computed=n_computed, errors=errors, LAM_T=LAM_T)

@@ -13,6 +13,7 @@ e.g. :mod:`rbbench.rb.mixed_offline`, :mod:`rbbench.rb.nitsche_offline`) -> redu
 
 from __future__ import annotations
 
+import inspect
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -21,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.model import ProblemCache, make_components
+from rbbench.hf.model import ProblemCache, discretize_for, friction_at, make_components
 from rbbench.hf.snapshots import SnapshotSet, compute_snapshots
 from rbbench.rb.hyper_reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.rb.mixed_model import ONLINE_METHODS
@@ -32,9 +33,9 @@ from rbbench.scene.loading import Scene, SceneError
 from rbbench.scene.sampling import parameter_set
 
 __all__ = ["DivergedError", "HYPER", "OfflineContext", "Offline", "ReduceConfig",
-           "ReduceResult", "check_finite", "eim_grid", "eim_training_set",
-           "fixed_contact_points", "offline", "primal_basis", "primal_histories", "reduce",
-           "training_snapshots"]
+           "ReduceResult", "SceneProblems", "build_problem", "check_finite", "eim_grid",
+           "eim_training_set", "fixed_contact_points", "offline", "primal_basis",
+           "primal_histories", "reduce", "training_snapshots"]
 
 HYPER = ("auto", *BUILTIN_HYPER)  # "auto" (the formulation's rule) + the hyper-reducers
 
@@ -59,6 +60,7 @@ class ReduceConfig:
     hyper: str = "auto"
     N: int | None = None
     R: int | None = None
+    S: int | None = None  # friction: dim X_S (POD of lam_t); default: R as built
     tol_pod: float = 1e-4
     tol_dual: float = 1e-3
     delta_pga: float | None = None  # default: max beta / c over a training subset (seed rule)
@@ -79,6 +81,9 @@ class ReduceConfig:
     m_eim: int | None = None
     n_eim_train: int | None = None  # default: 4 (n_train - 1) + 1 grid points (+ training);
     # Nitsche: 2 (n_train - 1) + 1 (rbbench.rb.nitsche_offline)
+    gcns_per_iteration: int = 2  # friction: GCNS nodes added per iteration (seed: 40 / 20)
+    gcns_max: int | None = None  # friction: cap on the GCNS iterations
+    gcns_patience: int = 1  # friction: GCNS stops after this many increases (1: the seed)
 
     @property
     def component_options(self) -> dict:
@@ -146,11 +151,36 @@ class Offline:
         return self.stage.model
 
 
-def reduction_steps(config: ReduceConfig, registry: Registry) -> Any:
-    """The offline steps of ``config.formulation`` (its plugin's ``reduction()``)."""
+def reduction_steps(config: ReduceConfig, registry: Registry, law: str = "none") -> Any:
+    """The offline steps of ``config.formulation`` (its plugin's ``reduction()``; for a
+    friction ``law``, ``reduction(friction=law)`` when the plugin takes that keyword)."""
     form = registry.create("formulation", config.formulation,
                            **dict(config.formulation_options))
+    if law != "none" and "friction" in inspect.signature(form.reduction).parameters:
+        return form.reduction(friction=law)
     return form.reduction()
+
+
+class SceneProblems(ProblemCache):
+    """:class:`~rbbench.hf.model.ProblemCache` that builds the scene's friction problem at
+    mu (:func:`~rbbench.hf.model.friction_at`); a frictionless scene as the base class."""
+
+    def __init__(self, backend: Any, formulation: Any, scene: Scene):
+        super().__init__(backend, formulation)
+        self.scene = scene
+
+    def __call__(self, mu: Any) -> Any:
+        key = np.asarray(mu, float).tobytes()
+        if key not in self._problems:
+            self._problems[key] = build_problem(self.backend, self.formulation, self.scene, mu)
+        return self._problems[key]
+
+
+def build_problem(backend: Any, formulation: Any, scene: Scene, mu: Any) -> Any:
+    """The HF problem at ``mu``: discretise and formulate, with the scene's friction law."""
+    disc = discretize_for(backend, formulation, mu)
+    friction = friction_at(scene, mu)
+    return formulation.build(disc) if friction is None else formulation.build(disc, friction)
 
 
 def check_hyper(config: ReduceConfig, registry: Registry) -> None:
@@ -167,12 +197,13 @@ def offline(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] 
     the formulation's steps. ``validation_snapshots = False`` skips the HF solves at the
     validation parameters (the model is the same: only their values are used offline)."""
     reg = registry or default_registry()
-    steps = reduction_steps(config, reg)
     law = friction_of(scene).law
-    if law not in getattr(steps, "friction_laws", ("none",)):
+    steps = reduction_steps(config, reg, law)
+    laws = getattr(steps, "friction_laws", ("none",))
+    if law not in laws:
         raise SceneError(f"{scene.path}: [friction] law = {law!r}: the reduced "
-                         f"{steps.name!r} model is frictionless (reduced friction models: "
-                         "issue 14); solve the HF friction problem with `rbbench solve`")
+                         f"{steps.name!r} model supports {', '.join(map(repr, laws))}; "
+                         "solve the HF friction problem with `rbbench solve`")
     config = steps.prepare(scene, config, reg)  # early checks, before any HF work
     check_hyper(config, reg)
     t0 = time.perf_counter()
@@ -183,7 +214,7 @@ def offline(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] 
     timings["snapshots_s"] = time.perf_counter() - t0
     b, f, _ = make_components(scene, config.backend, config.formulation, config.solver,
                               component_options=config.component_options, registry=reg)
-    problem_at = ProblemCache(b, f)
+    problem_at = SceneProblems(b, f, scene)
     X = problem_at.X_free(scene.default_mu)
     t1 = time.perf_counter()
     primal = primal_basis(reg, config, train.U, X, progress)

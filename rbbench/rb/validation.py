@@ -45,6 +45,8 @@ class ReduceResult:
     definitions: dict[str, str] = field(default_factory=dict)
     model: Any = field(default=None, repr=False)  # the reduced model (None: plain online)
     valid_mus: Any = field(default=None, repr=False)
+    per_mu_extra: dict[str, list[float]] = field(default_factory=dict)  # a stage's own
+    extra: dict[str, Any] = field(default_factory=dict)  # a stage's own summary entries
 
     def summary(self) -> dict[str, Any]:
         """The flat summary (``result.json``, one results row): max / mean / min over the
@@ -75,12 +77,16 @@ class ReduceResult:
             out[f"beta_{name}_min"] = mn([r["value"] for r in rows])
             out[f"beta_{name}_span_min"] = mn([r["span"] for r in rows])
             out[f"beta_{name}_zero_any"] = bool(any(r["is_zero"] for r in rows))
+        for name, values in self.per_mu_extra.items():  # e.g. friction: err_lam_t
+            out[f"{name}_max"], out[f"{name}_mean"] = mx(values), mean(values)
+        out.update(self.extra)
         out["config"] = self.config
         out["timings"] = self.timings
         out["histories"] = self.histories
         out["per_mu"] = {"err_u": self.err_u, "err_lam": self.err_lam,
                          "penetration": self.penetration,
-                         "complementarity": self.complementarity, "beta": self.beta}
+                         "complementarity": self.complementarity, "beta": self.beta,
+                         **self.per_mu_extra}
         out["definitions"] = self.definitions
         return out
 
@@ -151,10 +157,15 @@ class ReducedStage(ABC):
     def metrics(self, mu: np.ndarray, problem: Any, u: np.ndarray, lam: np.ndarray,
                 result: Any, u_n: np.ndarray) -> dict[str, float]:
         """The formulation's per-mu numbers: ``err_lam``, ``penetration`` and
-        ``complementarity`` (when defined); anything else is kept in the stage."""
+        ``complementarity`` (when defined); any other key becomes a per-mu list of the
+        result (``per_mu_extra``, summarised as ``<key>_max`` / ``<key>_mean``)."""
 
     def finish(self, histories: dict, timings: dict) -> None:  # noqa: B027 - optional hook
         """Add the stage's validation histories and timings (after the last mu)."""
+
+    def summary(self) -> dict[str, Any]:
+        """The stage's own entries of the flat summary (e.g. friction: ``S``, ``S_q``)."""
+        return {}
 
 
 def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
@@ -164,6 +175,7 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
     """
     ctx.progress("online validation")
     per_mu: dict[str, list[float]] = {"err_lam": [], "penetration": [], "complementarity": []}
+    extra: dict[str, list[float]] = {}
     err_u, e_en, t_on = [], [], []
     stops: dict[str, int] = {}
     X = ctx.X
@@ -175,7 +187,7 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
         stops[res.stop_reason] = stops.get(res.stop_reason, 0) + 1
         err_u.append(float(np.sqrt(xnorm2(X, u - u_n) / xnorm2(X, u))))
         for key, value in stage.metrics(mu, p, u, lam, res, u_n).items():
-            per_mu[key].append(value)
+            (per_mu if key in per_mu else extra).setdefault(key, []).append(value)
         J = energy(p, u)
         e_en.append(float(abs(energy(p, u_n) - J) / abs(J)) if J != 0 else float("nan"))
     histories = dict(stage.histories)
@@ -192,4 +204,5 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
         t_online=t_on,
         t_hf=[float(t) for t in np.concatenate([ctx.train.times, ctx.valid.times])],
         timings=timings, histories=histories, definitions=stage.definitions,
-        model=stage.model, valid_mus=np.asarray(ctx.valid.mus))
+        model=stage.model, valid_mus=np.asarray(ctx.valid.mus), per_mu_extra=extra,
+        extra=stage.summary())
