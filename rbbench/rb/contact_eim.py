@@ -42,10 +42,11 @@ from rbbench.hf.contact_geometry import (
     pair,
     window_tangent_ranges,
 )
-from rbbench.rb.eim import deim, eim_error, matrix_eim
+from rbbench.rb.eim import EIMResult, deim, eim_error, matrix_eim
 
 __all__ = ["ContactEIM", "HyperReductionError", "RowEvaluator", "build_row_evaluator",
-           "contact_eim", "entrywise_eim_error", "pair_in_windows", "restrict_layout"]
+           "column_eim", "contact_eim", "entrywise_eim_error", "local_free_rows",
+           "pair_in_windows", "restrict_layout", "tangent"]
 
 
 class HyperReductionError(ValueError):
@@ -81,14 +82,18 @@ class RowEvaluator:
     local_dofs: np.ndarray
     Mrows: np.ndarray
 
-    def _pair(self, mu: np.ndarray):
+    def pairing(self, mu: np.ndarray):
+        """The pairing of the rows' quadrature points at mu, in their windows."""
         return pair_in_windows(self.layout, mu, self.windows, "a magic row's quadrature point")
 
-    def __call__(self, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(B(mu)[rows][:, local_dofs] (M x n_local) dense, G(mu)[rows] (M,))``."""
-        p = self._pair(mu)
+    def __call__(self, mu: np.ndarray, tangential: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """``(B(mu)[rows][:, local_dofs] (M x n_local) dense, G(mu)[rows] (M,))``; with
+        ``tangential`` the rows of ``Bt(mu)`` (the jump along ``t = (-n_y, n_x)``) instead."""
+        p = self.pairing(mu)
         Mw = self.Mrows * p.w
-        return Mw @ p.jump(p.nrm, self.n_local).toarray(), Mw @ p.gap
+        d = tangent(p.nrm) if tangential else p.nrm
+        return Mw @ p.jump(d, self.n_local).toarray(), Mw @ p.gap
 
     def support(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Quadrature points of the rows ``rows[pos]``, padded: ``(points, values)``, each
@@ -111,16 +116,33 @@ class RowEvaluator:
         over its row's points ``pts[e]`` (:meth:`support`): O(entries x points x dofs
         per point) work, neither the rows nor the full ``B(mu) Z`` is formed.
         """
-        p = self._pair(mu)
+        p = self.pairing(mu)
+        return self.jump_entries(p, p.nrm, Z_loc, pts, vals, cols), self.gap_rows(p, pos_G)
+
+    def jump_entries(self, p, direction: np.ndarray, Z_loc: np.ndarray, pts: np.ndarray,
+                     vals: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """The entries of :meth:`entries` for the jump along ``direction`` (n_q, 2) at the
+        points of the pairing ``p`` (:meth:`pairing`): ``p.nrm`` gives ``B Z``,
+        :func:`tangent` of it ``Bt Z``."""
         col = np.asarray(cols)[:, None, None]
         acc = np.zeros(pts.shape)
-        for c, d in p.jump_terms(p.nrm):
+        for c, d in p.jump_terms(direction):
             acc += np.einsum("epj,epj->ep", c[pts], Z_loc[d[pts], col])
-        return np.einsum("ep,ep->e", vals * p.w[pts], acc), (self.Mrows[pos_G] * p.w) @ p.gap
+        return np.einsum("ep,ep->e", vals * p.w[pts], acc)
+
+    def gap_rows(self, p, pos: np.ndarray) -> np.ndarray:
+        """``G(mu)[rows[pos]]`` from the pairing ``p`` at mu."""
+        return (self.Mrows[pos] * p.w) @ p.gap
 
     @property
     def n_local(self) -> int:
         return int(self.local_dofs.size)
+
+
+def tangent(nrm: np.ndarray) -> np.ndarray:
+    """``t = (-n_y, n_x)`` per row of ``nrm`` (the tangent of ``Ut``,
+    :func:`rbbench.hf.contact_geometry.contact_operators`)."""
+    return np.stack([-nrm[:, 1], nrm[:, 0]], axis=1)
 
 
 def pair_in_windows(layout: ContactLayout, mu: np.ndarray,
@@ -274,23 +296,13 @@ def contact_eim(layout: ContactLayout, B_train: list, G_train: np.ndarray, Z: np
     tol, m_max
         EIM stopping: relative max-norm training error, and largest size.
     """
-    m, N = B_train[0].shape[0], Z.shape[1]
-    S = np.stack([np.asarray(B @ Z).ravel() for B in B_train], axis=1)  # (m N, P)
-    res_B = deim(S, tol=tol, m_max=m_max)
+    res_B, e_row, e_col, T_B = column_eim(B_train, Z, Vg, tol, m_max)
     res_G = deim(np.asarray(G_train), tol=tol, m_max=m_max)
     if res_B.m == 0 or res_G.m == 0:
         raise HyperReductionError("EIM found no term: the training B(mu) Z or G(mu) is zero")
-    e_row, e_col = np.divmod(res_B.magic, N)
     rows_B = np.unique(e_row)
     ev = build_row_evaluator(layout, np.concatenate([rows_B, res_G.magic]), mus_sample)
-    free_of = np.full(layout.n_dofs, -1, dtype=np.int64)
-    free_of[free] = np.arange(free.size)
-    loc = free_of[ev.local_dofs]
-    if np.any(loc < 0):
-        raise HyperReductionError(
-            f"{int(np.sum(loc < 0))} dof(s) of the magic contact rows are Dirichlet dofs; "
-            "the contact EIM assumes the contact zone is away from the Dirichlet boundary")
-    T_B = np.stack([Vg.T @ res_B.Q[:, k].reshape(m, N) for k in range(res_B.m)])
+    loc = local_free_rows(ev, free, layout.n_dofs)
     T_G = (Vg.T @ res_G.Q).T
     info = {"M_B": res_B.m, "M_G": res_G.m, "rows": int(ev.rows.size),
             "n_local_dofs": ev.n_local, "tol": tol,
@@ -303,6 +315,34 @@ def contact_eim(layout: ContactLayout, B_train: list, G_train: np.ndarray, Z: np
                       np.searchsorted(ev.rows, res_G.magic),
                       np.ascontiguousarray(Z[loc]), sla.lu_factor(res_B.Q[res_B.magic]),
                       sla.lu_factor(res_G.Q[res_G.magic]), T_B, T_G, info)
+
+
+def column_eim(B_train: list, Z: np.ndarray, Vg: np.ndarray, tol: float | None,
+               m_max: int | None) -> tuple[EIMResult, np.ndarray, np.ndarray, np.ndarray]:
+    """Greedy EIM of the entries of ``C(mu) = B(mu) Z`` (m x N) over the training
+    ``B_train``: ``(result, entry rows, entry columns, T)`` with ``T[k] = Vg^T C_k``
+    (R x N; empty when no term)."""
+    m, N = B_train[0].shape[0], Z.shape[1]
+    S = np.stack([np.asarray(B @ Z).ravel() for B in B_train], axis=1)  # (m N, P)
+    res = deim(S, tol=tol, m_max=m_max)
+    e_row, e_col = np.divmod(res.magic, N)
+    if res.m == 0:
+        return res, e_row, e_col, np.zeros((0, Vg.shape[1], N))
+    return res, e_row, e_col, np.stack([Vg.T @ res.Q[:, k].reshape(m, N)
+                                        for k in range(res.m)])
+
+
+def local_free_rows(ev: RowEvaluator, free: np.ndarray, n_dofs: int) -> np.ndarray:
+    """Position among the free dofs of each local dof of ``ev`` (a
+    :class:`HyperReductionError` when one is a Dirichlet dof)."""
+    free_of = np.full(n_dofs, -1, dtype=np.int64)
+    free_of[free] = np.arange(free.size)
+    loc = free_of[ev.local_dofs]
+    if np.any(loc < 0):
+        raise HyperReductionError(
+            f"{int(np.sum(loc < 0))} dof(s) of the magic contact rows are Dirichlet dofs; "
+            "the contact EIM assumes the contact zone is away from the Dirichlet boundary")
+    return loc
 
 
 def entrywise_eim_error(B_train: list, B_valid: list, tol: float = 1e-8,
