@@ -211,6 +211,8 @@ def _reduce_config(args):
                             backend=args.backend, formulation=args.formulation,
                             tol_eim=args.tol_eim, delta_pga=args.delta_pga,
                             k_pga_max=args.k_pga_max,
+                            gcns_per_iteration=args.gcns_per_iteration,
+                            gcns_patience=args.gcns_patience,
                             backend_options=_backend_options(args.backend_option),
                             formulation_options=_backend_options(
                                 args.formulation_option, "--formulation-option"))
@@ -443,6 +445,11 @@ def _add_reduce_args(rd) -> None:
     rd.add_argument("-R", type=int, default=None, help="max dual size (default: tolerance)")
     rd.add_argument("-S", type=int, default=None,
                     help="friction: tangential size (POD of lam_t; default: R)")
+    rd.add_argument("--gcns-per-iteration", type=int, default=2,
+                    help="friction: GCNS nodes added per iteration (seed: 2)")
+    rd.add_argument("--gcns-patience", type=int, default=1,
+                    help="friction: GCNS stops after this many increases of e_GCNS, keeping "
+                         "the best set (1: the seed's rule e(q) > e(q-1))")
     rd.add_argument("--n-train", type=int, default=None)
     rd.add_argument("--n-valid", type=int, default=None)
     rd.add_argument("--jobs", type=int, default=None, help="processes for HF snapshots")

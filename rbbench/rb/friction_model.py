@@ -95,36 +95,64 @@ def condense_reduced(arr: FrictionArrays) -> ReducedCondensed:
 def tresca_qp(D: np.ndarray, q: np.ndarray, R: int, Qt: np.ndarray, s: np.ndarray,
               x0: np.ndarray | None = None) -> tuple[np.ndarray | None, int, int]:
     """The reduced Tresca QP ``min 1/2 x^T D x + q^T x``, ``x[:R] >= 0``,
-    ``|Qt x[R:]| <= s`` by daqp: ``(x or None, iterations, daqp exit flag)``.
+    ``|Qt x[R:]| <= s``: ``(x or None, daqp iterations, daqp exit flag)``.
+
+    Nodes with ``s = 0`` (open nodes of the Coulomb fixed point: ``s <= 1e-10 s_ref``,
+    ``s_ref = max|Qt| ||q|| / ||D||_2`` the scale of ``Qt theta``) pin ``Qt theta`` to 0:
+    ``theta = N0 phi`` with ``N0`` an orthonormal basis of the null space of those rows, so
+    that daqp never sees rows with (nearly) equal bounds (two of them, on nearly parallel
+    rows, already overdetermine its working set: exit flag -6, measured on hertz_friction).
+    The rest is :func:`_daqp_qp`.
+    """
+    s = np.asarray(s, float)
+    n = q.size
+    s_ref = float(np.abs(Qt).max(initial=0.0)) * float(np.linalg.norm(q)) / max(
+        float(np.linalg.norm(D, 2)), np.finfo(float).tiny)
+    zero = s <= 1e-10 * s_ref
+    T = np.eye(n)
+    if np.any(zero):
+        _, sv, Vh = np.linalg.svd(Qt[zero], full_matrices=True)
+        rank = int(np.sum(sv > 1e-10 * sv.max(initial=0.0))) if sv.size else 0
+        T = sla.block_diag(np.eye(R), Vh[rank:].T)
+    y0 = None if x0 is None else T.T @ np.asarray(x0, float)
+    y, it, flag = _daqp_qp(T.T @ D @ T, T.T @ q, R, Qt[~zero] @ T[R:, R:], s[~zero], y0)
+    return (None if y is None else T @ y), it, flag
+
+
+def _daqp_qp(D: np.ndarray, q: np.ndarray, R: int, Qt: np.ndarray, s: np.ndarray,
+             x0: np.ndarray | None) -> tuple[np.ndarray | None, int, int]:
+    """:func:`tresca_qp` with ``s > 0`` by daqp (Arnstrom et al. 2022).
 
     daqp's tolerances are absolute: ``x = fs diag(sc) y`` with ``sc = diag(D)^{-1/2}``
     (unit-diagonal Hessian) and ``fs = ||sc q||`` (unit load), constraint rows scaled to
-    unit norm; then ``primal_tol = dual_tol = 1e-12``. Rows of ``Qt`` that vanish are
-    dropped (``0 <= s``). ``x0``: warm start (primal).
+    unit norm (rows of ``Qt`` that vanish are dropped: ``0 <= s``); ``primal_tol =
+    dual_tol = 1e-12``. ``x0``: warm start (primal), a cold start if daqp refuses it.
     """
     import daqp
 
     n = q.size
     d = np.diag(D).copy()
     sc = 1.0 / np.sqrt(np.maximum(d, 1e-14 * max(float(d.max(initial=0.0)), 1e-300)))
-    H = sc[:, None] * D * sc[None, :]
     g = sc * q
     fs = float(np.linalg.norm(g)) or 1.0
     rows = np.zeros((Qt.shape[0], n))
     rows[:, R:] = Qt * sc[None, R:]
     rn = np.linalg.norm(rows, axis=1)
     keep = rn > 1e-14 * max(float(rn.max(initial=0.0)), 1e-300)
-    rows, bound = rows[keep] / rn[keep, None], np.asarray(s, float)[keep] / (fs * rn[keep])
-    upper = np.concatenate([np.full(R, 1e30), bound])
-    lower = np.concatenate([np.zeros(R), -bound])
-    kw = {} if x0 is None else {"primal_start": np.asarray(x0, float) / (fs * sc)}
-    y, _, flag, info = daqp.solve(np.ascontiguousarray(H), g / fs, np.ascontiguousarray(rows),
-                                  upper, lower, np.zeros(upper.size, dtype=np.int32),
-                                  primal_tol=1e-12, dual_tol=1e-12, **kw)
-    it = int(info["iterations"])
-    if int(flag) != 1 or not np.all(np.isfinite(y)):
-        return None, it, int(flag)
-    return fs * sc * np.asarray(y, float), it, int(flag)
+    bound = s[keep] / (fs * rn[keep])
+    args = (np.ascontiguousarray(sc[:, None] * D * sc[None, :]), g / fs,
+            np.ascontiguousarray(rows[keep] / rn[keep, None]),
+            np.concatenate([np.full(R, 1e30), bound]), np.concatenate([np.zeros(R), -bound]),
+            np.zeros(R + bound.size, dtype=np.int32))
+    it, flag = 0, 0
+    starts = ([{"primal_start": np.asarray(x0, float) / (fs * sc)}] if x0 is not None
+              else []) + [{}]
+    for kw in starts:
+        y, _, flag, info = daqp.solve(*args, primal_tol=1e-12, dual_tol=1e-12, **kw)
+        it += int(info["iterations"])
+        if int(flag) == 1 and np.all(np.isfinite(y)):
+            return fs * sc * np.asarray(y, float), it, 1
+    return None, it, int(flag)
 
 
 @dataclass

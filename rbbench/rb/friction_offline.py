@@ -42,7 +42,8 @@ from rbbench.rb.validation import ReducedStage, xnorm2
 from rbbench.registry import Registry
 from rbbench.scene.loading import Scene, SceneError
 
-__all__ = ["FrictionReduction", "FrictionStage", "TangentialBasis", "tangential_pod"]
+__all__ = ["FrictionReduction", "FrictionStage", "TangentialBasis", "TangentialPOD",
+           "tangential_pod"]
 
 DEFINITIONS = {
     "err_u": "relative error ||u - u_N||_X / ||u||_X per validation mu (X: the scene's V inner "
@@ -69,6 +70,11 @@ DEFINITIONS = {
                 "reduced Coulomb fixed point (t_online_solve_median_s); median over "
                 "validation mus x repeats",
     "speedup": "median HF solve time / median online time",
+    "dim_v_off": "N + K: the primal space after the stabiliser (PGA on the combined form "
+                 "b^n + b^tau: [Bn; Bt] against blockdiag(Vn, Vt); seed: 70)",
+    "delta_pga": "PGA tolerance: the seed's rule sup_mu beta / c of the combined form over "
+                 "every fifth training mu (beta over span(blockdiag(Vn, Vt)) in whole V, a "
+                 "lower bound; seed: 0.072); null without PGA",
 }
 
 
@@ -93,6 +99,18 @@ def tangential_pod(LAM_T: np.ndarray, W: Any, tol: float | None = None,
     res = pod(LAM_T, W, tol=tol, n=s_max)
     return TangentialBasis(res.Z, "pod", {"singular_values": res.s.tolist(),
                                           "tail": res.tail.tolist()})
+
+
+class TangentialPOD:
+    """The tangential compressor as a registry component (role ``"tangential"``, to be
+    declared): ``(LAM_T, W, *, tol=None, s_max=None) -> TangentialBasis``
+    (:func:`tangential_pod`)."""
+
+    name = "pod"
+
+    def __call__(self, LAM_T: np.ndarray, W: Any, *, tol: float | None = None,
+                 s_max: int | None = None) -> TangentialBasis:
+        return tangential_pod(LAM_T, W, tol=tol, s_max=s_max)
 
 
 class FrictionReduction:
@@ -159,8 +177,8 @@ class FrictionStage(ReducedStage):
         check_finite(f"dual compressor {config.dual!r}: the generators", self.Vn)
         self.R = int(self.Vn.shape[1])
         ctx.progress("tangential space: POD of lam_t")
-        self.tangential = tangential_pod(ctx.train.LAM_T, self.W_ref,
-                                         s_max=config.S if config.S else self.R)
+        self.tangential = TangentialPOD()(ctx.train.LAM_T, self.W_ref,
+                                          s_max=config.S if config.S else self.R)
         self.Vt = self.tangential.generators
         check_finite("tangential POD: the modes", self.Vt)
         self.S = self.tangential.S
@@ -289,7 +307,9 @@ class FrictionStage(ReducedStage):
         g = self.gcns
         return {"S": self.S, "S_q": g.S_q, "gcns_iterations": g.iterations,
                 "gcns_nodes": [int(i) for i in g.nodes], "gcns_stop": g.stop,
-                "gcns_history": g.history, "dim_primal_online": int(self.Z_off.shape[1])}
+                "gcns_history": g.history, "dim_primal_online": int(self.Z_off.shape[1]),
+                "dim_v_off": int(self.Z_off.shape[1]),
+                "delta_pga": self.histories.get("pga_delta")}
 
 
 def _stack_b(p: Any) -> Any:
