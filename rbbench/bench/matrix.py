@@ -48,8 +48,11 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from rbbench.bench import matrix_checks as checks
+from rbbench.bench.matrix_checks import MatrixError
 from rbbench.rb.hyper_reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.registry import Registry
+from rbbench.scene import limits
 from rbbench.scene.friction import friction_of
 from rbbench.scene.loading import PROBLEMS_DIR, Scene, load_scene, tomllib
 
@@ -69,10 +72,6 @@ _HF_ROLES = ("backend", "formulation", "solver")
 #: to the runner).
 _RESERVED = {"backend", "formulation", "solver", "primal", "dual", "stabilizer", "hyper", "N",
              "R", "cache_dir", "n_jobs"}
-
-
-class MatrixError(ValueError):
-    """A run-matrix file or selector is invalid; the message names the file and field."""
 
 
 @dataclass(frozen=True)
@@ -223,6 +222,7 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
     plan.base = _base_params(data.get("reduce", {}), sets, rfields, where)
     plan.grids = _param_grids(data.get("params", {}), plan.axes, rfields, where)
     plan.overrides = _scene_overrides(data.get("scene_overrides", {}), plan.scenes, where)
+    checks.check_case_count(_case_count(plan), where)
     sel = _selectors(selectors)
     cases = [case for sname in plan.scenes if _selected(sname, sel.get("scene"))
              for case in _scene_cases(plan, sname, sel, registry, where)]
@@ -231,35 +231,42 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
     return Matrix(plan.name, str(path), data, cases)
 
 
+def _case_count(plan: _Plan) -> int:
+    """The number of cases before selectors (an upper bound of the expansion)."""
+    n = len(plan.scenes) * len(plan.pairs) * plan.repetitions
+    for names in plan.axes.values():
+        n *= len(names)
+    for grid in plan.grids.values():
+        n *= max(1, len(grid))
+    return n
+
+
 def _read_toml(path: Path, where: str) -> dict[str, Any]:
     """The matrix file's tables, with the top-level ones and ``[matrix]`` checked."""
     try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+        data = tomllib.loads(limits.read_input(path, "run matrix"))
     except tomllib.TOMLDecodeError as exc:  # noqa: BLE001 - any parse error becomes a named one
         raise MatrixError(f"{where}: not valid TOML: {exc}") from None
+    except ValueError as exc:  # a directory, too large, unreadable, not UTF-8
+        raise MatrixError(str(exc)) from None
+    except RecursionError:
+        raise MatrixError(f"{where}: not valid TOML: nested too deeply") from None
     _check_keys(data, _TOP, where)
     if "matrix" not in data:
         raise MatrixError(f"{where}: missing the [matrix] table (name, scenes)")
+    for key in _TOP - {"matrix"}:
+        if key in data and not isinstance(data[key], dict):
+            raise MatrixError(f"{where}: {key} = {data[key]!r}; expected the table [{key}]")
     return data
 
 
 def _matrix_table(mtab: dict, default_name: str, where: str) -> _Plan:
     """The ``[matrix]`` table: name, scenes, repetitions, seed, mode and time limit."""
-    _check_keys(mtab, _MATRIX_KEYS, f"{where}: [matrix]")
-    name = str(mtab.get("name", default_name))
-    scenes = _as_list(mtab.get("scenes", []) or [], f"{where}: [matrix] scenes")
-    reps = int(mtab.get("repetitions", 1))
-    if reps < 1:
-        raise MatrixError(f"{where}: [matrix] repetitions = {reps}; give an integer >= 1")
-    seed = int(mtab.get("seed", 0))
-    mode = str(mtab.get("mode", "rb"))
-    if mode not in MODES:
-        raise MatrixError(f"{where}: [matrix] mode = {mode!r}; valid: {', '.join(MODES)}")
-    timeout = float(mtab.get("timeout_s", 600))
-    if timeout <= 0:
-        raise MatrixError(f"{where}: [matrix] timeout_s = {timeout}; give seconds > 0")
-    return _Plan(name, scenes, reps, seed if "seed" in mtab else None, mode, timeout)
+    if isinstance(mtab, dict):
+        _check_keys(mtab, _MATRIX_KEYS, f"{where}: [matrix]")
+    h = checks.matrix_header(mtab, default_name, where)
+    return _Plan(h["name"], h["scenes"], h["repetitions"], h["seed"], h["mode"],
+                 h["timeout_s"])
 
 
 def _hf_repeats(data: dict, mode: str, where: str) -> Any:
@@ -274,8 +281,9 @@ def _hf_repeats(data: dict, mode: str, where: str) -> Any:
     _check_keys(hf, {"repeats"}, f"{where}: [hf]")
     if mode == "hf":
         reps_hf = hf.get("repeats", 3)
-        if not isinstance(reps_hf, int) or reps_hf < 1:
-            raise MatrixError(f"{where}: [hf] repeats = {reps_hf!r}; give an integer >= 1")
+        if not isinstance(reps_hf, int) or isinstance(reps_hf, bool) or not 1 <= reps_hf <= 1000:
+            raise MatrixError(f"{where}: [hf] repeats = {reps_hf!r}; give an integer in "
+                              "[1, 1000]")
     return hf.get("repeats", 3)
 
 
@@ -286,8 +294,7 @@ def _component_axes(data: dict, mode: str, registry: Registry | None,
     _check_keys(comps, set(_HF_ROLES) if mode == "hf" else set(COMPONENT_ROLES),
                 f"{where}: [components] (mode {mode})")
     hf_repeats = _hf_repeats(data, mode, where)
-    axes = {role: [str(x) for x in _as_list(comps.get(role, default),
-                                             f"{where}: [components] {role}")]
+    axes = {role: checks.check_strings(comps.get(role, default), f"{where}: [components] {role}")
             for role, default in COMPONENT_ROLES.items()}
     if mode == "hf":  # the RB roles do not apply: empty names in the rows
         axes.update({r: [""] for r in COMPONENT_ROLES if r not in _HF_ROLES})
@@ -320,7 +327,7 @@ def _size_pairs(sizes: dict, where: str) -> list[tuple[int | None, int | None]]:
         for p in _as_list(sizes["pairs"], f"{where}: [sizes] pairs"):
             if not (isinstance(p, list) and len(p) == 2):
                 raise MatrixError(f"{where}: [sizes] pairs: {p!r}; each pair is [N, R]")
-            pairs.append((_size(p[0], where, "N"), _size(p[1], where, "R")))
+            pairs.append((_size(p[0], where, "pairs: N"), _size(p[1], where, "pairs: R")))
         return pairs
     Ns = [_size(v, where, "N") for v in _as_list(sizes.get("N", [None]), f"{where}: N")]
     Rs = [_size(v, where, "R") for v in _as_list(sizes.get("R", [None]), f"{where}: R")]
@@ -337,6 +344,7 @@ def _base_params(reduce: dict, sets: list[str] | tuple[str, ...], rfields: dict,
         k, v = s.split("=", 1)
         base[k.strip()] = _parse_value(v.strip())
     _check_params(base, rfields, f"{where}: [reduce] / --set")
+    checks.check_reduce_values(base, f"{where}: [reduce] / --set")
     return base
 
 
@@ -346,12 +354,18 @@ def _param_grids(params: dict, axes: dict[str, list[str]], rfields: dict,
     _check_keys(params, set(COMPONENT_ROLES), f"{where}: [params]")
     grids: dict[tuple[str, str], list[dict]] = {}
     for role, per_name in params.items():
+        if not isinstance(per_name, dict):
+            raise MatrixError(f"{where}: [params] {role} = {per_name!r}; expected tables "
+                              f"[params.{role}.NAME] of field = [values]")
         for cname, grid in per_name.items():
             w = f"{where}: [params.{role}.{cname}]"
             if cname not in axes[role]:
                 raise MatrixError(f"{w}: {cname!r} is not in [components] {role} "
                                   f"{axes[role]}")
+            if not isinstance(grid, dict):
+                raise MatrixError(f"{w}: {grid!r}; expected a table of field = [values]")
             _check_params(grid, rfields, w)
+            checks.check_reduce_values(grid, w, grid=True)
             keys = sorted(grid)
             vals = [_as_list(grid[k], f"{w} {k}") for k in keys]
             grids[(role, cname)] = [dict(zip(keys, combo, strict=True))
@@ -413,8 +427,9 @@ def _case_params(plan: _Plan, opts: tuple[dict, ...]) -> dict[str, Any]:
 def _size(v: Any, where: str, what: str) -> int | None:
     if v is None:
         return None
-    if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-        raise MatrixError(f"{where}: [sizes] {what} = {v!r}; give integers >= 1")
+    if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= checks.MAX_SIZE:
+        raise MatrixError(f"{where}: [sizes] {what} = {v!r}; give integers >= 1 and <= "
+                          f"{checks.MAX_SIZE}")
     return int(v)
 
 
@@ -429,6 +444,8 @@ def _find_matrix(path: str | Path) -> Path:
     p = Path(path)
     if p.is_file():
         return p
+    if p.is_dir():
+        raise MatrixError(f"{p}: is a directory; expected a run-matrix .toml file")
     cand = PROBLEMS_DIR / "matrices" / (p.name if p.suffix == ".toml" else f"{p.name}.toml")
     if cand.is_file():
         return cand

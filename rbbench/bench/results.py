@@ -158,10 +158,15 @@ def _case_rows(d: Path, notes: list[str] | None) -> list[dict[str, Any]]:
     raw = []
     for f in files:
         try:
-            raw.append(json.loads(f.read_text())["row"])
-        except (OSError, ValueError, KeyError) as exc:
-            if notes is not None:
-                notes.append(f"{f.name}: unreadable ({exc})")
+            rec = json.loads(f.read_text())
+        except (OSError, ValueError) as exc:
+            problem = f"unreadable ({exc})"
+        else:
+            problem = schema.case_record_problem(f.name, rec)
+        if problem is None:
+            raw.append(rec["row"])
+        elif notes is not None:
+            notes.append(f"{f.name}: {problem}; ignored")
     if not raw:
         raise ResultsNotFoundError(f"{d}: no results.parquet, results.csv or cases/*.json")
     if notes is not None:

@@ -23,6 +23,7 @@ import json
 import os
 import signal
 import time
+import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,6 +41,7 @@ from rbbench.bench.execution import (  # noqa: F401 - one case's row: re-exporte
     failed_row,
     run_provenance,
 )
+from rbbench.bench.guard import RunLock, Watchdog
 from rbbench.bench.matrix import Case, Matrix
 from rbbench.hf.snapshots import atomic_write
 from rbbench.provenance import _jsonable
@@ -66,13 +68,26 @@ def _atomic_write_text(path: Path, text: str) -> None:
 
 
 def load_rows(out_dir: Path) -> dict[str, dict]:
-    """``{case key: {"row", "details"}}`` of every finished case in ``out_dir/cases``."""
+    """``{case key: {"row", "details"}}`` of every valid case file in ``out_dir/cases``.
+
+    A file that is not a case record of its own name (unreadable, not JSON, JSON of
+    another shape, a row without identity or status, a copy under another case's name)
+    is left out with a warning naming it: its case, if selected, is computed again.
+    """
     out = {}
     for p in sorted((Path(out_dir) / "cases").glob("*.json")):
         try:
-            out[p.stem] = json.loads(p.read_text())
-        except (OSError, json.JSONDecodeError):
-            continue  # a torn file cannot exist (atomic writes); ignore foreign files
+            rec = json.loads(p.read_text())
+        except (OSError, ValueError) as exc:
+            problem = f"unreadable ({type(exc).__name__}: {exc})"
+        else:
+            problem = schema.case_record_problem(p.name, rec)
+        if problem is not None:
+            warnings.warn(f"{p}: {problem}; ignored (its case is computed again when "
+                          "selected)", RuntimeWarning, stacklevel=2)
+            continue
+        rec.setdefault("details", {})
+        out[p.stem] = rec
     return out
 
 
@@ -126,6 +141,7 @@ def _prepare_group(c: Case, cache_dir: str, jobs: int | None, registry: Any = No
 
 def _prepare_child(c: Case, cache_dir: str, jobs: int | None, registry: Any) -> None:
     os.setsid()  # its own process group: a time-out kills its snapshot workers too
+    _die_with_parent()  # and the run's watchdog kills the group if the run is killed
     try:
         _prepare_group(c, cache_dir, jobs, registry)
     except Exception:  # noqa: BLE001 - the cases meet (and record) the same failure
@@ -133,15 +149,27 @@ def _prepare_child(c: Case, cache_dir: str, jobs: int | None, registry: Any) -> 
     os._exit(0)
 
 
+def _die_with_parent() -> None:
+    """Linux: SIGKILL when the parent dies (``PR_SET_PDEATHSIG``)."""
+    import ctypes
+    import sys
+
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError):
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)
+
+
 def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,
                       progress: Callable[[str], None],
-                      registry: Registry | None = None) -> dict[tuple, str]:
+                      registry: Registry | None = None,
+                      watchdog: Watchdog | None = None) -> dict[tuple, str]:
     """Compute the HF snapshots the cases share, once per group, before the cases start.
 
     Each group runs in a child process limited to the longest time limit of its cases
     (a hung HF solver cannot stall the run: the group is killed and its cases compute
     what they need under their own limits). Failures are not raised: each affected case
     meets the same failure itself and records it in its row. Returns ``{group: why}``.
+    ``watchdog`` kills a group's processes if the run is killed meanwhile.
     """
     import multiprocessing as mp
 
@@ -158,6 +186,8 @@ def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,
         progress(f"HF snapshots for {c.scene} ({comp['backend']}/{comp['solver']})")
         p = ctx.Process(target=_prepare_child, args=(c, cache_dir, jobs, registry))
         p.start()
+        if watchdog is not None:
+            watchdog.protect(p.pid)
         try:
             p.join(limits[key])
         except BaseException:  # Ctrl-C: do not leave the group running
@@ -171,6 +201,10 @@ def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,
             failures[key] = f"snapshot preparation killed after {limits[key]:g} s"
         elif p.exitcode != 0:
             failures[key] = f"snapshot preparation failed (exit code {p.exitcode})"
+        with contextlib.suppress(ProcessLookupError):  # its pool workers, if any are left
+            os.killpg(p.pid, signal.SIGKILL)
+        if watchdog is not None:
+            watchdog.forget(p.pid)
     return failures
 
 
@@ -203,16 +237,22 @@ def _split_finished(cases: list[Case], done: dict[str, dict],
 @dataclass
 class _Run:
     """A run in progress: its records by case key, its summary (with the run directory) and
-    its progress bar."""
+    its progress bar. ``others``: the valid case files of the run directory outside this
+    run's matrix (other selections): they stay in the table."""
 
     records: dict[str, dict]
     summary: RunSummary
     csv: bool
     bar: Any
+    others: dict[str, dict] = field(default_factory=dict)
 
     @property
     def out_dir(self) -> Path:
         return self.summary.out_dir
+
+    def table(self) -> None:
+        """Rewrite the table from every valid case file of the run directory."""
+        write_table(self.out_dir, [*self.others.values(), *self.records.values()], self.csv)
 
     def finish(self, case: Case, record: dict) -> None:
         """A case ended: write its file, then the table (``on_result`` of the executors)."""
@@ -220,7 +260,7 @@ class _Run:
                            json.dumps(record, indent=1) + "\n")
         self.records[case.key] = record
         self.summary.computed.append(case.key)
-        write_table(self.out_dir, self.records.values(), self.csv)
+        self.table()
         self.bar.update(1)
         self.bar.set_postfix_str(f"{record['row']['status']}: {case.label}"[:60])
 
@@ -232,7 +272,7 @@ class _Run:
         """The final table, counts per status, wall time and manifest (also on Ctrl-C)."""
         summary = self.summary
         self.bar.close()
-        write_table(self.out_dir, self.records.values(), self.csv)
+        self.table()
         summary.counts = {}
         for r in self.records.values():
             st = r["row"]["status"]
@@ -242,7 +282,37 @@ class _Run:
             "state": "interrupted" if summary.interrupted else "finished",
             "executor": executor, "counts": summary.counts,
             "computed_this_run": len(summary.computed), "kept_from_before": len(summary.kept),
+            "rows_in_table": len(self.records) + len(self.others),
             "wall_s": summary.wall_s})
+
+
+def _check_dirs(out_dir: Path, cache_dir: str, jobs: int | None) -> None:
+    """The run directory and the cache directory are directories (or absent); ``jobs``
+    is a positive integer or None. ``ValueError`` naming the option otherwise."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ValueError(f"run directory (--out) {out_dir}: exists and is not a directory")
+    if Path(cache_dir).exists() and not Path(cache_dir).is_dir():
+        raise ValueError(f"HF snapshot cache (--cache-dir) {cache_dir}: exists and is not a "
+                         "directory")
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
+        raise ValueError(f"jobs (--jobs) = {jobs!r}: give an integer >= 1")
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """SIGTERM ends the run like Ctrl-C (rows kept, manifest ``interrupted``)."""
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        old = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave SIGTERM alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 def run_matrix(matrix: Matrix, out_dir: str | Path, executor: str = "processes",
@@ -251,6 +321,12 @@ def run_matrix(matrix: Matrix, out_dir: str | Path, executor: str = "processes",
                cache_dir: str | Path | None = None, progress: bool = True,
                executor_options: dict | None = None) -> RunSummary:
     """Run every case of ``matrix`` not already finished in ``out_dir``.
+
+    One run writes to a run directory at a time (``DIR/.rbbench.lock``; a second one gets
+    :class:`~rbbench.bench.guard.RunLockedError`). The table holds every valid case file
+    of the directory (also those of other selections); damaged case files are recomputed
+    with a warning. If the run's process is killed, a watchdog kills the snapshot
+    preparation and marks the manifest ``interrupted`` (also on Ctrl-C and SIGTERM).
 
     Parameters
     ----------
@@ -263,28 +339,45 @@ def run_matrix(matrix: Matrix, out_dir: str | Path, executor: str = "processes",
     cache_dir : path, optional
         HF snapshot cache (default ``.rbbench_cache``), shared by all runs.
     """
-    from tqdm.auto import tqdm
-
     reg = registry or default_registry()
     out_dir = Path(out_dir)
-    (out_dir / "cases").mkdir(parents=True, exist_ok=True)
     cache_dir = str(cache_dir or ".rbbench_cache")
+    _check_dirs(out_dir, cache_dir, jobs)
     retry = _check_retry(retry)
+    (out_dir / "cases").mkdir(parents=True, exist_ok=True)
+    with RunLock(out_dir), _sigterm_as_interrupt():
+        watchdog = Watchdog(out_dir)
+        try:
+            return _run_locked(matrix, out_dir, executor, jobs, reg, retry, csv, cache_dir,
+                               progress, executor_options or {}, watchdog)
+        finally:
+            watchdog.stop()
+
+
+def _run_locked(matrix: Matrix, out_dir: Path, executor: str, jobs: int | None,
+                reg: Registry, retry: set[str], csv: bool, cache_dir: str, progress: bool,
+                executor_options: dict, watchdog: Watchdog) -> RunSummary:
+    """:func:`run_matrix` once the run directory is locked."""
+    from tqdm.auto import tqdm
+
     t0 = time.perf_counter()
-    records, kept, todo = _split_finished(matrix.cases, load_rows(out_dir), retry)
+    done = load_rows(out_dir)
+    records, kept, todo = _split_finished(matrix.cases, done, retry)
+    selected = {c.key for c in matrix.cases}
+    others = {k: v for k, v in done.items() if k not in selected}
     _write_manifest(out_dir, matrix, {"state": "running", "executor": executor})
     run = _Run(records, RunSummary(out_dir, {}, kept=kept), csv,
                tqdm(total=len(matrix.cases), initial=len(kept), desc=f"{matrix.name}",
-                    unit="case", disable=not progress, dynamic_ncols=True))
+                    unit="case", disable=not progress, dynamic_ncols=True), others)
     runnable = [c for c in todo if c.status == "run"]
     rb_cases = [c for c in runnable if c.mode == "rb"]
-    for c in todo:
-        if c.status != "run":
-            run.finish(c, decided_row(c, out_dir.name, executor))
-    ex = reg.create("executor", executor, jobs=jobs, **(executor_options or {}))
     try:
+        for c in todo:
+            if c.status != "run":
+                run.finish(c, decided_row(c, out_dir.name, executor))
+        ex = reg.create("executor", executor, jobs=jobs, **executor_options)
         if runnable:
-            prepare_snapshots(rb_cases, cache_dir, jobs, run.stage, reg)
+            prepare_snapshots(rb_cases, cache_dir, jobs, run.stage, reg, watchdog)
             ex.run(runnable, run_id=out_dir.name, cache_dir=cache_dir, registry=reg,
                    on_result=run.finish, on_stage=run.stage)
     except KeyboardInterrupt:

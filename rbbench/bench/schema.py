@@ -13,8 +13,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["COLUMNS", "STATUSES", "Column", "column_definitions", "empty_row", "names",
-           "normalise_row"]
+__all__ = ["COLUMNS", "STATUSES", "Column", "case_record_problem", "column_definitions",
+           "empty_row", "names", "normalise_row"]
 
 #: Status of a row. ``ok``: the case ran and its numbers are valid; ``skip``: pruned
 #: (incompatible components, from declared capabilities, nothing imported);
@@ -202,3 +202,38 @@ def column_definitions() -> dict[str, dict[str, str]]:
     """``{name: {dtype, group, unit, doc}}`` for the manifest."""
     return {c.name: {"dtype": c.dtype, "group": c.group, "unit": c.unit, "doc": c.doc}
             for c in COLUMNS}
+
+
+def case_record_problem(name: str, record: Any) -> str | None:
+    """What is wrong with a case file's content (``cases/<case_id>-r<k>.json``), or ``None``.
+
+    Parameters
+    ----------
+    name : str
+        The file's name (its stem must be ``<case_id>-r<repetition>`` of the row).
+    record : object
+        The parsed JSON.
+
+    Returns
+    -------
+    str or None
+        ``None`` for a record ``{"row": {...}, "details": {...}}`` whose row has a
+        ``case_id``, an integer ``repetition`` and a ``status`` of :data:`STATUSES`, under
+        its own name; else the reason.
+    """
+    if not isinstance(record, dict) or not isinstance(record.get("row"), dict):
+        return 'not a case record {"row": {...}, "details": {...}}'
+    if not isinstance(record.get("details", {}), dict):
+        return "its details are not a table"
+    row = record["row"]
+    cid, rep, status = row.get("case_id"), row.get("repetition"), row.get("status")
+    if not isinstance(cid, str) or not cid:
+        return f"its row has no case_id (case_id = {cid!r})"
+    if not isinstance(rep, int) or isinstance(rep, bool) or rep < 0:
+        return f"its row has no repetition number (repetition = {rep!r})"
+    if status not in STATUSES:
+        return f"its row's status {status!r} is not one of {', '.join(STATUSES)}"
+    expected = f"{cid}-r{rep}.json"
+    if name != expected:
+        return f"it holds the case {expected} (copied or renamed?)"
+    return None

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from rbbench.scene import limits
 from rbbench.scene.friction import check_friction, key_neutral
 from rbbench.scene.parameters import ParameterSpace, SceneError  # noqa: F401 - SceneError lives here
 
@@ -144,9 +145,9 @@ SCHEMA: dict[str, dict[str, Field]] = {
     },
     "sampling": {
         "train": Field("str", default="uniform", choices=("uniform", "random", "lhs")),
-        "n_train": Field("int", default=21, low=1),
+        "n_train": Field("int", default=21, low=1, high=limits.MAX_SAMPLES),
         "valid": Field("str", default="random", choices=("uniform", "random", "lhs")),
-        "n_valid": Field("int", default=20, low=1),
+        "n_valid": Field("int", default=20, low=1, high=limits.MAX_SAMPLES),
         "seed": Field("int", default=0, low=0),
     },
     "discretization": {
@@ -351,6 +352,9 @@ def find_scene(name_or_path: str | Path) -> Path:
         If it is neither; the message lists the shipped scenes.
     """
     path = Path(name_or_path)
+    if path.is_dir():
+        raise SceneError(f"{path}: is a directory; expected a scene .toml file or the name "
+                         "of a shipped scene")
     if path.suffix == ".toml" and path.exists():
         return path
     candidate = PROBLEMS_DIR / f"{name_or_path}.toml"
@@ -386,11 +390,13 @@ def load_scene(name_or_path: str | Path, overrides: tuple[str, ...] | list[str] 
     """Load and validate a scene, applying ``--set`` style overrides."""
     path = find_scene(name_or_path)
     try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+        data = tomllib.loads(limits.read_input(path, "scene"))
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: not valid TOML: {exc}") from exc
-    data = copy.deepcopy(data)
+    except ValueError as exc:  # a directory, too large, unreadable, not UTF-8
+        raise SceneError(str(exc)) from None
+    except RecursionError:
+        raise SceneError(f"{path}: not valid TOML: nested too deeply") from None
     for text in overrides:
         parts, value = parse_override(text)
         node = data
@@ -484,6 +490,9 @@ def _parameters(data: dict[str, Any], path: str) -> dict[str, Parameter]:
     params: dict[str, Parameter] = {}
     for name, table in raw_params.items():
         where = f"[parameters.{name}]"
+        if not limits.check_name(name, limits.PARAMETER_PATTERN):
+            raise _err(path, f"[parameters] {name!r}", f"not a valid parameter name; "
+                       f"expected {limits.PARAMETER_RULE}")
         if not isinstance(table, dict):
             raise _err(path, where, f"expected a table with 'range', got {table!r}")
         for key in table:
@@ -570,5 +579,11 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
     _check_materials(data, path, params)
     _check_kind(data, path)
     check_friction(data, path, params)  # [friction], tangential load, load steps
+    if not limits.check_name(data["scene"]["name"]):
+        raise _err(path, "[scene] name", f"{data['scene']['name']!r} is not a valid name "
+                   f"(it names output files); expected {limits.NAME_RULE}")
+    too_big = limits.check_size(data)  # before any meshing
+    if too_big:
+        raise _err(path, "[discretization]", too_big)
     return Scene(name=data["scene"]["name"], path=path, data=data,
                  parameters=list(params.values()), overrides=tuple(overrides))

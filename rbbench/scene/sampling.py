@@ -114,8 +114,9 @@ def parameter_set(scene: Any, which: str = "train", n: int | None = None,
     if kind == "uniform":
         mus = uniform_grid(bounds, n)
         if mus.shape[0] != n:
-            log.info("uniform %s set: %d points requested, %d = %d^%d used", which, n,
-                     mus.shape[0], uniform_count(n, bounds.shape[0])[0], bounds.shape[0])
+            log.warning("scene %s: uniform %s set: %d points requested, %d = %d^%d used (a "
+                        "tensor grid)", getattr(scene, "name", "?"), which, n, mus.shape[0],
+                        uniform_count(n, bounds.shape[0])[0], bounds.shape[0])
         return mus
     rng = np.random.default_rng((seed, _STREAM[which]))
     if kind == "random":
