@@ -14,71 +14,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 from rbbench.bench.errors import ResultsError
+from rbbench.console import _print_reduce_summary, _Progress, print_summary
 from rbbench.registry import NotInstalledError, UnknownComponentError, default_registry
 from rbbench.scene.loading import PROBLEMS_DIR, SceneError, load_scene, tomllib
-
-
-class _Progress:
-    """One status line per stage, with the elapsed time, on stderr."""
-
-    def __init__(self, quiet: bool = False):
-        self.quiet = quiet
-        self.t0 = time.perf_counter()
-
-    def __call__(self, stage: str) -> None:
-        if not self.quiet:
-            print(f"[{time.perf_counter() - self.t0:7.2f} s] {stage}", file=sys.stderr,
-                  flush=True)
-
-
-def _fmt(v) -> str:
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    return str(v)
-
-
-def print_summary(m: dict, mu: dict) -> None:
-    keys = ["n_dofs", "n_contact", "n_active", "iterations", "stop_reason", "final_residual",
-            "solve_time_s", "contact_force", "contact_half_width", "max_pressure",
-            "complementarity", "penetration_max", "zone_saturated", "e_ac",
-            "tangential_force", "n_stick", "n_slip", "n_open", "stick_half_width",
-            "friction_residual"]
-    print("mu: " + ", ".join(f"{k} = {v:g}" for k, v in mu.items()))
-    for k in keys:
-        if k in m:
-            print(f"  {k:<22} {_fmt(m[k])}")
-    if "hertz" in m:
-        h = m["hertz"]
-        print("  2D Hertz at the computed force P:")
-        print(f"    a   = {h['a']:.6g} m   computed {m['contact_half_width']:.6g} m   "
-              f"rel. error {100 * h['a_rel_error']:+.2f} %")
-        print(f"    p0  = {h['p0']:.6g} Pa  computed {m['max_pressure']:.6g} Pa  "
-              f"rel. error {100 * h['p0_rel_error']:+.2f} %")
-    _print_mindlin(m.get("mindlin"))
-    reason = (m.get("solver_info") or {}).get("reason")
-    if reason and m.get("stop_reason") != "converged":
-        print(f"  reason: {reason}")
-    if m.get("zone_saturated"):
-        print("  WARNING: the contact patch reaches the edge of the potential contact zone")
-
-
-def _print_mindlin(b: dict | None) -> None:
-    """The Cattaneo-Mindlin lines of a friction solve (``summary.json`` ``mindlin``)."""
-    if not b:
-        return
-    if b.get("c_theory") is None:
-        print(f"  Cattaneo-Mindlin: not applicable ({b.get('reason')})")
-        return
-    print(f"  Cattaneo-Mindlin at the computed P = {b['P']:.6g} N/m, Q = {b['Q']:.6g} N/m "
-          f"(Q / F P = {b['Q_over_FP']:.3f}):")
-    print(f"    c   = {b['c_theory']:.6g} m   computed {b['c']:.6g} m   "
-          f"rel. error {100 * b['c_rel_error']:+.2f} %")
-    print(f"    shear traction: relative L2(-a, a) error {100 * b['traction_l2_rel_error']:.2f} "
-          f"% (even part {100 * b['traction_l2_rel_error_even']:.2f} %)")
 
 
 def _backend_options(items: list[str] | None, flag: str = "--backend-option") -> dict:
@@ -135,6 +76,8 @@ def cmd_solve(args) -> int:
     options = _backend_options(args.backend_option)
     f_options = _backend_options(args.formulation_option, "--formulation-option")
     _resolve_solver(args, scene)
+    if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise SceneError(f"--out {args.out}: exists and is not a directory")
     progress = _Progress(args.quiet)
     from rbbench.hf.model import solve_hf
     from rbbench.hf.output import write_all
@@ -203,6 +146,11 @@ def _reduce_config(args):
     from rbbench.rb.offline import ReduceConfig
 
     _resolve_solver(args)
+    for flag, key in (("-N", "N"), ("-R", "R"), ("-S", "S"), ("--n-train", "n_train"),
+                      ("--n-valid", "n_valid"), ("--jobs", "jobs")):
+        v = getattr(args, key, None)
+        if v is not None and v < 1:
+            raise SceneError(f"{flag} {v}: must be an integer >= 1")
     try:
         return ReduceConfig(primal=args.primal, dual=args.dual, stabilizer=args.stabilizer,
                             hyper=args.hyper, N=args.N, R=args.R, S=args.S,
@@ -251,29 +199,6 @@ def cmd_reduce(args) -> int:
     _print_reduce_summary(s, cfg.formulation)
     print(f"wrote: {out / 'result.json'}")
     return 0
-
-
-def _print_reduce_summary(s: dict, formulation: str) -> None:
-    """The main numbers of ``rbbench reduce`` (``s``: the reduction's summary)."""
-    keys = ["N", "R", "K_pga", "hyper", "M_eim", "n_train", "n_valid", "n_hf_dofs", "err_u_max",
-            "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
-            "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min", "beta_kind",
-            "t_offline_s", "t_online_median_s", "t_hf_median_s", "speedup", "S", "S_q",
-            "gcns_iterations", "gcns_stop", "err_lam_t_max", "err_lam_t_mean", "lam_t_best_max",
-            "friction_residual_max"]
-    for k in keys:
-        if k in s:
-            print(f"  {k:<20} {_fmt(s[k])}")
-    if formulation == "nitsche":
-        eim = s["histories"].get("eim", {})
-        for k in ("method", "rows", "e_eim_valid", "e_eim_cv_valid", "e_eim_tangent_cv_valid"):
-            if k in eim:
-                print(f"  {'eim.' + k:<20} {_fmt(eim[k])}")
-        print("  (Nitsche: err_lam is the contact pressure -[P_gamma]_- in L2(Gamma_c); no dual "
-              "space, no inf-sup constants; see result.json definitions)")
-    else:
-        print("  (errors: relative, u in the X norm, lam in the W norm, max/mean over the "
-              "validation set; beta: min over the validation set, see result.json definitions)")
 
 
 def cmd_hertz_table(args) -> int:

@@ -56,6 +56,9 @@ class NitscheFormulation(Formulation):
         if options:
             raise TypeError(f"nitsche formulation: unknown options {sorted(options)}; "
                             "valid: 'theta', 'gamma0'")
+        for key, v in (("gamma0", gamma0), ("theta", theta)):
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ValueError(f"nitsche formulation: {key} = {v!r} must be a number")
         if not np.isfinite(gamma0) or gamma0 <= 0:
             raise ValueError(f"nitsche formulation: gamma0 = {gamma0!r} must be > 0")
         if not np.isfinite(theta):

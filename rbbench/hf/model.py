@@ -84,6 +84,11 @@ def check_names(scene: Scene, registry: Registry, backend: str, formulation: str
         solver = default_solver(formulation, registry, friction_of(scene).law)
     for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):
         registry.get(role, name)
+    forms = registry.get("solver", solver).capabilities.get("formulations")
+    if forms is not None and formulation not in forms:
+        raise SceneError(f"solver {solver!r} solves the {', '.join(map(repr, forms))} "
+                         f"formulation(s), not {formulation!r}; solvers of {formulation!r}: "
+                         + ", ".join(map(repr, _declared_solvers(formulation, registry))))
     check_friction_support(scene, registry.get("solver", solver), formulation, registry)
     return solver
 

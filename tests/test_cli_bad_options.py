@@ -1,0 +1,35 @@
+"""Bad command-line options exit 2 with a message naming the option, before any solve
+(issue 16: the cases that ended in a traceback or in a model of size 0)."""
+
+from __future__ import annotations
+
+import pytest
+
+from rbbench.cli import main
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["reduce", "membrane_obstacle", "-R", "0"], "-R 0: must be an integer >= 1"),
+    (["reduce", "membrane_obstacle", "-R", "-5"], "-R -5"),
+    (["reduce", "membrane_obstacle", "-N", "0"], "-N 0"),
+    (["reduce", "membrane_obstacle", "-N", "-5"], "-N -5"),
+    (["reduce", "membrane_obstacle", "--n-train", "0"], "--n-train 0"),
+    (["reduce", "membrane_obstacle", "--n-valid", "-1"], "--n-valid -1"),
+    (["solve", "membrane_obstacle", "--solver", "newton"],
+     "solver 'newton' solves the 'nitsche' formulation(s), not 'mixed'"),
+    (["solve", "hertz_halfdisks", "--formulation", "nitsche", "--formulation-option",
+      "gamma0=abc"], "gamma0 = 'abc' must be a number"),
+])
+def test_bad_option_exits_2_naming_it(argv, expected, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    assert expected in capsys.readouterr().err
+    assert not (tmp_path / "results").exists()  # nothing solved, nothing written
+
+
+def test_solve_out_that_is_a_file_exits_2(capsys, tmp_path):
+    f = tmp_path / "afile"
+    f.write_text("x")
+    assert main(["solve", "membrane_obstacle", "--out", str(f)]) == 2
+    assert "exists and is not a directory" in capsys.readouterr().err
+    assert f.read_text() == "x"
