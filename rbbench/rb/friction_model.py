@@ -34,8 +34,8 @@ import scipy.linalg as sla
 from rbbench.scene.parameters import ParameterSpace
 
 __all__ = ["FrictionArrays", "FrictionOnlineResult", "FrictionReducedModel",
-           "ReducedCondensed", "condense_reduced", "project_friction", "solve_coulomb",
-           "tresca_qp"]
+           "ReducedCondensed", "check_reducible", "condense_reduced", "nonneg_qp",
+           "project_friction", "solve_coulomb", "tresca_qp"]
 
 
 @dataclass
@@ -56,18 +56,24 @@ def project_friction(problem: Any, Z: np.ndarray, Vn: np.ndarray, Vt: np.ndarray
                      ) -> FrictionArrays:
     """Galerkin projection of a one-step :class:`~rbbench.interfaces.FrictionProblem` on
     ``(Z, Vn, Vt)`` (the plain model's online assembly: its cost grows with the HF size)."""
+    step = check_reducible(problem)
+    law = problem.threshold if problem.law == "tresca" else problem.coefficient
+    return FrictionArrays(A=Z.T @ (problem.A @ Z), F=Z.T @ step.F, Bn=Vn.T @ (problem.Bn @ Z),
+                          Gn=Vn.T @ step.Gn, Bt=Vt.T @ (problem.Bt @ Z),
+                          gt=-(Vt.T @ np.asarray(step.ut_lift, float)),
+                          law_values=np.asarray(law, float))
+
+
+def check_reducible(problem: Any) -> Any:
+    """The single load step of a FrictionProblem the reduced models solve (ValueError for
+    several steps or a slip-dependent coefficient)."""
     if len(problem.steps) != 1:
         raise ValueError(f"reduced friction: {len(problem.steps)} load steps; the reduced "
                          "model solves one load step (the snapshots hold the last one)")
     if problem.coefficient_law is not None:
         raise ValueError("reduced friction: a slip-dependent coefficient (model B) is not "
                          "reduced; Tresca or constant-coefficient Coulomb only")
-    step = problem.steps[0]
-    law = problem.threshold if problem.law == "tresca" else problem.coefficient
-    return FrictionArrays(A=Z.T @ (problem.A @ Z), F=Z.T @ step.F, Bn=Vn.T @ (problem.Bn @ Z),
-                          Gn=Vn.T @ step.Gn, Bt=Vt.T @ (problem.Bt @ Z),
-                          gt=-(Vt.T @ np.asarray(step.ut_lift, float)),
-                          law_values=np.asarray(law, float))
+    return problem.steps[0]
 
 
 @dataclass
@@ -117,6 +123,12 @@ def tresca_qp(D: np.ndarray, q: np.ndarray, R: int, Qt: np.ndarray, s: np.ndarra
     y0 = None if x0 is None else T.T @ np.asarray(x0, float)
     y, it, flag = _daqp_qp(T.T @ D @ T, T.T @ q, R, Qt[~zero] @ T[R:, R:], s[~zero], y0)
     return (None if y is None else T @ y), it, flag
+
+
+def nonneg_qp(D: np.ndarray, q: np.ndarray, x0: np.ndarray | None = None
+              ) -> tuple[np.ndarray | None, int, int]:
+    """``min 1/2 x^T D x + q^T x`` over ``x >= 0`` (bounds only) by :func:`_daqp_qp`."""
+    return _daqp_qp(D, q, q.size, np.zeros((0, 0)), np.zeros(0), x0)
 
 
 def _daqp_qp(D: np.ndarray, q: np.ndarray, R: int, Qt: np.ndarray, s: np.ndarray,

@@ -1,0 +1,142 @@
+"""The wedge dual model in the friction offline skeleton (``friction_dual = "wedge"``).
+
+:class:`WedgeStage` replaces three steps of :class:`rbbench.rb.friction_stage.FrictionStage`
+(the seed's model): the dual spaces are the cones of ``w+ = F lam_n + lam_t`` and
+``w- = F lam_n - lam_t`` (the registered dual compressor, ``R`` generators for ``w+`` and
+``S`` for ``w-``: ``R + S`` dual unknowns, as the seed's ``R`` normal + ``S`` tangential),
+the stabiliser acts on the combined generators ``[Ln; Lt]`` (PGA on ``b^n + b^tau``), and
+there is no GCNS (the cone holds at every HF node by construction); the online solve is De
+Saxce's fixed point (:mod:`rbbench.rb.friction_wedge`).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from rbbench.rb.cones import cone_projection, span_projection
+from rbbench.rb.friction_stage import DEFINITIONS, FrictionStage
+from rbbench.rb.friction_wedge import (
+    WedgeReducedModel,
+    condense_wedge,
+    desaxce_coulomb,
+    project_wedge,
+    wedge_basis,
+)
+from rbbench.rb.offline import check_finite, primal_histories
+from rbbench.rb.validation import xnorm2
+
+__all__ = ["WEDGE_DEFINITIONS", "WedgeStage", "reduce_friction"]
+
+WEDGE_DEFINITIONS = {
+    **DEFINITIONS,
+    "err_lam": "normal multipliers: ||lam_n - Ln c||_W / ||lam_n||_W per validation mu (wedge "
+               "model: lam_n = (V+ c+ + V- c-) / 2F), W the L2(Gamma_c(mu)) Gram matrix",
+    "err_lam_t": "tangential multipliers: ||lam_t - Lt c||_W / ||lam_t||_W (lam_t = "
+                 "(V+ c+ - V- c-) / 2), same W",
+    "lam_t_best": "per validation mu: ||lam_t - Pi lam_t||_W / ||lam_t||_W, Pi the W-projection "
+                  "onto span(Lt) (the span of the wedge generators' tangential parts)",
+    "lam_t_best_cone": "the same onto the cone Span+(Lt) (c >= 0)",
+    "lam_best_valid": "per validation mu: the floor of err_lam on the cone Span+(Ln)",
+    "collocation_violation": "0: the wedge model has no collocation nodes",
+    "R": "generators of the w+ cone (R+); S: those of the w- cone (R-); R + S dual unknowns",
+    "t_online": "wall time of one online solve: HF assembly at mu + projection (plain model) "
+                "+ De Saxce's fixed point (t_online_solve_median_s)",
+}
+
+
+class WedgeStage(FrictionStage):
+    """Wedge cones, PGA on ``[Ln; Lt]``, De Saxce's fixed point (module docstring)."""
+
+    definitions = WEDGE_DEFINITIONS
+    online_method = "daqp (De Saxce fixed point on the wedge cones)"
+
+    def _spaces(self, ctx: Any) -> None:
+        """The ``w+`` and ``w-`` cones (the registered dual compressor)."""
+        config = ctx.config
+        t1 = time.perf_counter()
+        self.W_ref = ctx.problem_at(ctx.scene.default_mu).W
+        F = np.asarray(ctx.problem_at(ctx.scene.default_mu).coefficient, float)
+        ctx.progress(f"wedge cones of F lam_n +- lam_t: dual compressor {config.dual}")
+        compress = ctx.registry.create("dual", config.dual)
+        self.wedge = wedge_basis(compress, ctx.train.LAM, ctx.train.LAM_T, F, self.W_ref,
+                                 tol=config.tol_dual, r_plus=config.R,
+                                 r_minus=config.S if config.S else config.R)
+        check_finite(f"dual compressor {config.dual!r}: the wedge generators",
+                     self.wedge.generators)
+        self.Vn, self.Vt = self.wedge.Ln, self.wedge.Lt
+        self.R = int(self.wedge.Vp.shape[1])  # R + S dual unknowns, as the seed's
+        self.S = int(self.wedge.Vm.shape[1])
+        self.histories = {**primal_histories(ctx.primal), **self.wedge.history}
+        ctx.timings["dual_s"] = time.perf_counter() - t1
+
+    def _generators(self) -> np.ndarray:
+        return self.wedge.generators
+
+    def _gcns(self, ctx: Any) -> None:
+        """No collocation: the training solutions (the online warm starts) and the model."""
+        t1 = time.perf_counter()
+        ctx.progress("training solutions (De Saxce fixed point)")
+        problems = [ctx.problem_at(mu) for mu in ctx.mus_train]
+        self.law = problems[0].law
+        P = self.wedge.P
+        runs = [desaxce_coulomb(condense_wedge(project_wedge(p, self.Z_off, self.wedge), P))
+                for p in problems]
+        self.histories["training_iterations"] = [r.iterations for r in runs]
+        self.histories["training_stops"] = [r.stop_reason for r in runs]
+        self.histories["training_rates"] = [r.rate for r in runs]
+        self.reduced = WedgeReducedModel(
+            P=P, mus_train=np.asarray(ctx.mus_train, float), x_train=np.array([r.c for r in runs]),
+            parameters=ctx.scene.parameter_space,
+            info={"N": self.Z_off.shape[1], "R+": int(self.wedge.Vp.shape[1]),
+                  "R-": self.S})
+        ctx.timings["gcns_s"] = time.perf_counter() - t1
+
+    def _project(self, problem: Any) -> Any:
+        return project_wedge(problem, self.Z_off, self.wedge)
+
+    def _multipliers(self, res: Any) -> tuple[np.ndarray, np.ndarray]:
+        return self.wedge.Ln @ res.c, self.wedge.Lt @ res.c
+
+    def _floors(self, lam: np.ndarray, lam_t: np.ndarray, W: Any) -> dict[str, float]:
+        """Best approximations: lam_n in Span+(Ln); lam_t in span(Lt) and Span+(Lt)."""
+        self.floors["lam_best_valid"].append(
+            float(cone_projection(lam, self.wedge.Ln, W)[2]) / np.sqrt(xnorm2(W, lam)))
+        t = float(np.sqrt(xnorm2(W, lam_t)))
+        if t == 0:
+            return {"lam_t_best": 0.0, "lam_t_best_cone": 0.0}
+        return {"lam_t_best": float(span_projection(lam_t, self.wedge.Lt, W)[2]) / t,
+                "lam_t_best_cone": float(cone_projection(lam_t, self.wedge.Lt, W)[2]) / t}
+
+    def _collocation_nodes(self) -> np.ndarray:
+        return np.zeros(0, dtype=int)
+
+    def summary(self) -> dict[str, Any]:
+        return {"S": self.S, "R_plus": int(self.wedge.Vp.shape[1]), "R_minus": self.S,
+                "S_q": 0, "gcns_iterations": 0, "gcns_nodes": [], "gcns_stop": "no GCNS (wedge)",
+                "gcns_history": [], "dim_primal_online": int(self.Z_off.shape[1]),
+                "dim_v_off": int(self.Z_off.shape[1]),
+                "delta_pga": self.histories.get("pga_delta"),
+                "training_iterations_max": max(self.histories["training_iterations"]),
+                "friction_dual": "wedge"}
+
+
+def reduce_friction(scene: Any, config: Any, friction_dual: str = "wedge",
+                    progress: Any = None) -> Any:
+    """:func:`rbbench.rb.offline.reduce` with the friction dual model ``friction_dual``
+    (``"seed"`` or ``"wedge"``) on a copy of ``config``: a ReduceConfig field
+    ``friction_dual`` when it has one, else an attribute of the copy (read by
+    :func:`rbbench.rb.friction_stage.friction_dual`)."""
+    import copy
+    import dataclasses
+
+    from rbbench.rb.offline import reduce
+
+    if "friction_dual" in {f.name for f in dataclasses.fields(config)}:
+        config = dataclasses.replace(config, friction_dual=friction_dual)
+    else:
+        config = copy.copy(config)
+        config.friction_dual = friction_dual
+    return reduce(scene, config) if progress is None else reduce(scene, config, progress)
