@@ -73,6 +73,8 @@ DEFINITIONS = {
                 "reduced Coulomb fixed point (t_online_solve_median_s); median over "
                 "validation mus x repeats",
     "speedup": "median HF solve time / median online time",
+    "u_best": "per validation mu: ||u - Pi u||_X / ||u||_X, Pi the X-projection onto the "
+              "online primal space span(Z_off): the floor of err_u",
     "dim_v_off": "N + K: the primal space after the stabiliser (PGA on the combined form "
                  "b^n + b^tau: [Bn; Bt] against blockdiag(Vn, Vt); seed: 70)",
     "delta_pga": "PGA tolerance: the seed's rule sup_mu beta / c of the combined form over "
@@ -276,7 +278,7 @@ class FrictionStage(ReducedStage):
         ln, lt = self._multipliers(res)
         W = p.W
         n2, t2 = xnorm2(W, lam), xnorm2(W, lam_t)
-        floors = self._floors(lam, lam_t, W)
+        floors = {**self._floors(lam, lam_t, W), "u_best": self._u_floor(u)}
         bound = np.asarray(p.threshold, float) if self.law == "tresca" else \
             np.asarray(p.coefficient, float) * ln
         viol = tangential_violation(lt[:, None], bound[:, None])[:, 0]
@@ -294,6 +296,14 @@ class FrictionStage(ReducedStage):
             "collocation_violation": float(viol[nodes].max(initial=0.0)) / scale,
             "online_iterations": float(res.iterations),
         }
+
+    def _u_floor(self, u: np.ndarray) -> float:
+        """``||u - Pi u||_X / ||u||_X``, ``Pi`` the X-projection onto span(Z_off)."""
+        if not hasattr(self, "_XZ"):
+            self._XZ = np.asarray(self.ctx.X @ self.Z_off)
+            self._ZXZ = sla.cho_factor(self.Z_off.T @ self._XZ)
+        d = u - self.Z_off @ sla.cho_solve(self._ZXZ, self._XZ.T @ u)
+        return float(np.sqrt(max(xnorm2(self.ctx.X, d), 0.0) / xnorm2(self.ctx.X, u)))
 
     def _collocation_nodes(self) -> np.ndarray:
         """The HF nodes where the reduced model imposes the tangential constraint."""

@@ -28,7 +28,7 @@ from rbbench.rb.friction_wedge import (
 from rbbench.rb.offline import check_finite, primal_histories
 from rbbench.rb.validation import xnorm2
 
-__all__ = ["WEDGE_DEFINITIONS", "WedgeStage", "reduce_friction"]
+__all__ = ["TABLE_ROWS", "WEDGE_DEFINITIONS", "WedgeStage", "comparison_table", "reduce_friction"]
 
 WEDGE_DEFINITIONS = {
     **DEFINITIONS,
@@ -140,3 +140,35 @@ def reduce_friction(scene: Any, config: Any, friction_dual: str = "wedge",
         config = copy.copy(config)
         config.friction_dual = friction_dual
     return reduce(scene, config) if progress is None else reduce(scene, config, progress)
+
+
+#: rows of :func:`comparison_table`: (label, summary key, format)
+TABLE_ROWS = (
+    ("dual unknowns (R + S)", "dual_unknowns", "{:d}"), ("dim V_off", "dim_v_off", "{:d}"),
+    ("S_q (collocation nodes)", "S_q", "{:d}"), ("err_u max", "err_u_max", "{:.2e}"),
+    ("floor u (span Z_off)", "u_best_max", "{:.2e}"),
+    ("err_u mean", "err_u_mean", "{:.2e}"), ("err_lam_n max", "err_lam_max", "{:.3g}"),
+    ("floor lam_n", "lam_best_max", "{:.3g}"), ("err_lam_t max", "err_lam_t_max", "{:.3g}"),
+    ("err_lam_t mean", "err_lam_t_mean", "{:.3g}"),
+    ("floor lam_t (span)", "lam_t_best_max", "{:.3g}"),
+    ("floor lam_t (cone)", "lam_t_best_cone_max", "{:.3g}"),
+    ("friction residual max", "friction_residual_max", "{:.2e}"),
+    ("online iterations max", "online_iterations_max", "{:.0f}"),
+    ("t_online median (s)", "t_online_median_s", "{:.3f}"),
+    ("  of which reduced solve (s)", "t_online_solve_median_s", "{:.4f}"),
+    ("speed-up", "speedup", "{:.1f}"),
+)
+
+
+def comparison_table(summaries: dict[str, dict[str, Any]]) -> str:
+    """A markdown table of ``rbbench reduce`` summaries side by side (one column each)."""
+    names = list(summaries)
+    lines = ["| | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
+    for label, key, fmt in TABLE_ROWS:
+        cells = []
+        for s in summaries.values():
+            v = s.get("timings", {}).get(key) if key.startswith("t_online_solve") else \
+                (s.get("R", 0) + s.get("S", 0) if key == "dual_unknowns" else s.get(key))
+            cells.append("-" if v is None else fmt.format(v))
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
