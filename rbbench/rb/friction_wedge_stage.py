@@ -81,6 +81,10 @@ class WedgeStage(FrictionStage):
         ctx.progress("training solutions (De Saxce fixed point)")
         problems = [ctx.problem_at(mu) for mu in ctx.mus_train]
         self.law = problems[0].law
+        if any(not np.array_equal(np.asarray(p.coefficient, float), self.wedge.F)
+               for p in problems):
+            raise ValueError("wedge model: the friction coefficient depends on mu; the wedge "
+                             "cones are built for one F per node")
         P = self.wedge.P
         runs = [desaxce_coulomb(condense_wedge(project_wedge(p, self.Z_off, self.wedge), P))
                 for p in problems]
