@@ -161,6 +161,7 @@ def _reduce_config(args):
                             k_pga_max=args.k_pga_max,
                             gcns_per_iteration=args.gcns_per_iteration,
                             gcns_patience=args.gcns_patience,
+                            friction_dual=args.friction_dual,
                             backend_options=_backend_options(args.backend_option),
                             formulation_options=_backend_options(
                                 args.formulation_option, "--formulation-option"))
@@ -192,6 +193,8 @@ def cmd_reduce(args) -> int:
     s = res.summary()
     tag = f"nitsche_{res.hyper}" if cfg.formulation == "nitsche" else \
         f"{args.dual}_{args.stabilizer}"
+    if cfg.friction_dual != "seed":
+        tag += f"_{cfg.friction_dual}"
     out = Path(args.out) if args.out else Path("results") / "reduce" / f"{scene.name}_{tag}"
     out.mkdir(parents=True, exist_ok=True)
     (out / "result.json").write_text(json.dumps(_jsonable({**s, "provenance": provenance()}),
@@ -375,6 +378,10 @@ def _add_reduce_args(rd) -> None:
     rd.add_argument("--gcns-patience", type=int, default=1,
                     help="friction: GCNS stops after this many increases of e_GCNS, keeping "
                          "the best set (1: the seed's rule e(q) > e(q-1))")
+    rd.add_argument("--friction-dual", choices=("seed", "wedge"), default="seed",
+                    help="friction: the seed's dual model (normal cone + POD of lam_t + GCNS "
+                         "collocation) or 'wedge' (cones of F lam_n +- lam_t, De Saxce's "
+                         "fixed point: the Coulomb cone at every node)")
     rd.add_argument("--n-train", type=int, default=None)
     rd.add_argument("--n-valid", type=int, default=None)
     rd.add_argument("--jobs", type=int, default=None, help="processes for HF snapshots")

@@ -33,3 +33,19 @@ def test_solve_out_that_is_a_file_exits_2(capsys, tmp_path):
     assert main(["solve", "membrane_obstacle", "--out", str(f)]) == 2
     assert "exists and is not a directory" in capsys.readouterr().err
     assert f.read_text() == "x"
+
+
+def test_friction_dual_is_checked_on_the_command_line_and_in_a_matrix(tmp_path, capsys):
+    from rbbench.bench.matrix import load_matrix
+    from rbbench.bench.matrix_checks import MatrixError
+    from rbbench.registry import default_registry
+
+    with pytest.raises(SystemExit) as exc:  # argparse choices
+        main(["reduce", "hertz_friction", "--friction-dual", "bogus"])
+    assert exc.value.code == 2 and "--friction-dual" in capsys.readouterr().err
+    p = tmp_path / "m.toml"
+    p.write_text('[matrix]\nname = "m"\nscenes = ["membrane_obstacle"]\n[components]\n'
+                 'dual = ["cpg"]\nstabilizer = ["none"]\n[sizes]\nN = [3]\nR = [3]\n'
+                 '[reduce]\nfriction_dual = "bogus"\n')
+    with pytest.raises(MatrixError, match="friction_dual = 'bogus'; valid: seed, wedge"):
+        load_matrix(p, registry=default_registry())

@@ -62,6 +62,10 @@ REDUCE_FIELDS: dict[str, tuple] = {
 }
 
 
+#: the reduced friction dual models (rbbench.rb.friction_offline.friction_dual)
+FRICTION_DUALS = ("seed", "wedge")
+
+
 def _online_methods() -> tuple[str, ...]:
     from rbbench.rb.mixed_model import ONLINE_METHODS
 
@@ -88,6 +92,9 @@ def _describe(spec: tuple) -> str:
 def check_reduce_value(key: str, value: Any, where: str) -> None:
     """One ``[reduce]`` / ``--set`` / ``[params.*]`` value, or :class:`MatrixError` naming
     ``where``, the field and what is valid."""
+    if key == "friction_dual" and value not in FRICTION_DUALS:
+        raise MatrixError(f"{where}: friction_dual = {value!r}; valid: "
+                          + ", ".join(FRICTION_DUALS))
     if key == "online_method":
         valid = _online_methods()
         if value not in valid:

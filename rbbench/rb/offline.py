@@ -84,6 +84,9 @@ class ReduceConfig:
     gcns_per_iteration: int = 2  # friction: GCNS nodes added per iteration (seed: 40 / 20)
     gcns_max: int | None = None  # friction: cap on the GCNS iterations
     gcns_patience: int = 1  # friction: GCNS stops after this many increases (1: the seed)
+    # friction dual model: "seed" (normal cone + POD X_S + GCNS collocation) or "wedge" (ours:
+    # cones of F lam_n +- lam_t, De Saxce's fixed point; rbbench.rb.friction_wedge)
+    friction_dual: str = "seed"
 
     @property
     def component_options(self) -> dict:
