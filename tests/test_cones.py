@@ -175,6 +175,8 @@ def test_mcpg_split_feasible_in_cone_and_optimal(seed, R, n, kind):
     alpha, tt, nu, status = cones.mcpg_split(theta, V, W)
     scale = np.abs(theta).max()
     assert status["ok"] and status["flag"] == 1 and status["shrink"] >= 1 - 1e-6
+    assert status["alpha_raw_min"] >= -1e-10  # daqp's raw coefficients, before the clip
+    assert status["nu_raw_min"] >= -1e-12  # the raw residual is in W+ to round-off
     assert np.all(alpha >= 0)  # theta_tilde in the previous cone ...
     assert np.allclose(tt, V @ alpha, atol=1e-14 * scale)
     assert np.all(nu >= 0)  # ... and the residual in W+

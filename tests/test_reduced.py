@@ -86,6 +86,7 @@ def test_reduced_solution_is_feasible_off_training(membrane):
     mu = np.array([0.33, 4.7])
     res = model.solve(mu)
     A, F, B, G = model.arrays(mu)
+    assert res.alpha_raw_min >= -1e-10  # daqp's multipliers before the clip at 0
     assert res.alpha.min() >= 0
     assert (G - B @ res.c).min() >= -1e-10 * np.abs(G).max()
     hf = solve_hf(sc, mu, components=comps)

@@ -52,6 +52,7 @@ def _mcpg_qp(CV: np.ndarray, Ct: np.ndarray, A: np.ndarray, b: np.ndarray,
         status.update(flag=int(flag), attempt=attempt)
         if int(flag) != 1 or not np.all(np.isfinite(xa)):
             continue
+        status["alpha_raw_min"] = float(np.min(xa)) if len(xa) else 0.0  # before the clip
         x = np.maximum(np.asarray(xa, dtype=float), 0.0)
         # scaled problem (||theta||_W = ||v_r||_W = 1): x = O(1) at most
         x[x <= max(1e-12, 1e-10 * x.max())] = 0.0
@@ -142,7 +143,9 @@ def mcpg_split(
         ``ok`` (False: fallback ``alpha = 0``), ``flag`` (daqp's exit flag of
         the last solve, 1: optimal), ``attempt`` (0: tight solve; 1, 2:
         shifted Hessian; 3: primal tolerance ``1e-10``), ``shrink`` (the
-        feasibility scaling factor).
+        feasibility scaling factor), ``alpha_raw_min`` (the smallest coefficient
+        daqp returned, scaled problem, before the clip at 0), ``nu_raw_min``
+        (``min(theta - V alpha) / max(theta)`` before the crumbs are zeroed).
     """
     if gram is None:
         if V is None or W is None:
@@ -157,6 +160,9 @@ def mcpg_split(
     alpha = s * _presolved_qp(gram, th / s, status)
     theta_tilde = gram.V @ alpha
     nu = th - theta_tilde
-    nu[nu <= _CRUMB * th.max()] = 0.0  # cancellation crumbs: keep supports clean
+    status["nu_raw_min"] = float(nu.min()) / float(th.max())  # relative, before the crumbs
+    # cancellation crumbs of either sign: keep supports clean; a larger negative entry stays
+    # (and fails the W+ checks: the shrink above makes it impossible)
+    nu[np.abs(nu) <= _CRUMB * th.max()] = 0.0
     return alpha, theta_tilde, nu, status
 

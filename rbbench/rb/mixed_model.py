@@ -45,6 +45,9 @@ class OnlineResult:
     iterations: int
     stop_reason: str
     time_s: float
+    #: daqp: the smallest multiplier it returned, before the clip at 0, relative to the
+    #: largest (round-off only: tests assert it is >= -1e-10); pdas: min(alpha) / max
+    alpha_raw_min: float = 0.0
 
 
 #: Online solvers of the reduced saddle point (``ReducedModel.solve(method=...)``).
@@ -74,10 +77,17 @@ def _solve_daqp(A: np.ndarray, F: np.ndarray, B: np.ndarray,
     if int(flag) != 1:
         return None
     c = np.asarray(y, dtype=float) * fs
-    alpha = np.maximum(np.asarray(info["lam"], dtype=float) * fs / rows, 0.0)
+    raw = np.asarray(info["lam"], dtype=float) * fs / rows
+    alpha = np.maximum(raw, 0.0)
     if not (np.all(np.isfinite(c)) and np.all(np.isfinite(alpha))):
         return None
-    return c, alpha, int(info["iterations"])
+    return c, alpha, int(info["iterations"]), _rel_min(raw)
+
+
+def _rel_min(a: np.ndarray) -> float:
+    """``min(a) / max|a|`` (0 for an empty or zero ``a``)."""
+    top = float(np.abs(a).max()) if a.size else 0.0
+    return float(a.min()) / top if top > 0 else 0.0
 
 
 def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
@@ -100,7 +110,7 @@ def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
         out = _solve_daqp(A, F, B, G)
         if out is not None:
             return OnlineResult(out[0], out[1], out[2], "converged",
-                                time.perf_counter() - t0)
+                                time.perf_counter() - t0, out[3])
         res = solve_reduced(A, F, B, G, warm_start, max_iter, cho, "pdas")
         res.stop_reason += " (pdas fallback)" if res.stop_reason == "converged" else ""
         res.time_s = time.perf_counter() - t0
@@ -113,7 +123,7 @@ def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
     q = G - B @ c0
     alpha, it, reason, _, _ = lcp.pdas(D, q, warm_start, max_iter=max_iter)
     c = c0 - AinvBt @ alpha
-    return OnlineResult(c, alpha, it, reason, time.perf_counter() - t0)
+    return OnlineResult(c, alpha, it, reason, time.perf_counter() - t0, _rel_min(alpha))
 
 
 @dataclass
