@@ -293,3 +293,14 @@ def test_cone_value_with_dependent_generators():
     assert np.isclose(r3.value, r4.value, rtol=1e-8)
     r4u = infsup_cone(S4, M4, exact_max_r=2)  # multistart path with singular M
     assert r4u.value >= r3.value * (1 - 1e-8)
+
+
+def test_span_value_below_round_off_is_zero():
+    """A pencil whose smallest eigenvalue is round-off of the largest (ratio 3e-16, the
+    membrane's beta_dec in issue 16) gives 0, not a positive 'lower bound'; a small but
+    resolved one (ratio 1e-8) keeps its value."""
+    from rbbench.rb.infsup import infsup_span
+
+    M = np.eye(3)
+    assert infsup_span(np.diag([3e-16, 0.5, 1.0]), M) == 0.0
+    assert infsup_span(np.diag([1e-8, 0.5, 1.0]), M) == pytest.approx(1e-4, rel=1e-6)

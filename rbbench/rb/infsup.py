@@ -246,12 +246,23 @@ def infsup_span(S: np.ndarray, M: np.ndarray, *, rtol: float = GRAM_RTOL) -> flo
 
     Linearly dependent generators are allowed: directions ``y`` with
     ``y^T M y <= rtol * ||M||`` (after scaling ``M`` to unit diagonal) are not multipliers
-    (``Vg y ~ 0``) and are removed before the eigensolve. Negative rounding is clipped at 0.
+    (``Vg y ~ 0``) and are removed before the eigensolve. An eigenvalue ratio
+    ``lambda_min / lambda_max <= SPAN_ROUNDOFF`` (1e-12, a few hundred machine epsilons: the
+    eigensolver's absolute accuracy is ``O(eps lambda_max)``) is zero to round-off and
+    reported as 0, not as a positive bound (issue 16: a membrane beta_dec at a ratio of
+    3e-16 was reported as 1.5e-9).
     """
     A = _reduced_pencil(S, M, rtol)
     if A.size == 0:
         return float("inf")
-    return float(np.sqrt(max(np.linalg.eigvalsh(A)[0], 0.0)))
+    w = np.linalg.eigvalsh(A)
+    if w[0] <= SPAN_ROUNDOFF * max(w[-1], 0.0):
+        return 0.0
+    return float(np.sqrt(w[0]))
+
+
+#: eigenvalue ratio below which the span inf-sup constant is zero to round-off
+SPAN_ROUNDOFF = 1e-12
 
 
 def boundedness_constant(S: np.ndarray, M: np.ndarray, *, rtol: float = GRAM_RTOL) -> float:
