@@ -124,10 +124,27 @@ class FrictionEIM:
     T_G: np.ndarray
     Z_loc: np.ndarray
     info: dict = field(default_factory=dict)
+    slip: _Terms | None = None
 
     def __post_init__(self) -> None:
-        for part in (self.normal, self.tangential):
+        for part in (self.normal, self.tangential) + ((self.slip,) if self.slip else ()):
             part.support = self.evaluator.support(part.pos)
+
+    def with_slip_rows(self, mu: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(Bn_N, Gn_N, Bt_N, (Bt(mu) Z)[slip rows])`` from one pairing: the slip rows
+        (``slip_rows`` of :func:`friction_eim`) are evaluated exactly, not interpolated."""
+        ev = self.evaluator
+        p = ev.pairing(mu)
+        t = tangent(p.nrm)
+        Bn = self.normal.reduced(ev, p, p.nrm, self.Z_loc)
+        Bt = self.tangential.reduced(ev, p, t, self.Z_loc)
+        eta = sla.lu_solve(self.lu_G, ev.gap_rows(p, self.pos_G))
+        rows = np.zeros((0, self.Z_loc.shape[1]))
+        if self.slip is not None:
+            rows = ev.jump_entries(p, t, self.Z_loc, *self.slip.support, self.slip.col)
+            rows = rows.reshape(-1, self.Z_loc.shape[1])
+        return Bn, eta @ self.T_G, Bt, rows
 
     def __call__(self, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(Bn_N (R, N), Gn_N (R,), Bt_N (S, N))`` at mu (one windowed pairing)."""
@@ -150,7 +167,8 @@ class FrictionEIM:
 def friction_eim(layout: ContactLayout, Bn_train: Sequence, Bt_train: Sequence,
                  Gn_train: np.ndarray, Z: np.ndarray, Vn: np.ndarray, Vt: np.ndarray,
                  free: np.ndarray, mus_sample: np.ndarray, tol: float = 1e-8,
-                 m_max: int | None = None, valid: tuple | None = None) -> FrictionEIM:
+                 m_max: int | None = None, valid: tuple | None = None,
+                 slip_rows: np.ndarray | None = None) -> FrictionEIM:
     """Build :class:`FrictionEIM` from training friction operators.
 
     Parameters
@@ -175,6 +193,9 @@ def friction_eim(layout: ContactLayout, Bn_train: Sequence, Bt_train: Sequence,
     valid : (Bn_valid, Bt_valid, Gn_valid), optional
         Validation operators: ``info["valid_curves"]`` gets the seed's e_EIM and the max
         relative error of each nested interpolant (:func:`rbbench.rb.eim.eim_error_curve`).
+    slip_rows : (M_s,) int, optional
+        Nodes whose whole rows of ``Bt(mu) Z`` are evaluated online
+        (:meth:`FrictionEIM.with_slip_rows`; the wedge model's slip DEIM nodes).
     """
     res_n, row_n, col_n, T_n = column_eim(list(Bn_train), Z, Vn, tol, m_max)
     res_t, row_t, col_t, T_t = column_eim(list(Bt_train), Z, Vt, tol, m_max)
@@ -183,7 +204,9 @@ def friction_eim(layout: ContactLayout, Bn_train: Sequence, Bt_train: Sequence,
         raise HyperReductionError("friction EIM found no term: a training Bn Z, Bt Z or Gn "
                                   "is zero")
     p1 = friction_layout(layout)
-    ev = build_row_evaluator(p1, np.concatenate([row_n, row_t, res_G.magic]), mus_sample)
+    slip = np.zeros(0, np.int64) if slip_rows is None else np.asarray(slip_rows, np.int64)
+    ev = build_row_evaluator(p1, np.concatenate([row_n, row_t, res_G.magic, slip]),
+                             mus_sample)
     loc = local_free_rows(ev, free, layout.n_dofs)
     info = {"M_n": res_n.m, "M_t": res_t.m, "M_G": res_G.m, "rows": int(ev.rows.size),
             "n_local_dofs": ev.n_local, "n_free": int(free.size), "m": int(Gn_train.shape[0]),
@@ -198,7 +221,14 @@ def friction_eim(layout: ContactLayout, Bn_train: Sequence, Bt_train: Sequence,
                               sla.lu_factor(res_t.Q[res_t.magic]), T_t),
                        np.searchsorted(ev.rows, res_G.magic),
                        sla.lu_factor(res_G.Q[res_G.magic]), (Vn.T @ res_G.Q).T,
-                       np.ascontiguousarray(Z[loc]), info)
+                       np.ascontiguousarray(Z[loc]), info,
+                       None if slip_rows is None else _slip_terms(ev, slip, Z.shape[1]))
+
+
+def _slip_terms(ev: RowEvaluator, rows: np.ndarray, N: int) -> _Terms:
+    """All ``N`` entries of each row ``rows`` of ``Bt Z`` (row-major; no interpolation)."""
+    pos = np.repeat(np.searchsorted(ev.rows, rows), N)
+    return _Terms(pos, np.tile(np.arange(N), rows.size), (), np.zeros(0))
 
 
 def _valid_curves(results: tuple[EIMResult, ...], valid: tuple, Z: np.ndarray

@@ -11,7 +11,8 @@ After the primal space V_N (shared skeleton, :mod:`rbbench.rb.offline`; POD of u
    PGA on ``B = [Bn; Bt]`` against ``blockdiag(Vn, Vt)``);
 3. GCNS (:func:`rbbench.rb.gcns.gcns`) picks the collocation nodes of the tangential
    constraint on the training set;
-4. the plain online stage (hyper ``none``): the HF operators at mu projected on the bases
+4. the plain online stage (hyper ``none``; ``eim`` with the wedge model:
+   :mod:`rbbench.rb.friction_wedge_eim`): the HF operators at mu projected on the bases
    (:func:`rbbench.rb.friction_model.project_friction`, its time included in the online
    time), then the small Coulomb solve (:class:`rbbench.rb.friction_model.FrictionReducedModel`).
 
@@ -37,7 +38,7 @@ from rbbench.rb.friction_stage import (
     tangential_pod,
 )
 from rbbench.rb.friction_wedge_stage import WedgeStage
-from rbbench.rb.offline import ReduceConfig
+from rbbench.rb.offline import ReduceConfig, fixed_contact_points
 from rbbench.registry import Registry
 from rbbench.scene.loading import Scene, SceneError
 
@@ -56,16 +57,20 @@ class FrictionReduction:
         """Checks before any HF work: the named components exist, the stage's choices."""
         for role in ("primal", "dual", "stabilizer"):
             registry.get(role, getattr(config, role))
-        if config.hyper not in ("auto", "none"):
+        wedge = friction_dual(config) == "wedge"
+        if config.hyper not in ("auto", "none") and not (wedge and config.hyper == "eim"):
             raise SceneError(f"{scene.path}: hyper {config.hyper!r}: the reduced friction "
-                             "model is plain (hyper 'none' / 'auto') in this version")
+                             "model takes hyper 'none' / 'auto' (plain), or 'eim' with the "
+                             "wedge dual model (friction_dual = 'wedge')")
+        if config.hyper == "eim":
+            fixed_contact_points(scene, "eim")
         if config.stabilizer not in ("none", "pga"):
             raise SceneError(f"{scene.path}: stabilizer {config.stabilizer!r}: the reduced "
                              "friction model takes 'none' or 'pga'")
         if scene.data.get("friction", {}).get("coefficient_law"):
             raise SceneError(f"{scene.path}: a slip-dependent friction coefficient (model B) "
                              "has no reduced model")
-        if friction_dual(config) == "wedge" and \
+        if wedge and \
                 scene.data.get("friction", {}).get("law", "coulomb") != "coulomb":
             raise SceneError(f"{scene.path}: the wedge dual model is Coulomb's cone; Tresca "
                              "takes the seed's model")

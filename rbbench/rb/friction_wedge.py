@@ -213,14 +213,15 @@ class WedgeOnlineResult:
 
 
 def desaxce_coulomb(cond: WedgeCondensed, x0: np.ndarray | None = None, tol: float = 1e-10,
-                    max_iter: int = 500) -> WedgeOnlineResult:
+                    max_iter: int = 500, record: list | None = None) -> WedgeOnlineResult:
     """De Saxce's fixed point (module docstring): daqp on ``c >= 0`` with the gap modified
     by ``F |w_t|`` of the previous iterate (daqp's bound round-off projected: ``c >= 0``
     exactly, so the cone holds exactly), iterated on the linear term
     ``g = q + P |t0 + T c|`` (a function of ``u``: unique even when ``c`` is not) until
     ``||g^{k+1} - g^k||_inf <= tol ||g^{k+1}||_inf`` (``history``). Stops ``"converged"``,
     ``"max_iterations"``, ``"diverged"`` (increments grew 1e6-fold) or
-    ``"qp failed (daqp flag k)"``."""
+    ``"qp failed (daqp flag k)"``. ``record``: a list that receives the slip ``|t0 + T c|``
+    of every iterate (the snapshots of the slip DEIM, :mod:`rbbench.rb.friction_wedge_eim`)."""
     c = np.zeros(cond.q.size) if x0 is None else np.maximum(np.asarray(x0, float), 0.0)
     hist: list[float] = []
     inner, reason, it = 0, "max_iterations", 0
@@ -233,7 +234,10 @@ def desaxce_coulomb(cond: WedgeCondensed, x0: np.ndarray | None = None, tol: flo
             reason = f"qp failed (daqp flag {flag})"
             break
         c = np.maximum(new, 0.0)
-        g_new = cond.q + cond.P @ np.abs(cond.t0 + cond.T @ c)
+        slip = np.abs(cond.t0 + cond.T @ c)
+        if record is not None:
+            record.append(slip)
+        g_new = cond.q + cond.P @ slip
         hist.append(float(np.abs(g_new - g).max(initial=0.0))
                     / max(float(np.abs(g_new).max(initial=0.0)), np.finfo(float).tiny))
         g = g_new

@@ -60,8 +60,13 @@ WEDGE_DEFINITIONS = {
     "lam_best_valid": "per validation mu: the floor of err_lam on the cone Span+(Ln)",
     "collocation_violation": "0: the wedge model has no collocation nodes",
     "R": "generators of the w+ cone (R+); S: those of the w- cone (R-); R + S dual unknowns",
-    "t_online": "wall time of one online solve: HF assembly at mu + projection (plain model) "
-                "+ De Saxce's fixed point (t_online_solve_median_s)",
+    "t_online": "wall time of one online solve: HF assembly at mu + projection (plain model; "
+                "hyper 'eim': the affine A_N, F_N, the friction EIM and the slip rows, "
+                "t_online_eim_s) + De Saxce's fixed point (t_online_solve_median_s)",
+    "slip_deim": "hyper 'eim': M_s magic contact nodes of the DEIM of the slip |w_t| over the "
+                 "De Saxce iterates of the training set (errors_slip: its relative max-norm "
+                 "training error curve); M_n, M_t, M_G the friction EIM sizes of Ln^T Bn Z, "
+                 "Lt^T Bt Z, Ln^T Gn",
 }
 
 
@@ -70,6 +75,32 @@ class WedgeStage(FrictionStage):
 
     definitions = WEDGE_DEFINITIONS
     online_method = "daqp (De Saxce fixed point on the wedge cones)"
+
+    def __init__(self, ctx: Any) -> None:
+        super().__init__(ctx)
+        if ctx.config.hyper == "eim":
+            self._hyper(ctx)
+
+    def _hyper(self, ctx: Any) -> None:
+        """hyper 'eim': :func:`rbbench.rb.friction_wedge_eim.wedge_hyper_model` (the slip
+        DEIM on the training iterates, the friction EIM on the EIM training set)."""
+        from rbbench.rb.friction_wedge_eim import wedge_hyper_model
+        from rbbench.rb.offline import eim_training_set
+
+        t1 = time.perf_counter()
+        ctx.progress("hyper eim: slip DEIM, friction EIM, affine A_N, F_N")
+        if not hasattr(ctx.backend, "contact_layout"):
+            raise ValueError(f"hyper 'eim': backend {ctx.config.backend!r} provides no "
+                             "contact layout; use hyper 'none'")
+        p0 = ctx.problem_at(ctx.mus_train[0])
+        self.model = wedge_hyper_model(
+            self.reduced, self.wedge, self.Z_off, np.column_stack(self._slips),
+            ctx.backend.contact_layout(), p0.free, ctx.problem_at, ctx.scene.bounds,
+            eim_training_set(ctx.scene, ctx.config, ctx.mus_train), tol=ctx.config.tol_eim,
+            m_max=ctx.config.m_eim)
+        self.hyper = "eim"
+        self.histories["eim"] = self.model.info
+        ctx.timings["hyper_s"] = time.perf_counter() - t1
 
     def _spaces(self, ctx: Any) -> None:
         """The ``w+`` and ``w-`` cones (the registered dual compressor)."""
@@ -104,8 +135,9 @@ class WedgeStage(FrictionStage):
             raise ValueError("wedge model: the friction coefficient depends on mu; the wedge "
                              "cones are built for one F per node")
         P = self.wedge.P
-        runs = [desaxce_coulomb(condense_wedge(project_wedge(p, self.Z_off, self.wedge), P))
-                for p in problems]
+        self._slips: list[np.ndarray] = []  # |w_t| of every iterate: the slip DEIM's data
+        runs = [desaxce_coulomb(condense_wedge(project_wedge(p, self.Z_off, self.wedge), P),
+                                record=self._slips) for p in problems]
         self.histories["training_iterations"] = [r.iterations for r in runs]
         self.histories["training_stops"] = [r.stop_reason for r in runs]
         self.histories["training_rates"] = [r.rate for r in runs]
@@ -118,6 +150,26 @@ class WedgeStage(FrictionStage):
 
     def _project(self, problem: Any) -> Any:
         return project_wedge(problem, self.Z_off, self.wedge)
+
+    def online(self, mu: np.ndarray, problem: Any) -> tuple[Any, np.ndarray, list[float]]:
+        """hyper 'eim': ``online_repeats`` solves of the model alone (no HF work; EIM
+        evaluation and fixed point timed apart); else the plain stage."""
+        if self.model is None:
+            return super().online(mu, problem)
+        runs = []
+        for _ in range(self.ctx.config.online_repeats):
+            t0 = time.perf_counter()
+            arrays = self.model.arrays(mu)
+            self.t_asm.append(time.perf_counter() - t0)
+            res = self.model.solve_arrays(mu, arrays)
+            self.t_solve.append(res.time_s)
+            runs.append(time.perf_counter() - t0)
+        return res, self.Z_off @ res.a, runs
+
+    def finish(self, histories: dict, timings: dict) -> None:
+        super().finish(histories, timings)
+        if self.model is not None and self.t_asm:
+            timings["t_online_eim_s"] = timings.pop("t_online_hf_assembly_s")
 
     def _multipliers(self, res: Any) -> tuple[np.ndarray, np.ndarray]:
         return self.wedge.Ln @ res.c, self.wedge.Lt @ res.c
