@@ -77,7 +77,7 @@ def test_hyper_wedge_pickles_and_touches_no_hf_array(monkeypatch):
     def refuse(*a, **k):
         raise AssertionError("HF work in the online stage")
 
-    for mod, name in ((ro, "build_problem"), (cg, "contact_operators"), (cg, "pair"),
+    for mod, name in ((ro, "build_problem"), (cg, "contact_operators"),
                       (fw, "project_wedge")):
         monkeypatch.setattr(mod, name, refuse)
     monkeypatch.setattr(type(ctx.problem_at), "__call__", refuse)

@@ -23,6 +23,13 @@ but its absolute value must be taken node by node, so the signed interpolant wou
 need all ``m`` nodes; ``|w_t|`` is continuous along the contact zone (0 on the stick
 zone, growing with the slip), so its training iterates compress well. The reduced cone
 still holds at every HF node (``c >= 0``): the DEIM only perturbs the linear term.
+
+Measured on hertz_friction P1 (41 training, 20 validation mu, N = 30, R = S = 20, PGA
+K = 40, tol_eim 1e-4; max over validation, same bases): plain err_u 2.39e-4, err_lam_t
+0.1869; EIM with the exact nodal slip 2.39e-4, 0.1797; EIM + slip DEIM 2.39e-4, 0.1798
+(``M_s`` = 67 of 513 nodes, ``M_n = M_t`` = 161, ``M_G`` = 4, 225 distinct rows): the slip
+DEIM adds < 1e-4 to err_lam_t. Online 6.5 ms median (1 BLAS thread; coarse mesh,
+129 nodes: 4.7 ms) against the HF 37 s.
 """
 
 from __future__ import annotations
