@@ -20,7 +20,7 @@ _CACHE: dict = {}
 
 
 def _offline(tol_eim: float = 1e-10):
-    """Coarse P1 hertz_friction, wedge model, hyper 'eim' (5 training mu, no validation)."""
+    """Coarse P1 hertz_friction, wedge model, hyper 'eim' (5 training, 2 validation mu)."""
     if tol_eim not in _CACHE:
         import tempfile
 
@@ -30,7 +30,7 @@ def _offline(tol_eim: float = 1e-10):
                            online_repeats=1,
                            cache_dir=_CACHE.setdefault("dir", tempfile.mkdtemp()))
         cfg.friction_dual = "wedge"
-        _CACHE[tol_eim] = offline(scene, cfg, validation_snapshots=False)
+        _CACHE[tol_eim] = offline(scene, cfg)
     return _CACHE[tol_eim]
 
 
@@ -87,6 +87,19 @@ def test_hyper_wedge_pickles_and_touches_no_hf_array(monkeypatch):
     dims = [d for a in _arrays(model) for d in a.shape]
     assert max(dims) < n_free / 10, (max(dims), n_free)
     assert len(blob) < 400_000
+
+
+def test_hyper_wedge_stage_validates_without_hf_assembly():
+    """The stage's validation runs the hyper model (EIM evaluation timed apart, no HF
+    assembly online); raw reduced multipliers in the Coulomb cone at every HF node."""
+    from rbbench.rb.validation import validate
+
+    off = _offline()
+    s = validate(off.context, off.stage).summary()
+    assert s["hyper"] == "eim" and s["online_stops"] == {"converged": 2}
+    assert "t_online_eim_s" in s["timings"] and "t_online_hf_assembly_s" not in s["timings"]
+    assert s["friction_residual_max"] <= 1e-12
+    assert s["u_best_max"] <= s["err_u_max"] < 0.05
 
 
 def _arrays(obj, seen=None):
