@@ -147,7 +147,7 @@ def _reduce_config(args):
 
     _resolve_solver(args)
     for flag, key in (("-N", "N"), ("-R", "R"), ("-S", "S"), ("--n-train", "n_train"),
-                      ("--n-valid", "n_valid"), ("--jobs", "jobs")):
+                      ("--n-valid", "n_valid"), ("--jobs", "jobs"), ("--m-eim", "m_eim")):
         v = getattr(args, key, None)
         if v is not None and v < 1:
             raise SceneError(f"{flag} {v}: must be an integer >= 1")
@@ -157,7 +157,7 @@ def _reduce_config(args):
                             n_train=args.n_train,
                             n_valid=args.n_valid, n_jobs=args.jobs, solver=args.solver,
                             backend=args.backend, formulation=args.formulation,
-                            tol_eim=args.tol_eim, delta_pga=args.delta_pga,
+                            tol_eim=args.tol_eim, m_eim=args.m_eim, delta_pga=args.delta_pga,
                             k_pga_max=args.k_pga_max,
                             gcns_per_iteration=args.gcns_per_iteration,
                             gcns_patience=args.gcns_patience,
@@ -362,9 +362,12 @@ def _add_reduce_args(rd) -> None:
                     help="auto (affine if exact, else eim), affine (exact), eim (EIM of "
                          "B(mu) Z and G(mu)), none (plain: HF assembly projected online); "
                          "nitsche: auto = empirical cubature at the contact points, eim = DEIM, "
-                         "none = plain")
+                         "none = plain; friction: auto = none (plain), eim = the wedge model's "
+                         "EIM of its B, g and DEIM of the slip (--friction-dual wedge only)")
     rd.add_argument("--tol-eim", type=float, default=1e-4,
                     help="EIM tolerance (relative max-norm training error)")
+    rd.add_argument("--m-eim", type=int, default=None, dest="m_eim",
+                    help="cap on the number of EIM terms (default: the tolerance decides)")
     rd.add_argument("--delta-pga", type=float, default=None,
                     help="PGA tolerance on sigma_max (default: see result.json pga_delta)")
     rd.add_argument("--k-max", type=int, default=None, dest="k_pga_max",
