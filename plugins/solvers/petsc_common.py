@@ -12,7 +12,7 @@ import itertools
 import sys
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -26,6 +26,18 @@ _PETSC: Any = None
 _COUNTER = itertools.count()
 _TINY = np.finfo(float).tiny
 _SUBNORMAL = float(np.nextafter(0.0, 1.0))  # the smallest positive float
+
+
+class TrescaSetup(NamedTuple):
+    """The start of a PETSc Tresca solve (``_tresca_setup`` of the PETSc solver base)."""
+
+    PETSc: Any
+    t0: float
+    s: np.ndarray  # threshold per node
+    qp: tuple  # scaled_qp(D, q): (c, Ds, sigma, qs, qnorm)
+    k: float  # c sigma: x = k mu
+    bounds: tuple[np.ndarray, np.ndarray]  # of mu
+    x0: np.ndarray  # start, in mu
 
 
 def petsc() -> Any:
@@ -293,6 +305,26 @@ class _PetscSolver(Solver):
         from rbbench_plugins.solvers.friction import solve_steps, tresca_runner
 
         return solve_steps(problem, tresca_runner(problem, self.tresca), warm_start)
+
+    @staticmethod
+    def _tresca_setup(D: np.ndarray, q: np.ndarray, s: float | np.ndarray,
+                      lam0: np.ndarray | None) -> tuple[TrescaSetup | None,
+                                                       fa.FrictionResult | None]:
+        """What both PETSc Tresca solves start from: the checked data, the scaled QP
+        (:func:`scaled_qp`), its box ``[0, inf) x [-s, s] / (c sigma)`` and the clipped start;
+        ``(None, result)`` with the ``"nan"`` result on non-finite data."""
+        m = fa.check_problem(D, q)
+        s = fa.node_array(s, m, "s")
+        data = [D, q] if lam0 is None else [D, q, np.asarray(lam0, float)]
+        if not all(np.all(np.isfinite(a)) for a in data):
+            return None, fa.finish(D, q, np.full(2 * m, np.nan), s, 0, "nan", [],
+                                   {"petsc_reason": "not run", "why": "non-finite data"})
+        PETSc, t0 = petsc(), time.perf_counter()
+        qp = scaled_qp(D, q)
+        k = qp[0] * qp[2]
+        lo, hi = (np.clip(b / k, PETSc.NINFINITY, PETSc.INFINITY) for b in fa.box_bounds(s))
+        x0 = np.zeros(2 * m) if lam0 is None else np.clip(lam0 / k, lo, hi)
+        return TrescaSetup(PETSc, t0, s, qp, k, (lo, hi), x0), None
 
     def _tresca_result(self, D: np.ndarray, q: np.ndarray, x: np.ndarray, s: np.ndarray,
                        code: int | None, its: int, history: list[float],

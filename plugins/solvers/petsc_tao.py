@@ -178,21 +178,13 @@ class PetscTaoSolver(_PetscSolver):
         ``[0, inf) x [-s, s] / (c sigma)``. The stop reason is PETSc's
         (``info["petsc_reason"]``), checked on the friction residuals (``kkt_tol``).
         """
-        m = fa.check_problem(D, q)
-        s = fa.node_array(s, m, "s")
-        data = [D, q] if lam0 is None else [D, q, np.asarray(lam0, float)]
-        if not all(np.all(np.isfinite(a)) for a in data):
-            return fa.finish(D, q, np.full(2 * m, np.nan), s, 0, "nan", [],
-                             {"petsc_reason": "not run", "why": "non-finite data"})
-        PETSc, t0 = petsc(), time.perf_counter()
-        qp = scaled_qp(D, q)
-        k = qp[0] * qp[2]
-        lo, hi = (np.clip(b / k, PETSc.NINFINITY, PETSc.INFINITY) for b in fa.box_bounds(s))
-        mu0 = np.zeros(2 * m) if lam0 is None else np.clip(lam0 / k, lo, hi)
-        info: dict[str, Any] = {"tao_type": self.tao_type, "scale_data": k}
-        code, its, mu, history, _, info["tao_s"] = self._tao(PETSc, qp, mu0, (lo, hi), info,
-                                                             t0)
-        return self._tresca_result(D, q, k * mu, s, code, its, history, info)
+        st, early = self._tresca_setup(D, q, s, lam0)
+        if st is None:
+            return early
+        info: dict[str, Any] = {"tao_type": self.tao_type, "scale_data": st.k}
+        code, its, mu, history, _, info["tao_s"] = self._tao(st.PETSc, st.qp, st.x0, st.bounds,
+                                                             info, st.t0)
+        return self._tresca_result(D, q, st.k * mu, st.s, code, its, history, info)
 
     def _tao(self, PETSc: Any, qp: tuple, mu0: np.ndarray,
              bounds: tuple[np.ndarray, np.ndarray], info: dict[str, Any], t0: float

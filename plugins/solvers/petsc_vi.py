@@ -22,7 +22,6 @@ from rbbench_plugins.solvers.petsc_common import (
     _reason_name,
     _vec,
     petsc,
-    scaled_qp,
 )
 
 from rbbench.hf import friction_algebra as fa
@@ -311,17 +310,10 @@ class PetscVISolver(_PetscSolver):
         and LU as the contact solve (no ordering: ``D`` is dense). The stop reason is
         PETSc's (``info["petsc_reason"]``), checked on the friction residuals (``kkt_tol``).
         """
-        m = fa.check_problem(D, q)
-        s = fa.node_array(s, m, "s")
-        data = [D, q] if lam0 is None else [D, q, np.asarray(lam0, float)]
-        if not all(np.all(np.isfinite(a)) for a in data):
-            return fa.finish(D, q, np.full(2 * m, np.nan), s, 0, "nan", [],
-                             {"petsc_reason": "not run", "why": "non-finite data"})
-        PETSc, t0 = petsc(), time.perf_counter()
-        c, Ds, sigma, qs, qnorm = scaled_qp(D, q)
-        lo, hi = (np.clip(b / (c * sigma), PETSc.NINFINITY, PETSc.INFINITY)
-                  for b in fa.box_bounds(s))
-        y0 = np.zeros(2 * m) if lam0 is None else np.clip(lam0 / (c * sigma), lo, hi)
+        st, early = self._tresca_setup(D, q, s, lam0)
+        if st is None:
+            return early
+        PETSc, (_, Ds, _, qs, qnorm) = st.PETSc, st.qp
         csr = _csr(PETSc, sp.csr_matrix(Ds))
         counts = {"function": 0, "jacobian": 0, "degenerate": 0}
 
@@ -329,14 +321,14 @@ class PetscVISolver(_PetscSolver):
             counts["function"] += 1
             fv.setArray(Ds @ yv.getArray(readonly=True) + qs)
 
-        info: dict[str, Any] = {"snes_type": self.snes_type, "scale_data": c * sigma}
+        info: dict[str, Any] = {"snes_type": self.snes_type, "scale_data": st.k}
         amax = float(np.abs(Ds).max(initial=0.0)) or 1.0
         code, its, hist, ys, _, t_solve = self._snes(
-            PETSc, csr, y0, (lo, hi), (residual, _refill(csr, counts)), (qnorm, amax), counts,
-            info, t0, {"snes_vi_zero_tolerance": VI_ZERO_TOL})
+            PETSc, csr, st.x0, st.bounds, (residual, _refill(csr, counts)), (qnorm, amax),
+            counts, info, st.t0, {"snes_vi_zero_tolerance": VI_ZERO_TOL})
         info["snes_s"] = t_solve
         history = (hist[: its + 1] / qnorm).tolist() if hist.size else []
-        return self._tresca_result(D, q, (c * sigma) * ys, s, code, its, history, info)
+        return self._tresca_result(D, q, st.k * ys, st.s, code, its, history, info)
 
     def _snes(self, PETSc: Any, csr: tuple[Any, Any, Any], x0: np.ndarray,
               bounds: tuple[np.ndarray, np.ndarray], callbacks: tuple[Callable[..., None], ...],
