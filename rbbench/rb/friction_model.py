@@ -192,6 +192,18 @@ class FrictionOnlineResult:
         return np.concatenate([self.c_n, self.theta])
 
 
+def increment_stop(hist: list[float], new: np.ndarray, old: np.ndarray, tol: float,
+                   floor: float = 0.0) -> str | None:
+    """The stopping rule of the online fixed points: append the relative increment
+    ``||new - old||_inf / max(||new||_inf, floor)`` to ``hist``; ``"converged"`` when it is
+    ``<= tol``, ``"diverged"`` when it grew 1e6-fold over the smallest so far, else None."""
+    hist.append(float(np.abs(new - old).max(initial=0.0))
+                / max(float(np.abs(new).max(initial=0.0)), floor, np.finfo(float).tiny))
+    if hist[-1] <= tol:
+        return "converged"
+    return "diverged" if hist[-1] > 1e6 * min(hist) else None
+
+
 def solve_coulomb(cond: ReducedCondensed, Qn: np.ndarray, Qt: np.ndarray,
                   values: np.ndarray, law: str = "coulomb", x0: np.ndarray | None = None,
                   tol: float = 1e-10, max_iter: int = 200) -> FrictionOnlineResult:
@@ -215,14 +227,10 @@ def solve_coulomb(cond: ReducedCondensed, Qn: np.ndarray, Qt: np.ndarray,
         if new is None:
             reason = f"qp failed (daqp flag {flag})"
             break
-        hist.append(float(np.abs(new - x).max(initial=0.0))
-                    / max(float(np.abs(new).max(initial=0.0)), floor, np.finfo(float).tiny))
+        stop = increment_stop(hist, new, x, tol, floor)
         x = new
-        if law == "tresca" or hist[-1] <= tol:
-            reason = "converged"
-            break
-        if hist[-1] > 1e6 * min(hist):
-            reason = "diverged"
+        if law == "tresca" or stop is not None:
+            reason = "converged" if law == "tresca" else stop
             break
     a = cond.a0 - cond.K @ x
     return FrictionOnlineResult(a, x[:R].copy(), x[R:].copy(), it, inner, reason, 0.0, hist)

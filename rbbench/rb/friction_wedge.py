@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from rbbench.rb.friction_model import check_reducible, nonneg_qp
+from rbbench.rb.friction_model import check_reducible, increment_stop, nonneg_qp
 from rbbench.scene.parameters import ParameterSpace
 
 __all__ = ["WedgeArrays", "WedgeBasis", "WedgeCondensed", "WedgeOnlineResult",
@@ -238,14 +238,10 @@ def desaxce_coulomb(cond: WedgeCondensed, x0: np.ndarray | None = None, tol: flo
         if record is not None:
             record.append(slip)
         g_new = cond.q + cond.P @ slip
-        hist.append(float(np.abs(g_new - g).max(initial=0.0))
-                    / max(float(np.abs(g_new).max(initial=0.0)), np.finfo(float).tiny))
+        stop = increment_stop(hist, g_new, g, tol)
         g = g_new
-        if hist[-1] <= tol:
-            reason = "converged"
-            break
-        if hist[-1] > 1e6 * min(hist):
-            reason = "diverged"
+        if stop is not None:
+            reason = stop
             break
     a = np.zeros(0) if cond.a0 is None else cond.a0 - cond.K @ c
     return WedgeOnlineResult(a, c, it, inner, reason, 0.0, hist)
