@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
+from rbbench.rb.mixed_model import condense_dense
 from rbbench.scene.parameters import ParameterSpace
 
 __all__ = ["FrictionArrays", "FrictionOnlineResult", "FrictionReducedModel",
@@ -89,13 +90,9 @@ class ReducedCondensed:
 
 def condense_reduced(arr: FrictionArrays) -> ReducedCondensed:
     """Condense the reduced arrays on ``x = (c_n, theta)`` (one dense Cholesky of A_N)."""
-    cho = sla.cho_factor(arr.A)
-    B = np.vstack([arr.Bn, arr.Bt])
-    a0 = sla.cho_solve(cho, arr.F)
-    K = sla.cho_solve(cho, B.T)
-    D = B @ K
-    q = np.concatenate([arr.Gn, arr.gt]) - B @ a0
-    return ReducedCondensed(a0, K, 0.5 * (D + D.T), q, arr.Bn.shape[0])
+    a0, K, D, q = condense_dense(arr.A, arr.F, np.vstack([arr.Bn, arr.Bt]),
+                                 np.concatenate([arr.Gn, arr.gt]))
+    return ReducedCondensed(a0, K, D, q, arr.Bn.shape[0])
 
 
 def tresca_qp(D: np.ndarray, q: np.ndarray, R: int, Qt: np.ndarray, s: np.ndarray,

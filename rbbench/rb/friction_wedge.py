@@ -38,9 +38,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 
 from rbbench.rb.friction_model import check_reducible, increment_stop, nonneg_qp
+from rbbench.rb.mixed_model import condense_dense
 from rbbench.scene.parameters import ParameterSpace
 
 __all__ = ["WedgeArrays", "WedgeBasis", "WedgeCondensed", "WedgeOnlineResult",
@@ -171,12 +171,8 @@ class WedgeCondensed:
 def condense_wedge(arr: WedgeArrays, P: np.ndarray) -> WedgeCondensed:
     """Condense on ``c`` (one dense Cholesky of ``A_N``): ``a = a0 - K c``, so
     ``w_t = (wt0 - BtZ a0) + (BtZ K) c``."""
-    cho = sla.cho_factor(arr.A)
-    a0 = sla.cho_solve(cho, arr.F)
-    K = sla.cho_solve(cho, arr.B.T)
-    D = arr.B @ K
-    return WedgeCondensed(0.5 * (D + D.T), arr.g - arr.B @ a0, P, arr.wt0 - arr.BtZ @ a0,
-                          arr.BtZ @ K, a0, K)
+    a0, K, D, q = condense_dense(arr.A, arr.F, arr.B, arr.g)
+    return WedgeCondensed(D, q, P, arr.wt0 - arr.BtZ @ a0, arr.BtZ @ K, a0, K)
 
 
 def wedge_condensed(D: np.ndarray, q: np.ndarray, basis: WedgeBasis) -> WedgeCondensed:

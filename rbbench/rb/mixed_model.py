@@ -90,6 +90,20 @@ def _rel_min(a: np.ndarray) -> float:
     return float(a.min()) / top if top > 0 else 0.0
 
 
+def condense_dense(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
+                   cho: tuple | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Condense a small saddle point ``A c + B^T x = F`` on the multipliers by one dense
+    Cholesky of ``A`` (``cho``: a factor computed once): ``c = c0 - K x`` with
+    ``c0 = A^-1 F``, ``K = A^-1 B^T``, the symmetrised Delassus ``D = B K`` and
+    ``q = G - B c0``. Returns ``(c0, K, D, q)``."""
+    cho = sla.cho_factor(A) if cho is None else cho
+    c0 = sla.cho_solve(cho, F)
+    K = sla.cho_solve(cho, B.T)
+    D = B @ K
+    return c0, K, 0.5 * (D + D.T), G - B @ c0
+
+
 def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
                   warm_start: np.ndarray | None = None, max_iter: int = 100,
                   cho: tuple | None = None, method: str = "pdas") -> OnlineResult:
@@ -115,12 +129,7 @@ def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
         res.stop_reason += " (pdas fallback)" if res.stop_reason == "converged" else ""
         res.time_s = time.perf_counter() - t0
         return res
-    cho = sla.cho_factor(A) if cho is None else cho
-    c0 = sla.cho_solve(cho, F)
-    AinvBt = sla.cho_solve(cho, B.T)
-    D = B @ AinvBt
-    D = 0.5 * (D + D.T)
-    q = G - B @ c0
+    c0, AinvBt, D, q = condense_dense(A, F, B, G, cho)
     alpha, it, reason, _, _ = lcp.pdas(D, q, warm_start, max_iter=max_iter)
     c = c0 - AinvBt @ alpha
     return OnlineResult(c, alpha, it, reason, time.perf_counter() - t0, _rel_min(alpha))
