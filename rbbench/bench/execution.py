@@ -38,6 +38,12 @@ _COPIED = ("n_hf_dofs", "n_contact", "n_train", "n_valid", "N", "R", "M_eim", "e
            "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
            "complementarity_max", "energy_err_max", "t_offline_s", "t_online_median_s",
            "t_online_iqr_s", "t_hf_median_s", "speedup")
+#: Summary keys of a reduced friction model (rbbench.rb.friction_stage) copied as they are;
+#: ``S_tau`` is its ``S`` (the row's ``S`` is the stabiliser size).
+_FRICTION = ("err_lam_t_max", "err_lam_t_mean", "lam_t_best_max", "friction_residual_max",
+             "online_iterations_max", "S_q", "gcns_iterations", "dim_v_off", "delta_pga")
+#: Summary entries of a friction reduction kept in the case details (report figures).
+_FRICTION_DETAILS = ("gcns_history", "lam_t_profiles")
 _TIMINGS = {"t_snapshots_s": "snapshots_s", "t_primal_s": "primal_s", "t_dual_s": "dual_s",
             "t_stabilizer_s": "stabilizer_s", "t_hyper_s": "hyper_s"}
 
@@ -102,6 +108,15 @@ def _fill(row: dict, s: dict) -> None:
         row[f"beta_{b}_min"] = s.get(f"beta_{b}_min")
         row[f"beta_{b}_kind"] = (s.get("beta_kind") or {}).get(b)
     row["beta_dec_zero_any"] = s.get("beta_dec_zero_any")
+    if _is_friction(s):
+        row.update({k: s.get(k) for k in _FRICTION})
+        row["S_tau"] = s.get("S")
+        row["friction_dual"] = s.get("friction_dual") or s["config"].get("friction_dual")
+
+
+def _is_friction(s: dict) -> bool:
+    """Whether a reduction summary is that of a reduced friction model (it has S_q)."""
+    return "S_q" in s
 
 
 def _finite(s: dict) -> bool:
@@ -171,8 +186,11 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
         row.update(status="diverged", reason=f"online solves did not converge: {bad_stops}")
     else:
         row.update(status="ok", reason="")
-    return {"per_mu": s.get("per_mu", {}), "histories": s.get("histories", {}),
-            "valid_mus": np.asarray(res.valid_mus).tolist(), "timings": s.get("timings", {})}
+    details = {"per_mu": s.get("per_mu", {}), "histories": s.get("histories", {}),
+               "valid_mus": np.asarray(res.valid_mus).tolist(), "timings": s.get("timings", {})}
+    if _is_friction(s):
+        details.update({k: s.get(k) for k in _FRICTION_DETAILS})
+    return details
 
 
 def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) -> None:
@@ -204,7 +222,8 @@ def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) ->
 def decided_row(case: Case, run_id: str, executor: str) -> dict[str, Any]:
     """The row of a case decided without running it (skip / not_installed)."""
     row = base_row(case, run_id, executor)
-    row.update(status=case.status, reason=case.reason, t_case_s=0.0)
+    row.update(status=case.status, reason=case.reason, t_case_s=0.0,
+               friction_dual=case.params.get("friction_dual"))
     return {"row": schema.normalise_row(row), "details": {}}
 
 

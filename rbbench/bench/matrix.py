@@ -27,6 +27,13 @@ repetitions. Example (every table but ``[matrix]`` is optional)::
     [params.stabilizer.pga]    # per-component parameter grid (product), ReduceConfig fields
     k_pga_max = [20, 40]
 
+A model axis (:data:`MODEL_AXES`) is a ReduceConfig field swept like a component:
+``[components] friction_dual = ["seed", "wedge"]`` (friction scenes), with its own
+grids ``[params.friction_dual.seed]``; the value goes to the case's parameters (the
+same case as ``[reduce] friction_dual``). Combinations the formulation's reduced model
+refuses before any HF work (e.g. the seed's friction model with ``hyper = "eim"``) are
+``skip`` rows with its reason.
+
 A scene entry ``name@variant`` is the scene ``name`` under its own
 ``[scene_overrides]`` entry (e.g. two mesh sizes: ``hertz_halfdisks@fine``).
 ``[matrix] mode = "hf"`` makes each case an HF solve only (components
@@ -56,11 +63,15 @@ from rbbench.scene import limits
 from rbbench.scene.friction import friction_of
 from rbbench.scene.loading import PROBLEMS_DIR, Scene, load_scene, tomllib
 
-__all__ = ["COMPONENT_ROLES", "Case", "Matrix", "MatrixError", "compatibility", "load_matrix"]
+__all__ = ["COMPONENT_ROLES", "MODEL_AXES", "Case", "Matrix", "MatrixError", "compatibility",
+           "load_matrix", "reduced_model_check"]
 
 #: The component axes of a case, in table order, with the built-in default of each.
 COMPONENT_ROLES = {"backend": "skfem", "formulation": "mixed", "solver": "ssn",
                    "primal": "pod", "dual": "mcpg", "stabilizer": "pga", "hyper": "auto"}
+#: Model axes: ReduceConfig fields a matrix may sweep in ``[components]`` (with selectors
+#: and ``[params.AXIS.VALUE]`` grids), and their valid values; the value is a case parameter.
+MODEL_AXES: dict[str, tuple[str, ...]] = {"friction_dual": checks.FRICTION_DUALS}
 #: Axes that name registered components (their registry role has the same name).
 _REGISTRY_ROLES = ("backend", "formulation", "solver", "primal", "dual", "stabilizer")
 _HYPER = ("auto", *BUILTIN_HYPER)  # "auto" and the built-in hyper-reducers (role "hyper")
@@ -118,7 +129,9 @@ class Case:
         c = self.components
         if self.mode == "hf":
             return f"{self.scene} HF {c['backend']}/{c['formulation']}/{c['solver']}"
-        return (f"{self.scene} {c['dual']}+{c['stabilizer']}+{c['hyper']} N={self.N} R={self.R}"
+        fd = self.params.get("friction_dual")
+        return (f"{self.scene} {c['dual']}+{c['stabilizer']}+{c['hyper']}"
+                + (f" friction_dual={fd}" if fd else "") + f" N={self.N} R={self.R}"
                 + (f" rep {self.repetition}" if self.repetition else ""))
 
     def reduce_config(self, cache_dir: str) -> Any:
@@ -168,7 +181,7 @@ def _parse_value(text: str) -> Any:
 
 def _selectors(selectors: list[str] | tuple[str, ...]) -> dict[str, list[str]]:
     out: dict[str, list[str]] = {}
-    valid = ["scene", *COMPONENT_ROLES, "N", "R"]
+    valid = ["scene", *COMPONENT_ROLES, *MODEL_AXES, "N", "R"]
     for sel in selectors:
         if "=" not in sel:
             raise MatrixError(f"selector {sel!r}: write ROLE=NAME[,NAME...] (globs allowed); "
@@ -220,6 +233,9 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
     plan.pairs = _size_pairs(data.get("sizes", {}), where)
     rfields = _reduce_fields()
     plan.base = _base_params(data.get("reduce", {}), sets, rfields, where)
+    for axis in set(MODEL_AXES) & set(plan.axes) & set(plan.base):
+        raise MatrixError(f"{where}: {axis} is swept in [components] and set in [reduce] / "
+                          "--set; give it in one place")
     plan.grids = _param_grids(data.get("params", {}), plan.axes, rfields, where)
     plan.overrides = _scene_overrides(data.get("scene_overrides", {}), plan.scenes, where)
     checks.check_case_count(_case_count(plan), where)
@@ -291,7 +307,7 @@ def _component_axes(data: dict, mode: str, registry: Registry | None,
                     where: str) -> tuple[dict[str, list[str]], Any]:
     """The component names per role (``[components]``, checked) and the HF repeats."""
     comps = data.get("components", {})
-    _check_keys(comps, set(_HF_ROLES) if mode == "hf" else set(COMPONENT_ROLES),
+    _check_keys(comps, set(_HF_ROLES) if mode == "hf" else {*COMPONENT_ROLES, *MODEL_AXES},
                 f"{where}: [components] (mode {mode})")
     hf_repeats = _hf_repeats(data, mode, where)
     axes = {role: checks.check_strings(comps.get(role, default), f"{where}: [components] {role}")
@@ -299,6 +315,12 @@ def _component_axes(data: dict, mode: str, registry: Registry | None,
     if mode == "hf":  # the RB roles do not apply: empty names in the rows
         axes.update({r: [""] for r in COMPONENT_ROLES if r not in _HF_ROLES})
     _check_names(axes, mode, registry, where)
+    for axis in MODEL_AXES:
+        if axis in comps:
+            w = f"{where}: [components] {axis}"
+            axes[axis] = checks.check_strings(comps[axis], w)
+            for v in axes[axis]:
+                checks.check_reduce_value(axis, v, w)
     return axes, hf_repeats
 
 
@@ -351,7 +373,7 @@ def _base_params(reduce: dict, sets: list[str] | tuple[str, ...], rfields: dict,
 def _param_grids(params: dict, axes: dict[str, list[str]], rfields: dict,
                  where: str) -> dict[tuple[str, str], list[dict]]:
     """``{(role, name): [option dict, ...]}``: the product of each ``[params.role.name]``."""
-    _check_keys(params, set(COMPONENT_ROLES), f"{where}: [params]")
+    _check_keys(params, {*COMPONENT_ROLES, *MODEL_AXES}, f"{where}: [params]")
     grids: dict[tuple[str, str], list[dict]] = {}
     for role, per_name in params.items():
         if not isinstance(per_name, dict):
@@ -359,9 +381,9 @@ def _param_grids(params: dict, axes: dict[str, list[str]], rfields: dict,
                               f"[params.{role}.NAME] of field = [values]")
         for cname, grid in per_name.items():
             w = f"{where}: [params.{role}.{cname}]"
-            if cname not in axes[role]:
+            if cname not in axes.get(role, []):
                 raise MatrixError(f"{w}: {cname!r} is not in [components] {role} "
-                                  f"{axes[role]}")
+                                  f"{axes.get(role, [])}")
             if not isinstance(grid, dict):
                 raise MatrixError(f"{w}: {grid!r}; expected a table of field = [values]")
             _check_params(grid, rfields, w)
@@ -399,18 +421,22 @@ def _scene_cases(plan: _Plan, sname: str, sel: dict[str, list[str]],
     scene_seed, fingerprint = int(scene.data["sampling"]["seed"]), scene.fingerprint()
     cases: list[Case] = []
     for combo in itertools.product(*plan.axes.values()):
-        comp = dict(zip(plan.axes, combo, strict=True))
-        if not all(_selected(comp[r], sel.get(r)) for r in COMPONENT_ROLES):
+        values = dict(zip(plan.axes, combo, strict=True))
+        if not all(_selected(v, sel.get(r)) for r, v in values.items()):
             continue
+        comp = {r: values[r] for r in COMPONENT_ROLES}
+        model = {a: values[a] for a in MODEL_AXES if a in values}
         status, reason = compatibility(scene, comp, registry)
-        option_sets = [plan.grids.get((r, comp[r]), [{}]) for r in COMPONENT_ROLES]
+        option_sets = [plan.grids.get((r, v), [{}]) for r, v in values.items()]
         for N, R in plan.pairs:  # mode hf: no [sizes], the one pair (None, None)
             if not (_selected(N, sel.get("N")) and _selected(R, sel.get("R"))):
                 continue
             for opts in itertools.product(*option_sets):
-                p = _case_params(plan, opts)
+                p = {**_case_params(plan, opts), **model}
+                st, why = (status, reason) if status != "run" or plan.mode != "rb" else \
+                    reduced_model_check(scene, comp, p, registry)
                 cases += [Case(sname, ov, comp, N, R, p, rep, scene_seed, plan.timeout_s,
-                               fingerprint, plan.mode, status, reason)
+                               fingerprint, plan.mode, st, why)
                           for rep in range(plan.repetitions)]
     return cases
 
@@ -499,3 +525,33 @@ def compatibility(scene: Scene, comp: dict[str, str],
                 return "not_installed", f"{r} {comp[r]!r}: {why}"
     return "run", ""
 
+
+
+def reduced_model_check(scene: Scene, comp: dict[str, str], params: dict[str, Any],
+                        registry: Registry | None) -> tuple[str, str]:
+    """``("run", "")``, or ``("skip", reason)`` when the formulation's reduced friction model
+    refuses the case before any HF work (friction scenes only).
+
+    The refusal is the model's own: the friction laws its offline steps declare and their
+    early checks (``prepare``, e.g. the seed's dual model takes no ``hyper = "eim"``), run
+    on the case's ReduceConfig; the reason is their message. Without a registry, or on a
+    frictionless scene, nothing is checked here (the case records any failure itself).
+    """
+    from rbbench.rb.offline import ReduceConfig, reduction_steps
+    from rbbench.scene.loading import SceneError
+
+    law = friction_of(scene).law
+    if registry is None or law == "none":
+        return "run", ""
+    try:
+        config = ReduceConfig(**comp, **params)
+        steps = reduction_steps(config, registry, law)
+        laws = getattr(steps, "friction_laws", ("none",))
+        if law not in laws:
+            return "skip", (f"the reduced {steps.name!r} model of formulation "
+                            f"{comp['formulation']!r} supports the friction laws "
+                            f"{', '.join(laws)}, not {law!r}")
+        steps.prepare(scene, config, registry)
+    except (SceneError, ValueError) as exc:
+        return "skip", str(exc)
+    return "run", ""

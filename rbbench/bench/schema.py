@@ -43,6 +43,8 @@ def _c(name: str, dtype: str, group: str, unit: str, doc: str) -> Column:
 _VALID = "over the validation set"
 _ERR_U = "relative error ||u - u_N||_X / ||u||_X (X: the scene's V inner product, free dofs)"
 _ERR_L = "relative error ||lam - lam_R||_W / ||lam||_W (W: multiplier Gram matrix at mu)"
+_ERR_T = ("friction: relative error ||lam_t - lam_t,R||_W / ||lam_t||_W of the tangential "
+          "multiplier (W: L2(Gamma_c(mu)) Gram matrix of the nodal P1 multipliers)")
 _BETA = ("inf-sup constant, min over the validation set (dimensional, X = the V inner "
          "product); its kind column says, at the minimising mu, span lower bound, exact cone "
          "value or cone upper estimate")
@@ -69,6 +71,10 @@ COLUMNS: tuple[Column, ...] = (
     _c("hyper", "str", "components", "", "hyper-reducer asked for (auto picks)"),
     _c("hyper_used", "str", "components", "", "hyper-reducer actually used (affine / eim / "
        "none)"),
+    _c("friction_dual", "str", "components", "", "friction scenes, mode rb: the reduced "
+       "friction dual model (seed: normal cone of lam_n + POD space X_S of lam_t + GCNS "
+       "collocation, the seed's; wedge: cones of F lam_n +- lam_t, Coulomb at every HF "
+       "node); empty for frictionless scenes; a skip row: the value asked"),
     _c("executor", "str", "components", "", "executor that ran the case"),
     _c("params", "str", "components", "", "component parameters of the case, JSON"),
     # status
@@ -87,6 +93,15 @@ COLUMNS: tuple[Column, ...] = (
     _c("S", "int", "sizes", "", "stabiliser size: PGA vectors K (0 for none; R per mu for "
        "online supremizers)"),
     _c("M_eim", "int", "sizes", "", "EIM magic rows evaluated online (hyper eim)"),
+    _c("S_tau", "int", "sizes", "", "friction scenes, mode rb: tangential dual size (seed "
+       "model: dim X_S, POD modes of lam_t; wedge model: R-, generators V- of the cone of "
+       "F lam_n - lam_t, R being those of F lam_n + lam_t); result.json's S"),
+    _c("S_q", "int", "sizes", "", "friction, seed model: collocation nodes of the kept GCNS "
+       "set C(q) (seed: 40); 0 for the wedge model (no collocation)"),
+    _c("gcns_iterations", "int", "sizes", "", "friction, seed model: q of the kept GCNS set "
+       "(seed: 20); 0 for the wedge model"),
+    _c("dim_v_off", "int", "sizes", "", "friction scenes, mode rb: N + K, the primal space "
+       "after PGA on the combined form b^n + b^tau (seed: 70)"),
     # HF solve (mode hf; contact force also for reference in rb mode: not filled)
     _c("contact_force", "float", "accuracy", "N/m", "mode hf: total normal contact force per "
        "unit thickness at the scene's default mu (rbbench.hf.model contact_force)"),
@@ -110,6 +125,18 @@ COLUMNS: tuple[Column, ...] = (
     _c("complementarity_max", "float", "accuracy", "1", "|lam_R . (G - B u_N)| / "
        "(||lam_R|| ||G||) at the HF rows, max " + _VALID),
     _c("energy_err_max", "float", "accuracy", "1", "|J(u_N) - J(u)| / |J(u)|, max " + _VALID),
+    # accuracy of the reduced friction models (mode rb, friction scenes)
+    _c("err_lam_t_max", "float", "accuracy", "1", _ERR_T + ", max " + _VALID),
+    _c("err_lam_t_mean", "float", "accuracy", "1", _ERR_T + ", mean " + _VALID),
+    _c("lam_t_best_max", "float", "accuracy", "1", "friction: ||lam_t - Pi lam_t||_W / "
+       "||lam_t||_W, Pi the W-projection onto the tangential space (seed model: X_S; wedge "
+       "model: span(Lt), the tangential parts (V+ c+ - V- c-) / 2 of the wedge generators): "
+       "the floor of err_lam_t, max " + _VALID),
+    _c("friction_residual_max", "float", "accuracy", "1", "friction: max over ALL HF nodes "
+       "of [|lam_t| - F lam_n]_+ (Tresca: [|lam_t| - s]_+) of the reconstructed reduced "
+       "multipliers, relative to the largest reconstructed lam_n (Tresca: s), max " + _VALID),
+    _c("online_iterations_max", "int", "accuracy", "", "friction: iterations of the online "
+       "fixed point (seed: Tresca QPs; wedge: De Saxce), max " + _VALID),
     # stability
     _c("beta_hf_min", "float", "stability", "", _BETA + "; whole V against the HF cone"),
     _c("beta_hf_kind", "str", "stability", "", "kind of beta_hf_min"),
@@ -122,6 +149,9 @@ COLUMNS: tuple[Column, ...] = (
     _c("beta_on_kind", "str", "stability", "", "kind of beta_on_min"),
     _c("beta_off_min", "float", "stability", "", _BETA + "; V_N + S_PGA (offline)"),
     _c("beta_off_kind", "str", "stability", "", "kind of beta_off_min"),
+    _c("delta_pga", "float", "stability", "1", "friction scenes, mode rb: PGA tolerance, "
+       "the seed's rule sup_mu beta / c_HF of the combined form over every fifth training mu "
+       "(a span lower bound; seed: 0.072); empty without PGA"),
     # timings
     _c("t_snapshots_s", "float", "timings", "s", "HF snapshots (wall; 0 when all came from "
        "the cache)"),
