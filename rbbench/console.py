@@ -72,6 +72,7 @@ def _print_reduce_summary(s: dict, formulation: str) -> None:
     keys = ["N", "R", "K_pga", "hyper", "M_eim", "n_train", "n_valid", "n_hf_dofs", "err_u_max",
             "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
             "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min", "beta_kind",
+            "beta_hf_rel_min", "beta_dec_rel_min", "beta_on_rel_min", "beta_off_rel_min",
             "t_offline_s", "t_online_median_s", "t_hf_median_s", "speedup", "S", "S_q",
             "gcns_iterations", "gcns_stop", "err_lam_t_max", "err_lam_t_mean", "lam_t_best_max",
             "friction_residual_max"]
@@ -87,4 +88,6 @@ def _print_reduce_summary(s: dict, formulation: str) -> None:
               "space, no inf-sup constants; see result.json definitions)")
     else:
         print("  (errors: relative, u in the X norm, lam in the W norm, max/mean over the "
-              "validation set; beta: min over the validation set, see result.json definitions)")
+              "validation set; beta: min over the validation set, raw (units of the X, W "
+              "norms); beta_*_rel: beta / c_HF(mu), dimensionless; see result.json "
+              "definitions)")

@@ -58,6 +58,7 @@ __all__ = [
     "infsup_span",
     "make_solver",
     "quotient_matrices",
+    "span_constants",
     "supremizer_operator",
 ]
 
@@ -237,6 +238,21 @@ def _reduced_pencil(S: np.ndarray, M: np.ndarray, rtol: float) -> np.ndarray:
     return _sym(T.T @ Ss @ T)
 
 
+def _pencil_eigenvalues(S: np.ndarray, M: np.ndarray, rtol: float) -> np.ndarray:
+    """Eigenvalues (ascending) of the pencil ``(S, M)`` on the range of ``M``."""
+    A = _reduced_pencil(S, M, rtol)
+    return np.linalg.eigvalsh(A) if A.size else np.zeros(0)
+
+
+def _span_from(w: np.ndarray) -> float:
+    """:func:`infsup_span` from the pencil eigenvalues ``w`` (ascending)."""
+    if w.size == 0:
+        return float("inf")
+    if w[0] <= SPAN_ROUNDOFF * max(w[-1], 0.0):
+        return 0.0
+    return float(np.sqrt(w[0]))
+
+
 def infsup_span(S: np.ndarray, M: np.ndarray, *, rtol: float = GRAM_RTOL) -> float:
     """Inf-sup constant over the *span* of the generators: ``sqrt(lambda_min(S, M))``.
 
@@ -252,13 +268,7 @@ def infsup_span(S: np.ndarray, M: np.ndarray, *, rtol: float = GRAM_RTOL) -> flo
     reported as 0, not as a positive bound (issue 16: a membrane beta_dec at a ratio of
     3e-16 was reported as 1.5e-9).
     """
-    A = _reduced_pencil(S, M, rtol)
-    if A.size == 0:
-        return float("inf")
-    w = np.linalg.eigvalsh(A)
-    if w[0] <= SPAN_ROUNDOFF * max(w[-1], 0.0):
-        return 0.0
-    return float(np.sqrt(w[0]))
+    return _span_from(_pencil_eigenvalues(S, M, rtol))
 
 
 #: eigenvalue ratio below which the span inf-sup constant is zero to round-off
@@ -274,10 +284,20 @@ def boundedness_constant(S: np.ndarray, M: np.ndarray, *, rtol: float = GRAM_RTO
     theorem (:func:`rbbench.rb.pga.theorem_lower_bound`). Over the cone ``Span+(Vg)`` the sup
     can only be smaller, so ``c`` is also a valid continuity constant there.
     """
-    A = _reduced_pencil(S, M, rtol)
-    if A.size == 0:
-        return 0.0
-    return float(np.sqrt(max(np.linalg.eigvalsh(A)[-1], 0.0)))
+    return span_constants(S, M, rtol=rtol)[1]
+
+
+def span_constants(S: np.ndarray, M: np.ndarray, *, rtol: float = GRAM_RTOL
+                   ) -> tuple[float, float]:
+    """``(infsup_span(S, M), boundedness_constant(S, M))`` from one eigensolve.
+
+    Their ratio ``beta / c`` is dimensionless: invariant under a rescaling of ``X`` (e.g.
+    the Young modulus of the energy inner product) and of ``W`` (seed 000: ``delta_PGA =
+    sup beta_HF / c_HF``).
+    """
+    w = _pencil_eigenvalues(S, M, rtol)
+    c = float(np.sqrt(max(w[-1], 0.0))) if w.size else 0.0
+    return _span_from(w), c
 
 
 # --------------------------------------------------------------------------- cone

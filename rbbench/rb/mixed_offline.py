@@ -55,8 +55,16 @@ DEFINITIONS = {
             "estimate), 'span' the inf-sup over span(generators), a LOWER bound of the cone "
             "value; 'is_zero' the exact LP test for beta = 0. hf: whole V against the HF "
             "cone W+ (kind 'span-lower-bound': the span value over all multipliers, a lower "
-            "bound); dec: V_N; on: V_N + S_R(mu) (online supremizers, equal to whole V "
-            "against the reduced cone); off: V_N + S_PGA",
+            "bound; 'c': c_HF(mu), the continuity constant of b(mu) on V x W, "
+            "sup b(v, eta) / (||v||_X ||eta||_W)); dec: V_N; on: V_N + S_R(mu) (online "
+            "supremizers, equal to whole V against the reduced cone); off: V_N + S_PGA. "
+            "The raw values carry units (X is the energy inner product: beta ~ 1 / sqrt(E)); "
+            "'value_rel' = value / c_HF(mu) and 'span_rel' = span / c_HF(mu) are "
+            "dimensionless (invariant under rescaling X or W; the seed's ratio delta_PGA = "
+            "sup beta_HF / c_HF), every row divided by the same c_HF(mu) so rows compare",
+    "beta_rel": "beta_<name>_rel_min / beta_<name>_span_rel_min: min over the validation "
+                "set of the rows' value_rel / span_rel (beta / c_HF(mu), see 'beta'); "
+                "beta_<name>_min / beta_<name>_span_min: the same of the raw values",
     "t_online": "wall time of one online solve (assemble the reduced arrays + solve the "
                 "reduced saddle point), seconds; median and inter-quartile range over "
                 "validation mus x repeats. With hyper = 'none' (e.g. online supremizers) it "
@@ -234,21 +242,22 @@ class MixedStage(ReducedStage):
         # beta_HF: whole V against the HF cone W+ (all m multipliers): only the span
         # value (a lower bound of the cone value) is computable at this size
         Wd = Wm.toarray() if hasattr(Wm, "toarray") else np.asarray(Wm)
-        b_hf = inf.infsup_span(H @ H.T, Wd)
-        self.beta["hf"].append({"value": b_hf, "kind": "span-lower-bound", "span": b_hf,
-                                "is_zero": bool(inf.beta_zero_test(H.T))})
+        b_hf, c_hf = inf.span_constants(H @ H.T, Wd)
+        self.beta["hf"].append(_normalised({"value": b_hf, "kind": "span-lower-bound",
+                                            "span": b_hf, "c": c_hf,
+                                            "is_zero": inf.beta_zero_test(H.T)}, c_hf))
         S, M = inf.quotient_matrices(B, X, Vg, Wm, Z=Z)
         self.beta["dec"].append(_labelled(inf.infsup_cone(
-            S, M, C=(Z.T @ (B.T @ Vg)), exact_max_r=exact_max_r)))
+            S, M, C=(Z.T @ (B.T @ Vg)), exact_max_r=exact_max_r), c_hf))
         # beta_on: V_N + S_R(mu) contains the supremizer of every cone element, so it
         # equals the whole-V value over the reduced cone, computed from H
         C_on = inf.cone_coupling(H, Vg)
         self.beta["on"].append(_labelled(inf.infsup_cone(
-            C_on.T @ C_on, Vg.T @ (Wm @ Vg), C=C_on, exact_max_r=exact_max_r)))
+            C_on.T @ C_on, Vg.T @ (Wm @ Vg), C=C_on, exact_max_r=exact_max_r), c_hf))
         if self.offline_stab:
             S, M = inf.quotient_matrices(B, X, Vg, Wm, Z=self.Z_off)
             self.beta["off"].append(_labelled(inf.infsup_cone(
-                S, M, C=(self.Z_off.T @ (B.T @ Vg)), exact_max_r=exact_max_r)))
+                S, M, C=(self.Z_off.T @ (B.T @ Vg)), exact_max_r=exact_max_r), c_hf))
 
     def finish(self, histories: dict, timings: dict) -> None:
         if not self.offline_stab:
@@ -323,6 +332,16 @@ def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_tr
     return ceim
 
 
-def _labelled(r: inf.InfSup) -> dict[str, Any]:
-    return {"value": float(r.value), "kind": r.kind, "span": float(r.span),
-            "is_zero": bool(r.is_zero)}
+def _labelled(r: inf.InfSup, c_hf: float) -> dict[str, Any]:
+    """One beta row of an :class:`~rbbench.rb.infsup.InfSup` (DEFINITIONS["beta"])."""
+    return _normalised({"value": float(r.value), "kind": r.kind, "span": float(r.span),
+                        "is_zero": r.is_zero}, c_hf)
+
+
+def _normalised(row: dict[str, Any], c_hf: float) -> dict[str, Any]:
+    """``row`` with ``value_rel = value / c_HF(mu)``, ``span_rel = span / c_HF(mu)`` (NaN
+    when ``c_HF = 0``) and ``is_zero`` as a bool (None: undecided)."""
+    rel = 1.0 / c_hf if c_hf > 0 else float("nan")
+    zero = row["is_zero"]
+    return {**row, "value_rel": float(row["value"]) * rel, "span_rel": float(row["span"]) * rel,
+            "is_zero": None if zero is None else bool(zero)}

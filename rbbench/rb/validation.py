@@ -51,7 +51,7 @@ class ReduceResult:
     def summary(self) -> dict[str, Any]:
         """The flat summary (``result.json``, one results row): max / mean / min over the
         validation set of the per-mu lists, each labelled in :attr:`definitions`."""
-        mx, mean, mn = _finite(np.max), _finite(np.mean), _finite(np.min)
+        mx, mean = _finite(np.max), _finite(np.mean)
         t_on = float(np.median(self.t_online))
         t_hf = float(np.median(self.t_hf))
         out = {
@@ -73,10 +73,7 @@ class ReduceResult:
             "t_online_iqr_s": float(np.subtract(*np.percentile(self.t_online, [75, 25]))),
             "t_hf_median_s": t_hf, "speedup": t_hf / t_on if t_on > 0 else None,
         }
-        for name, rows in self.beta.items():
-            out[f"beta_{name}_min"] = mn([r["value"] for r in rows])
-            out[f"beta_{name}_span_min"] = mn([r["span"] for r in rows])
-            out[f"beta_{name}_zero_any"] = bool(any(r["is_zero"] for r in rows))
+        out.update(beta_summary(self.beta))
         for name, values in self.per_mu_extra.items():  # e.g. friction: err_lam_t
             out[f"{name}_max"], out[f"{name}_mean"] = mx(values), mean(values)
         out.update(self.extra)
@@ -99,6 +96,23 @@ def _finite(reduce_):
         return float(reduce_(v)) if v else None
 
     return f
+
+
+def beta_summary(beta: dict[str, list[dict]]) -> dict[str, Any]:
+    """Summary keys of the inf-sup rows per name: ``beta_<name>_min`` and ``_span_min``
+    (raw), ``_rel_min`` and ``_span_rel_min`` (rows with ``value_rel``: beta / c_HF(mu)),
+    ``_zero_any`` (some LP test found beta = 0) and ``_zero_undecided`` (how many LP tests
+    were undecided: ``is_zero`` None)."""
+    mn, out = _finite(np.min), {}
+    for name, rows in beta.items():
+        out[f"beta_{name}_min"] = mn([r["value"] for r in rows])
+        out[f"beta_{name}_span_min"] = mn([r["span"] for r in rows])
+        if rows and all("value_rel" in r for r in rows):
+            out[f"beta_{name}_rel_min"] = mn([r["value_rel"] for r in rows])
+            out[f"beta_{name}_span_rel_min"] = mn([r["span_rel"] for r in rows])
+        out[f"beta_{name}_zero_any"] = bool(any(r["is_zero"] for r in rows))
+        out[f"beta_{name}_zero_undecided"] = sum(r["is_zero"] is None for r in rows)
+    return out
 
 
 def _kind_at_min(rows: list[dict]) -> str | None:

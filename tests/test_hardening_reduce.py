@@ -1,0 +1,77 @@
+"""Issue 16 hardening of ``rbbench reduce`` on the cheap membrane scene (seconds): the
+dimensionless inf-sup constants beside the raw ones, progress during validation, the HF
+snapshot time, ``-N`` beyond the training set."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from rbbench.hf.model import make_components
+from rbbench.rb import infsup as inf
+from rbbench.rb.offline import ReduceConfig, SceneProblems, reduce
+from rbbench.scene.loading import load_scene
+
+FAST = ["discretization.n_cells=8"]
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return load_scene("membrane_obstacle", FAST)
+
+
+@pytest.fixture(scope="module")
+def reduced(scene, tmp_path_factory):
+    """mCPG + PGA (rows hf, dec, on, off), 3 validation mus; the progress lines kept."""
+    cache = tmp_path_factory.getbasetemp() / "cache_hardening"
+    lines: list[str] = []
+    cfg = ReduceConfig(dual="mcpg", stabilizer="pga", n_jobs=1, n_train=9, n_valid=3,
+                       cache_dir=str(cache), online_repeats=1)
+    res = reduce(scene, cfg, progress=lines.append)
+    return res, lines
+
+
+def test_span_constants_dense_and_scale_free():
+    """span_constants = (sqrt(lambda_min), sqrt(lambda_max)) of the pencil (dense eigh,
+    independent), and the ratio beta / c does not change when X (hence S) is rescaled."""
+    rng = np.random.default_rng(0)
+    C = rng.standard_normal((7, 5))
+    S, M = C.T @ C, np.diag(rng.uniform(0.5, 2.0, 5))
+    w = sla.eigh(S, M, eigvals_only=True)
+    beta, c = inf.span_constants(S, M)
+    assert beta == pytest.approx(np.sqrt(w[0]), rel=1e-10)
+    assert c == pytest.approx(np.sqrt(w[-1]), rel=1e-10)
+    assert (beta, c) == (inf.infsup_span(S, M), inf.boundedness_constant(S, M))
+    b2, c2 = inf.span_constants(S / 2e11, 3.0 * M)  # X scaled by E, W by 3
+    assert b2 / c2 == pytest.approx(beta / c, rel=1e-10)
+    assert b2 == pytest.approx(beta / np.sqrt(6e11), rel=1e-10)
+
+
+def test_beta_rows_normalised_by_c_hf(scene, reduced):
+    """value_rel = value / c_HF(mu) for every row, c_HF recomputed densely (independent of
+    the factorised supremizer operator); every ratio <= 1 (beta <= c_HF: a property of the
+    raw values); summary keys are the minima of the rows."""
+    res, _ = reduced
+    s = res.summary()
+    assert set(res.beta) == {"hf", "dec", "on", "off"}
+    b, f, _ = make_components(scene)  # the problem at the first validation mu
+    p = SceneProblems(b, f, scene)(res.valid_mus[0])
+    X = p.X[p.free][:, p.free].toarray()
+    B = p.B.toarray() if sp.issparse(p.B) else np.asarray(p.B)
+    W = p.W.toarray() if sp.issparse(p.W) else np.asarray(p.W)
+    c_dense = np.sqrt(sla.eigh(B @ np.linalg.solve(X, B.T), W, eigvals_only=True)[-1])
+    assert res.beta["hf"][0]["c"] == pytest.approx(c_dense, rel=1e-8)
+    for name, rows in res.beta.items():
+        for j, r in enumerate(rows):
+            c_hf = res.beta["hf"][j]["c"]
+            assert r["value_rel"] == pytest.approx(r["value"] / c_hf, rel=1e-12)
+            assert r["span_rel"] == pytest.approx(r["span"] / c_hf, rel=1e-12)
+            assert r["value"] <= c_hf * (1 + 1e-9) and r["value_rel"] <= 1 + 1e-9
+        assert s[f"beta_{name}_rel_min"] == pytest.approx(min(r["value_rel"] for r in rows))
+        assert s[f"beta_{name}_span_rel_min"] == pytest.approx(
+            min(r["span_rel"] for r in rows))
+        assert s[f"beta_{name}_zero_undecided"] == 0
+    assert "c_HF" in res.definitions["beta"] and "beta_<name>_rel_min" in \
+        res.definitions["beta_rel"]
