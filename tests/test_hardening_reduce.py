@@ -9,6 +9,7 @@ import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from rbbench.cli import main
 from rbbench.hf.model import make_components
 from rbbench.rb import infsup as inf
 from rbbench.rb.offline import ReduceConfig, SceneProblems, reduce
@@ -75,3 +76,24 @@ def test_beta_rows_normalised_by_c_hf(scene, reduced):
         assert s[f"beta_{name}_zero_undecided"] == 0
     assert "c_HF" in res.definitions["beta"] and "beta_<name>_rel_min" in \
         res.definitions["beta_rel"]
+
+
+def test_validation_progress_per_mu(reduced):
+    """One progress line per validation mu, in order, after the announcement."""
+    _, lines = reduced
+    i = next(k for k, x in enumerate(lines) if x.startswith("online validation (3 mus"))
+    per_mu = [x for x in lines[i + 1:] if x.startswith("online validation ")]
+    assert [x.split(":")[0] for x in per_mu] == [f"online validation {j}/3" for j in (1, 2, 3)]
+
+
+def test_reduce_cli_progress_respects_quiet(tmp_path, capsys, monkeypatch):
+    """``rbbench reduce`` prints the per-mu lines on stderr, none with --quiet."""
+    monkeypatch.chdir(tmp_path)  # the snapshot cache goes to ./.rbbench_cache
+    args = ["reduce", "membrane_obstacle", "--set", FAST[0], "--n-train", "5", "--n-valid",
+            "2", "--jobs", "1", "--dual", "cpg", "--stabilizer", "none", "--out",
+            str(tmp_path / "red")]
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    assert "online validation 1/2" in err and "online validation 2/2" in err
+    assert main([*args, "--quiet"]) == 0
+    assert "online validation" not in capsys.readouterr().err

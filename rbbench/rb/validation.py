@@ -187,7 +187,8 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
 
     ``ctx`` is the :class:`rbbench.rb.offline.OfflineContext` the stage was built from.
     """
-    ctx.progress("online validation")
+    n_valid = len(ctx.valid.mus)
+    ctx.progress(f"online validation ({n_valid} mus: online solves, errors, inf-sup constants)")
     per_mu: dict[str, list[float]] = {"err_lam": [], "penetration": [], "complementarity": []}
     extra: dict[str, list[float]] = {}
     err_u, e_en, t_on = [], [], []
@@ -204,6 +205,8 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
             (per_mu if key in per_mu else extra).setdefault(key, []).append(value)
         J = energy(p, u)
         e_en.append(float(abs(energy(p, u_n) - J) / abs(J)) if J != 0 else float("nan"))
+        ctx.progress(f"online validation {j + 1}/{n_valid}: err_u {err_u[-1]:.3g}, "
+                     f"online {np.median(times):.3g} s, {res.stop_reason}")
     histories = dict(stage.histories)
     histories["online_stops"] = stops
     timings = ctx.timings
