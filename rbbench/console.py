@@ -73,7 +73,8 @@ def _print_reduce_summary(s: dict, formulation: str) -> None:
             "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
             "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min", "beta_kind",
             "beta_hf_rel_min", "beta_dec_rel_min", "beta_on_rel_min", "beta_off_rel_min",
-            "t_offline_s", "t_online_median_s", "t_hf_median_s", "speedup", "S", "S_q",
+            "t_offline_s", "t_snapshots_hf_s", "t_offline_hf_s", "n_snapshots_cached",
+            "t_online_median_s", "t_hf_median_s", "speedup", "S", "S_q",
             "gcns_iterations", "gcns_stop", "err_lam_t_max", "err_lam_t_mean", "lam_t_best_max",
             "friction_residual_max"]
     for k in keys:

@@ -11,9 +11,11 @@ import scipy.sparse as sp
 
 from rbbench.cli import main
 from rbbench.hf.model import make_components
+from rbbench.hf.snapshots import cache_path, load_snapshot, snapshot_key
 from rbbench.rb import infsup as inf
 from rbbench.rb.offline import ReduceConfig, SceneProblems, reduce
 from rbbench.scene.loading import load_scene
+from rbbench.scene.sampling import parameter_set
 
 FAST = ["discretization.n_cells=8"]
 
@@ -97,3 +99,32 @@ def test_reduce_cli_progress_respects_quiet(tmp_path, capsys, monkeypatch):
     assert "online validation 1/2" in err and "online validation 2/2" in err
     assert main([*args, "--quiet"]) == 0
     assert "online validation" not in capsys.readouterr().err
+
+
+def test_snapshot_hf_time_from_the_cache(scene, reduced, tmp_path_factory):
+    """t_snapshots_hf_s is the sum of the HF times stored with the training snapshots (read
+    back from the cache files), the same when a second run reads them from the cache;
+    t_offline_s of the first (serial) run contains them, t_offline_hf_s is the stated
+    formula."""
+    res, _ = reduced
+    s = res.summary()
+    cache = tmp_path_factory.getbasetemp() / "cache_hardening"
+    key = snapshot_key(scene)
+    mus = res.config["n_train"]
+    files = sorted((cache / key).glob("mu_*.npz"))
+    assert len(files) == mus + 3
+    stored = sum(load_snapshot(cache_path(cache, key, mu)).time_s
+                 for mu in parameter_set(scene, "train", mus))
+    assert s["t_snapshots_hf_s"] == pytest.approx(stored, rel=1e-12)
+    assert s["n_snapshots_cached"] == 0
+    assert s["timings"]["snapshots_s"] >= s["t_snapshots_hf_s"]  # serial: wall >= sum
+    assert s["t_offline_hf_s"] == pytest.approx(
+        s["t_offline_s"] - s["timings"]["snapshots_s"] + s["t_snapshots_hf_s"])
+    again = reduce(scene, ReduceConfig(dual="cpg", stabilizer="none", n_jobs=1, n_train=9,
+                                       n_valid=3, cache_dir=str(cache), online_repeats=1))
+    s2 = again.summary()
+    assert s2["n_snapshots_cached"] == mus + 3
+    assert s2["t_snapshots_hf_s"] == s["t_snapshots_hf_s"]
+    assert s2["t_snapshots_hf_valid_s"] == s["t_snapshots_hf_valid_s"] > 0
+    for k in ("t_offline_s", "t_snapshots_hf_s", "t_offline_hf_s", "n_snapshots_cached"):
+        assert k in s2["definitions"], k
