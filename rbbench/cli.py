@@ -372,7 +372,11 @@ def _add_reduce_args(rd) -> None:
                     help="PGA tolerance on sigma_max (default: see result.json pga_delta)")
     rd.add_argument("--k-max", type=int, default=None, dest="k_pga_max",
                     help="cap on the PGA dimension K (online primal size N + K)")
-    rd.add_argument("-N", type=int, default=None, help="primal size (default: POD tolerance)")
+    rd.add_argument("-N", type=int, default=None,
+                    help="primal size (default: POD tolerance); clipped to the number of "
+                         "training snapshots and to their numerical rank, with a warning "
+                         "in result.json 'warnings' and on the console (N in result.json: "
+                         "the size built)")
     rd.add_argument("-R", type=int, default=None, help="max dual size (default: tolerance)")
     rd.add_argument("-S", type=int, default=None,
                     help="friction: tangential size (POD of lam_t; default: R)")

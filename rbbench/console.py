@@ -80,6 +80,8 @@ def _print_reduce_summary(s: dict, formulation: str) -> None:
     for k in keys:
         if k in s:
             print(f"  {k:<20} {_fmt(s[k])}")
+    for w in s.get("warnings", ()):
+        print(f"  WARNING: {w}")
     if formulation == "nitsche":
         eim = s["histories"].get("eim", {})
         for k in ("method", "rows", "e_eim_valid", "e_eim_cv_valid", "e_eim_tangent_cv_valid"):

@@ -4,6 +4,8 @@ snapshot time, ``-N`` beyond the training set."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import scipy.linalg as sla
@@ -128,3 +130,45 @@ def test_snapshot_hf_time_from_the_cache(scene, reduced, tmp_path_factory):
     assert s2["t_snapshots_hf_valid_s"] == s["t_snapshots_hf_valid_s"] > 0
     for k in ("t_offline_s", "t_snapshots_hf_s", "t_offline_hf_s", "n_snapshots_cached"):
         assert k in s2["definitions"], k
+
+
+def test_n_above_training_set_clipped_with_warning(tmp_path, capsys, monkeypatch):
+    """-N larger than the training set: clipped to it (N in result.json the size built, equal
+    to the POD's count of modes), with the warning naming -N and the maximum in result.json
+    and on the console."""
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "red"
+    code = main(["reduce", "membrane_obstacle", "--set", FAST[0], "--n-train", "9", "-N", "10",
+                 "--jobs", "1", "--dual", "cpg", "--stabilizer", "none", "--n-valid", "2",
+                 "--out", str(out)])
+    assert code == 0
+    cap = capsys.readouterr()
+    res = json.loads((out / "result.json").read_text())
+    assert res["n_train"] == 9 and res["N"] == len(res["histories"]["pod_singular_values"])
+    assert res["N"] <= 9
+    assert res["warnings"] == [f"-N 10: the basis built has {res['N']} only (at most the 9 "
+                               "training snapshots; clipped)"]
+    assert "WARNING: -N 10" in cap.out and "WARNING: -N 10" in cap.err
+
+
+def test_n_above_numerical_rank_warns(scene, tmp_path_factory, monkeypatch, capsys):
+    """-N within the training set but above the POD's numerical rank (its eigenvalue cut-off
+    raised for the test): the basis built is smaller, and result.json and the console say
+    so."""
+    import rbbench.rb.pod as pod_mod
+    from rbbench.console import _print_reduce_summary
+
+    monkeypatch.setattr(pod_mod, "EIG_DROP", 1e-4)
+    cache = tmp_path_factory.getbasetemp() / "cache_hardening"
+    lines: list[str] = []
+    res = reduce(scene, ReduceConfig(dual="cpg", stabilizer="none", n_jobs=1, n_train=9,
+                                     n_valid=3, N=9, cache_dir=str(cache), online_repeats=1),
+                 progress=lines.append)
+    s = res.summary()
+    rank = len(s["histories"]["pod_singular_values"])
+    assert s["N"] == rank < 9
+    assert s["warnings"] == [f"-N 9: the basis built has {rank} only (the numerical rank of "
+                             "the 9 training snapshots; clipped)"]
+    assert any(x.startswith("WARNING: -N 9") for x in lines)
+    _print_reduce_summary(s, "mixed")
+    assert "WARNING: -N 9" in capsys.readouterr().out

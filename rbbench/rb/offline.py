@@ -33,9 +33,9 @@ from rbbench.scene.loading import Scene, SceneError
 from rbbench.scene.sampling import parameter_set
 
 __all__ = ["DivergedError", "HYPER", "OfflineContext", "Offline", "ReduceConfig",
-           "ReduceResult", "SceneProblems", "build_problem", "check_finite", "eim_grid",
-           "eim_training_set", "fixed_contact_points", "offline", "primal_basis",
-           "primal_histories", "reduce", "training_snapshots"]
+           "ReduceResult", "SceneProblems", "build_problem", "check_finite",
+           "clipped_size", "eim_grid", "eim_training_set", "fixed_contact_points",
+           "offline", "primal_basis", "primal_histories", "reduce", "training_snapshots"]
 
 HYPER = ("auto", *BUILTIN_HYPER)  # "auto" (the formulation's rule) + the hyper-reducers
 
@@ -136,10 +136,16 @@ class OfflineContext:
     primal: Any
     t0: float
     timings: dict[str, float] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def Z(self) -> np.ndarray:
         return self.primal.Z
+
+    def warn(self, message: str) -> None:
+        """A warning of this reduction: ``result.json`` ``warnings`` and the console."""
+        self.warnings.append(message)
+        self.progress(f"WARNING: {message}")
 
 
 @dataclass
@@ -224,6 +230,8 @@ def offline(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] 
     timings["primal_s"] = time.perf_counter() - t1
     ctx = OfflineContext(scene, config, reg, progress, b, f, problem_at, X, mus_train, train,
                          np.asarray(mus_valid), valid, primal, t0, timings)
+    if config.N is not None and primal.Z.shape[1] < config.N:
+        ctx.warn(clipped_size("-N", config.N, int(primal.Z.shape[1]), len(mus_train)))
     stage = steps.reduce(ctx)
     if stage.model is not None:
         stage.model.parameters = scene.parameter_space
@@ -241,6 +249,14 @@ def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] =
     """
     off = offline(scene, config, progress, snapshot_progress, registry)
     return validate(off.context, off.stage)
+
+
+def clipped_size(flag: str, requested: int, built: int, n_train: int) -> str:
+    """The warning of a basis built smaller than requested (``-N`` is clipped, not an error:
+    at most the number of training snapshots, at most their numerical rank)."""
+    why = (f"at most the {n_train} training snapshots" if requested > n_train else
+           f"the numerical rank of the {n_train} training snapshots")
+    return f"{flag} {requested}: the basis built has {built} only ({why}; clipped)"
 
 
 def fixed_contact_points(scene: Scene, hyper: str, plain_ok: bool = True) -> bool:

@@ -47,6 +47,7 @@ class ReduceResult:
     valid_mus: Any = field(default=None, repr=False)
     per_mu_extra: dict[str, list[float]] = field(default_factory=dict)  # a stage's own
     extra: dict[str, Any] = field(default_factory=dict)  # a stage's own summary entries
+    warnings: list[str] = field(default_factory=list)  # e.g. -N larger than the rank
 
     def summary(self) -> dict[str, Any]:
         """The flat summary (``result.json``, one results row): max / mean / min over the
@@ -77,6 +78,7 @@ class ReduceResult:
         for name, values in self.per_mu_extra.items():  # e.g. friction: err_lam_t
             out[f"{name}_max"], out[f"{name}_mean"] = mx(values), mean(values)
         out.update(self.extra)
+        out["warnings"] = list(self.warnings)
         out["config"] = self.config
         out["timings"] = self.timings
         out["histories"] = self.histories
@@ -236,7 +238,7 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
         timings=timings, histories=histories,
         definitions={**SHARED_DEFINITIONS, **stage.definitions},
         model=stage.model, valid_mus=np.asarray(ctx.valid.mus), per_mu_extra=extra,
-        extra=stage.summary())
+        extra=stage.summary(), warnings=list(getattr(ctx, "warnings", [])))
 
 
 def snapshot_timings(train: Any, valid: Any) -> dict[str, float]:
@@ -265,4 +267,7 @@ SHARED_DEFINITIONS = {
                       "timings.snapshots_s + t_snapshots_hf_s (the training snapshots at "
                       "their serial HF time, no validation snapshots)",
     "n_snapshots_cached": "training + validation snapshots this run read from the cache",
+    "warnings": "what the reduction changed or doubts, in words (e.g. -N above the number or "
+                "the numerical rank of the training snapshots: the basis built is smaller, "
+                "N is the size built)",
 }
