@@ -269,6 +269,17 @@ def test_rbbench_reduce_on_the_friction_scene(monkeypatch):
     assert s["collocation_violation_max"] <= 1e-9
     assert s["lam_t_best_max"] <= s["err_lam_t_max"] + 1e-12
     assert s["err_u_max"] < 0.05
+    # combined inf-sup rows (2m = 258 <= HF_ROWS_MAX: the hf row too): a smaller dual set
+    # (dec) or primal space (off) moves the raw values the way inf over subsets must
+    kinds = s["beta_kind"]
+    assert kinds["hf"] == "span-lower-bound" and kinds["dec"] == kinds["off"] == "cone-exact"
+    assert 0 < s["beta_hf_span_min"] <= s["beta_dec_span_min"] * (1 + 1e-9)
+    assert 0 < s["beta_off_min"] <= s["beta_dec_min"] * (1 + 1e-9)
+    assert not (s["beta_dec_zero_any"] or s["beta_off_zero_any"])
+    prof = s["lam_t_profiles"]
+    assert prof["mu"] == [[0.7], [1.0], [1.3]]  # 7 training mu on [0.7, 1.3]
+    assert all(np.all(np.diff(x) >= 0) for x in prof["x"])
+    assert {len(v) for k, v in prof.items()} == {3}
 
 
 # ---------------------------------------------------------------------------

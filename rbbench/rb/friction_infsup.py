@@ -44,7 +44,8 @@ from rbbench.rb.pga import PGAResult, pga, supremizers
 
 __all__ = ["CombinedInfSup", "combined_b", "combined_generators", "combined_pga",
            "combined_supremizers", "combined_w", "hf_constants", "mixed_cone_infsup",
-           "mixed_zero_test", "reduced_constants"]
+           "mixed_zero_test", "reduced_constants", "set_constants",
+           "coupling_constants", "hf_continuity", "validation_constants", "HF_ROWS_MAX"]
 
 
 def combined_b(Bn, Bt) -> sp.csr_matrix:
@@ -211,13 +212,96 @@ def hf_constants(Bn, Bt, W, x_solve: Any) -> CombinedInfSup:
     (the normal cone is not enumerated at this size); ``is_zero`` is the exact LP test on the
     HF set; ``c = c_HF``, ``value_rel = beta_HF / c_HF`` (the seed's ratio).
     """
-    B = combined_b(Bn, Bt)
-    H = inf.supremizer_operator(B, x_solve)
-    Wd = combined_w(W).toarray()
+    H = inf.supremizer_operator(combined_b(Bn, Bt), x_solve)
+    return _hf_from_factor(H, combined_w(W).toarray(), int(Bn.shape[0]))
+
+
+def _hf_from_factor(H: np.ndarray, Wd: np.ndarray, m: int) -> CombinedInfSup:
+    """:func:`hf_constants` from the factor ``H`` (``H H^T = B X^{-1} B^T``)."""
     S = H @ H.T
     span, c = inf.infsup_span(S, Wd), inf.boundedness_constant(S, Wd)
-    zero = mixed_zero_test(H.T, int(Bn.shape[0]))
+    zero = mixed_zero_test(H.T, m)
     return CombinedInfSup(span, "span-lower-bound", span, zero, c, span / c, span / c)
+
+
+def set_constants(H: np.ndarray, W2: Any, Vg: np.ndarray, n_signed: int,
+                  c_hf: float | None = None, exact_max_r: int = 10,
+                  cone: bool = True) -> CombinedInfSup:
+    """Inf-sup of the combined form over the primal space of ``H`` (``H H^T = B P B^T``,
+    :func:`rbbench.rb.infsup.supremizer_operator`) and the dual set
+    ``{Vg y : y[:n_signed] >= 0}`` (``W2`` the Gram matrix of ``(eta^n, eta^tau)``).
+
+    ``cone = False`` (or ``n_signed = 0``): the span lower bound is the value; else
+    :func:`mixed_cone_infsup`. ``c``: the continuity constant on the same spaces;
+    ``value_rel = value / c_hf``.
+    """
+    return coupling_constants(inf.cone_coupling(H, Vg), inf._gram(W2, Vg), n_signed, c_hf,
+                              exact_max_r, cone)
+
+
+def coupling_constants(C: np.ndarray, M: np.ndarray, n_signed: int,
+                       c_hf: float | None = None, exact_max_r: int = 10,
+                       cone: bool = True) -> CombinedInfSup:
+    """:func:`set_constants` from the coupling ``C`` (``||C y|| = sup_v b(v, Vg y) /
+    ||v||_X``) and the dual Gram matrix ``M = Vg^T W2 Vg``."""
+    S = inf._sym(C.T @ C)
+    c = inf.boundedness_constant(S, M)
+    if cone and n_signed:
+        r = mixed_cone_infsup(S, M, n_signed, C=C, exact_max_r=exact_max_r)
+        value, kind, span, zero = r.value, r.kind, r.span, r.is_zero
+    else:
+        span = inf.infsup_span(S, M)
+        value, kind, zero = span, "span-lower-bound", mixed_zero_test(C, n_signed)
+    rel = float("nan") if not c_hf else 1.0 / c_hf
+    return CombinedInfSup(value, kind, span, zero, c, value * rel, span * rel)
+
+
+#: the whole HF rows (2m solves per validation mu) only up to this many combined multipliers
+HF_ROWS_MAX = 400
+
+
+def hf_continuity(B: Any, W2: Any, x_solve: Any, *, tol: float = 1e-8) -> float:
+    """``c_HF = sqrt(lambda_max(B X^{-1} B^T, W2))`` by Lanczos (ARPACK ``eigsh``; one
+    ``X`` solve per iteration instead of the ``2m`` of :func:`hf_constants`)."""
+    from scipy.sparse.linalg import LinearOperator, eigsh
+
+    B = sp.csr_matrix(B)
+    op = LinearOperator(2 * (B.shape[0],), dtype=float,
+                        matvec=lambda y: B @ np.ravel(x_solve(B.T @ np.ravel(y))))
+    lam = eigsh(op, k=1, M=sp.csc_matrix(W2), which="LA", tol=tol,
+                return_eigenvectors=False, v0=np.ones(B.shape[0]))
+    return float(np.sqrt(max(float(lam[0]), 0.0)))
+
+
+def validation_constants(Bn, Bt, W, x_solve: Any, X: Any, Vg: np.ndarray, n_signed: int,
+                         Z: np.ndarray, exact_max_r: int = 10) -> dict[str, CombinedInfSup]:
+    """The combined inf-sup constants of one validation mu:
+
+    * ``dec``: whole V against the reduced dual set ``{Vg y: y[:n_signed] >= 0}``
+      (``R + S`` solves: ``C^T C = (B^T Vg)^T X^{-1} (B^T Vg)``);
+    * ``off``: ``span Z`` (the offline-stabilised primal space) against the same set;
+    * ``hf``: whole V against the HF set (:func:`hf_constants`, span lower bound), only when
+      ``2m <= HF_ROWS_MAX`` (2m solves).
+
+    ``value_rel`` / ``span_rel`` are divided by ``c_HF(mu)`` (:func:`hf_continuity`, or
+    exact with the ``hf`` row).
+    """
+    B, W2 = combined_b(Bn, Bt), combined_w(W)
+    out: dict[str, CombinedInfSup] = {}
+    if B.shape[0] <= HF_ROWS_MAX:
+        out["hf"] = _hf_from_factor(inf.supremizer_operator(B, x_solve), W2.toarray(),
+                                    int(Bn.shape[0]))
+        c_hf = out["hf"].c
+    else:
+        c_hf = hf_continuity(B, W2, x_solve)
+    BV = np.asarray(B.T @ Vg)
+    C = inf._psd_factor(inf._sym(BV.T @ np.asarray(x_solve(BV)).reshape(BV.shape)),
+                        inf.GRAM_RTOL).T
+    M = inf._gram(W2, Vg)
+    out["dec"] = coupling_constants(C, M, n_signed, c_hf, exact_max_r)
+    out["off"] = set_constants(inf.supremizer_operator(B, X, Z), W2, Vg, n_signed, c_hf,
+                               exact_max_r)
+    return out
 
 
 def reduced_constants(Bn, Bt, W, X: Any, Vn: np.ndarray, Vt: np.ndarray,
@@ -230,17 +314,7 @@ def reduced_constants(Bn, Bt, W, X: Any, Vn: np.ndarray, Vt: np.ndarray,
     :func:`mixed_cone_infsup`. ``c`` is the continuity constant on the same spaces;
     ``c_hf`` (from :func:`hf_constants`) gives the normalised values.
     """
-    B, Vg = combined_b(Bn, Bt), combined_generators(Vn, Vt)
     R = int(np.asarray(Vn).shape[1])
-    H = inf.supremizer_operator(B, X, Z)
-    C = inf.cone_coupling(H, Vg)
-    S, M = inf._sym(C.T @ C), inf._gram(combined_w(W), Vg)
-    c = inf.boundedness_constant(S, M)
-    if cone and R:
-        r = mixed_cone_infsup(S, M, R, C=C, exact_max_r=exact_max_r)
-        value, kind, span, zero = r.value, r.kind, r.span, r.is_zero
-    else:
-        span = inf.infsup_span(S, M)
-        value, kind, zero = span, "span-lower-bound", mixed_zero_test(C, R)
-    rel = float("nan") if not c_hf else 1.0 / c_hf
-    return CombinedInfSup(value, kind, span, zero, c, value * rel, span * rel)
+    H = inf.supremizer_operator(combined_b(Bn, Bt), X, Z)
+    return set_constants(H, combined_w(W), combined_generators(Vn, Vt), R, c_hf, exact_max_r,
+                         cone)

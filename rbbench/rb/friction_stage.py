@@ -15,14 +15,17 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
+from rbbench.hf.model import discretize_for
 from rbbench.rb import infsup as inf
 from rbbench.rb.cones import span_projection
+from rbbench.rb.friction_infsup import validation_constants
 from rbbench.rb.friction_model import (
     FrictionReducedModel,
     condense_reduced,
     project_friction,
     solve_coulomb,
 )
+from rbbench.rb.friction_profiles import PROFILE_DEFINITION, lam_t_profiles
 from rbbench.rb.gcns import gcns, tangential_violation
 from rbbench.rb.mixed_offline import make_stabilizer, pga_delta
 from rbbench.rb.offline import build_problem, check_finite, primal_histories
@@ -80,6 +83,16 @@ DEFINITIONS = {
     "delta_pga": "PGA tolerance: the seed's rule sup_mu beta / c of the combined form over "
                  "every fifth training mu (beta over span(blockdiag(Vn, Vt)) in whole V, a "
                  "lower bound; seed: 0.072); null without PGA",
+    "beta": "inf-sup constants of the combined form b^n + b^tau per validation mu "
+            "(rbbench.rb.friction_infsup.validation_constants): hf = whole V against the HF "
+            "set R^m_+ x R^m (span value: a LOWER BOUND), dec = whole V against the reduced "
+            "dual set, off = span(Z_off) (the online primal space) against the reduced dual "
+            "set; 'value' of kind cone-exact / cone-upper (an upper estimate) / "
+            "span-lower-bound, 'span' the span lower bound, 'is_zero' the exact LP test, 'c' "
+            "the continuity constant on the same spaces; value_rel / span_rel = value / c_HF(mu) "
+            "(dimensionless; the seed's delta_PGA ratio). Raw values are in the units of "
+            "X and W (X: energy inner product, so beta ~ 1 / sqrt(E))",
+    "lam_t_profiles": PROFILE_DEFINITION,
 }
 
 
@@ -295,7 +308,37 @@ class FrictionStage(ReducedStage):
             "friction_residual": float(viol.max(initial=0.0)) / scale,
             "collocation_violation": float(viol[nodes].max(initial=0.0)) / scale,
             "online_iterations": float(res.iterations),
-        }
+        } | self._infsup(p)
+
+    def _n_signed(self) -> int:
+        """Signed coefficients of the dual set ``{V y : y[:n] >= 0}`` (the normal cone's R)."""
+        return self.R
+
+    def _infsup(self, p: Any) -> dict[str, float]:
+        """The combined inf-sup rows hf / dec / off of one validation mu (``self.beta``;
+        DEFINITIONS["beta"]); returns no per-mu metric."""
+        consts = validation_constants(p.Bn, p.Bt, p.W, self.x_solve, self.ctx.X,
+                                      self._generators(), self._n_signed(), self.Z_off,
+                                      self.ctx.config.exact_max_r)
+        for name, r in consts.items():
+            self.beta.setdefault(name, []).append(r.as_dict())
+        return {}
+
+    def _profiles(self) -> dict[str, Any]:
+        """HF against reduced lam_t at the box's ends and centre
+        (:func:`rbbench.rb.friction_profiles.lam_t_profiles`)."""
+        ctx = self.ctx
+
+        def solve(mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            res = self.model.solve(mu) if self.model is not None else \
+                self.reduced.solve_arrays(mu, self._project(ctx.problem_at(mu)))
+            return self._multipliers(res)
+
+        return lam_t_profiles(
+            ctx.mus_train, ctx.scene.bounds, ctx.train.LAM, ctx.train.LAM_T, solve,
+            lambda mu: discretize_for(ctx.backend, ctx.formulation, mu).contact
+            .colloc_points[:, 0],
+            lambda mu: ctx.problem_at(mu).coefficient)
 
     def _u_floor(self, u: np.ndarray) -> float:
         """``||u - Pi u||_X / ||u||_X``, ``Pi`` the X-projection onto span(Z_off)."""
@@ -321,7 +364,8 @@ class FrictionStage(ReducedStage):
                 "gcns_nodes": [int(i) for i in g.nodes], "gcns_stop": g.stop,
                 "gcns_history": g.history, "dim_primal_online": int(self.Z_off.shape[1]),
                 "dim_v_off": int(self.Z_off.shape[1]),
-                "delta_pga": self.histories.get("pga_delta")}
+                "delta_pga": self.histories.get("pga_delta"),
+                "lam_t_profiles": self._profiles()}
 
 
 def _stack_b(p: Any) -> Any:

@@ -191,6 +191,10 @@ class WedgeStage(FrictionStage):
     def _collocation_nodes(self) -> np.ndarray:
         return np.zeros(0, dtype=int)
 
+    def _n_signed(self) -> int:
+        """Every wedge coefficient is signed (``c >= 0``: the cones of ``w+`` and ``w-``)."""
+        return int(self.wedge.generators.shape[1])
+
     def summary(self) -> dict[str, Any]:
         return {"S": self.S, "R_plus": int(self.wedge.Vp.shape[1]), "R_minus": self.S,
                 "S_q": 0, "gcns_iterations": 0, "gcns_nodes": [], "gcns_stop": "no GCNS (wedge)",
@@ -198,7 +202,7 @@ class WedgeStage(FrictionStage):
                 "dim_v_off": int(self.Z_off.shape[1]),
                 "delta_pga": self.histories.get("pga_delta"),
                 "training_iterations_max": max(self.histories["training_iterations"]),
-                "friction_dual": "wedge"}
+                "friction_dual": "wedge", "lam_t_profiles": self._profiles()}
 
 
 def reduce_friction(scene: Any, config: Any, friction_dual: str = "wedge",
