@@ -11,7 +11,8 @@ A run directory (written by ``rbbench run``) holds::
 
 :func:`report` reads it and writes figures (Pareto fronts, error against size, inf-sup
 constants per validation parameter, compressor / PGA / EIM histories, speed-ups, status
-counts) and ``summary.md`` / ``summary.html``. :func:`compare` matches the rows of two
+counts; for reduced friction models the GCNS curves and lam_t HF against RB) and
+``summary.md`` / ``summary.html``. :func:`compare` matches the rows of two
 runs on the identity of the case and lists regressions and improvements.
 
 Only the columns declared in :mod:`rbbench.bench.schema` are read, by name; labels and
@@ -21,8 +22,9 @@ tabulated as numbers. Matplotlib is used through :class:`matplotlib.figure.Figur
 
 Modules: :mod:`~rbbench.bench.report.loading` (a run directory read),
 :mod:`~rbbench.bench.report.analysis` (tables computed from the rows),
-:mod:`~rbbench.bench.report.figures` and :mod:`~rbbench.bench.report.detail_figures`
-(the figures), :mod:`~rbbench.bench.report.document` (:func:`report` and its summaries),
+:mod:`~rbbench.bench.report.figures`, :mod:`~rbbench.bench.report.detail_figures` and
+:mod:`~rbbench.bench.report.friction_figures` (the figures; the friction table),
+:mod:`~rbbench.bench.report.document` (:func:`report` and its summaries),
 :mod:`~rbbench.bench.report.comparison` (:func:`compare`). The results table itself is
 read by :func:`rbbench.bench.results.load_results`.
 """

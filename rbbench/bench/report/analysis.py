@@ -25,6 +25,8 @@ from rbbench.bench.report.common import (
     _compact,
     _key,
     _num,
+    _param_dict,
+    _varying_params,
 )
 from rbbench.bench.report.loading import RunData
 from rbbench.bench.results import plain, records, results_frame
@@ -52,6 +54,10 @@ class _Combos:
 
     def __init__(self, records: list[dict[str, Any]]):
         varying = _varying(records, _COMBO_IF_VARYING)
+        # params named by the keys that vary (None: some params is not a table, all shown)
+        self.param_keys = _varying_params(records)
+        if self.param_keys == []:
+            varying = [f for f in varying if f != "params"]
         self.fields = [f for f in _COMBO_ORDER if f in _COMBO_ALWAYS or f in varying]
         duals = sorted({self._part(r, "dual") for r in records})
         rests = sorted({self.label(r, without="dual") for r in records})
@@ -61,12 +67,16 @@ class _Combos:
         self.dual_colour = {d: cmap(i % cmap.N) for i, d in enumerate(duals)}
         self.rest_index = {r: i for i, r in enumerate(rests)}
 
-    @staticmethod
-    def _part(rec: dict[str, Any], f: str) -> str:
+    def _part(self, rec: dict[str, Any], f: str) -> str:
         v = rec.get(f)
         if f == "hyper_used" and v is None:
             v = rec.get("hyper")
-        return _compact(v) if f == "params" else ("-" if v is None else str(v))
+        if f == "params":
+            p = _param_dict(rec)
+            if self.param_keys is None or p is None:
+                return _compact(v)
+            return ",".join(f"{k}={p.get(k, '-')}" for k in self.param_keys)
+        return "-" if v is None else str(v)
 
     @property
     def title(self) -> str:

@@ -21,12 +21,13 @@ _COL = {c.name: c for c in schema.COLUMNS}
 _CASE_KEY = tuple(k for k in IDENTITY if k != "repetition")
 # components that always name a combination, and those named only when they vary in a run
 _COMBO_ALWAYS = ("dual", "stabilizer", "hyper_used")
-_COMBO_IF_VARYING = ("backend", "formulation", "solver", "primal", "params")
-_COMBO_ORDER = ("backend", "formulation", "solver", "primal", "dual", "stabilizer",
-                "hyper_used", "params")
+_COMBO_IF_VARYING = ("backend", "formulation", "solver", "primal", "friction_dual", "params")
+_COMBO_ORDER = ("backend", "formulation", "solver", "primal", "dual", "friction_dual",
+                "stabilizer", "hyper_used", "params")
 # how repetitions of one case are combined (plots, best-per-level)
 _AGG_MAX = ("err_u_max", "err_u_mean", "err_lam_max", "err_lam_mean", "penetration_max",
-            "complementarity_max", "energy_err_max")
+            "complementarity_max", "energy_err_max", "err_lam_t_max", "err_lam_t_mean",
+            "friction_residual_max")
 _ERRORS = ("err_u_max", "err_lam_max")
 _BETAS = ("beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min")
 _TIMES = ("t_online_median_s", "t_offline_s", "t_hf_median_s")
@@ -114,6 +115,27 @@ def _compact(v: Any) -> str:
     if isinstance(obj, dict):
         return ",".join(f"{k}={obj[k]}" for k in sorted(obj)) or "{}"
     return s
+
+
+def _param_dict(rec: dict[str, Any]) -> dict[str, Any] | None:
+    """A row's ``params`` (JSON) as a dict; ``None`` if it is not a JSON table."""
+    try:
+        p = json.loads(rec.get("params") or "{}")
+    except (TypeError, ValueError):
+        return None
+    return p if isinstance(p, dict) else None
+
+
+def _varying_params(recs: Sequence[dict[str, Any]],
+                    skip: Sequence[str] = ("friction_dual",)) -> list[str] | None:
+    """The parameters whose values differ among ``recs`` (absent counts as a value), except
+    ``skip`` (shown in a column of their own); ``None`` if a row's params is not a table."""
+    params = [_param_dict(r) for r in recs]
+    if any(p is None for p in params):
+        return None
+    keys = sorted({k for p in params for k in p} - set(skip))
+    return [k for k in keys
+            if len({json.dumps(p.get(k), sort_keys=True) for p in params}) > 1]
 
 
 def _md_table(headers: Sequence[Any], rows: Sequence[Sequence[Any]]) -> list[str]:

@@ -29,13 +29,16 @@ from rbbench.bench.report.common import (
     _md_table,
 )
 from rbbench.bench.report.figures import _FIGURES
+from rbbench.bench.report.friction_figures import FIGURE_GROUPS, friction_table, table_note
 from rbbench.bench.report.loading import load_run
-from rbbench.bench.report.plotting import _Skip
+from rbbench.bench.report.plotting import _NotApplicable, _Skip
 from rbbench.bench.results import records
 
-_ROW_COLUMNS = ("scene", "backend", "formulation", "solver", "primal", "dual", "stabilizer",
-                "hyper_used", "params", "n_hf_dofs", "n_contact", "N", "R", "S", "M_eim",
-                "repetition", "status", "err_u_max", "err_lam_max", "lam_best_max",
+_ROW_COLUMNS = ("scene", "backend", "formulation", "solver", "primal", "dual",
+                "friction_dual", "stabilizer", "hyper_used", "params", "n_hf_dofs",
+                "n_contact", "N", "R", "S", "S_tau", "S_q", "M_eim", "repetition", "status",
+                "err_u_max", "err_lam_max", "lam_best_max", "err_lam_t_max",
+                "friction_residual_max",
                 "penetration_max", "beta_dec_min", "beta_on_min", "beta_off_min",
                 "contact_force", "tangential_force", "n_stick", "n_slip",
                 "friction_residual", "hf_iterations", "t_hf_median_s", "t_offline_s",
@@ -43,7 +46,8 @@ _ROW_COLUMNS = ("scene", "backend", "formulation", "solver", "primal", "dual", "
 _TITLES = {"pareto": "Error against online time (Pareto fronts)",
            "error_vs_size": "Error against RB size", "infsup": "Inf-sup constants",
            "histories": "Offline histories", "speedup": "Speed-up",
-           "status": "Status counts"}
+           "gcns": "GCNS curves (reduced friction)", "status": "Status counts",
+           "lam_t": "lam_t, HF against RB (reduced friction)"}
 _KIND_PREFIX = {"cone-upper": "≤ ", "span-lower-bound": "≥ "}
 _CSS = ("body{font-family:sans-serif;max-width:1400px;margin:1em auto;padding:0 1em}"
         "table{border-collapse:collapse;font-size:0.85em;margin:0.5em 0 1em}"
@@ -112,23 +116,43 @@ class _Drawn:
     figures: dict[str, list[Path]] = field(default_factory=dict)
     captions: dict[str, str] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
+    groups: dict[str, list[str]] = field(default_factory=dict)  # group -> figure names
+    not_applicable: set[str] = field(default_factory=set)  # not mentioned in the summary
 
-
-def _draw_figures(ctx: _Ctx, out: Path, fmts: list[str]) -> _Drawn:
-    drawn = _Drawn()
-    for name, build in _FIGURES:
-        try:
-            fig, caption = build(ctx)
-        except _Skip as exc:
-            drawn.skipped[name] = str(exc)
-            continue
-        paths = []
+    def save(self, name: str, fig: Any, caption: str, out: Path, fmts: list[str]) -> None:
+        """Write ``fig`` as ``out/<name>.<format>`` in every format."""
+        self.figures[name] = []
         for f in fmts:
             p = out / f"{name}.{f}"
             fig.savefig(p, dpi=120)
-            paths.append(p)
-        drawn.figures[name] = paths
-        drawn.captions[name] = caption
+            self.figures[name].append(p)
+        self.captions[name] = caption
+
+
+def _attempt(drawn: _Drawn, name: str, build: Any, ctx: _Ctx) -> Any:
+    """``build(ctx)``, or ``None`` with the reason recorded (skipped / not applicable)."""
+    try:
+        return build(ctx)
+    except _NotApplicable:
+        drawn.not_applicable.add(name)
+    except _Skip as exc:
+        drawn.skipped[name] = str(exc)
+    return None
+
+
+def _draw_figures(ctx: _Ctx, out: Path, fmts: list[str]) -> _Drawn:
+    """The figures of :data:`_FIGURES` and of the groups (one figure per case, e.g.
+    ``lam_t_<case_id>``); a figure or group without data is recorded as skipped, one that
+    does not apply to the run (friction figures of a frictionless run) is left out."""
+    drawn = _Drawn()
+    for name, build in _FIGURES:
+        built = _attempt(drawn, name, build, ctx)
+        if built is not None:
+            drawn.save(name, *built, out, fmts)
+    for group, build_all in FIGURE_GROUPS:
+        for name, fig, caption in _attempt(drawn, group, build_all, ctx) or []:
+            drawn.save(name, fig, caption, out, fmts)
+            drawn.groups.setdefault(group, []).append(name)
     return drawn
 
 
@@ -149,8 +173,10 @@ def report(run_dir: str | Path, out_dir: str | Path | None = None,
     -------
     ReportOutput
         The paths written: ``pareto``, ``error_vs_size``, ``infsup``, ``histories``,
-        ``speedup``, ``status`` (each in every format, unless skipped for lack of data),
-        ``summary.md`` and ``summary.html``.
+        ``speedup``, ``gcns``, ``status`` and, per ok friction case with profiles,
+        ``lam_t_<case_id>`` (each in every format, unless skipped for lack of data: the
+        summary says why), ``summary.md`` and ``summary.html`` (with a table of the
+        reduced friction models when the run has friction rows).
     """
     fmts = _check_formats(formats)
     run = load_run(run_dir)
@@ -271,16 +297,36 @@ def _best_section(d: _Doc, ctx: _Ctx, col: str) -> None:
     d.use(col, "t_online_median_s", "speedup", "N", "R", "S", "case_id")
 
 
+def _friction_section(d: _Doc, ctx: _Ctx) -> None:
+    """The reduced friction models side by side (only when the run has friction rows)."""
+    table = friction_table(ctx)
+    if table is None:
+        return
+    heads, rows, used = table
+    d.heading("Reduced friction models")
+    d.table(heads, rows)
+    d.para(table_note())
+    d.use(*used, "status")
+
+
+def _figure_entry(d: _Doc, drawn: _Drawn, name: str, img_fmt: str) -> None:
+    paths = drawn.figures[name]
+    src = next((p.name for p in paths if p.suffix == f".{img_fmt}"), paths[0].name)
+    d.image(src, name)
+    d.para(drawn.captions[name])
+    d.para("Files: " + ", ".join(p.name for p in paths))
+
+
 def _figures_section(d: _Doc, drawn: _Drawn, img_fmt: str) -> None:
     d.heading("Figures")
-    for name, _ in _FIGURES:
-        if name in drawn.figures:
-            paths = drawn.figures[name]
+    for name in [n for n, _ in _FIGURES] + [g for g, _ in FIGURE_GROUPS]:
+        if name in drawn.not_applicable:
+            continue
+        names = drawn.groups.get(name) or ([name] if name in drawn.figures else [])
+        if names:
             d.heading(_TITLES[name], 3)
-            src = next((p.name for p in paths if p.suffix == f".{img_fmt}"), paths[0].name)
-            d.image(src, name)
-            d.para(drawn.captions[name])
-            d.para("Files: " + ", ".join(p.name for p in paths))
+            for n in names:
+                _figure_entry(d, drawn, n, img_fmt)
         else:
             d.heading(f"{_TITLES[name]} (not drawn)", 3)
             d.para(f"Skipped: {drawn.skipped.get(name, 'no data')}.")
@@ -360,6 +406,7 @@ def _summary(ctx: _Ctx, drawn: _Drawn, img_fmt: str) -> tuple[str, str]:
     _status_section(d, ctx)
     for col in ("err_u_max", "err_lam_max"):
         _best_section(d, ctx, col)
+    _friction_section(d, ctx)
     _figures_section(d, drawn, img_fmt)
     _not_ok_section(d, ctx)
     _rows_section(d, ctx)

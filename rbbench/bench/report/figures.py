@@ -16,6 +16,7 @@ from rbbench.bench.report.analysis import (
 )
 from rbbench.bench.report.common import _COL, _axis_label, _num, _pos
 from rbbench.bench.report.detail_figures import _fig_histories, _fig_infsup
+from rbbench.bench.report.friction_figures import _fig_gcns
 from rbbench.bench.report.plotting import _combo_handles, _empty, _figure, _log_axes, _Skip
 
 _STATUS_COLOUR = {"ok": "tab:green", "skip": "0.65", "error": "tab:red",
@@ -231,4 +232,4 @@ def _fig_status(ctx: _Ctx):
 #: (name, builder) of every figure, in report order
 _FIGURES = (("pareto", _fig_pareto), ("error_vs_size", _fig_error_vs_size),
             ("infsup", _fig_infsup), ("histories", _fig_histories),
-            ("speedup", _fig_speedup), ("status", _fig_status))
+            ("speedup", _fig_speedup), ("gcns", _fig_gcns), ("status", _fig_status))

@@ -14,6 +14,11 @@ class _Skip(Exception):
     """A figure has nothing to show (the message says why)."""
 
 
+class _NotApplicable(_Skip):
+    """A figure does not apply to the run (e.g. friction figures of a frictionless run):
+    neither drawn nor listed as skipped."""
+
+
 def _figure(nrows: int, ncols: int, w: float = _PANEL_W, h: float = _PANEL_H):
     from matplotlib.figure import Figure
 
