@@ -132,8 +132,11 @@ def _summary(dual: str) -> dict:
             "friction_residual_max": 6e-17, "online_iterations_max": 6.0, "S": 4,
             "S_q": 2 if dual == "seed" else 0, "gcns_iterations": 1 if dual == "seed" else 0,
             "gcns_history": hist if dual == "seed" else [], "dim_v_off": 17,
-            "delta_pga": 0.072, "lam_t_profiles": prof, "per_mu": {"err_u": [1e-3, 1.5e-3]},
-            "histories": {}}
+            "delta_pga": 0.072, "lam_t_profiles": prof, "histories": {},
+            "per_mu": {"err_u": [1e-3, 1.5e-3], "beta": {
+                "dec": [{"value": 2e-6, "value_rel": 0.03}, {"value": 1e-6, "value_rel": 0.05}],
+                "off": [{"value": 1e-6, "value_rel": float("nan")},
+                        {"value": 2e-6, "value_rel": 0.02}]}}}
 
 
 def _fake_reduce(summary: dict):
@@ -159,6 +162,9 @@ def test_friction_row_columns_and_details(monkeypatch, tmp_path, dual):
     for col in FRICTION_COLUMNS:
         assert row[col] == s["S" if col == "S_tau" else col], col
     assert row["S"] == 7 and row["friction_dual"] == dual
+    # beta / c_HF: min over the finite per-mu values (not at the raw minimum's mu)
+    assert (row["beta_dec_rel_min"], row["beta_off_rel_min"], row["beta_hf_rel_min"]) == \
+        (0.03, 0.02, None)
     assert det["gcns_history"] == s["gcns_history"]
     assert det["lam_t_profiles"] == s["lam_t_profiles"]
     assert set(row) == set(schema.names())
@@ -173,7 +179,7 @@ def test_frictionless_row_leaves_friction_columns_empty(monkeypatch, tmp_path):
     case = load_matrix("hertz_rb", registry=default_registry()).cases[0]
     rec = execute_case(case, "r", str(tmp_path))
     assert rec["row"]["status"] == "ok"
-    for col in (*FRICTION_COLUMNS, "friction_dual"):
+    for col in (*FRICTION_COLUMNS, "friction_dual", "beta_dec_rel_min", "beta_off_rel_min"):
         assert rec["row"][col] is None, col
     assert "gcns_history" not in rec["details"] and "lam_t_profiles" not in rec["details"]
 
@@ -214,6 +220,7 @@ def test_friction_rb_smoke_run_and_report(tmp_path):
         row = r["row"]
         assert all(row[c] is not None and math.isfinite(row[c]) for c in FRICTION_COLUMNS), k
         assert row["S_tau"] == 5 and row["dim_v_off"] == row["N"] + row["S"]
+        assert all(math.isfinite(row[f"beta_{b}_rel_min"]) for b in ("dec", "off")), k
         # the reduced lam_t lies in the tangential space: its error is at least the floor
         assert row["err_lam_t_max"] >= row["lam_t_best_max"] * (1 - 1e-12)
         assert len(r["details"]["lam_t_profiles"]["mu"]) == 3

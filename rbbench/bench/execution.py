@@ -112,6 +112,11 @@ def _fill(row: dict, s: dict) -> None:
         row.update({k: s.get(k) for k in _FRICTION})
         row["S_tau"] = s.get("S")
         row["friction_dual"] = s.get("friction_dual") or s["config"].get("friction_dual")
+        beta = (s.get("per_mu") or {}).get("beta") or {}
+        for b in ("hf", "dec", "off"):
+            rel = [float(v) for v in (e.get("value_rel") for e in beta.get(b) or [])
+                   if isinstance(v, (int, float)) and np.isfinite(v)]
+            row[f"beta_{b}_rel_min"] = min(rel) if rel else None
 
 
 def _is_friction(s: dict) -> bool:

@@ -149,6 +149,15 @@ COLUMNS: tuple[Column, ...] = (
     _c("beta_on_kind", "str", "stability", "", "kind of beta_on_min"),
     _c("beta_off_min", "float", "stability", "", _BETA + "; V_N + S_PGA (offline)"),
     _c("beta_off_kind", "str", "stability", "", "kind of beta_off_min"),
+    *(_c(f"beta_{b}_rel_min", "float", "stability", "1", "friction scenes, mode rb: "
+         f"beta_{b} of the combined form b^n + b^tau divided by c_HF(mu), the HF "
+         "continuity constant (dimensionless: the seed's beta / c ratio; " + what + "), min "
+         + _VALID + " (the per-mu values are of the kinds of beta_" + b + "_min)")
+      for b, what in (("hf", "whole V against R^m_+ x R^m, span lower bound; only up to "
+                             "2m = 400 multiplier rows"),
+                      ("dec", "whole V against the reduced dual set"),
+                      ("off", "span Z_off, the online primal space, against the reduced "
+                              "dual set"))),
     _c("delta_pga", "float", "stability", "1", "friction scenes, mode rb: PGA tolerance, "
        "the seed's rule sup_mu beta / c_HF of the combined form over every fifth training mu "
        "(a span lower bound; seed: 0.072); empty without PGA"),
