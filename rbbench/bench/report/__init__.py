@@ -22,7 +22,8 @@ tabulated as numbers. Matplotlib is used through :class:`matplotlib.figure.Figur
 
 Modules: :mod:`~rbbench.bench.report.loading` (a run directory read),
 :mod:`~rbbench.bench.report.analysis` (tables computed from the rows),
-:mod:`~rbbench.bench.report.figures`, :mod:`~rbbench.bench.report.detail_figures` and
+:mod:`~rbbench.bench.report.figures`, :mod:`~rbbench.bench.report.cost_figures`,
+:mod:`~rbbench.bench.report.detail_figures` and
 :mod:`~rbbench.bench.report.friction_figures` (the figures; the friction table),
 :mod:`~rbbench.bench.report.document` (:func:`report` and its summaries),
 :mod:`~rbbench.bench.report.comparison` (:func:`compare`). The results table itself is

@@ -1,5 +1,6 @@
-"""The figures of a report drawn from the rows: Pareto fronts, error against size,
-speed-ups and status counts; :data:`_FIGURES` lists every figure in report order."""
+"""The figures of a report drawn from the rows: error against size, speed-ups and status
+counts (Pareto fronts: :mod:`~rbbench.bench.report.cost_figures`); :data:`_FIGURES` lists
+every figure in report order."""
 
 from __future__ import annotations
 
@@ -7,76 +8,16 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.bench.report.analysis import (
-    _Ctx,
-    _size,
-    _size_req,
-    pareto_front,
-    status_counts,
-)
+from rbbench.bench.report.analysis import _Ctx, _size, _size_req, status_counts
 from rbbench.bench.report.common import _COL, _axis_label, _num, _pos
+from rbbench.bench.report.cost_figures import _fig_pareto
 from rbbench.bench.report.detail_figures import _fig_histories, _fig_infsup
 from rbbench.bench.report.friction_figures import _fig_gcns
-from rbbench.bench.report.plotting import _combo_handles, _empty, _figure, _log_axes, _Skip
+from rbbench.bench.report.plotting import _combo_handles, _empty, _figure, _Skip
 
 _STATUS_COLOUR = {"ok": "tab:green", "skip": "0.65", "error": "tab:red",
                   "timeout": "tab:orange", "diverged": "tab:purple",
                   "not_installed": "tab:blue"}
-
-
-def _pareto_panel(ax, ctx: _Ctx, mine: list[dict[str, Any]], m: str) -> None:
-    """One scene and error: every case, and the Pareto front circled and joined."""
-    x = np.array([_num(c["t_online_median_s"]) for c in mine])
-    y = np.array([_num(c[m]) for c in mine])
-    for c, xi, yi in zip(mine, x, y, strict=True):
-        st = ctx.combos.style(c)
-        ax.plot([xi], [yi], linestyle="none", marker=st["marker"], color=st["color"],
-                markersize=6, alpha=0.9)
-    front = pareto_front(x, y)
-    o = np.argsort(x[front])
-    fx, fy = x[front][o], y[front][o]
-    ax.step(np.r_[fx, fx[-1] * 1.5], np.r_[fy, fy[-1]], where="post", color="0.3",
-            linestyle="--", linewidth=1, zorder=0)
-    ax.plot(fx, fy, linestyle="none", marker="o", markersize=11, markerfacecolor="none",
-            markeredgecolor="0.3", zorder=0)
-    _log_axes(ax)
-
-
-def _fig_pareto(ctx: _Ctx):
-    from matplotlib.lines import Line2D
-
-    metrics = ("err_u_max", "err_lam_max")
-    pts = [c for c in ctx.cases if _pos(c.get("t_online_median_s"))
-           and any(_pos(c.get(m)) for m in metrics)]
-    if not pts:
-        raise _Skip("no ok case with a positive online time and an error")
-    fig, axes = _figure(2, len(ctx.scenes))
-    for j, sc in enumerate(ctx.scenes):
-        for i, m in enumerate(metrics):
-            ax = axes[i, j]
-            mine = [c for c in pts if str(c.get("scene")) == sc and _pos(c.get(m))]
-            if not mine:
-                _empty(ax, f"{sc}: no ok case with {m}")
-                continue
-            _pareto_panel(ax, ctx, mine, m)
-            ax.set_title(f"{sc}: " + ("displacement u" if i == 0 else "multiplier lam"),
-                         fontsize=10)
-            ax.set_xlabel(_axis_label("t_online_median_s"), fontsize=8)
-            ax.set_ylabel(_axis_label(m), fontsize=8)
-    handles = _combo_handles(ctx, pts, line=False)
-    handles.append(Line2D([], [], color="0.3", linestyle="--", marker="o", markersize=9,
-                          markerfacecolor="none", label="Pareto front\n(non-dominated)"))
-    fig.legend(handles=handles, loc="outside right upper", fontsize=8,
-               title=ctx.combos.title, title_fontsize=8)
-    fig.suptitle("Error against online time, ok cases", fontsize=11)
-    caption = ("Each point is one ok case (a combination at one size N, R; repetitions "
-               "combined: error max, time median). Top row: "
-               f"err_u_max = {_COL['err_u_max'].doc}; bottom row: err_lam_max = "
-               f"{_COL['err_lam_max'].doc}; x: t_online_median_s = "
-               f"{_COL['t_online_median_s'].doc} (s). Circled and joined by the dashed "
-               "staircase: the Pareto front of the scene (no other case is both faster "
-               "and more accurate).")
-    return fig, caption
 
 
 def _size_curve(ax, ctx: _Ctx, lab: str, cs: list[dict[str, Any]], m: str, s: str) -> None:

@@ -1,0 +1,151 @@
+"""The cost figures of a report: error against online time (Pareto fronts, with the sizes
+N, R of every case and the HF solve time as reference)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from rbbench.bench.report.analysis import _Ctx, _size, pareto_front
+from rbbench.bench.report.common import _COL, _axis_label, _num, _pos
+from rbbench.bench.report.plotting import _combo_handles, _empty, _figure, _log_axes, _Skip
+
+_HF_COLOUR = "tab:red"
+_HF_LABEL = "HF solve (median)"
+_SLOWER_LABEL = "slower than the HF solve\n(speed-up < 1)"
+_MS_MIN, _MS_MAX = 4.5, 10.0  # marker sizes of the smallest and the largest (N, R)
+
+
+def _nr(c: dict[str, Any]) -> tuple[int, int]:
+    """The sizes (N, R) of a case as built (``-1`` when unknown)."""
+    n, r = _size(c, "N"), _size(c, "R")
+    return (-1 if n is None else n, -1 if r is None else r)
+
+
+def _size_marks(cases: list[dict[str, Any]]) -> dict[tuple[int, int], float]:
+    """Marker size per (N, R) of the run: the larger the sizes, the larger the marker."""
+    sizes = sorted({_nr(c) for c in cases})
+    step = (_MS_MAX - _MS_MIN) / max(1, len(sizes) - 1)
+    return {s: _MS_MIN + step * k if len(sizes) > 1 else 7.0 for k, s in enumerate(sizes)}
+
+
+def _size_text(s: tuple[int, int]) -> str:
+    return f"N={s[0]}, R={s[1]}".replace("-1", "?")
+
+
+def hf_median(cases: list[dict[str, Any]]) -> float | None:
+    """The reference time of a panel: the median of the cases' ``t_hf_median_s`` (``None``
+    when no case has one)."""
+    t = [_num(c.get("t_hf_median_s")) for c in cases if _pos(c.get("t_hf_median_s"))]
+    return float(np.median(t)) if t else None
+
+
+def _hf_line(ax, t_hf: float, vertical: bool, x_online: np.ndarray) -> int:
+    """The HF solve time as a line (vertical: on the time axis x; else horizontal, on y),
+    the region slower than it shaded; the number of cases slower than it."""
+    draw, span, lim, setlim = ((ax.axvline, ax.axvspan, ax.get_xlim, ax.set_xlim) if vertical
+                               else (ax.axhline, ax.axhspan, ax.get_ylim, ax.set_ylim))
+    lo, hi = lim()
+    hi = max(hi, t_hf * 2.0)
+    draw(t_hf, color=_HF_COLOUR, linewidth=1.4, zorder=1.5, label=_HF_LABEL)
+    span(t_hf, hi, color=_HF_COLOUR, alpha=0.08, linewidth=0, zorder=0)
+    setlim(min(lo, t_hf / 2.0), hi)
+    return int(np.sum(x_online > t_hf))
+
+
+def _front_labels(ax, front: list[dict[str, Any]], m: str) -> None:
+    """N, R beside each Pareto point; a label equal to the last one written within a
+    factor 1.5 in time and 1.1 in error (coinciding points) is written once."""
+    done: list[tuple[str, float, float]] = []
+    for c in sorted(front, key=lambda c: (_num(c["t_online_median_s"]), _num(c[m]))):
+        text, x, y = _size_text(_nr(c)), _num(c["t_online_median_s"]), _num(c[m])
+        if any(t == text and max(x / x0, x0 / x) < 1.5 and max(y / y0, y0 / y) < 1.1
+               for t, x0, y0 in done):
+            continue
+        done.append((text, x, y))
+        ax.annotate(text, (x, y), xytext=(8, 3), textcoords="offset points", fontsize=6.5,
+                    color="0.2", zorder=6)
+
+
+def _pareto_panel(ax, ctx: _Ctx, mine: list[dict[str, Any]], m: str,
+                  marks: dict[tuple[int, int], float]) -> int:
+    """One scene and error: every case (marker size: its N, R), the Pareto front circled,
+    joined and labelled with N, R, and the HF solve time; the cases slower than HF."""
+    x = np.array([_num(c["t_online_median_s"]) for c in mine])
+    y = np.array([_num(c[m]) for c in mine])
+    for c, xi, yi in zip(mine, x, y, strict=True):  # large markers first, small on top
+        st = ctx.combos.style(c)
+        ax.plot([xi], [yi], linestyle="none", marker=st["marker"], color=st["color"],
+                markersize=marks[_nr(c)], alpha=0.9, zorder=3 + 1.0 / marks[_nr(c)])
+    front = pareto_front(x, y)
+    o = np.argsort(x[front])
+    fx, fy = x[front][o], y[front][o]
+    ax.step(np.r_[fx, fx[-1] * 1.5], np.r_[fy, fy[-1]], where="post", color="0.3",
+            linestyle="--", linewidth=1, zorder=2)
+    ax.plot(fx, fy, linestyle="none", marker="o", markersize=_MS_MAX + 4,
+            markerfacecolor="none", markeredgecolor="0.3", zorder=2)
+    _front_labels(ax, [mine[i] for i in np.flatnonzero(front)], m)
+    _log_axes(ax)
+    t_hf = hf_median(mine)
+    return 0 if t_hf is None else _hf_line(ax, t_hf, True, x)
+
+
+def _pareto_legend(fig, ctx: _Ctx, pts: list[dict[str, Any]],
+                   marks: dict[tuple[int, int], float], hf: bool) -> None:
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles = _combo_handles(ctx, pts, line=False)
+    handles += [Line2D([], [], linestyle="none", marker="o", color="0.45", markersize=ms,
+                       label=f"size {_size_text(s)}") for s, ms in marks.items()]
+    handles.append(Line2D([], [], color="0.3", linestyle="--", marker="o", markersize=11,
+                          markerfacecolor="none", label="Pareto front\n(non-dominated;\n"
+                                                        "labelled N, R)"))
+    if hf:
+        handles += [Line2D([], [], color=_HF_COLOUR, linewidth=1.4, label=_HF_LABEL),
+                    Patch(color=_HF_COLOUR, alpha=0.15, label=_SLOWER_LABEL)]
+    fig.legend(handles=handles, loc="outside right upper", fontsize=8,
+               title=ctx.combos.title, title_fontsize=8)
+
+
+def _fig_pareto(ctx: _Ctx):
+    metrics = ("err_u_max", "err_lam_max")
+    pts = [c for c in ctx.cases if _pos(c.get("t_online_median_s"))
+           and any(_pos(c.get(m)) for m in metrics)]
+    if not pts:
+        raise _Skip("no ok case with a positive online time and an error")
+    marks = _size_marks(pts)
+    fig, axes = _figure(2, len(ctx.scenes))
+    slower: dict[str, int] = {}
+    for j, sc in enumerate(ctx.scenes):
+        for i, m in enumerate(metrics):
+            ax = axes[i, j]
+            mine = [c for c in pts if str(c.get("scene")) == sc and _pos(c.get(m))]
+            if not mine:
+                _empty(ax, f"{sc}: no ok case with {m}")
+                continue
+            slow = _pareto_panel(ax, ctx, mine, m, marks)
+            slower[sc] = max(slow, slower.get(sc, 0))
+            ax.set_title(f"{sc}: " + ("displacement u" if i == 0 else "multiplier lam")
+                         + (f"\n({slow} case(s) slower than the HF solve: shaded)"
+                            if slow else ""), fontsize=10)
+            ax.set_xlabel(_axis_label("t_online_median_s"), fontsize=8)
+            ax.set_ylabel(_axis_label(m), fontsize=8)
+    _pareto_legend(fig, ctx, pts, marks, hf=hf_median(pts) is not None)
+    fig.suptitle("Error against online time, ok cases", fontsize=11)
+    caption = ("Each point is one ok case (a combination at one size N, R; repetitions "
+               "combined: error max, time median); the marker size grows with its sizes "
+               "N, R as built. Top row: "
+               f"err_u_max = {_COL['err_u_max'].doc}; bottom row: err_lam_max = "
+               f"{_COL['err_lam_max'].doc}; x: t_online_median_s = "
+               f"{_COL['t_online_median_s'].doc} (s). Circled and joined by the dashed "
+               "staircase: the Pareto front of the scene (no other case is both faster "
+               "and more accurate), labelled with N, R. Red line: the HF solve time "
+               "(median over the panel's cases of t_hf_median_s, "
+               f"{_COL['t_hf_median_s'].doc}; speed-up 1); shaded: slower than the HF "
+               "solve.")
+    if any(slower.values()):
+        caption += " Slower than the HF solve: " + ", ".join(
+            f"{sc}: {k} case(s)" for sc, k in slower.items() if k) + "."
+    return fig, caption

@@ -1,0 +1,111 @@
+"""``rbbench report`` read as a researcher would (issue 16): the Pareto figure names the sizes
+N, R and draws the HF solve time, every dual compressor stays visible where two of them
+give the same numbers, the offline cost is drawn, and the best-per-level table tells the
+levels apart.
+
+The run directory is synthetic, written by the runner's own writer
+(:func:`rbbench.bench.runner.write_table`); the numbers are chosen so that what is drawn
+can be checked against them: eng and mcpg give identical errors (the case of the quick
+matrix where eng was hidden under mcpg), one case is slower than the HF solve, and the HF
+times differ between cases so that their median is not any first row's.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rbbench.bench import schema
+from rbbench.bench.report import load_run
+from rbbench.bench.report.analysis import _context
+from rbbench.bench.report.cost_figures import _HF_LABEL, _fig_pareto
+from rbbench.bench.runner import write_table
+
+DUALS = ("cpg", "eng", "mcpg")
+STABS = ("none", "pga")
+SIZES = (6, 12)
+T_HF = (1.0, 2.0, 10.0)  # cycled over the cases: the median is 2.0, the mean 4.33
+SLOW = "slow"  # the case slower than the HF solve
+
+
+def _err(dual: str, stab: str, n: int) -> float:
+    """err_u_max: eng and mcpg equal (the hidden-marker case), cpg apart."""
+    base = (3e-2 if stab == "none" else 1e-2) * (6 / n) ** 2
+    return base * (1.7 if dual == "cpg" else 1.0)
+
+
+def _record(cid: str, dual: str, stab: str, n: int, t_on: float, t_hf: float, **extra) -> dict:
+    err = _err(dual, stab, n)
+    hyper = "eim" if stab == "pga" else "affine"
+    row = {"run_id": "fig", "case_id": cid, "repetition": 0, "seed": 0, "scene": "hertz",
+           "scene_overrides": "[]", "backend": "skfem", "formulation": "mixed",
+           "solver": "ssn", "primal": "pod", "dual": dual, "stabilizer": stab,
+           "hyper": hyper, "hyper_used": hyper, "params": "{}", "status": "ok",
+           "N_req": n, "R_req": n, "N": n, "R": n, "S": 0, "n_train": 10,
+           "err_u_max": err, "err_lam_max": 10 * err, "lam_best_max": 2 * err,
+           "t_online_median_s": t_on, "t_hf_median_s": t_hf, "speedup": t_hf / t_on,
+           "t_offline_s": 3.0 + n / 6, "t_snapshots_s": 0.2, **extra}
+    e_proj = [0.5 / (1 + j) ** (2 if dual == "cpg" else 3) for j in range(n)]
+    det = {"per_mu": {}, "valid_mus": [[0.5], [1.0]],
+           "histories": {"e_proj": e_proj, "sigma_max": [1.0, 0.3, 0.05], "pga_delta": 0.1}}
+    return {"row": schema.normalise_row(row), "details": det}
+
+
+def _records() -> list[dict]:
+    out = []
+    for k, (dual, stab, n) in enumerate(itertools.product(DUALS, STABS, SIZES)):
+        t_on = 1e-3 * (1 + 0.05 * k)
+        out.append(_record(f"c{k:02d}", dual, stab, n, t_on, T_HF[k % len(T_HF)]))
+    # online supremizers at N = 12: slower than the HF solve (speed-up < 1)
+    out.append(_record(SLOW, "eng", "supremizer", 12, 5.0, 2.0))
+    return out
+
+
+def _write(d: Path, recs: list[dict]) -> Path:
+    (d / "cases").mkdir(parents=True)
+    for r in recs:
+        (d / "cases" / f"{r['row']['case_id']}-r0.json").write_text(json.dumps(r))
+    write_table(d, recs)
+    (d / "manifest.json").write_text(json.dumps({"run_id": d.name,
+                                                 "columns": schema.column_definitions()}))
+    return d
+
+
+@pytest.fixture(scope="module")
+def ctx(tmp_path_factory):
+    return _context(load_run(_write(tmp_path_factory.mktemp("fig") / "run", _records())))
+
+
+def _legend_texts(fig) -> list[str]:
+    return [t.get_text() for leg in fig.legends for t in leg.get_texts()]
+
+
+# ------------------------------------------------------------------------ 1. Pareto
+def test_pareto_names_the_sizes_and_draws_the_hf_median(ctx):
+    fig, caption = _fig_pareto(ctx)
+    ax = fig.axes[0]  # hertz, err_u_max
+    t_hf = [r["row"]["t_hf_median_s"] for r in _records()]
+    hf = [ln for ln in ax.lines if ln.get_label() == _HF_LABEL]
+    assert len(hf) == 1
+    assert set(hf[0].get_xdata()) == {np.median(t_hf)} == {2.0}  # a vertical line; mean 4.33
+    # the case slower than the HF solve is inside the axes and called out
+    assert ax.get_xlim()[1] > 5.0
+    assert "1 case(s) slower than the HF solve" in ax.get_title()
+    assert "Slower than the HF solve: hertz: 1 case(s)." in caption
+    # every size in the legend; the marker of a case grows with N, R
+    legend = _legend_texts(fig)
+    assert {"size N=6, R=6", "size N=12, R=12", _HF_LABEL} <= set(legend)
+    sizes = {}
+    for r in _records():
+        pt = [ln for ln in ax.lines if list(ln.get_xdata()) == [r["row"]["t_online_median_s"]]
+              and list(ln.get_ydata()) == [r["row"]["err_u_max"]]]
+        assert len(pt) == 1, r["row"]["case_id"]
+        sizes.setdefault(r["row"]["N"], set()).add(pt[0].get_markersize())
+    assert len(sizes[6]) == len(sizes[12]) == 1 and max(sizes[6]) < min(sizes[12])
+    # the Pareto points are labelled with their N, R
+    labels = {t.get_text() for t in ax.texts}
+    assert "N=12, R=12" in labels
