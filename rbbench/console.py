@@ -29,25 +29,34 @@ def _fmt(v) -> str:
 
 def print_summary(m: dict, mu: dict) -> None:
     keys = ["n_dofs", "n_contact", "n_active", "iterations", "stop_reason", "final_residual",
-            "solve_time_s", "contact_force", "contact_half_width", "max_pressure",
+            "solver_stop_reason", "solve_time_s", "contact_force", "contact_half_width",
+            "contact_half_width_gap", "contact_half_width_gap_tol", "max_pressure",
             "complementarity", "penetration_max", "zone_saturated", "e_ac",
             "tangential_force", "n_stick", "n_slip", "n_open", "stick_half_width",
             "friction_residual"]
     print("mu: " + ", ".join(f"{k} = {v:g}" for k, v in mu.items()))
+    notes = {"contact_half_width": "  (quantised to whole multiplier supports)",
+             "contact_half_width_gap": "  (pointwise gap <= contact_half_width_gap_tol, "
+                                       "edges interpolated)"}
     for k in keys:
-        if k in m:
-            print(f"  {k:<22} {_fmt(m[k])}")
+        if k in m and m[k] is not None:
+            print(f"  {k:<26} {_fmt(m[k])}{notes.get(k, '')}")
     if "hertz" in m:
         h = m["hertz"]
         print("  2D Hertz at the computed force P:")
         print(f"    a   = {h['a']:.6g} m   computed {m['contact_half_width']:.6g} m   "
-              f"rel. error {100 * h['a_rel_error']:+.2f} %")
+              f"rel. error {100 * h['a_rel_error']:+.2f} % (quantised)")
+        if h.get("a_gap_rel_error") is not None:
+            print(f"    a   = {h['a']:.6g} m   gap edge {m['contact_half_width_gap']:.6g} m   "
+                  f"rel. error {100 * h['a_gap_rel_error']:+.2f} %")
         print(f"    p0  = {h['p0']:.6g} Pa  computed {m['max_pressure']:.6g} Pa  "
               f"rel. error {100 * h['p0_rel_error']:+.2f} %")
     _print_mindlin(m.get("mindlin"))
     reason = (m.get("solver_info") or {}).get("reason")
     if reason and m.get("stop_reason") != "converged":
         print(f"  reason: {reason}")
+    for w in m.get("warnings", ()):
+        print(f"  WARNING: {w}")
     if m.get("zone_saturated"):
         print("  WARNING: the contact patch reaches the edge of the potential contact zone")
 

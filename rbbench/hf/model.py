@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from rbbench.hf.contact_checks import flag, gap_checks
 from rbbench.hf.mindlin_check import MINDLIN_DEFINITION, mindlin_metrics
 from rbbench.hf.references import hertz_of_bodies
 from rbbench.interfaces import (
@@ -229,6 +230,7 @@ class HFModel:
                  "solve_s": t4 - t3, "total_s": t4 - t0}
         sol = HFSolution(scene, mu, dict(names), disc, problem, result, times)
         sol.metrics = contact_metrics(sol)
+        flag(sol)  # zero force on an overlapping solution: stop_reason "flagged"
         return sol
 
 
@@ -300,26 +302,36 @@ def contact_metrics(sol: HFSolution) -> dict[str, Any]:
         "energy": energy,
         "zone_saturated": saturated,
     }
+    nitsche = isinstance(prob, (NitscheProblem, NitscheFrictionProblem))
+    m.update(gap_checks(c, u, basis, active, disc.physics == "elasticity",
+                        None if nitsche else m["multiplier"],
+                        sol.scene.data["discretization"].get("lac_patch")))
     if disc.physics == "elasticity":
         geo = disc.info["geometry"]
         m["material"] = {b.name: {"E": b.E, "nu": b.nu} for b in disc.bodies}
         m["material"]["plane_strain"] = True
         m["radii"] = {"R1": geo["R1"], "R2": geo["R2"]}
         if sol.scene.data["reference"]["hertz"] and force > 0:
-            h = hertz_of_bodies(force, geo, disc.bodies)
-            m["hertz"] = {
-                "P": h.P, "R_star": h.R_star, "E_star": h.E_star, "a": h.a, "p0": h.p0,
-                "a_rel_error": (half_width - h.a) / h.a,
-                "p0_rel_error": (lam_max - h.p0) / h.p0,
-                "note": "theory evaluated at the solver's own force P; errors are signed, "
-                        "relative: (computed - theory) / theory",
-            }
+            m["hertz"] = _hertz_block(hertz_of_bodies(force, geo, disc.bodies), m)
     m.update(extra)
     if sol.scene.data["reference"].get("mindlin") and isinstance(
             prob, (FrictionProblem, NitscheFrictionProblem)):
         m["mindlin"] = _mindlin_block(sol, m)
     m["definitions"] = DEFINITIONS
     return m
+
+
+def _hertz_block(h: Any, m: dict[str, Any]) -> dict[str, Any]:
+    """The ``hertz`` block: 2D Hertz ``h`` at the computed force against the computed
+    half-widths (quantised and from the gap) and peak pressure."""
+    return {"P": h.P, "R_star": h.R_star, "E_star": h.E_star, "a": h.a, "p0": h.p0,
+            "a_rel_error": (m["contact_half_width"] - h.a) / h.a,
+            "a_gap_rel_error": (m["contact_half_width_gap"] - h.a) / h.a,
+            "p0_rel_error": (m["max_pressure"] - h.p0) / h.p0,
+            "note": "theory evaluated at the solver's own force P; errors are signed, "
+                    "relative: (computed - theory) / theory; a_rel_error of "
+                    "contact_half_width (quantised to multiplier supports), a_gap_rel_error "
+                    "of contact_half_width_gap"}
 
 
 def _mindlin_block(sol: HFSolution, m: dict[str, Any]) -> dict[str, Any]:
@@ -434,7 +446,28 @@ DEFINITIONS = {
             "contact quadrature, a fraction (not %)",
     "max_pressure_quadrature": "Nitsche only: largest point pressure -[P_gamma(u)]_- (Pa)",
     "contact_half_width": "half the horizontal extent of the supports of the active multipliers "
-                          "(m); overestimates the true half-width by at most one support",
+                          "(m): QUANTISED to whole multiplier supports (LAC patches, facets, "
+                          "hats), so it moves in steps of one support and may stay constant "
+                          "under refinement; overestimates the true half-width by at most "
+                          "one support (contact_half_width_gap: the pointwise edge)",
+    "contact_half_width_gap": "half the horizontal extent of the set where the pointwise gap "
+                              "g = gap - Un u at the contact quadrature points is <= "
+                              "contact_half_width_gap_tol, its edges linearly interpolated "
+                              "between the last closed and the first open point (m); None "
+                              "without a contact curve along x (membrane)",
+    "contact_half_width_gap_tol": "the gap tolerance of contact_half_width_gap and of the "
+                                  "under-resolution check (m): 1e-3 max_q |Un u|_q "
+                                  "(rbbench.hf.contact_checks.GAP_RTOL)",
+    "warnings": "what makes the result doubtful, in words: penetration beyond "
+                "contact_half_width_gap_tol at contact points that no active multiplier's "
+                "support covers (supports coarser than the contact zone; mixed "
+                "formulations only)",
+    "stop_reason": "the solver's stop reason (converged, max_iterations, stagnation, nan, "
+                   "diverged), or 'flagged': the solver converged (solver_stop_reason) but "
+                   "every multiplier is 0 while the bodies penetrate beyond "
+                   "contact_half_width_gap_tol (zero contact force on an overlapping "
+                   "solution, see warnings); a flagged solve counts as not converged "
+                   "(rbbench solve exits 1, snapshots refuse it)",
     "max_pressure": "largest multiplier value (Pa): the peak of the discrete pressure (Nitsche: "
                     "of its L2 projection on the multiplier space)",
     "complementarity": "|lam . (G - B u)| / (||lam||_2 ||G||_2), dimensionless; 0 at an exact "
