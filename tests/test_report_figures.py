@@ -22,7 +22,10 @@ import pytest
 from rbbench.bench import schema
 from rbbench.bench.report import load_run
 from rbbench.bench.report.analysis import _context
+from rbbench.bench.report.common import _LINESTYLES
 from rbbench.bench.report.cost_figures import _HF_LABEL, _fig_pareto
+from rbbench.bench.report.detail_figures import _fig_histories
+from rbbench.bench.report.figures import _FLOOR_LABEL, _fig_error_vs_size
 from rbbench.bench.runner import write_table
 
 DUALS = ("cpg", "eng", "mcpg")
@@ -109,3 +112,61 @@ def test_pareto_names_the_sizes_and_draws_the_hf_median(ctx):
     # the Pareto points are labelled with their N, R
     labels = {t.get_text() for t in ax.texts}
     assert "N=12, R=12" in labels
+
+
+# ------------------------------------------------------- 2. every dual compressor visible
+def _named(ax, label: str):
+    lines = [ln for ln in ax.lines if ln.get_label() == label]
+    assert len(lines) == 1, (label, [ln.get_label() for ln in ax.lines])
+    return lines[0]
+
+
+def test_error_vs_size_keeps_equal_duals_apart(ctx):
+    """eng and mcpg have equal errors: their markers sit side by side (offset < 0.5 of a
+    size step), eng's hollow and drawn above mcpg's filled ones."""
+    fig, caption = _fig_error_vs_size(ctx)
+    ax = fig.axes[0]  # err_u_max against N
+    eng, mcpg = _named(ax, "eng+none+affine"), _named(ax, "mcpg+none+affine")
+    np.testing.assert_array_equal(eng.get_ydata(), mcpg.get_ydata())  # the hidden case
+    assert not np.allclose(eng.get_xdata(), mcpg.get_xdata())
+    for ln in (eng, mcpg):
+        assert np.all(np.abs(np.asarray(ln.get_xdata()) - np.array(SIZES)) < 0.5)
+    assert eng.get_markerfacecolor() == "none" and mcpg.get_markerfacecolor() != "none"
+    assert eng.get_zorder() > mcpg.get_zorder()
+    assert "offset" in caption and "hollow" in caption
+
+
+def test_floor_lines_have_a_legend_entry_and_a_style_of_their_own(ctx):
+    fig, caption = _fig_error_vs_size(ctx)
+    ax = fig.axes[1]  # err_lam_max against R
+    floors = [ln for ln in ax.lines if ln.get_label() == _FLOOR_LABEL]
+    assert len(floors) == len(DUALS) * len(STABS) + 1  # one per combination
+    combos = [ln for ln in ax.lines if not ln.get_label().startswith("_")
+              and ln.get_label() != _FLOOR_LABEL]
+    assert combos and all(ln.get_linestyle() != ":" for ln in combos)
+    assert all(ln.get_linestyle() == ":" for ln in floors)
+    assert ":" not in _LINESTYLES  # no combination (e.g. pga + eim) is dotted
+    # the floor is drawn at lam_best_max, per size, shifted like its dual
+    want = {(r["row"]["dual"], r["row"]["stabilizer"], r["row"]["R"]): r["row"]["lam_best_max"]
+            for r in _records()}
+    for ln in floors:
+        for x, y in zip(ln.get_xdata(), ln.get_ydata(), strict=True):
+            assert any(abs(x - k[2]) < 0.5 and y == v for k, v in want.items())
+    assert _FLOOR_LABEL in _legend_texts(fig)
+    assert "lam_best_max" in caption
+
+
+def test_histories_draw_every_dual_visibly(ctx):
+    """Equal e_proj histories of eng and mcpg: each dual its own line style and marker,
+    the later ones thinner and above the earlier ones."""
+    fig, _ = _fig_histories(ctx)
+    ax = fig.axes[0]  # e_proj
+    lines = {d: _named(ax, d) for d in DUALS}
+    np.testing.assert_array_equal(lines["eng"].get_ydata(), lines["mcpg"].get_ydata())
+    assert len({ln.get_linestyle() for ln in lines.values()}) == len(DUALS)
+    assert len({ln.get_marker() for ln in lines.values()}) == len(DUALS)
+    widths = [lines[d].get_linewidth() for d in DUALS]
+    orders = [lines[d].get_zorder() for d in DUALS]
+    assert widths == sorted(widths, reverse=True) and len(set(widths)) == len(DUALS)
+    assert orders == sorted(orders) and len(set(orders)) == len(DUALS)
+    assert set(DUALS) <= set(_legend_texts(fig))

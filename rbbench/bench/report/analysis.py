@@ -65,7 +65,12 @@ class _Combos:
 
         cmap = colormaps["tab10" if len(duals) <= 10 else "tab20"]
         self.dual_colour = {d: cmap(i % cmap.N) for i, d in enumerate(duals)}
+        self.duals = duals
         self.rest_index = {r: i for i, r in enumerate(rests)}
+
+    def dual_rank(self, dual: str) -> int:
+        """Index of a dual compressor among the run's (sorted; 0 if unknown)."""
+        return self.duals.index(dual) if dual in self.duals else 0
 
     def _part(self, rec: dict[str, Any], f: str) -> str:
         v = rec.get(f)
@@ -87,10 +92,19 @@ class _Combos:
         return "+".join(self._part(rec, f) for f in self.fields if f != without)
 
     def style(self, rec: dict[str, Any]) -> dict[str, Any]:
+        """Colour by dual compressor, marker and line style by the rest of the combination;
+        every other dual's markers hollow and drawn above the filled ones (``zorder``), so
+        two duals with equal numbers both stay visible."""
         i = self.rest_index.get(self.label(rec, without="dual"), 0)
-        return {"color": self.dual_colour.get(self._part(rec, "dual"), "k"),
-                "marker": _MARKERS[i % len(_MARKERS)],
-                "linestyle": _LINESTYLES[i % len(_LINESTYLES)]}
+        dual = self._part(rec, "dual")
+        k = self.dual_rank(dual)
+        colour = self.dual_colour.get(dual, "k")
+        hollow = k % 2 == 1
+        return {"color": colour, "marker": _MARKERS[i % len(_MARKERS)],
+                "linestyle": _LINESTYLES[i % len(_LINESTYLES)],
+                "markerfacecolor": "none" if hollow else colour,
+                "markeredgewidth": 1.6 if hollow else 1.0,
+                "zorder": 3.0 + (0.5 if hollow else 0.0) + 0.01 * k}
 
 
 def _combined(ordered: pd.DataFrame, group: pd.Series) -> pd.DataFrame:

@@ -46,7 +46,8 @@ _SHORT = {
     "R": "dual size R (cone generators)",
 }
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">", "h", "p")
-_LINESTYLES = ("-", "--", "-.", ":")
+# ":" (dotted) is left to floors and tolerances (lam_best_max, PGA delta)
+_LINESTYLES = ("-", "--", "-.", (0, (5, 1.5, 1, 1.5, 1, 1.5)))
 
 
 def _num(v: Any) -> float:

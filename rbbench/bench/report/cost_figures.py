@@ -77,7 +77,8 @@ def _pareto_panel(ax, ctx: _Ctx, mine: list[dict[str, Any]], m: str,
     for c, xi, yi in zip(mine, x, y, strict=True):  # large markers first, small on top
         st = ctx.combos.style(c)
         ax.plot([xi], [yi], linestyle="none", marker=st["marker"], color=st["color"],
-                markersize=marks[_nr(c)], alpha=0.9, zorder=3 + 1.0 / marks[_nr(c)])
+                markerfacecolor=st["markerfacecolor"], markeredgewidth=st["markeredgewidth"],
+                markersize=marks[_nr(c)], alpha=0.9, zorder=st["zorder"] + 0.4 / marks[_nr(c)])
     front = pareto_front(x, y)
     o = np.argsort(x[front])
     fx, fy = x[front][o], y[front][o]

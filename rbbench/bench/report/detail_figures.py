@@ -10,7 +10,14 @@ import numpy as np
 
 from rbbench.bench.report.analysis import _Ctx, _size_req
 from rbbench.bench.report.common import _COL, _LINESTYLES, _num
-from rbbench.bench.report.plotting import _PANEL_H, _PANEL_W, _empty, _figure, _Skip
+from rbbench.bench.report.plotting import (
+    _PANEL_H,
+    _PANEL_W,
+    _dual_line,
+    _empty,
+    _figure,
+    _Skip,
+)
 
 _KIND_TEXT = {"span-lower-bound": "span lower bound", "cone-exact": "cone, exact",
               "cone-upper": "cone, upper estimate"}
@@ -248,7 +255,8 @@ def _draw_history(ax, ctx: _Ctx, picks: dict, name: str, start: int,
         r, det = picks[dual]
         h = np.array([_num(v) for v in det["histories"][name]])
         x = np.arange(start, start + h.size)
-        colour = ctx.combos.dual_colour.get(dual, "k")
+        style = _dual_line(ctx, dual)  # coinciding curves of two duals both visible
+        colour = style["color"]
         seen["duals"].add(dual)
         # relative quantities: values at round-off level (or exactly 0) are drawn
         # on the floor, so they do not stretch the log axis over 15 decades
@@ -257,11 +265,12 @@ def _draw_history(ax, ctx: _Ctx, picks: dict, name: str, start: int,
         if good.any():
             drew = True
             hp = np.where(tiny, _HIST_FLOOR, h)
-            ax.plot(x[good], hp[good], color=colour, marker=".", linewidth=1.3)
+            ax.plot(x[good], hp[good], label=dual, markevery=max(1, int(good.sum()) // 16),
+                    **style)
         if tiny.any():
             seen["floored"] = True
             ax.plot(x[tiny], np.full(int(tiny.sum()), _HIST_FLOOR), linestyle="none",
-                    marker="v", color=colour, markersize=7)
+                    marker="v", color=colour, markersize=7, zorder=style["zorder"])
         if name == "sigma_max":
             d = _num(det["histories"].get("pga_delta"))
             if math.isfinite(d) and d > 0:
@@ -291,8 +300,7 @@ def _history_panel(ax, ctx: _Ctx, sc: str, picks: dict, spec: tuple,
 def _history_legend(fig, ctx: _Ctx, seen: dict[str, Any]) -> None:
     from matplotlib.lines import Line2D
 
-    handles = [Line2D([], [], color=ctx.combos.dual_colour.get(d, "k"), marker=".", label=d)
-               for d in sorted(seen["duals"])]
+    handles = [Line2D([], [], label=d, **_dual_line(ctx, d)) for d in sorted(seen["duals"])]
     if seen["delta"]:
         handles.append(Line2D([], [], color="0.3", linestyle=":", label="PGA tolerance delta"))
     if seen["floored"]:
@@ -324,5 +332,7 @@ def _fig_histories(ctx: _Ctx):
                "the PGA maximum over the training set before each addition (dotted: the "
                "tolerance delta). Right: the EIM training error of the contact rows after "
                f"each magic row (hyper eim). Values below {_HIST_FLOOR:g} (round-off, or 0) "
-               f"are drawn at {_HIST_FLOOR:g} with a down-pointing triangle.")
+               f"are drawn at {_HIST_FLOOR:g} with a down-pointing triangle. Each dual has "
+               "its own line style and marker, the first the thickest and the next ones "
+               "thinner and on top, so equal histories of two duals both stay visible.")
     return fig, caption

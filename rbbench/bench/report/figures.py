@@ -13,32 +13,45 @@ from rbbench.bench.report.common import _COL, _axis_label, _num, _pos
 from rbbench.bench.report.cost_figures import _fig_pareto
 from rbbench.bench.report.detail_figures import _fig_histories, _fig_infsup
 from rbbench.bench.report.friction_figures import _fig_gcns
-from rbbench.bench.report.plotting import _combo_handles, _empty, _figure, _Skip
+from rbbench.bench.report.plotting import _combo_handles, _dodge, _empty, _figure, _Skip
+
+_FLOOR_LABEL = "lam_best_max: best approximation\nin the dual's cone (floor)"
 
 _STATUS_COLOUR = {"ok": "tab:green", "skip": "0.65", "error": "tab:red",
                   "timeout": "tab:orange", "diverged": "tab:purple",
                   "not_installed": "tab:blue"}
 
 
-def _size_curve(ax, ctx: _Ctx, lab: str, cs: list[dict[str, Any]], m: str, s: str) -> None:
+def _size_curve(ax, ctx: _Ctx, lab: str, cs: list[dict[str, Any]], m: str, s: str,
+                span: float) -> None:
     """One combination: every case a marker, the line the smallest error at each size
-    (for err_lam_max also the dotted floor lam_best_max)."""
+    (for err_lam_max also the floor lam_best_max, thick dotted); the sizes shifted by the
+    dual compressor's offset (:func:`_dodge`), the styles of :meth:`_Combos.style`."""
     st = ctx.combos.style(cs[0])
+    dx = _dodge(ctx, ctx.combos._part(cs[0], "dual"), span)
+    marker = {"marker": st["marker"], "color": st["color"], "zorder": st["zorder"],
+              "markerfacecolor": st["markerfacecolor"],
+              "markeredgewidth": st["markeredgewidth"]}
     xs = np.array([_size(c, s) for c in cs], dtype=float)
     ys = np.array([_num(c[m]) for c in cs])
-    ax.plot(xs, ys, linestyle="none", marker=st["marker"], color=st["color"],
-            markersize=5, alpha=0.55)
+    ax.plot(xs + dx, ys, linestyle="none", markersize=5, alpha=0.55, **marker)
     ux = np.unique(xs)
     best = [ys[xs == v].min() for v in ux]
-    ax.plot(ux, best, color=st["color"], linestyle=st["linestyle"],
-            marker=st["marker"], markersize=6, label=lab)
+    ax.plot(ux + dx, best, linestyle=st["linestyle"], markersize=6, label=lab, **marker)
     if m == "err_lam_max":  # the cone's floor: no model on that space does better
         fl = [(x, _num(c.get("lam_best_max"))) for x, c in zip(xs, cs, strict=True)
               if _pos(c.get("lam_best_max"))]
         if fl:
             fx = np.unique([x for x, _ in fl])
             fy = [min(y for x, y in fl if x == v) for v in fx]
-            ax.plot(fx, fy, color=st["color"], linestyle=":", linewidth=1.2)
+            ax.plot(fx + dx, fy, label=_FLOOR_LABEL, **_floor_style(st["color"]))
+
+
+def _floor_style(colour: Any) -> dict[str, Any]:
+    """The lam_best_max floor: thick, dotted, pale, a bar at each size (no combination
+    line is dotted: :data:`~rbbench.bench.report.common._LINESTYLES`)."""
+    return {"color": colour, "linestyle": ":", "linewidth": 2.4, "alpha": 0.6,
+            "marker": "_", "markersize": 12, "zorder": 2}
 
 
 def _fig_error_vs_size(ctx: _Ctx):
@@ -59,21 +72,31 @@ def _fig_error_vs_size(ctx: _Ctx):
             by: dict[str, list[dict[str, Any]]] = {}
             for c in mine:
                 by.setdefault(ctx.combos.label(c), []).append(c)
+            sizes = [_size(c, s) for c in mine]
             for lab in sorted(by):
-                _size_curve(ax, ctx, lab, by[lab], m, s)
+                _size_curve(ax, ctx, lab, by[lab], m, s, max(sizes) - min(sizes))
             ax.set_yscale("log")
             ax.grid(True, which="major", alpha=0.3)
             ax.xaxis.get_major_locator().set_params(integer=True)
             ax.set_title(sc, fontsize=10)
             ax.set_xlabel(_axis_label(s), fontsize=8)
             ax.set_ylabel(_axis_label(m), fontsize=8)
-    fig.legend(handles=_combo_handles(ctx, pts, line=True), loc="outside right upper",
-               fontsize=8, title=ctx.combos.title, title_fontsize=8)
+    handles = _combo_handles(ctx, pts, line=True)
+    if any(ln.get_label() == _FLOOR_LABEL for ax in axes.flat for ln in ax.lines):
+        from matplotlib.lines import Line2D
+
+        handles.append(Line2D([], [], label=_FLOOR_LABEL, **_floor_style("0.35")))
+    fig.legend(handles=handles, loc="outside right upper", fontsize=8,
+               title=ctx.combos.title, title_fontsize=8)
     fig.suptitle("Error against RB size (line: best case at each size)", fontsize=11)
     caption = ("Top: err_u_max against the primal size N obtained; bottom: err_lam_max "
                "against the dual size R obtained. Where the other size also varies, every "
-               "case is a marker and the line joins the smallest error at each size. Dotted "
-               "(bottom): lam_best_max, " + _COL["lam_best_max"].doc + ".")
+               "case is a marker and the line joins the smallest error at each size. The "
+               "markers of each dual compressor are shifted sideways by a small offset "
+               "(2.5 % of the size axis per dual) and every other dual's markers are hollow "
+               "and drawn on top, so duals with equal errors stay visible. Thick dotted, "
+               "in the dual's colour (bottom): lam_best_max, " + _COL["lam_best_max"].doc
+               + ".")
     return fig, caption
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 from rbbench.bench.report.analysis import _Ctx
+from rbbench.bench.report.common import _LINESTYLES, _MARKERS
 
 _PANEL_W, _PANEL_H = 4.4, 3.3
 
@@ -43,8 +44,29 @@ def _combo_handles(ctx: _Ctx, recs: list[dict[str, Any]], line: bool) -> list:
         if lab not in seen:
             st = ctx.combos.style(r)
             seen[lab] = Line2D([], [], color=st["color"], marker=st["marker"],
+                               markerfacecolor=st["markerfacecolor"],
+                               markeredgewidth=st["markeredgewidth"],
                                linestyle=st["linestyle"] if line else "none", label=lab)
     return list(seen.values())
+
+
+def _dodge(ctx: _Ctx, dual: str, span: float) -> float:
+    """Horizontal offset of a dual compressor's markers on an integer size axis (2.5 % of
+    the axis span per dual, centred), so equal values of two duals sit side by side."""
+    n = len(ctx.combos.duals)
+    return (ctx.combos.dual_rank(dual) - (n - 1) / 2) * 0.025 * (span if span > 0 else 4.0)
+
+
+def _dual_line(ctx: _Ctx, dual: str) -> dict[str, Any]:
+    """Line style of a dual compressor's curve where the curves of several duals can
+    coincide: its colour, a line style and a marker of its own, the first dual the
+    thickest and lowest, each next one thinner, smaller and above it."""
+    k = ctx.combos.dual_rank(dual)
+    colour = ctx.combos.dual_colour.get(dual, "k")
+    return {"color": colour, "linestyle": _LINESTYLES[k % len(_LINESTYLES)],
+            "linewidth": max(0.9, 3.2 - 0.9 * k), "marker": _MARKERS[k % len(_MARKERS)],
+            "markersize": max(3.0, 7.0 - 1.5 * k),
+            "markerfacecolor": "none" if k % 2 else colour, "zorder": 2.0 + 0.1 * k}
 
 
 def _log_axes(ax) -> None:
