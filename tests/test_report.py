@@ -103,7 +103,8 @@ def _rows(run_id: str = "run-a") -> list[tuple[dict, dict]]:
                "beta_dec_zero_any": dual == "pod",
                "beta_on_min": 9e-7, "beta_on_kind": "cone-exact",
                "beta_off_min": 8e-7 if stab == "pga" else None,
-               "t_offline_s": 30.0 + n, "t_online_median_s": t, "t_hf_median_s": 5.0,
+               "t_offline_s": 30.0 + n, "t_offline_hf_s": 40.0 + n,
+               "t_online_median_s": t, "t_hf_median_s": 5.0,
                "speedup": 5.0 / t, "M_eim": 15 if hyper == "eim" else None}
         out.append((schema.normalise_row(row), _details(dual, stab, hyper, size[0] // 4)))
     bad = [("error", "ValueError: boom\nsecond line | with a pipe"),
@@ -154,7 +155,7 @@ def reported(run_a):
     return report(run_a)
 
 
-FIGS = ("pareto", "error_vs_size", "infsup", "histories", "speedup", "status")
+FIGS = ("pareto", "offline", "error_vs_size", "infsup", "histories", "speedup", "status")
 
 
 def test_report_writes_every_file(run_a, reported):
@@ -334,7 +335,8 @@ def test_all_none_columns_do_not_crash(tmp_path):
               {}) for k, s in enumerate(("error", "timeout", "skip"))]
     d = write_run(tmp_path / "fails", fails)
     out = report(d, formats=("png",))
-    assert set(out.skipped) == {"pareto", "error_vs_size", "infsup", "histories", "speedup"}
+    assert set(out.skipped) == {"pareto", "offline", "error_vs_size", "infsup", "histories",
+                                "speedup"}
     assert list(out.figures) == ["status"]
     md = out.summary_md.read_text()
     assert "(not drawn)" in md and "why 2" in md

@@ -18,15 +18,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from matplotlib import colormaps
 
 from rbbench.bench import schema
-from rbbench.bench.report import load_run
+from rbbench.bench.execution import _fill
+from rbbench.bench.report import load_run, report
 from rbbench.bench.report.analysis import _context
 from rbbench.bench.report.common import _LINESTYLES
-from rbbench.bench.report.cost_figures import _HF_LABEL, _fig_pareto
+from rbbench.bench.report.cost_figures import _HF_LABEL, _error_norm, _fig_offline, _fig_pareto
 from rbbench.bench.report.detail_figures import _fig_histories
 from rbbench.bench.report.figures import _FLOOR_LABEL, _fig_error_vs_size
 from rbbench.bench.runner import write_table
+from rbbench.rb.validation import _offline_times
 
 DUALS = ("cpg", "eng", "mcpg")
 STABS = ("none", "pga")
@@ -62,8 +65,11 @@ def _records() -> list[dict]:
     out = []
     for k, (dual, stab, n) in enumerate(itertools.product(DUALS, STABS, SIZES)):
         t_on = 1e-3 * (1 + 0.05 * k)
-        out.append(_record(f"c{k:02d}", dual, stab, n, t_on, T_HF[k % len(T_HF)]))
-    # online supremizers at N = 12: slower than the HF solve (speed-up < 1)
+        # snapshots from the cache: t_offline_s counts the reads, t_offline_hf_s the solves
+        out.append(_record(f"c{k:02d}", dual, stab, n, t_on, T_HF[k % len(T_HF)],
+                           t_offline_hf_s=50.0 + k, n_snapshots_cached=13))
+    # online supremizers at N = 12: slower than the HF solve (speed-up < 1); a row written
+    # before t_offline_hf_s existed (its offline cost is estimated)
     out.append(_record(SLOW, "eng", "supremizer", 12, 5.0, 2.0))
     return out
 
@@ -170,3 +176,57 @@ def test_histories_draw_every_dual_visibly(ctx):
     assert widths == sorted(widths, reverse=True) and len(set(widths)) == len(DUALS)
     assert orders == sorted(orders) and len(set(orders)) == len(DUALS)
     assert set(DUALS) <= set(_legend_texts(fig))
+
+
+# ------------------------------------------------------------------ 3. offline cost
+def test_rows_copy_the_offline_hf_times():
+    """A reduction summary's t_offline_hf_s / t_snapshots_hf_s / n_snapshots_cached reach
+    the row (the definition t_offline_s - snapshots_s + HF time checked by hand)."""
+    timings = {"offline_s": 4.0, "snapshots_s": 0.25, "snapshots_hf_train_s": 13 * 0.655,
+               "snapshots_hf_valid_s": 2.0, "snapshots_cached": 20}
+    s = {**_offline_times(timings), "timings": timings, "hyper": "eim", "K_pga": 0,
+         "R": 6, "config": {"stabilizer": "none"}}
+    row: dict = {}
+    _fill(row, s)
+    assert row["t_offline_s"] == 4.0 and row["t_snapshots_s"] == 0.25
+    assert row["t_snapshots_hf_s"] == pytest.approx(8.515)
+    assert row["t_offline_hf_s"] == pytest.approx(4.0 - 0.25 + 8.515)
+    assert row["n_snapshots_cached"] == 20
+    names = schema.names()
+    assert {"t_offline_hf_s", "t_snapshots_hf_s", "n_snapshots_cached"} <= set(names)
+    assert schema.normalise_row(row)["t_offline_hf_s"] == row["t_offline_hf_s"]
+
+
+def test_offline_figure_uses_the_hf_snapshot_time(ctx, tmp_path):
+    fig, caption = _fig_offline(ctx)
+    ax = fig.axes[0]
+    recs = {r["row"]["case_id"]: r["row"] for r in _records()}
+    pts = [ln for ln in ax.lines if ln.get_linestyle() == "None" and ln.get_marker() != "."]
+    dots = [ln for ln in ax.lines if ln.get_marker() == "."]
+    assert len(pts) == len(recs)
+    at = {(ln.get_xdata()[0], ln.get_ydata()[0]): ln for ln in pts}
+    norm = _error_norm(list(recs.values()))
+    for cid, r in recs.items():
+        want = colormaps["viridis"](norm(r["err_u_max"]))
+        if cid == SLOW:  # no t_offline_hf_s: estimated, a black dot inside
+            x = r["t_offline_s"] - r["t_snapshots_s"] + r["n_train"] * r["t_hf_median_s"]
+            ln = at[next(k for k in at if k[1] == r["t_online_median_s"])]
+            assert ln.get_xdata()[0] == pytest.approx(x)
+            assert len(dots) == 1 and dots[0].get_xdata()[0] == ln.get_xdata()[0]
+        else:
+            ln = at[(r["t_offline_hf_s"], r["t_online_median_s"])]  # not t_offline_s
+        np.testing.assert_allclose(ln.get_markerfacecolor(), want)
+        assert ln.get_markeredgecolor() == ctx.combos.dual_colour[r["dual"]]
+    assert norm.vmin == min(r["err_u_max"] for r in recs.values())
+    # HF line at the median HF time (horizontal: y is the online time), axes labelled
+    hf = [ln for ln in ax.lines if ln.get_label() == _HF_LABEL]
+    assert len(hf) == 1 and set(hf[0].get_ydata()) == {2.0}
+    assert "t_offline_hf_s" in ax.get_xlabel() and "median" in ax.get_xlabel()
+    assert "HF solve time" in ax.get_xlabel() and "primal, dual" in ax.get_xlabel()
+    assert "t_online_median_s" in ax.get_ylabel() and "median" in ax.get_ylabel()
+    cbar = [a for a in fig.axes if "err_u_max" in a.get_xlabel() + a.get_ylabel()]
+    assert cbar and cbar[0].get_xscale() == "log"
+    assert "cache" in caption and "estimated" in caption
+    out = report(_write(tmp_path / "run", _records()), formats=("png",))
+    assert (tmp_path / "run" / "report" / "offline.png").is_file()
+    assert "offline.png" in out.summary_md.read_text()

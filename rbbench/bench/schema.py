@@ -168,7 +168,18 @@ COLUMNS: tuple[Column, ...] = (
     _c("t_dual_s", "float", "timings", "s", "dual compression"),
     _c("t_stabilizer_s", "float", "timings", "s", "stabilisation (PGA)"),
     _c("t_hyper_s", "float", "timings", "s", "hyper-reduction (affine probe / EIM)"),
-    _c("t_offline_s", "float", "timings", "s", "offline total, snapshots included"),
+    _c("t_offline_s", "float", "timings", "s", "wall time of the offline stage as it ran: "
+       "the snapshot phase as it happened (training and validation snapshots; cache reads "
+       "when cached, else HF solves), then the primal, dual, stabiliser and hyper-reduction "
+       "steps; without the HF time of cached snapshots (see t_offline_hf_s)"),
+    _c("t_snapshots_hf_s", "float", "timings", "s", "HF time of the training snapshots: sum "
+       "of each snapshot's stored solve time (measured when it was computed, read from the "
+       "cache when cached; a serial sum)"),
+    _c("t_offline_hf_s", "float", "timings", "s", "offline cost with the real HF snapshot "
+       "time: t_offline_s - t_snapshots_s + t_snapshots_hf_s (training snapshots at their "
+       "serial HF time, no validation snapshots)"),
+    _c("n_snapshots_cached", "int", "timings", "", "training + validation snapshots the case "
+       "read from the snapshot cache"),
     _c("t_online_median_s", "float", "timings", "s", "one online solve (reduced arrays + "
        "reduced saddle-point solve), median over validation mus x repeats; with hyper_used "
        "= none (e.g. online supremizers) it includes the HF assembly at mu, the supremizers "

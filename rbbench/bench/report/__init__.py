@@ -9,11 +9,11 @@ A run directory (written by ``rbbench run``) holds::
     cases/<case_id>-r<rep>.json   {"row": {...}, "details": {"per_mu", "histories",
                                   "valid_mus"}}
 
-:func:`report` reads it and writes figures (Pareto fronts, error against size, inf-sup
-constants per validation parameter, compressor / PGA / EIM histories, speed-ups, status
-counts; for reduced friction models the GCNS curves and lam_t HF against RB) and
-``summary.md`` / ``summary.html``. :func:`compare` matches the rows of two
-runs on the identity of the case and lists regressions and improvements.
+:func:`report` reads it and writes figures (Pareto fronts, offline cost against online
+time, error against size, inf-sup constants per validation parameter, compressor / PGA /
+EIM histories, speed-ups, status counts; for reduced friction models the GCNS curves and
+lam_t HF against RB) and ``summary.md`` / ``summary.html``. :func:`compare` matches the
+rows of two runs on the identity of the case and lists regressions and improvements.
 
 Only the columns declared in :mod:`rbbench.bench.schema` are read, by name; labels and
 footnotes come from their docs. Rows whose status is not ``ok`` are never plotted or

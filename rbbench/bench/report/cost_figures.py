@@ -9,7 +9,14 @@ import numpy as np
 
 from rbbench.bench.report.analysis import _Ctx, _size, pareto_front
 from rbbench.bench.report.common import _COL, _axis_label, _num, _pos
-from rbbench.bench.report.plotting import _combo_handles, _empty, _figure, _log_axes, _Skip
+from rbbench.bench.report.plotting import (
+    _combo_handles,
+    _empty,
+    _figure,
+    _log_axes,
+    _short_log_ticks,
+    _Skip,
+)
 
 _HF_COLOUR = "tab:red"
 _HF_LABEL = "HF solve (median)"
@@ -150,3 +157,157 @@ def _fig_pareto(ctx: _Ctx):
         caption += " Slower than the HF solve: " + ", ".join(
             f"{sc}: {k} case(s)" for sc, k in slower.items() if k) + "."
     return fig, caption
+
+
+# ------------------------------------------------------------ offline against online
+_EST_TEXT = "t_offline_s - t_snapshots_s + n_train x t_hf_median_s"
+_OFFLINE_X = ("offline wall time with the HF snapshot time (s), median over repetitions\n"
+              "[t_offline_hf_s: training snapshots at their HF solve time + primal, dual,\n"
+              "stabiliser and hyper-reduction steps]")
+_OFFLINE_Y = ("online solve time (s), median over validation mu x repeats\n"
+              "[t_online_median_s]")
+
+
+def offline_hf(c: dict[str, Any]) -> tuple[float | None, bool]:
+    """A case's offline cost with the real HF snapshot time, and whether it is measured.
+
+    ``t_offline_hf_s`` when the row has it (``rbbench reduce``'s result: the training
+    snapshots at their stored HF solve time, also when read from the cache); else, for rows
+    written before that column, the estimate ``t_offline_s - t_snapshots_s + n_train *
+    t_hf_median_s`` (``False``); ``(None, False)`` when neither can be formed.
+    """
+    if _pos(c.get("t_offline_hf_s")):
+        return _num(c["t_offline_hf_s"]), True
+    parts = [_num(c.get(k)) for k in ("t_offline_s", "t_snapshots_s", "n_train",
+                                      "t_hf_median_s")]
+    if all(np.isfinite(parts)):
+        est = parts[0] - parts[1] + parts[2] * parts[3]
+        return (est, False) if est > 0 else (None, False)
+    return None, False
+
+
+def _error_norm(cases: list[dict[str, Any]]) -> Any:
+    """Log colour scale over the cases' err_u_max (a decade when they are all equal)."""
+    from matplotlib.colors import LogNorm
+
+    errs = [_num(c.get("err_u_max")) for c in cases if _pos(c.get("err_u_max"))]
+    if not errs:
+        return LogNorm(1e-3, 1e-1)
+    lo, hi = min(errs), max(errs)
+    return LogNorm(lo, hi) if hi > lo else LogNorm(lo / 3.0, lo * 3.0)
+
+
+def _error_bar(ax, norm: Any, cmap: Any) -> None:
+    """The err_u_max colour bar under a panel: ticks at 1 and 3 per decade, or evenly
+    spaced within a decade (the default minor labels collide)."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.ticker import (
+        LogFormatterSciNotation,
+        LogLocator,
+        MaxNLocator,
+        NullFormatter,
+        StrMethodFormatter,
+    )
+
+    bar = ax.figure.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, location="bottom",
+                             label=_axis_label("err_u_max").replace("\n", " "), aspect=30,
+                             pad=0.02)
+    wide = norm.vmax / norm.vmin > 10
+    bar.ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 3.0)) if wide else MaxNLocator(5))
+    bar.ax.xaxis.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False) if wide
+                                     else StrMethodFormatter("{x:.2g}"))
+    bar.ax.xaxis.set_minor_formatter(NullFormatter())
+
+
+def _offline_panel(ax, ctx: _Ctx, mine: list[dict[str, Any]],
+                   marks: dict[tuple[int, int], float]) -> bool:
+    """One scene: a marker per case at (offline, online), filled with the colour of its
+    err_u_max, outlined in its dual's colour, shaped by the rest of its combination (as in
+    the other figures), a black dot inside when the offline time is estimated; its colour
+    bar below. True if one is estimated."""
+    from matplotlib import colormaps
+
+    cmap, norm = colormaps["viridis"], _error_norm(mine)
+    estimated = False
+    for c in mine:
+        x, measured = offline_hf(c)
+        y, err, st = _num(c["t_online_median_s"]), c.get("err_u_max"), ctx.combos.style(c)
+        z = 3 + 0.4 / marks[_nr(c)]
+        ax.plot([x], [y], linestyle="none", marker=st["marker"], markersize=marks[_nr(c)],
+                markerfacecolor=cmap(norm(_num(err))) if _pos(err) else "0.6",
+                markeredgecolor=st["color"], markeredgewidth=1.5, zorder=z)
+        if not measured:
+            estimated = True
+            ax.plot([x], [y], linestyle="none", marker=".", color="black", markersize=3,
+                    zorder=z + 0.01)
+    _log_axes(ax)
+    _error_bar(ax, norm, cmap)
+    t_hf = hf_median(mine)
+    if t_hf is not None:
+        _hf_line(ax, t_hf, False, np.array([_num(c["t_online_median_s"]) for c in mine]))
+    _short_log_ticks(ax)
+    return estimated
+
+
+def _offline_legend(fig, ctx: _Ctx, pts: list[dict[str, Any]], marks: dict,
+                    estimated: bool) -> None:
+    from matplotlib.lines import Line2D
+
+    handles = _combo_handles(ctx, pts, line=False)
+    for h in handles:  # the outline is the dual's colour, the fill the error's
+        h.set_markerfacecolor("0.85")
+        h.set_markeredgewidth(1.5)
+    grey = {"linestyle": "none", "color": "0.45", "markeredgecolor": "0.15"}
+    handles += [Line2D([], [], marker="o", markersize=ms, label=f"size {_size_text(s)}",
+                       **grey) for s, ms in marks.items()]
+    if hf_median(pts) is not None:
+        handles.append(Line2D([], [], color=_HF_COLOUR, linewidth=1.4, label=_HF_LABEL))
+    if estimated:
+        handles.append(Line2D([], [], linestyle="none", marker=".", color="black",
+                              markersize=5, label="offline time estimated\n"
+                                                  f"({_EST_TEXT})"))
+    fig.legend(handles=handles, loc="outside right upper", fontsize=7,
+               title=f"{ctx.combos.title}\n(outline: dual, fill: error)", title_fontsize=8)
+
+
+def _fig_offline(ctx: _Ctx):
+    """Offline cost against online time, coloured by err_u_max (log colour scale)."""
+    pts = [c for c in ctx.cases if _pos(c.get("t_online_median_s"))
+           and offline_hf(c)[0] is not None]
+    if not pts:
+        raise _Skip("no ok case with an online time and an offline time (t_offline_hf_s, "
+                    "or t_offline_s, t_snapshots_s, n_train and t_hf_median_s)")
+    # larger than in the Pareto figure: the fill (the error) must show inside the outline
+    marks = {s: ms + 3.0 for s, ms in _size_marks(pts).items()}
+    scenes = [sc for sc in ctx.scenes if any(str(c.get("scene")) == sc for c in pts)]
+    fig, axes = _figure(1, len(scenes), h=4.2)
+    estimated = False
+    for ax, sc in zip(axes[0], scenes, strict=True):
+        estimated |= _offline_panel(ax, ctx, [c for c in pts if str(c.get("scene")) == sc],
+                                    marks)
+        ax.set_title(sc, fontsize=10)
+        ax.set_xlabel(_OFFLINE_X, fontsize=7)
+        ax.set_ylabel(_OFFLINE_Y, fontsize=7)
+    _offline_legend(fig, ctx, pts, marks, estimated)
+    fig.suptitle("Offline cost against online time, coloured by the error (ok cases)",
+                 fontsize=11, x=0.02, ha="left")  # clear of the (tall) legend
+    return fig, _offline_caption(pts, estimated)
+
+
+def _offline_caption(pts: list[dict[str, Any]], estimated: bool) -> str:
+    cached = sum(1 for c in pts if (_num(c.get("n_snapshots_cached")) or 0) > 0)
+    text = ("Each marker is one ok case (repetitions combined: times median, error max); "
+            "outline colour: its dual compressor, marker shape: the rest of its "
+            "combination, marker size: its N, R, fill colour: err_u_max (log colour "
+            f"scale of the scene, bar below the panel), {_COL['err_u_max'].doc}. x: "
+            f"t_offline_hf_s, {_COL['t_offline_hf_s'].doc}"
+            f"; y: t_online_median_s, {_COL['t_online_median_s'].doc}. Red line: one HF "
+            "solve (median over the scene's cases of t_hf_median_s); shaded: online slower "
+            "than the HF solve. A case pays off after about x / (t_HF - y) online solves.")
+    if cached:
+        text += (f" {cached} case(s) read snapshots from the cache (n_snapshots_cached > 0): "
+                 "their t_offline_s counts the cache reads only, x counts the HF solves.")
+    if estimated:
+        text += (" Black dot: rows without t_offline_hf_s (written before that column), x "
+                 f"estimated as {_EST_TEXT}.")
+    return text

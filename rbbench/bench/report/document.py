@@ -44,6 +44,7 @@ _ROW_COLUMNS = ("scene", "backend", "formulation", "solver", "primal", "dual",
                 "friction_residual", "hf_iterations", "t_hf_median_s", "t_offline_s",
                 "t_online_median_s", "speedup", "case_id")
 _TITLES = {"pareto": "Error against online time (Pareto fronts)",
+           "offline": "Offline cost against online time",
            "error_vs_size": "Error against RB size", "infsup": "Inf-sup constants",
            "histories": "Offline histories", "speedup": "Speed-up",
            "gcns": "GCNS curves (reduced friction)", "status": "Status counts",
@@ -172,7 +173,7 @@ def report(run_dir: str | Path, out_dir: str | Path | None = None,
     Returns
     -------
     ReportOutput
-        The paths written: ``pareto``, ``error_vs_size``, ``infsup``, ``histories``,
+        The paths written: ``pareto``, ``offline``, ``error_vs_size``, ``infsup``, ``histories``,
         ``speedup``, ``gcns``, ``status`` and, per ok friction case with profiles,
         ``lam_t_<case_id>`` (each in every format, unless skipped for lack of data: the
         summary says why), ``summary.md`` and ``summary.html`` (with a table of the
@@ -331,7 +332,9 @@ def _figures_section(d: _Doc, drawn: _Drawn, img_fmt: str) -> None:
             d.heading(f"{_TITLES[name]} (not drawn)", 3)
             d.para(f"Skipped: {drawn.skipped.get(name, 'no data')}.")
     d.use("err_u_max", "err_lam_max", "t_online_median_s", "N", "R", "speedup",
-          "t_hf_median_s", "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min")
+          "t_hf_median_s", "t_offline_s", "t_snapshots_s", "t_snapshots_hf_s",
+          "t_offline_hf_s", "n_snapshots_cached", "n_train", "beta_hf_min", "beta_dec_min",
+          "beta_on_min", "beta_off_min")
 
 
 def _not_ok_section(d: _Doc, ctx: _Ctx) -> None:

@@ -77,3 +77,15 @@ def _log_axes(ax) -> None:
     ax.set_yscale("log")
     ax.xaxis.set_minor_formatter(NullFormatter())
     ax.grid(True, which="major", alpha=0.3)
+
+
+def _short_log_ticks(ax) -> None:
+    """On a log axis spanning less than a decade (one major tick or none), evenly spaced
+    ticks labelled as plain numbers instead; call once the limits are final."""
+    from matplotlib.ticker import MaxNLocator, NullFormatter, StrMethodFormatter
+
+    for axis, (lo, hi) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+        if axis.get_scale() == "log" and lo > 0 and hi / lo < 10:
+            axis.set_major_locator(MaxNLocator(5))
+            axis.set_major_formatter(StrMethodFormatter("{x:.3g}"))
+            axis.set_minor_formatter(NullFormatter())
