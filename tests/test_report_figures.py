@@ -18,11 +18,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from matplotlib import colormaps
 
 from rbbench.bench import schema
 from rbbench.bench.execution import _fill
-from rbbench.bench.report import load_run, report
+from rbbench.bench.report import best_per_level, load_run, report
 from rbbench.bench.report.analysis import _context
 from rbbench.bench.report.common import _LINESTYLES
 from rbbench.bench.report.cost_figures import _HF_LABEL, _error_norm, _fig_offline, _fig_pareto
@@ -230,3 +232,68 @@ def test_offline_figure_uses_the_hf_snapshot_time(ctx, tmp_path):
     out = report(_write(tmp_path / "run", _records()), formats=("png",))
     assert (tmp_path / "run" / "report" / "offline.png").is_file()
     assert "offline.png" in out.summary_md.read_text()
+
+
+# ------------------------------------------------------------ 4. best per error level
+#: (scene, case, online time, err_u_max): all of "h" under 1e-3, as Hertz in the quick run
+TABLE = (("h", "A", 1e-3, 4.0e-4), ("h", "B", 2e-3, 3.5e-4), ("h", "C", 3e-3, 3.5e-4),
+         ("h", "D", 0.5, 2.2e-4), ("h", "E", 0.6, 3.0e-4),
+         ("m", "G", 1e-4, 0.019), ("m", "H", 2e-4, 0.0104), ("m", "I", 3e-4, 0.05))
+
+
+def _table_rows(table=TABLE) -> list[dict]:
+    return [schema.normalise_row(
+        {"scene": sc, "case_id": cid, "repetition": 0, "status": "ok", "dual": cid,
+         "stabilizer": "none", "hyper_used": "affine", "N": 6, "R": 6, "N_req": 6,
+         "R_req": 6, "err_u_max": e, "t_online_median_s": t}) for sc, cid, t, e in table]
+
+
+def test_fixed_levels_repeat_the_fastest_case_front_levels_do_not():
+    fixed = best_per_level(_table_rows())  # the old table: A at 0.1, 0.01 and 0.001
+    assert list(fixed[fixed["scene"] == "h"]["case_id"]) == ["A", "A", "A"]
+    bp = best_per_level(_table_rows(), levels="front")
+    got = {sc: [(r["level"], r["case_id"]) for r in bp.to_dict("records") if r["scene"] == sc]
+           for sc in ("h", "m")}
+    # h: the front A, B, D (C equals B but is slower, E is dominated by D); none at 1e-4
+    assert got["h"] == [(4.0e-4, "A"), (3.5e-4, "B"), (2.2e-4, "D"), (1e-4, None)]
+    assert got["m"] == [(0.019, "G"), (0.0104, "H"), (0.01, None)]
+    none = bp[~bp["found"].astype(bool)]
+    assert none["combination"].isna().all() and len(none) == 2
+
+
+def _brute(table, scene: str, level: float) -> str | None:
+    ok = [(t, e, c) for sc, c, t, e in table if sc == scene and e <= level]
+    return min(ok)[2] if ok else None
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(1e-5, 1.0), st.floats(1e-6, 1.0)), min_size=1,
+                max_size=12, unique_by=lambda p: p[0]))
+def test_front_levels_each_the_fastest_case_within_it(pts):
+    """Every level: the case a brute-force search finds (fastest with err <= level); no two
+    consecutive levels give the same case; the levels fall; the last one no case meets."""
+    table = [("s", f"c{k}", t, e) for k, (t, e) in enumerate(pts)]
+    recs = best_per_level(_table_rows(table), levels="front").to_dict("records")
+    levels = [r["level"] for r in recs]
+    assert levels == sorted(levels, reverse=True) and len(set(levels)) == len(levels)
+    for r in recs:
+        assert r["case_id"] == _brute(table, "s", r["level"]), r
+        if r["found"]:
+            assert r["err_u_max"] <= r["level"] <= r["err_u_max"] * (1 + 1e-2)
+    ids = [r["case_id"] for r in recs]
+    assert all(a != b for a, b in zip(ids, ids[1:], strict=False))
+    assert ids[0] == _brute(table, "s", 1.0) and ids[-1] is None
+    assert levels[-1] < min(e for _, e in pts)
+
+
+def test_best_per_level_rejects_unknown_levels_and_report_states_the_levels(tmp_path):
+    with pytest.raises(ValueError, match="'front'"):
+        best_per_level(_table_rows(), levels="auto")
+    d = tmp_path / "t"
+    _write(d, [{"row": r, "details": {}} for r in _table_rows()])
+    md = report(d, formats=("png",)).summary_md.read_text()
+    section = md.split("(err_u_max)")[1].split("## ")[0]
+    assert "Pareto front" in section and "power of ten below" in section
+    for lev, cid in ((0.0004, "A"), (0.00035, "B"), (0.00022, "D")):
+        assert f"| h | {lev:g} |" in section and f"| {cid} |" in section
+    assert "| h | 0.0001 | none reaches it |" in section

@@ -3,6 +3,7 @@ the best case per error level, Pareto fronts, and the names of the combinations.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -230,29 +231,78 @@ _BEST_COLUMNS = ("scene", "level", "found", "combination", "dual", "stabilizer",
                  "case_id", "repetitions", "N", "R", "S", "t_online_median_s", "speedup")
 
 
-def _fastest(cases: list[dict[str, Any]], column: str, combos: _Combos,
-             levels: Sequence[float]) -> dict[tuple[str, float], dict[str, Any]]:
-    """``(scene, level) -> case``: the fastest case with ``column <= level`` (ties: the
-    smaller error, then the label, then the case id)."""
-    if not cases:
-        return {}
+def _case_frame(cases: list[dict[str, Any]], column: str, combos: _Combos) -> pd.DataFrame:
+    """Scene, online time ``t``, error ``e``, label and case id of the cases with a finite
+    time and error, fastest first (ties: the smaller error, the label, the case id); the
+    index is the position in ``cases``."""
     cf = pd.DataFrame({"scene": [str(c.get("scene")) for c in cases],
-                       "t": [_num(c.get("t_online_median_s")) for c in cases],
-                       "e": [_num(c.get(column)) for c in cases],
+                       "t": pd.Series([_num(c.get("t_online_median_s")) for c in cases],
+                                      dtype=float),
+                       "e": pd.Series([_num(c.get(column)) for c in cases], dtype=float),
                        "label": [combos.label(c) for c in cases],
                        "case_id": [str(c.get("case_id")) for c in cases]})
     cf = cf[np.isfinite(cf["t"]) & np.isfinite(cf["e"])]
-    cf = cf.sort_values(["t", "e", "label", "case_id"], kind="stable")
+    return cf.sort_values(["t", "e", "label", "case_id"], kind="stable")
+
+
+def _fastest(cf: pd.DataFrame, levels: dict[str, Sequence[float]]) -> dict[tuple, int]:
+    """``(scene, level) -> index`` of the first case of ``cf`` (the fastest) with
+    ``e <= level``, for each scene's levels; absent when no case reaches the level."""
     best = {}
-    for lev in levels:
-        first = cf[cf["e"] <= lev].groupby("scene", sort=False).head(1)
-        best.update({(sc, lev): cases[i] for i, sc in zip(first.index, first["scene"],
-                                                           strict=True)})
+    for sc, levs in levels.items():
+        mine = cf[cf["scene"] == sc]
+        for lev in levs:
+            hit = mine.index[mine["e"].to_numpy() <= lev]
+            if len(hit):
+                best[(sc, float(lev))] = int(hit[0])
     return best
 
 
+def _ceil_digits(e: float, digits: int = 3) -> float:
+    """``e`` rounded up to ``digits`` significant digits (as the tables print it)."""
+    q = 10.0 ** (math.floor(math.log10(e)) - digits + 1)
+    lev = float(f"{math.ceil(e / q * (1 - 1e-12)) * q:.{digits}g}")
+    return lev if lev >= e else float(f"{lev + q:.{digits}g}")
+
+
+def _front_levels(cf: pd.DataFrame) -> dict[str, list[float]]:
+    """Per scene, error levels that tell its cases apart (loosest first): the errors of the
+    Pareto front of (online time, error) rounded up to 3 significant digits (errors equal
+    to 3 digits give one level), a level whose fastest case is that of the looser level
+    left out; then the power of ten below the smallest error (no case reaches it)."""
+    out = {}
+    for sc in sorted(set(cf["scene"])):
+        mine = cf[(cf["scene"] == sc) & (cf["e"] > 0)]
+        if mine.empty:
+            continue
+        t, e = mine["t"].to_numpy(), mine["e"].to_numpy()
+        cand = sorted({_ceil_digits(x) for x in e[pareto_front(t, e)]}, reverse=True)
+        found = _fastest(mine, {sc: cand})
+        levels = [lev for k, lev in enumerate(cand)
+                  if k == 0 or found[(sc, lev)] != found[(sc, cand[k - 1])]]
+        below = 10.0 ** math.floor(math.log10(e.min()))
+        out[sc] = [*levels, below / 10 if below >= e.min() else below]
+    return out
+
+
+def _best_row(sc: str, lev: float, b: dict[str, Any] | None, column: str,
+              combos: _Combos) -> dict[str, Any]:
+    """One line of :func:`best_per_level`: the level and its fastest case (or none)."""
+    row: dict[str, Any] = {"scene": sc, "level": float(lev), "found": b is not None}
+    if b is None:
+        row.update(dict.fromkeys(_BEST_COLUMNS[3:]))
+        row[column] = None
+        return row
+    row.update({"combination": combos.label(b), "dual": b.get("dual"),
+                "stabilizer": b.get("stabilizer"), "hyper_used": b.get("hyper_used"),
+                "case_id": b.get("case_id"), "repetitions": b["n_rep"], "N": b.get("N"),
+                "R": b.get("R"), "S": b.get("S"), column: b[column],
+                "t_online_median_s": b["t_online_median_s"], "speedup": b.get("speedup")})
+    return row
+
+
 def best_per_level(rows: RowsLike, column: str = "err_u_max",
-                   levels: Sequence[float] = ERROR_LEVELS) -> pd.DataFrame:
+                   levels: Sequence[float] | str = ERROR_LEVELS) -> pd.DataFrame:
     """The fastest ok case per scene whose error is within each level.
 
     Repetitions of a case are combined first (error: max over the ok repetitions; online
@@ -264,40 +314,40 @@ def best_per_level(rows: RowsLike, column: str = "err_u_max",
         Results rows (any statuses; only ``ok`` rows count).
     column : str
         The error column (``err_u_max`` or ``err_lam_max``).
-    levels : sequence of float
-        Error levels.
+    levels : sequence of float, or ``"front"``
+        Error levels, the same for every scene; ``"front"``: per scene, levels that tell
+        its cases apart (fixed levels can all be met by the fastest case): the errors of
+        its Pareto front of (online time, error), each rounded up to 3 significant digits
+        (as the tables print them), a level whose fastest case is that of the looser one
+        left out, then the power of ten below its smallest error (which no case
+        reaches). A scene without a case with an error and a time gets
+        :data:`ERROR_LEVELS`.
 
     Returns
     -------
     pandas.DataFrame
-        One row per scene x level: ``scene``, ``level``, ``found`` (bool), ``combination``
-        (its label), ``dual``, ``stabilizer``, ``hyper_used``, ``case_id``,
-        ``repetitions`` (ok repetitions combined), ``N``, ``R``, ``S``, ``column`` value,
-        ``t_online_median_s``, ``speedup`` (``None`` when no case reaches the level).
-        Ties on time go to the smaller error.
+        One row per scene x level (loosest first): ``scene``, ``level``, ``found`` (bool),
+        ``combination`` (its label), ``dual``, ``stabilizer``, ``hyper_used``,
+        ``case_id``, ``repetitions`` (ok repetitions combined), ``N``, ``R``, ``S``,
+        ``column`` value, ``t_online_median_s``, ``speedup`` (``None`` when no case
+        reaches the level). Ties on time go to the smaller error.
     """
+    if isinstance(levels, str) and levels != "front":
+        raise ValueError(f"levels {levels!r}: valid: a sequence of floats, or 'front'")
     df = results_frame(rows)
     recs = records(df)
     ok = [r for r in recs if r.get("status") == "ok"]
     combos = _Combos(ok or recs)
-    best = _fastest(_cases(df), column, combos, levels)
-    out = []
-    for sc in _scenes(recs):
-        for lev in levels:
-            b = best.get((sc, lev))
-            row: dict[str, Any] = {"scene": sc, "level": float(lev), "found": b is not None}
-            if b is not None:
-                row.update({"combination": combos.label(b), "dual": b.get("dual"),
-                            "stabilizer": b.get("stabilizer"),
-                            "hyper_used": b.get("hyper_used"), "case_id": b.get("case_id"),
-                            "repetitions": b["n_rep"], "N": b.get("N"), "R": b.get("R"),
-                            "S": b.get("S"), column: b[column],
-                            "t_online_median_s": b["t_online_median_s"],
-                            "speedup": b.get("speedup")})
-            else:
-                row.update(dict.fromkeys(_BEST_COLUMNS[3:]))
-                row[column] = None
-            out.append(row)
+    cases = _cases(df)
+    cf = _case_frame(cases, column, combos)
+    scenes = _scenes(recs)
+    per_scene = _front_levels(cf) if levels == "front" else {}
+    per_scene = {sc: per_scene.get(sc) or list(ERROR_LEVELS if levels == "front" else levels)
+                 for sc in scenes}
+    best = _fastest(cf, per_scene)
+    out = [_best_row(sc, lev, cases[best[(sc, float(lev))]] if (sc, float(lev)) in best
+                     else None, column, combos)
+           for sc in scenes for lev in per_scene[sc]]
     cols = [*_BEST_COLUMNS[:-3], column, *_BEST_COLUMNS[-3:]]
     return pd.DataFrame(out, columns=cols, dtype=object)
 

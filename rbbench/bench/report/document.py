@@ -24,6 +24,7 @@ from rbbench.bench.report.common import (
     _BETAS,
     _COL,
     _COMBO_IF_VARYING,
+    ERROR_LEVELS,
     _fmt,
     _header,
     _md_table,
@@ -277,12 +278,17 @@ def _status_section(d: _Doc, ctx: _Ctx) -> None:
 
 def _best_section(d: _Doc, ctx: _Ctx, col: str) -> None:
     d.heading(f"Best combination per scene at each error level ({col})")
-    bp = best_per_level(ctx.run.rows, col) if ctx.records else pd.DataFrame()
+    bp = best_per_level(ctx.run.rows, col, levels="front") if ctx.records else pd.DataFrame()
     if bp.empty:
         d.para("No rows.")
         return
     d.para(f"For each level: the ok case with the smallest t_online_median_s among those "
-           f"with {col} <= level.")
+           f"with {col} <= level. The levels are chosen per scene so that each has its own "
+           f"fastest case (fixed levels such as {', '.join(f'{v:g}' for v in ERROR_LEVELS)} "
+           "can all be met by the fastest case): the errors of the scene's Pareto front "
+           "(online time against error, see the Pareto figure) rounded up to 3 significant "
+           "digits, loosest first, then the power of ten below the smallest error, which "
+           "no case reaches.")
     heads = ["scene", f"{col} <=", "combination", "N", "R", "S", _header(col),
              _header("t_online_median_s"), _header("speedup"), "case_id"]
     rows = []
