@@ -24,7 +24,8 @@ with ``K' = R^R \\ {0}`` for the span of the generators (a generalised eigenvalu
 :func:`infsup_span`, exact, and a lower bound of the cone value) and ``K' = R^R_+ \\ {0}``
 for the cone ``Span+(Vg)`` (a non-convex problem: :func:`infsup_cone`, exact by face
 enumeration for small ``R``, else a multistart upper estimate). ``beta = 0`` on the cone
-iff ``C alpha = 0`` for some ``alpha >= 0, sum(alpha) = 1``: an LP, :func:`beta_zero_test`.
+iff ``C alpha = 0`` for some ``alpha >= 0, sum(alpha) = 1``: :func:`beta_zero_test`
+(:mod:`rbbench.rb.infsup_zero`: an SVD bound, else an LP).
 
 Which number is which (seed 000, slide "Projected Greedy Algorithm (2/2)"), for one ``mu``:
 
@@ -46,7 +47,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
-from scipy.optimize import linprog, minimize
+from scipy.optimize import minimize
+
+from rbbench.rb.infsup_zero import beta_zero_certificate, beta_zero_test, zero_test
 
 __all__ = [
     "InfSup",
@@ -60,6 +63,7 @@ __all__ = [
     "quotient_matrices",
     "span_constants",
     "supremizer_operator",
+    "zero_test",
 ]
 
 Solver = Callable[[np.ndarray], np.ndarray]
@@ -319,9 +323,10 @@ class InfSup:
     span : float
         :func:`infsup_span`, the inf-sup over ``span(Vg)``: a LOWER BOUND of the cone value.
         The true cone constant lies in ``[span, value]``.
-    is_zero : bool
-        Outcome of the exact LP test :func:`beta_zero_test`: the cone constant is 0 (some
-        non-zero ``eta`` in the cone is annihilated by ``B^T`` on ``Y``).
+    is_zero : bool or None
+        Outcome of the exact test :func:`beta_zero_test`: the cone constant is 0 (some
+        non-zero ``eta`` in the cone is annihilated by ``B^T`` on ``Y``); None: undecided
+        (no LP method returned a usable point, the reason in ``zero_note``).
     argmin : (R,) ndarray
         ``y* >= 0`` with ``sum(y*) = 1`` attaining ``value`` (the minimising multiplier is
         ``Vg @ argmin``).
@@ -330,8 +335,9 @@ class InfSup:
     value: float
     kind: str
     span: float
-    is_zero: bool
+    is_zero: bool | None
     argmin: np.ndarray
+    zero_note: str = ""
 
 
 def _quotients(Y: np.ndarray, S: np.ndarray, M: np.ndarray) -> np.ndarray:
@@ -506,67 +512,6 @@ def infsup_cone(S: np.ndarray, M: np.ndarray, *, C: np.ndarray | None = None,
         rtol = 1e-6 if zero_rtol is None else zero_rtol
     else:
         rtol = 1e-9 if zero_rtol is None else zero_rtol
+    zero = zero_test(C, rtol=rtol)
     return InfSup(value=float(np.sqrt(max(q, 0.0))), kind=kind, span=span,
-                  is_zero=beta_zero_test(C, rtol=rtol), argmin=y)
-
-
-# --------------------------------------------------------------------------- beta = 0
-
-
-def beta_zero_certificate(C: np.ndarray) -> tuple[float, np.ndarray]:
-    """Distance from the origin to the convex hull of the unit-normalised columns of ``C``.
-
-    Solves the LP ``min ||Rc a||_1  s.t.  a >= 0, sum(a) = 1`` (slack variables ``s``:
-    ``-s <= Rc a <= s``, minimise ``sum(s)``; HiGHS with feasibility tolerances 1e-10), where
-    ``Rc`` is the triangular factor of ``C D`` (QR, when ``C`` has more rows than columns;
-    it preserves ``||C D a||_2``) and ``D = diag(1 / ||C_j||_2)``. Zero columns (norm 0)
-    are an immediate certificate.
-
-    Returns
-    -------
-    dist : float
-        ``||C D a||_2`` recomputed in floating point at the LP's ``a`` (clipped to
-        ``>= 0``, renormalised): 0 iff ``beta = 0`` on the cone (exactly); in general the
-        LP minimiser is within a factor ``sqrt(R)`` of the Euclidean distance of the hull.
-    alpha : (R,) ndarray
-        ``D a / sum(D a)``: the candidate non-negative null vector of ``C`` (``sum = 1``).
-    """
-    C = np.asarray(C, dtype=float)
-    k, R = C.shape
-    if R == 0:
-        return float("inf"), np.zeros(0)
-    norms = np.linalg.norm(C, axis=0)
-    if np.any(norms == 0):
-        alpha = (norms == 0).astype(float)
-        return 0.0, alpha / alpha.sum()
-    Cn = C / norms
-    Rc = np.linalg.qr(Cn, mode="r") if k > R else Cn
-    kr = Rc.shape[0]
-    if kr == 0:
-        return 0.0, np.full(R, 1.0 / R)
-    cost = np.concatenate([np.zeros(R), np.ones(kr)])
-    I = np.eye(kr)
-    A_ub = np.block([[Rc, -I], [-Rc, -I]])
-    A_eq = np.concatenate([np.ones(R), np.zeros(kr)])[None, :]
-    res = linprog(cost, A_ub=A_ub, b_ub=np.zeros(2 * kr), A_eq=A_eq, b_eq=[1.0],
-                  bounds=(0, None), method="highs",
-                  options={"primal_feasibility_tolerance": 1e-10,
-                           "dual_feasibility_tolerance": 1e-10})
-    if res.x is None:  # pragma: no cover - the LP is always feasible and bounded
-        raise RuntimeError(f"beta = 0 LP failed: {res.message}")
-    a = np.clip(res.x[:R], 0.0, None)
-    a /= a.sum()
-    alpha = a / norms
-    return float(np.linalg.norm(Cn @ a)), alpha / alpha.sum()
-
-
-def beta_zero_test(C: np.ndarray, *, rtol: float = 1e-9) -> bool:
-    """Exact test for ``beta = 0`` on the cone: ``exists alpha >= 0, sum 1, C alpha = 0``?
-
-    ``C`` (k x R) is :func:`cone_coupling` (or ``Z^T B^T Vg``, ``B^T Vg``: same null space).
-    Decision: ``dist <= rtol`` where ``dist`` is :func:`beta_zero_certificate`, i.e. some
-    convex combination of the *unit-normalised* columns of ``C`` has Euclidean norm at most
-    ``rtol`` (scale-free; the LP itself is solved to 1e-10). Returns ``False`` for ``R = 0``.
-    """
-    dist, _ = beta_zero_certificate(C)
-    return bool(dist <= rtol)
+                  is_zero=zero.is_zero, argmin=y, zero_note=zero.note)

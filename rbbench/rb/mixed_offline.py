@@ -53,7 +53,9 @@ DEFINITIONS = {
     "beta": "inf-sup constants per validation mu: 'value' is the cone value (kind "
             "'cone-exact': face enumeration; 'cone-upper': best local minimum, an UPPER "
             "estimate), 'span' the inf-sup over span(generators), a LOWER bound of the cone "
-            "value; 'is_zero' the exact LP test for beta = 0. hf: whole V against the HF "
+            "value; 'is_zero' the exact test for beta = 0 (an SVD bound, else an LP: "
+            "rbbench.rb.infsup_zero), null when no LP method decided, the reason in "
+            "'zero_note'. hf: whole V against the HF "
             "cone W+ (kind 'span-lower-bound': the span value over all multipliers, a lower "
             "bound; 'c': c_HF(mu), the continuity constant of b(mu) on V x W, "
             "sup b(v, eta) / (||v||_X ||eta||_W)); dec: V_N; on: V_N + S_R(mu) (online "
@@ -243,9 +245,10 @@ class MixedStage(ReducedStage):
         # value (a lower bound of the cone value) is computable at this size
         Wd = Wm.toarray() if hasattr(Wm, "toarray") else np.asarray(Wm)
         b_hf, c_hf = inf.span_constants(H @ H.T, Wd)
+        zero = inf.zero_test(H.T)
         self.beta["hf"].append(_normalised({"value": b_hf, "kind": "span-lower-bound",
-                                            "span": b_hf, "c": c_hf,
-                                            "is_zero": inf.beta_zero_test(H.T)}, c_hf))
+                                            "span": b_hf, "c": c_hf, "is_zero": zero.is_zero,
+                                            "zero_note": zero.note}, c_hf))
         S, M = inf.quotient_matrices(B, X, Vg, Wm, Z=Z)
         self.beta["dec"].append(_labelled(inf.infsup_cone(
             S, M, C=(Z.T @ (B.T @ Vg)), exact_max_r=exact_max_r), c_hf))
@@ -335,13 +338,15 @@ def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_tr
 def _labelled(r: inf.InfSup, c_hf: float) -> dict[str, Any]:
     """One beta row of an :class:`~rbbench.rb.infsup.InfSup` (DEFINITIONS["beta"])."""
     return _normalised({"value": float(r.value), "kind": r.kind, "span": float(r.span),
-                        "is_zero": r.is_zero}, c_hf)
+                        "is_zero": r.is_zero, "zero_note": r.zero_note}, c_hf)
 
 
 def _normalised(row: dict[str, Any], c_hf: float) -> dict[str, Any]:
     """``row`` with ``value_rel = value / c_HF(mu)``, ``span_rel = span / c_HF(mu)`` (NaN
-    when ``c_HF = 0``) and ``is_zero`` as a bool (None: undecided)."""
+    when ``c_HF = 0``), ``is_zero`` as a bool (None: undecided) and ``zero_note`` (why
+    undecided) only when there is one."""
     rel = 1.0 / c_hf if c_hf > 0 else float("nan")
-    zero = row["is_zero"]
+    zero, note = row["is_zero"], row.pop("zero_note", "")
     return {**row, "value_rel": float(row["value"]) * rel, "span_rel": float(row["span"]) * rel,
-            "is_zero": None if zero is None else bool(zero)}
+            "is_zero": None if zero is None else bool(zero), **({"zero_note": note} if note
+                                                                else {})}
