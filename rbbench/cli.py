@@ -425,7 +425,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_solve_parser(sub) -> None:
-    s = sub.add_parser("solve", help="one HF contact solve: summary, contact.csv, VTU, PNG")
+    s = sub.add_parser("solve", help="one HF contact solve: summary, contact.csv, VTU, PNG; "
+                       "exit 1 when it did not converge or is flagged (stop_reason 'flagged': "
+                       "zero contact force while the bodies overlap, see summary.json "
+                       "warnings)")
     s.add_argument("scene", help="scene name in problems/ or path to a .toml file")
     s.add_argument("--mu", type=float, nargs="+", help="parameter value(s) (default: scene's)")
     s.add_argument("--backend", default="skfem")
