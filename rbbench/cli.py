@@ -315,7 +315,7 @@ def _add_run_parsers(sub) -> None:
     r.add_argument("matrix", help="matrix file, or a name in problems/matrices/")
     r.add_argument("-s", "--select", action="append", metavar="ROLE=NAME[,NAME]",
                    help="keep only these (globs allowed; roles: scene, backend, formulation, "
-                        "solver, primal, dual, stabilizer, hyper, N, R); repeatable")
+                        "solver, primal, dual, stabilizer, hyper, friction_dual, N, R); repeatable")
     r.add_argument("--set", action="append", metavar="FIELD=VALUE",
                    help="override a [reduce] field for every case (repeatable)")
     r.add_argument("--dry-run", action="store_true", help="list the cases and exit")

@@ -130,8 +130,9 @@ class Case:
         if self.mode == "hf":
             return f"{self.scene} HF {c['backend']}/{c['formulation']}/{c['solver']}"
         fd = self.params.get("friction_dual")
+        gcns = "".join(f" {k}={v}" for k, v in self.params.items() if k.startswith("gcns_"))
         return (f"{self.scene} {c['dual']}+{c['stabilizer']}+{c['hyper']}"
-                + (f" friction_dual={fd}" if fd else "") + f" N={self.N} R={self.R}"
+                + (f" friction_dual={fd}" if fd else "") + gcns + f" N={self.N} R={self.R}"
                 + (f" rep {self.repetition}" if self.repetition else ""))
 
     def reduce_config(self, cache_dir: str) -> Any:

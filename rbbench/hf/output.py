@@ -226,7 +226,8 @@ def _draw_bodies(axes: Any, fig: Any, sol: HFSolution, table: dict) -> None:
         axes[1].set_ylim(yc - 1.5 * a, yc + 1.5 * a)
         axes[0].set_title("deformed configuration (scale 1), von Mises stress")
         axes[1].set_title("contact zone (zoom)")
-        fig.colorbar(pc, ax=axes[1], label="von Mises stress (Pa)")
+        for ax in axes[:2]:  # same colour scale (vmin 0, vmax shared): one bar per panel
+            fig.colorbar(pc, ax=ax, label="von Mises stress (Pa)")
         return
     body = sol.disc.bodies[0]
     tri = Triangulation(*body.points.T, body.triangles)
@@ -234,7 +235,8 @@ def _draw_bodies(axes: Any, fig: Any, sol: HFSolution, table: dict) -> None:
     fig.colorbar(pc, ax=axes[0], label="u")
     axes[0].set_title("membrane displacement u")
     act = table["pressure"] > 0
-    axes[1].scatter(table["x"][act], table["y"][act], s=8, c=table["pressure"][act])
+    sc = axes[1].scatter(table["x"][act], table["y"][act], s=8, c=table["pressure"][act])
+    fig.colorbar(sc, ax=axes[1], label="contact multiplier")
     axes[1].set_xlim(0, 1)
     axes[1].set_ylim(0, 1)
     axes[1].set_title("contact set (coloured by multiplier)")

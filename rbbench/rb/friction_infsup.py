@@ -78,13 +78,14 @@ def combined_pga(problems: Sequence[Any], Z: np.ndarray, X: Any, x_solve: Any,
     return pga(T_list, Z, X, delta, max_dim=max_dim)
 
 
-def mixed_zero_test(C: np.ndarray, R: int, *, rtol: float = 1e-9) -> bool:
+def mixed_zero_test(C: np.ndarray, R: int, *, rtol: float = 1e-9) -> bool | None:
     """Exact test of ``beta = 0``: is there ``y = (c, theta) != 0``, ``c >= 0``, ``C y = 0``?
 
     ``C`` (k x (R + S)) is the coupling (:func:`rbbench.rb.infsup.cone_coupling`). Yes if
     the tangential columns are rank deficient (relative singular value ``<= rtol``);
     otherwise iff ``P C_n`` has a non-negative null vector, ``P`` the orthogonal projector
-    onto the complement of ``range(C_t)`` (the LP of :func:`rbbench.rb.infsup.beta_zero_test`).
+    onto the complement of ``range(C_t)`` (the LP of :func:`rbbench.rb.infsup.beta_zero_test`);
+    ``None`` when that test is undecided.
     """
     C = np.asarray(C, dtype=float)
     Cn, Ct = C[:, :R], C[:, R:]
@@ -93,7 +94,10 @@ def mixed_zero_test(C: np.ndarray, R: int, *, rtol: float = 1e-9) -> bool:
         if s.size < Ct.shape[1] or s[-1] <= rtol * max(s[0], np.finfo(float).tiny):
             return True
         Cn = Cn - U @ (U.T @ Cn)
-    return bool(R > 0 and inf.beta_zero_test(Cn, rtol=rtol))
+    if R == 0:
+        return False
+    zero = inf.beta_zero_test(Cn, rtol=rtol)
+    return None if zero is None else bool(zero)
 
 
 def _face_values(S: np.ndarray, M: np.ndarray, R: int, faces: Sequence[tuple[int, ...]],
@@ -196,7 +200,7 @@ class CombinedInfSup:
     value: float
     kind: str
     span: float
-    is_zero: bool
+    is_zero: bool | None
     c: float
     value_rel: float
     span_rel: float
