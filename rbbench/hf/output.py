@@ -224,7 +224,7 @@ def _draw_bodies(axes: Any, fig: Any, sol: HFSolution, table: dict) -> None:
         yc = float(np.mean(table["y"]))
         axes[1].set_xlim(-2.5 * a, 2.5 * a)
         axes[1].set_ylim(yc - 1.5 * a, yc + 1.5 * a)
-        axes[0].set_title("deformed configuration (scale 1), von Mises stress")
+        axes[0].set_title("deformed configuration (scale 1)")
         axes[1].set_title("contact zone (zoom)")
         for ax in axes[:2]:  # same colour scale (vmin 0, vmax shared): one bar per panel
             fig.colorbar(pc, ax=ax, label="von Mises stress (Pa)")
