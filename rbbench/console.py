@@ -29,13 +29,16 @@ def _fmt(v) -> str:
 
 def print_summary(m: dict, mu: dict) -> None:
     keys = ["n_dofs", "n_contact", "n_active", "iterations", "stop_reason", "final_residual",
-            "solver_stop_reason", "solve_time_s", "contact_force", "contact_half_width",
+            "solver_stop_reason", "solve_time_s", "floor_s", "solve_over_floor",
+            "contact_force", "contact_half_width",
             "contact_half_width_gap", "contact_half_width_gap_tol", "max_pressure",
             "complementarity", "penetration_max", "zone_saturated", "e_ac",
             "tangential_force", "n_stick", "n_slip", "n_open", "stick_half_width",
             "friction_residual"]
     print("mu: " + ", ".join(f"{k} = {v:g}" for k, v in mu.items()))
-    notes = {"contact_half_width": "  (quantised to whole multiplier supports)",
+    notes = {"floor_s": "  (one factorisation + one solve of A, this run)",
+             "solve_over_floor": "  (solver time times_s.solve_s / floor_s)",
+             "contact_half_width": "  (quantised to whole multiplier supports)",
              "contact_half_width_gap": "  (pointwise gap <= contact_half_width_gap_tol, "
                                        "edges interpolated)"}
     for k in keys:

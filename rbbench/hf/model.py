@@ -16,9 +16,11 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from rbbench.hf import lcp
 from rbbench.hf.contact_checks import flag, gap_checks
 from rbbench.hf.mindlin_check import MINDLIN_DEFINITION, mindlin_metrics
 from rbbench.hf.references import hertz_of_bodies
+from rbbench.hf.threads import BLAS_THREADS_DEFINITION, one_blas_thread
 from rbbench.interfaces import (
     ContactProblem,
     Discretization,
@@ -202,11 +204,28 @@ class HFModel:
         self.registry, self.solver_options = registry, solver_options
         self.components = components
 
-    def solve(self, mu: Any = None, progress: Callable[[str], None] = _noop) -> HFSolution:
+    def solve(self, mu: Any = None, progress: Callable[[str], None] = _noop,
+              floor: bool = False) -> HFSolution:
         """Solve at ``mu`` (default: the scene default); a
-        :class:`~rbbench.scene.parameters.SceneError` names a parameter outside D."""
+        :class:`~rbbench.scene.parameters.SceneError` names a parameter outside D.
+
+        The solve runs with one BLAS thread (:func:`rbbench.hf.threads.one_blas_thread`,
+        recorded in ``metrics["blas_threads"]``). ``floor``: also time one factorisation +
+        one solve of the same stiffness right after it (:func:`solve_floor`: ``floor_s``,
+        ``solve_over_floor``).
+        """
+        mu = self.scene.default_mu if mu is None else self.parameters.check(mu)
+        with one_blas_thread() as threads:
+            sol = self._solve(mu, progress)
+            if floor:
+                progress("timing the floor: one factorisation + one solve of A")
+                sol.metrics.update(floor_metrics(sol))
+        sol.metrics["blas_threads"] = threads
+        return sol
+
+    def _solve(self, mu: np.ndarray, progress: Callable[[str], None]) -> HFSolution:
+        """Mesh (first call), discretise, formulate, solve, metrics, flag."""
         scene, names = self.scene, self.names
-        mu = scene.default_mu if mu is None else self.parameters.check(mu)
         t0 = time.perf_counter()
         if self.components is None:
             progress("meshing the reference configuration")
@@ -234,18 +253,49 @@ class HFModel:
         return sol
 
 
+def solve_floor(problem: Any) -> dict[str, float]:
+    """Time one factorisation + one solve ``A x = F`` of the problem's stiffness on the free
+    dofs with the direct solver the HF solvers use (``problem.factorize``, the backend's,
+    else SuperLU :func:`rbbench.hf.lcp.factorize`): the floor of a contact solve (issue 17).
+
+    Returns ``factor_s``, ``solve_s`` and their sum ``floor_s`` (s) and ``solver``.
+    """
+    t0 = time.perf_counter()
+    solve = (problem.factorize(problem.A) if problem.factorize is not None
+             else lcp.factorize(problem.A).solve)
+    t1 = time.perf_counter()
+    x = solve(np.asarray(problem.F, dtype=float))
+    t2 = time.perf_counter()
+    if not np.all(np.isfinite(x)):
+        raise FloatingPointError("floor: the solve of A x = F gave a non-finite x")
+    return {"floor_s": t2 - t0, "factor_s": t1 - t0, "solve_s": t2 - t1,
+            "solver": "backend factorize" if problem.factorize is not None
+            else "SuperLU (rbbench.hf.lcp.factorize)"}
+
+
+def floor_metrics(sol: HFSolution) -> dict[str, Any]:
+    """``floor_s``, ``solve_over_floor`` (solver time ``times["solve_s"]`` / ``floor_s``)
+    and the ``floor`` block of :func:`solve_floor`, timed now (see :data:`DEFINITIONS`)."""
+    fl = solve_floor(sol.problem)
+    return {"floor_s": fl["floor_s"], "solve_over_floor": sol.times["solve_s"] / fl["floor_s"],
+            "floor": fl}
+
+
 def solve_hf(scene: Scene, mu: Any = None, backend: str = "skfem", formulation: str = "mixed",
              solver: str | None = None, registry: Registry | None = None,
              solver_options: dict | None = None,
-             progress: Callable[[str], None] = _noop, components=None) -> HFSolution:
+             progress: Callable[[str], None] = _noop, components=None,
+             floor: bool = True) -> HFSolution:
     """Solve the HF contact problem of ``scene`` at ``mu`` (default: the scene default):
-    :meth:`HFModel.solve`.
+    :meth:`HFModel.solve`, one BLAS thread.
 
     ``solver = None``: the formulation's declared solver (``ssn`` for mixed, ``newton``
-    for Nitsche).
+    for Nitsche). ``floor`` (default, as ``rbbench solve``): also time one factorisation +
+    one solve of the stiffness (``metrics["floor_s"]``, ``["solve_over_floor"]``); pass
+    ``False`` where only the solution counts (snapshots).
     """
     return HFModel(scene, backend, formulation, solver, registry, solver_options,
-                   components).solve(mu, progress)
+                   components).solve(mu, progress, floor=floor)
 
 
 def contact_metrics(sol: HFSolution) -> dict[str, Any]:
@@ -505,6 +555,16 @@ DEFINITIONS = {
                          "-[P_n]_-, -[P_t]_S, not zero at the discrete solution (the weak "
                          "conditions' consistency error)",
     "mindlin": MINDLIN_DEFINITION,
+    "floor_s": "the floor of the solve (s): one factorisation + one solve A x = F of the same "
+               "stiffness on the free dofs with the solver's direct solver (the backend's "
+               "factorize, else SuperLU as rbbench.hf.lcp.factorize), timed in the same run "
+               "right after the solve, with one BLAS thread as the solve; floor.factor_s, "
+               "floor.solve_s its parts",
+    "solve_over_floor": "times_s.solve_s / floor_s: the solver's time (condensation, "
+                        "contact iterations, recovery of u; no assembly, no meshing) over "
+                        "the floor; 1 is one factorisation + one solve (issue 17 goal: "
+                        "<= 1.5)",
+    "blas_threads": BLAS_THREADS_DEFINITION,
     "zone_saturated": "true if the first or last multiplier of the potential zone is active: "
                       "the contact patch reaches the edge of the potential zone",
 }

@@ -39,6 +39,7 @@ import numpy as np
 
 import rbbench
 from rbbench.hf.model import make_components, solve_hf
+from rbbench.hf.threads import limit_blas_threads
 from rbbench.registry import default_registry
 from rbbench.scene.friction import friction_of
 from rbbench.scene.loading import key_data
@@ -278,7 +279,7 @@ def _solve_one(scene: Any, mu: np.ndarray, names: tuple[str, str, str], componen
     t0 = time.perf_counter()
     try:
         sol = solve_hf(scene, mu, backend=backend, formulation=formulation, solver=solver,
-                       components=components)
+                       components=components, floor=False)
     except Exception as exc:  # one failing mu must not lose the others
         return _error_snapshot(mu, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
     res, prob = sol.result, sol.problem
@@ -294,30 +295,6 @@ def _solve_one(scene: Any, mu: np.ndarray, names: tuple[str, str, str], componen
 
 # one set of components per worker process: meshing happens once per process
 _WORKER: dict[str, Any] = {}
-
-_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-               "BLIS_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
-
-
-def limit_blas_threads(n: int) -> str:
-    """Cap the BLAS / OpenMP thread pools of this process at ``n`` threads.
-
-    Several worker processes each running a multithreaded BLAS oversubscribe the
-    cores (measured on 2 cores, Hertz scene, 2 workers: 34 s against 2.5 s with one
-    thread each). Sets the thread variables for libraries loaded later and caps the
-    pools already loaded (numpy's and scipy's BLAS) with ``threadpoolctl``. Returns
-    what it did (``"threadpoolctl"``).
-    """
-    from threadpoolctl import threadpool_limits
-
-    for var in _THREAD_ENV:  # for libraries loaded later
-        os.environ[var] = str(n)
-    import scipy.linalg  # noqa: F401  (load scipy's BLAS before capping it)
-    import scipy.sparse.linalg  # noqa: F401
-
-    _WORKER["threadpool_limits"] = threadpool_limits(limits=n)
-    return "threadpoolctl"
-
 
 def _init_worker(scene: Any, names: tuple[str, str, str], solver_options: dict | None,
                  threads: int | None, component_options: dict | None = None,

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.model import discretize_for
+from rbbench.hf.threads import one_blas_thread
 from rbbench.rb import infsup as inf
 from rbbench.rb.affine import NotAffineError
 from rbbench.rb.compressors import pga_default_delta
@@ -197,6 +198,7 @@ class MixedStage(ReducedStage):
         ctx.timings["hyper_s"] = time.perf_counter() - t1
 
     # -- validation --------------------------------------------------------------------
+    @one_blas_thread()  # nested in validate(): a counter, no threadpoolctl scan
     def online(self, mu: np.ndarray, problem: Any) -> tuple[Any, np.ndarray, list[float]]:
         ctx, config = self.ctx, self.ctx.config
         runs: list[float] = []

@@ -18,6 +18,7 @@ import numpy as np
 
 from rbbench.hf.model import default_solver
 from rbbench.hf.nitsche_algebra import pressure, state
+from rbbench.hf.threads import one_blas_thread
 from rbbench.rb.affine import AffineOperator, LinearInMu, NotAffineError, affine_decomposition
 from rbbench.rb.contact_eim import HyperReductionError
 from rbbench.rb.eim import deim
@@ -228,6 +229,7 @@ class NitscheStage(ReducedStage):
         ctx.timings["hyper_s"] = time.perf_counter() - t1
 
     # -- validation --------------------------------------------------------------------
+    @one_blas_thread()  # nested in validate(): a counter, no threadpoolctl scan
     def online(self, mu: np.ndarray, problem: Any) -> tuple[Any, np.ndarray, list[float]]:
         runs = []
         for _ in range(max(1, self.ctx.config.online_repeats)):

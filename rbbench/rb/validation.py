@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from rbbench.hf.threads import BLAS_THREADS_DEFINITION, one_blas_thread
+
 
 @dataclass
 class ReduceResult:
@@ -208,19 +210,20 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
     err_u, e_en, t_on = [], [], []
     stops: dict[str, int] = {}
     X = ctx.X
-    for j, mu in enumerate(ctx.valid.mus):
-        p = ctx.problem_at(mu)
-        u, lam = ctx.valid.U[:, j], ctx.valid.LAM[:, j]
-        res, u_n, times = stage.online(mu, p)
-        t_on.extend(times)
-        stops[res.stop_reason] = stops.get(res.stop_reason, 0) + 1
-        err_u.append(float(np.sqrt(xnorm2(X, u - u_n) / xnorm2(X, u))))
-        for key, value in stage.metrics(mu, p, u, lam, res, u_n).items():
-            (per_mu if key in per_mu else extra).setdefault(key, []).append(value)
-        J = energy(p, u)
-        e_en.append(float(abs(energy(p, u_n) - J) / abs(J)) if J != 0 else float("nan"))
-        ctx.progress(f"online validation {j + 1}/{n_valid}: err_u {err_u[-1]:.3g}, "
-                     f"online {np.median(times):.3g} s, {res.stop_reason}")
+    with one_blas_thread() as threads:  # every stage's timed online solves: one BLAS thread
+        for j, mu in enumerate(ctx.valid.mus):
+            p = ctx.problem_at(mu)
+            u, lam = ctx.valid.U[:, j], ctx.valid.LAM[:, j]
+            res, u_n, times = stage.online(mu, p)
+            t_on.extend(times)
+            stops[res.stop_reason] = stops.get(res.stop_reason, 0) + 1
+            err_u.append(float(np.sqrt(xnorm2(X, u - u_n) / xnorm2(X, u))))
+            for key, value in stage.metrics(mu, p, u, lam, res, u_n).items():
+                (per_mu if key in per_mu else extra).setdefault(key, []).append(value)
+            J = energy(p, u)
+            e_en.append(float(abs(energy(p, u_n) - J) / abs(J)) if J != 0 else float("nan"))
+            ctx.progress(f"online validation {j + 1}/{n_valid}: err_u {err_u[-1]:.3g}, "
+                         f"online {np.median(times):.3g} s, {res.stop_reason}")
     histories = dict(stage.histories)
     histories["online_stops"] = stops
     timings = ctx.timings
@@ -238,7 +241,8 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
         timings=timings, histories=histories,
         definitions={**SHARED_DEFINITIONS, **stage.definitions},
         model=stage.model, valid_mus=np.asarray(ctx.valid.mus), per_mu_extra=extra,
-        extra=stage.summary(), warnings=list(getattr(ctx, "warnings", [])))
+        extra={**stage.summary(), "blas_threads": threads},
+        warnings=list(getattr(ctx, "warnings", [])))
 
 
 def snapshot_timings(train: Any, valid: Any) -> dict[str, float]:
@@ -266,6 +270,8 @@ SHARED_DEFINITIONS = {
     "t_offline_hf_s": "offline cost with the real HF snapshot time: t_offline_s - "
                       "timings.snapshots_s + t_snapshots_hf_s (the training snapshots at "
                       "their serial HF time, no validation snapshots)",
+    "blas_threads": "the BLAS thread limit of the online validation loop (every timed online "
+                    "solve and the per-mu error evaluation): " + BLAS_THREADS_DEFINITION,
     "n_snapshots_cached": "training + validation snapshots this run read from the cache",
     "warnings": "what the reduction changed or doubts, in words (e.g. -N above the number or "
                 "the numerical rank of the training snapshots: the basis built is smaller, "

@@ -1,0 +1,143 @@
+"""One BLAS thread per HF solve and per online validation loop; the floor of ``rbbench solve``
+(issue 17, items 2 and 3)."""
+
+from __future__ import annotations
+
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
+
+from rbbench.console import print_summary
+from rbbench.hf import threads
+from rbbench.hf.model import make_components, solve_floor, solve_hf
+from rbbench.hf.threads import blas_pools, one_blas_thread
+from rbbench.rb.validation import ReducedStage, validate
+from rbbench.scene.loading import load_scene
+from rbbench.testing import HERTZ_COARSE
+
+
+def _blas_threads() -> list[int]:
+    """threadpoolctl's own report: the threads of every BLAS pool of this process."""
+    return [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+
+
+@pytest.fixture
+def two_threads():
+    """Every pool at 2 threads around the test (so that a limit to 1 is visible)."""
+    with threadpool_limits(limits=2):
+        yield _blas_threads()
+
+
+def test_one_blas_thread_inside_and_restored(two_threads):
+    assert two_threads and all(n == 2 for n in two_threads)
+    with one_blas_thread() as rec:
+        assert _blas_threads() == [1] * len(two_threads)
+        with one_blas_thread() as inner:  # nested: no scan, the outer limit holds
+            assert inner["how"] == "nested"
+        assert _blas_threads() == [1] * len(two_threads)  # the inner exit restored nothing
+    assert _blas_threads() == two_threads
+    assert rec["limit"] == 1 and rec["how"] == "threadpoolctl"
+    assert sorted(rec["outside"].values()) == sorted(
+        p["num_threads"] for p in threadpool_info())
+
+
+def test_process_cap_makes_it_free(two_threads, monkeypatch):
+    """A process capped at one thread (a snapshot worker) needs no scan: nothing applied."""
+    monkeypatch.setitem(threads._STATE, "process_limit", 1)
+    with one_blas_thread() as rec:
+        assert rec["how"] == "process"
+        assert _blas_threads() == two_threads  # this test process is not really capped
+    assert threads._STATE["limiter"] is None
+
+
+def test_hf_solve_runs_with_one_thread(two_threads):
+    sc = load_scene("membrane_obstacle")
+    comps = make_components(sc)
+    seen, real = [], comps[2].solve
+
+    def spy(problem, *a, **kw):
+        seen.append([p["num_threads"] for p in blas_pools()])
+        return real(problem, *a, **kw)
+
+    comps[2].solve = spy
+    sol = solve_hf(sc, components=comps, floor=False)
+    assert seen and all(n == 1 for n in seen[0])
+    assert sol.metrics["blas_threads"]["limit"] == 1
+    assert "floor_s" not in sol.metrics
+    assert _blas_threads() == two_threads
+
+
+class _Stage(ReducedStage):
+    """A reduced model that returns the HF solution and records the BLAS threads online."""
+
+    config, histories, definitions, beta = {"stabilizer": "none"}, {}, {}, {}
+
+    def __init__(self, valid):
+        self.valid, self.seen = valid, []
+
+    def online(self, mu, problem):
+        self.seen.append(_blas_threads())
+        j = int(np.flatnonzero(self.valid.mus[:, 0] == mu[0])[0])
+        return SimpleNamespace(stop_reason="converged"), self.valid.U[:, j], [1e-6]
+
+    def metrics(self, mu, p, u, lam, result, u_n):
+        return {"err_lam": 0.0}
+
+
+def test_validation_loop_runs_with_one_thread(two_threads):
+    n = 3
+    sets = SimpleNamespace(mus=np.arange(1.0, n + 1)[:, None], U=np.eye(n), LAM=np.ones((1, n)),
+                           times=np.ones(n), P=n, n_computed=n, n_dofs=n)
+    prob = SimpleNamespace(A=np.eye(n), F=np.zeros(n))
+    ctx = SimpleNamespace(valid=sets, train=sets, X=np.eye(n), timings={}, t0=time.perf_counter(),
+                          mus_train=sets.mus, scene=SimpleNamespace(name="fake"),
+                          problem_at=lambda mu: prob, progress=lambda s: None)
+    stage = _Stage(sets)
+    res = validate(ctx, stage)
+    assert len(stage.seen) == n and all(t == [1] * len(two_threads) for t in stage.seen)
+    assert res.summary()["blas_threads"]["limit"] == 1
+    assert _blas_threads() == two_threads
+    assert res.err_u == [0.0] * n  # the HF solution returned: zero error
+
+
+def test_floor_keys_and_below_the_contact_solve(capsys):
+    """``rbbench solve``'s floor: positive, below the solver time on a contact case (the
+    condensed solver factorises the same A and solves 64 more columns)."""
+    sol = solve_hf(load_scene("hertz_halfdisks", list(HERTZ_COARSE)))
+    m = sol.metrics
+    assert m["floor_s"] > 0 and m["solve_over_floor"] > 0
+    assert m["floor"]["factor_s"] > 0 and m["floor"]["solve_s"] > 0
+    assert m["floor_s"] < m["times_s"]["solve_s"]
+    assert m["solve_over_floor"] == pytest.approx(m["times_s"]["solve_s"] / m["floor_s"])
+    assert m["n_active"] > 0
+    for key in ("floor_s", "solve_over_floor", "blas_threads"):
+        assert key in m["definitions"]
+    print_summary(m, {"mu": 1.0})
+    out = capsys.readouterr().out
+    assert "floor_s" in out and "solve_over_floor" in out
+
+
+def test_floor_solves_the_stiffness():
+    """The floor's factorisation solves A x = F (checked against a dense solve)."""
+    sol = solve_hf(load_scene("membrane_obstacle"), floor=False)
+    p = sol.problem
+    x = np.linalg.solve(p.A.toarray(), p.F)
+    got = {}
+
+    def factorize(A):
+        from rbbench.hf.lcp import factorize as lu
+
+        solve = lu(A).solve
+
+        def s(b):
+            got["x"] = solve(b)
+            return got["x"]
+
+        return s
+
+    fl = solve_floor(SimpleNamespace(A=p.A, F=p.F, factorize=factorize))
+    assert fl["solver"] == "backend factorize" and fl["floor_s"] > 0
+    np.testing.assert_allclose(got["x"], x, rtol=1e-10, atol=1e-14 * np.abs(x).max())
