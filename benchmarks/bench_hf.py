@@ -138,3 +138,90 @@ class ContactPairing:
         from rbbench.hf.contact_geometry import pair
 
         pair(self.layout, self.mu)
+
+
+class HFFloor:
+    """The HF contact solve against its floor (issue 17): ``hertz_halfdisks`` at mu = 1 on
+    the default mesh refined ``level`` times (36910 / 75226 dofs at levels 0 / 1).
+
+    ``setup_cache`` runs ``rbbench solve``'s solve once per level (:func:`solve_hf`, one
+    BLAS thread, the floor timed right after the solve in the same process): the solver's
+    time ``times_s.solve_s`` (condensation, contact iterations, recovery of u; no
+    assembly), the floor ``floor_s`` (one factorisation + one solve of the same stiffness
+    with the solver's direct solver) and their ratio ``solve_over_floor`` (goal <= 1.5).
+    """
+
+    params = (["0", "1"],)
+    param_names = ["level"]
+    timeout = TIMEOUT
+
+    def setup_cache(self):
+        from rbbench.scene.loading import load_scene
+
+        out = {}
+        for level in self.params[0]:
+            sol = solve_hf(load_scene("hertz_halfdisks", [f"discretization.level={level}"]))
+            if not sol.result.converged:
+                raise RuntimeError(f"level {level}: HF solve {sol.result.stop_reason}")
+            m = sol.metrics
+            out[level] = {"solve_s": m["times_s"]["solve_s"], "floor_s": m["floor_s"],
+                          "solve_over_floor": m["solve_over_floor"]}
+        return out
+
+    setup_cache.timeout = 2 * TIMEOUT
+
+    def track_solve_s(self, cache, level):
+        """The solver's time of one HF solve (s): times_s.solve_s."""
+        return finite(cache[level]["solve_s"], "HF solver time")
+
+    def track_floor_s(self, cache, level):
+        """One factorisation + one solve of the same stiffness (s), timed after the solve."""
+        return finite(cache[level]["floor_s"], "floor")
+
+    def track_solve_over_floor(self, cache, level):
+        """times_s.solve_s / floor_s (dimensionless, lower is better; goal <= 1.5)."""
+        return finite(cache[level]["solve_over_floor"], "solve over floor")
+
+    track_solve_s.unit = "s"
+    track_floor_s.unit = "s"
+    track_solve_over_floor.unit = "ratio"
+
+
+class SnapshotWorkers:
+    """HF snapshots of 8 parameters (mu = 0.7 ... 1.3, ``hertz_halfdisks`` default mesh)
+    with 1 and 2 worker processes (:func:`rbbench.hf.snapshots.compute_snapshots`, a
+    fresh cache directory per call, so that every solve runs).
+
+    ``setup`` builds this process's components (meshing + inner product) by one snapshot
+    at mu = 1: the timed calls reuse them (serial) or inherit them (``fork`` workers), as
+    ``rbbench reduce``'s validation snapshots do after its training ones. The time of 2
+    workers against 1 is the scaling of the solves (issue 17 goal: >= 1.85x).
+    """
+
+    params = ([1, 2],)
+    param_names = ["n_jobs"]
+    timeout = TIMEOUT
+    number = 1
+    repeat = (1, 3, 120.0)
+
+    def setup(self, n_jobs):
+        import tempfile
+
+        import numpy as np
+
+        from rbbench.hf.snapshots import compute_snapshots
+
+        self.scene = scene("hertz_default")
+        self.mus = np.linspace(0.7, 1.3, 8)
+        with tempfile.TemporaryDirectory() as d:
+            compute_snapshots(self.scene, [1.0], cache_dir=d, n_jobs=1, progress=False)
+
+    def time_snapshots(self, n_jobs):
+        """Wall time (s) of 8 HF snapshots with n_jobs worker processes."""
+        import tempfile
+
+        from rbbench.hf.snapshots import compute_snapshots
+
+        with tempfile.TemporaryDirectory() as d:
+            compute_snapshots(self.scene, self.mus, cache_dir=d, n_jobs=n_jobs,
+                              progress=False)

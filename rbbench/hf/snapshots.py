@@ -293,28 +293,54 @@ def _solve_one(scene: Any, mu: np.ndarray, names: tuple[str, str, str], componen
     return snap
 
 
-# one set of components per worker process: meshing happens once per process
+# one set of components per worker process, built at its start-up (or inherited)
 _WORKER: dict[str, Any] = {}
+
+#: the components this process built last (``key``, ``registry``, ``components``): reused
+#: by the next call with the same key (reduce: training, then validation snapshots) and,
+#: built before a ``fork`` pool starts, inherited by its workers (no meshing in them)
+_COMPONENTS: dict[str, Any] = {}
+
+
+def _components(scene: Any, names: tuple[str, str, str], solver_options: dict | None,
+                component_options: dict | None, registry: Any, key: str) -> tuple:
+    """The components of ``key`` (:func:`snapshot_key`), meshed and warmed up once per
+    process: the last set is kept and reused for the same key and registry.
+
+    Warm-up: the backend's ``inner_product()`` (mu-independent, assembled at the first
+    discretisation otherwise: 0.3 s of Hertz level 0), so that no snapshot's stored
+    ``time_s`` holds that one-off work.
+    """
+    if _COMPONENTS.get("key") != key or _COMPONENTS.get("registry") is not registry:
+        _COMPONENTS.clear()
+        comps = make_components(scene, *names, solver_options=solver_options,
+                                component_options=component_options, registry=registry)
+        warm_up = getattr(comps[0], "inner_product", None)
+        if callable(warm_up):
+            warm_up()
+        _COMPONENTS.update(key=key, registry=registry, components=comps)
+    return _COMPONENTS["components"]
+
 
 def _init_worker(scene: Any, names: tuple[str, str, str], solver_options: dict | None,
                  threads: int | None, component_options: dict | None = None,
-                 registry: Any = None) -> None:
+                 registry: Any = None, key: str = "") -> None:
+    """Worker start-up: cap the BLAS threads, take the components inherited from the
+    parent (fork) or build them now, once (spawn, forkserver)."""
     _WORKER.clear()
-    _WORKER.update(scene=scene, names=names, solver_options=solver_options, components=None,
-                   component_options=component_options, registry=registry)
+    _WORKER.update(scene=scene, names=names, components=None, error="")
     if threads:
         _WORKER["thread_limit"] = limit_blas_threads(threads)
+    try:  # a forked worker finds the parent's components under the key: no meshing
+        _WORKER["components"] = _components(scene, names, solver_options, component_options,
+                                            registry, key)
+    except Exception as exc:  # reported by every task: one failure must not break the pool
+        _WORKER["error"] = f"building components: {type(exc).__name__}: {exc}"
 
 
 def _worker_task(mu: np.ndarray, path: Path) -> Snapshot:
-    if _WORKER.get("components") is None:
-        scene, names = _WORKER["scene"], _WORKER["names"]
-        try:
-            _WORKER["components"] = make_components(
-                scene, *names, solver_options=_WORKER["solver_options"],
-                component_options=_WORKER["component_options"], registry=_WORKER["registry"])
-        except Exception as exc:
-            return _error_snapshot(mu, f"building components: {type(exc).__name__}: {exc}")
+    if _WORKER["components"] is None:
+        return _error_snapshot(mu, _WORKER["error"])
     return _solve_one(_WORKER["scene"], mu, _WORKER["names"], _WORKER["components"], path)
 
 
@@ -341,7 +367,8 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
         Root of the cache; the files go to ``cache_dir / snapshot_key(...)``.
     n_jobs : int, optional
         Local worker processes (default: the CPUs available); ``1`` solves in this
-        process. Each worker builds (meshes) the components once, at its first task.
+        process. Components are built once per process, kept for the next call with the
+        same key, inherited by ``fork`` workers (:meth:`_Run.parallel`).
     progress : bool
         Show a tqdm progress bar.
     strict : bool
@@ -384,7 +411,8 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     if todo:  # unknown component names fail here, not once per parameter in the workers
         _check_names(registry, names)
 
-    run = _Run(scene, mus, paths, names, solver_options, component_options, registry, progress)
+    run = _Run(scene, mus, paths, names, solver_options, component_options, registry, progress,
+               key)
     if todo and n_jobs == 1:
         run.serial(snaps, todo)
     elif todo:
@@ -443,16 +471,19 @@ class _Run:
     component_options: dict | None
     registry: Any
     progress: bool
+    key: str
+
+    def components(self) -> tuple:
+        """This process's components of the key (:func:`_components`)."""
+        return _components(self.scene, self.names, self.solver_options,
+                           self.component_options, self.registry, self.key)
 
     def serial(self, snaps: list[Snapshot | None], todo: list[int]) -> None:
         """Solve in this process (one set of components)."""
         bar = None
         try:
             bar = _progress_bar(self.progress, self.scene.name, len(self.mus), len(todo))
-            components = make_components(self.scene, *self.names,
-                                         solver_options=self.solver_options,
-                                         component_options=self.component_options,
-                                         registry=self.registry)
+            components = self.components()
             for i in todo:
                 snaps[i] = _solve_one(self.scene, self.mus[i], self.names, components,
                                       self.paths[i])
@@ -464,14 +495,22 @@ class _Run:
 
     def parallel(self, snaps: list[Snapshot | None], todo: list[int], n_jobs: int,
                  mp_context: str | None, threads: int) -> None:
-        """Solve in ``n_jobs`` worker processes (each builds its components once)."""
+        """Solve in ``n_jobs`` worker processes, one task per parameter (an idle worker
+        takes the next one: balanced), results in their places. The components are built
+        once: here before a ``fork`` pool (the workers inherit them), else once per worker
+        at its start-up."""
         bar = None
         try:
-            ctx = multiprocessing.get_context(mp_context) if mp_context else None
+            ctx = multiprocessing.get_context(mp_context)
+            if ctx.get_start_method() == "fork":
+                try:
+                    self.components()
+                except Exception:  # noqa: BLE001 - the workers retry and report it per mu
+                    _COMPONENTS.clear()
             with ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
                                      initargs=(self.scene, self.names, self.solver_options,
                                                threads, self.component_options,
-                                               self.registry)) as pool:
+                                               self.registry, self.key)) as pool:
                 futures = {pool.submit(_worker_task, self.mus[i], self.paths[i]): i
                            for i in todo}
                 # the bar only after the workers started: no fork with extra threads alive
