@@ -210,6 +210,8 @@ repeats = 2
     for _, g in df.groupby("scene"):
         f = g.set_index("solver")["contact_force"]
         assert f["uzawa"] == pytest.approx(f["ssn"], rel=1e-6)
+    # the floor (one factorisation + one solve of A) is timed once per case, beside the solve
+    assert (df["floor_s"] > 0).all() and np.isfinite(df["solve_over_floor"]).all()
     with pytest.raises(MatrixError, match=r"\[sizes\] does not apply to mode 'hf'"):
         p.write_text(p.read_text() + "\n[sizes]\nN = [3]\n")
         load_matrix(p, registry=default_registry())

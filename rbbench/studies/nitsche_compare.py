@@ -29,8 +29,8 @@ def formulation_comparison(scene: str = "hertz_halfdisks", overrides=(), n_train
     mus = parameter_set(sc, "train", n_train)
     energies = []
     for mu in mus:
-        m = solve_hf(sc, mu)
-        n = solve_hf(sc, mu, formulation="nitsche")
+        m = solve_hf(sc, mu, floor=False)
+        n = solve_hf(sc, mu, formulation="nitsche", floor=False)
         energies.append({"mu": float(mu[0]), "J_mixed": m.metrics["energy"],
                          "J_nitsche": n.metrics["energy"],
                          "rel_diff": (n.metrics["energy"] - m.metrics["energy"])
