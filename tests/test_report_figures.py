@@ -13,14 +13,13 @@ times differ between cases so that their median is not any first row's.
 from __future__ import annotations
 
 import itertools
-import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from matplotlib import colormaps
+from run_records import write_run_dir
 
 from rbbench.bench import schema
 from rbbench.bench.execution import _fill
@@ -30,7 +29,6 @@ from rbbench.bench.report.common import _LINESTYLES
 from rbbench.bench.report.cost_figures import _HF_LABEL, _error_norm, _fig_offline, _fig_pareto
 from rbbench.bench.report.detail_figures import _fig_histories
 from rbbench.bench.report.figures import _FLOOR_LABEL, _fig_error_vs_size
-from rbbench.bench.runner import write_table
 from rbbench.rb.validation import _offline_times
 
 DUALS = ("cpg", "eng", "mcpg")
@@ -76,19 +74,9 @@ def _records() -> list[dict]:
     return out
 
 
-def _write(d: Path, recs: list[dict]) -> Path:
-    (d / "cases").mkdir(parents=True)
-    for r in recs:
-        (d / "cases" / f"{r['row']['case_id']}-r0.json").write_text(json.dumps(r))
-    write_table(d, recs)
-    (d / "manifest.json").write_text(json.dumps({"run_id": d.name,
-                                                 "columns": schema.column_definitions()}))
-    return d
-
-
 @pytest.fixture(scope="module")
 def ctx(tmp_path_factory):
-    return _context(load_run(_write(tmp_path_factory.mktemp("fig") / "run", _records())))
+    return _context(load_run(write_run_dir(tmp_path_factory.mktemp("fig") / "run", _records())))
 
 
 def _legend_texts(fig) -> list[str]:
@@ -229,7 +217,7 @@ def test_offline_figure_uses_the_hf_snapshot_time(ctx, tmp_path):
     cbar = [a for a in fig.axes if "err_u_max" in a.get_xlabel() + a.get_ylabel()]
     assert cbar and cbar[0].get_xscale() == "log"
     assert "cache" in caption and "estimated" in caption
-    out = report(_write(tmp_path / "run", _records()), formats=("png",))
+    out = report(write_run_dir(tmp_path / "run", _records()), formats=("png",))
     assert (tmp_path / "run" / "report" / "offline.png").is_file()
     assert "offline.png" in out.summary_md.read_text()
 
@@ -290,7 +278,7 @@ def test_best_per_level_rejects_unknown_levels_and_report_states_the_levels(tmp_
     with pytest.raises(ValueError, match="'front'"):
         best_per_level(_table_rows(), levels="auto")
     d = tmp_path / "t"
-    _write(d, [{"row": r, "details": {}} for r in _table_rows()])
+    write_run_dir(d, [{"row": r, "details": {}} for r in _table_rows()])
     md = report(d, formats=("png",)).summary_md.read_text()
     section = md.split("(err_u_max)")[1].split("## ")[0]
     assert "Pareto front" in section and "power of ten below" in section

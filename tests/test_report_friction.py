@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from run_records import write_run_dir
 
 from rbbench.bench import schema
 from rbbench.bench.report import load_run, report
@@ -20,7 +21,6 @@ from rbbench.bench.report.analysis import _context
 from rbbench.bench.report.document import _attempt, _Doc, _Drawn, _figures_section
 from rbbench.bench.report.friction_figures import _fig_gcns, _figs_lam_t, profile_problem
 from rbbench.bench.report.plotting import _NotApplicable, _Skip
-from rbbench.bench.runner import write_table
 
 MUS = [[0.7], [1.0], [1.3]]
 
@@ -84,19 +84,9 @@ def _records(friction: bool = True) -> list[dict]:
     return recs
 
 
-def _write(d: Path, recs: list[dict]) -> Path:
-    (d / "cases").mkdir(parents=True)
-    for r in recs:
-        (d / "cases" / f"{r['row']['case_id']}-r0.json").write_text(json.dumps(r))
-    write_table(d, recs)
-    (d / "manifest.json").write_text(json.dumps({"run_id": d.name,
-                                                 "columns": schema.column_definitions()}))
-    return d
-
-
 @pytest.fixture
 def run_dir(tmp_path: Path) -> Path:
-    return _write(tmp_path / "fr", _records())
+    return write_run_dir(tmp_path / "fr", _records())
 
 
 # ------------------------------------------------------------------------------ figures
@@ -151,7 +141,7 @@ def test_report_writes_friction_figures_and_table(tmp_path):
     for r in recs:
         if r["row"]["case_id"] in ("seed10", "wedge"):
             del r["details"]["lam_t_profiles"]
-    out = report(_write(tmp_path / "fr", recs), formats=("png",))
+    out = report(write_run_dir(tmp_path / "fr", recs), formats=("png",))
     for name in ("gcns", "lam_t_seed1", "lam_t_wedgeeim"):
         assert out.figures[name][0].stat().st_size > 0, name
     assert not {"lam_t_seed10", "lam_t_wedge"} & set(out.figures)
@@ -174,13 +164,13 @@ def test_without_friction_data_figures_skip_quietly(tmp_path):
     """A frictionless run: no friction table or figure, none listed as skipped (they do not
     apply); friction rows without the data: the figure not drawn and the summary says why,
     unusable profiles say which."""
-    out = report(_write(tmp_path / "plain", _records(friction=False)), formats=("png",))
+    out = report(write_run_dir(tmp_path / "plain", _records(friction=False)), formats=("png",))
     md = out.summary_md.read_text()
     assert "Reduced friction models" not in md and "### GCNS" not in md
     assert "### lam_t" not in md
     assert not {"gcns", "lam_t"} & (set(out.skipped) | set(out.figures))
     recs = [r for r in _records() if r["row"]["friction_dual"] != "seed"]  # wedge: no GCNS
-    ctx = _context(load_run(_write(tmp_path / "wedge", recs)))
+    ctx = _context(load_run(write_run_dir(tmp_path / "wedge", recs)))
     with pytest.raises(_Skip, match="no ok friction case with a GCNS history") as exc:
         _fig_gcns(ctx)
     assert not isinstance(exc.value, _NotApplicable)
@@ -196,7 +186,7 @@ def test_without_friction_data_figures_skip_quietly(tmp_path):
     for r in recs:
         if "lam_t_profiles" in r["details"]:
             r["details"]["lam_t_profiles"]["x"][1] = []
-    ctx = _context(load_run(_write(tmp_path / "bad", recs)))
+    ctx = _context(load_run(write_run_dir(tmp_path / "bad", recs)))
     with pytest.raises(_Skip, match=r"unusable: seed1: profiles of unequal length at mu "
                                     r"\[1.0\]"):
         _figs_lam_t(ctx)

@@ -35,7 +35,8 @@ from rbbench.rb.mixed_model import condense_dense
 from rbbench.scene.parameters import ParameterSpace
 
 __all__ = ["FrictionArrays", "FrictionOnlineResult", "FrictionReducedModel",
-           "ReducedCondensed", "check_reducible", "condense_reduced", "nonneg_qp",
+           "ReducedCondensed", "check_reducible", "condense_reduced", "nearest_training",
+           "nonneg_qp",
            "project_friction", "solve_coulomb", "tresca_qp"]
 
 
@@ -233,6 +234,16 @@ def solve_coulomb(cond: ReducedCondensed, Qn: np.ndarray, Qt: np.ndarray,
     return FrictionOnlineResult(a, x[:R].copy(), x[R:].copy(), it, inner, reason, 0.0, hist)
 
 
+def nearest_training(mus_train: np.ndarray, x_train: np.ndarray,
+                     mu: np.ndarray) -> np.ndarray | None:
+    """The online warm start: the training solution ``x_train[j]`` of the training mu
+    nearest to ``mu`` (Euclidean), or None without training solutions."""
+    if x_train.size == 0:
+        return None
+    d = np.linalg.norm(mus_train - np.asarray(mu, float)[None, :], axis=1)
+    return x_train[int(np.argmin(d))]
+
+
 @dataclass
 class FrictionReducedModel:
     """The reduced friction model: small dense arrays only (picklable).
@@ -267,11 +278,8 @@ class FrictionReducedModel:
         return int(self.Qt.shape[1])
 
     def warm_start(self, mu: np.ndarray) -> np.ndarray | None:
-        """``(c_n, theta)`` of the nearest training mu (None without training solutions)."""
-        if self.x_train.size == 0:
-            return None
-        d = np.linalg.norm(self.mus_train - np.asarray(mu, float)[None, :], axis=1)
-        return self.x_train[int(np.argmin(d))]
+        """``(c_n, theta)`` of the nearest training mu (:func:`nearest_training`)."""
+        return nearest_training(self.mus_train, self.x_train, mu)
 
     def solve_arrays(self, mu: np.ndarray, arr: FrictionArrays,
                      x0: np.ndarray | None = None) -> FrictionOnlineResult:

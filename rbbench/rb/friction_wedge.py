@@ -39,7 +39,12 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.rb.friction_model import check_reducible, increment_stop, nonneg_qp
+from rbbench.rb.friction_model import (
+    check_reducible,
+    increment_stop,
+    nearest_training,
+    nonneg_qp,
+)
 from rbbench.rb.mixed_model import condense_dense
 from rbbench.scene.parameters import ParameterSpace
 
@@ -262,11 +267,8 @@ class WedgeReducedModel:
         return int(self.P.shape[0])
 
     def warm_start(self, mu: np.ndarray) -> np.ndarray | None:
-        """``c`` of the nearest training mu (None without training solutions)."""
-        if self.x_train.size == 0:
-            return None
-        d = np.linalg.norm(self.mus_train - np.asarray(mu, float)[None, :], axis=1)
-        return self.x_train[int(np.argmin(d))]
+        """``c`` of the nearest training mu (:func:`nearest_training`)."""
+        return nearest_training(self.mus_train, self.x_train, mu)
 
     def solve_arrays(self, mu: np.ndarray, arr: WedgeArrays,
                      x0: np.ndarray | None = None) -> WedgeOnlineResult:
