@@ -1,0 +1,167 @@
+"""The ``shape_coulomb`` scene (seed 001, model B): data, validation, admissible set.
+
+Read from ``problems/optimize/shape_coulomb.toml``; every invalid field raises
+:class:`~rbbench.scene.parameters.SceneError` naming the file and key and what is valid
+(the CLI turns it into exit code 2). The admissible set ``omega`` of seed 001,
+
+``0 <= alpha_i <= C0``, ``|alpha_{i+1} - alpha_i| <= C1 h``, ``C2 <= meas Omega(alpha) <= C3``,
+
+is a polyhedron: the area is affine in the nodal design (trapezoidal rule, exact for the
+piecewise-linear boundary), so it is imposed exactly, not linearised.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from rbbench.optim.shape_mesh import Grid, area, area_weights, elasticity_matrix
+from rbbench.scene.loading import PROBLEMS_DIR, tomllib
+from rbbench.scene.parameters import SceneError
+
+SHAPE_DIR = PROBLEMS_DIR / "optimize"
+
+
+@dataclass(frozen=True)
+class ShapeScene:
+    """Data of the shape problem; lengths in m, forces in kN per m of depth (plane strain)."""
+
+    name: str = "shape_coulomb"
+    a: float = 0.0
+    b: float = 2.0
+    gamma: float = 1.0
+    n_contact: int = 81
+    ny: int = 40
+    E: float = 1.0e4
+    nu: float = 0.3
+    pressure: float = 200.0
+    traction: float = 20.0
+    friction0: float = 0.25
+    slip_scale: float = 1.0
+    C0: float = 0.75
+    C1: float = 3.0
+    C2: float = 1.8
+    C3: float = 2.0
+    initial: str = "parabola"
+    initial_height: float = 0.1
+    power: int = 6
+    source: str = "<defaults>"
+    extra: dict = field(default_factory=dict, compare=False)
+
+    @property
+    def grid(self) -> Grid:
+        return Grid(self.a, self.b, self.gamma, self.n_contact - 1, self.ny)
+
+    @property
+    def D(self) -> np.ndarray:
+        return elasticity_matrix(self.E, self.nu)
+
+    def friction(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``F(t) = F0 / ((t / l)^2 + 1)`` (seed 001: F0 = 0.25, l = 1) and ``F'(t)``."""
+        s = np.asarray(t) / self.slip_scale
+        F = self.friction0 / (s * s + 1.0)
+        return F, -2.0 * self.friction0 * s / ((s * s + 1.0) ** 2 * self.slip_scale)
+
+    def initial_design(self) -> np.ndarray:
+        """``alpha_0``: ``parabola`` (height at the ends, 0 in the middle), ``vee`` or ``flat``."""
+        x = self.grid.x1
+        r = (x - 0.5 * (self.a + self.b)) / (0.5 * (self.b - self.a))
+        shapes = {"parabola": r * r, "vee": np.abs(r), "flat": np.ones_like(r)}
+        return self.initial_height * shapes[self.initial]
+
+    def admissible(self) -> dict[str, np.ndarray]:
+        """The polyhedron ``lb <= alpha <= ub``, ``cl <= C alpha <= cu`` of seed 001."""
+        n, h = self.n_contact, self.grid.h
+        diff = np.zeros((n - 1, n))
+        diff[np.arange(n - 1), np.arange(n - 1)] = -1.0
+        diff[np.arange(n - 1), np.arange(1, n)] = 1.0
+        full = self.gamma * (self.b - self.a)
+        w = area_weights(self.grid)[None, :]
+        return {"lb": np.zeros(n), "ub": np.full(n, self.C0),
+                "C": np.vstack([diff, w]),
+                "cl": np.concatenate([np.full(n - 1, -self.C1 * h), [self.C2 - full]]),
+                "cu": np.concatenate([np.full(n - 1, self.C1 * h), [self.C3 - full]])}
+
+    def residuals(self, alpha: np.ndarray) -> dict[str, float]:
+        """Largest violation (> 0 means violated) of each group of constraints, raw."""
+        h = self.grid.h
+        meas = area(self.grid, alpha)
+        return {"lower_bound": float(np.max(-alpha)),
+                "upper_bound": float(np.max(alpha - self.C0)),
+                "slope": float(np.max(np.abs(np.diff(alpha)) - self.C1 * h)),
+                "area_min": float(self.C2 - meas), "area_max": float(meas - self.C3)}
+
+
+_FIELDS = {
+    "geometry": {"a": float, "b": float, "gamma": float, "contact_nodes": int, "ny": int},
+    "material": {"E": float, "nu": float},
+    "load": {"pressure": float, "traction": float},
+    "friction": {"coefficient": float, "slip_scale": float},
+    "design": {"C0": float, "C1": float, "C2": float, "C3": float, "initial": str,
+               "initial_height": float},
+    "objective": {"power": int},
+}
+_RENAME = {"contact_nodes": "n_contact", "coefficient": "friction0"}
+
+
+def load_shape_scene(name_or_path: str | Path = "shape_coulomb",
+                     overrides: dict[str, object] | None = None) -> ShapeScene:
+    """Read and validate a shape scene; ``overrides`` maps ``section.key`` to a value."""
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = SHAPE_DIR / f"{name_or_path}.toml"
+    if not path.is_file():
+        avail = sorted(p.stem for p in SHAPE_DIR.glob("*.toml"))
+        raise SceneError(f"shape scene {name_or_path!r}: no file {path}; available: {avail}")
+    with open(path, "rb") as fh:
+        data = tomllib.load(fh)
+    for key, value in (overrides or {}).items():
+        sec, _, k = key.partition(".")
+        data.setdefault(sec, {})[k] = value
+    kw: dict[str, object] = {"source": str(path)}
+    for sec, keys in _FIELDS.items():
+        for k, typ in keys.items():
+            if k in data.get(sec, {}):
+                kw[_RENAME.get(k, k)] = _typed(path, f"{sec}.{k}", data[sec][k], typ)
+    sc = replace(ShapeScene(), name=data.get("scene", {}).get("name", path.stem), **kw)
+    validate(sc, path)
+    return sc
+
+
+def _typed(path: Path, key: str, value: object, typ: type) -> object:
+    if typ is int and (isinstance(value, bool) or not isinstance(value, int)):
+        raise SceneError(f"{path}: {key} = {value!r}: expected an integer")
+    if typ is float and (isinstance(value, bool) or not isinstance(value, (int, float))):
+        raise SceneError(f"{path}: {key} = {value!r}: expected a number")
+    if typ is str and not isinstance(value, str):
+        raise SceneError(f"{path}: {key} = {value!r}: expected a string")
+    return typ(value)
+
+
+def validate(sc: ShapeScene, where: Path | str) -> None:
+    """Raise :class:`SceneError` naming the first invalid key, or an infeasible ``alpha_0``."""
+    checks = [
+        ("geometry.contact_nodes", sc.n_contact >= 2, f"{sc.n_contact}: need I >= 2"),
+        ("geometry.ny", sc.ny >= 1, f"{sc.ny}: need >= 1"),
+        ("geometry.b", sc.b > sc.a, f"{sc.b}: need b > a = {sc.a}"),
+        ("material.E", sc.E > 0, f"{sc.E}: need E > 0"),
+        ("material.nu", 0 <= sc.nu < 0.5, f"{sc.nu}: need 0 <= nu < 0.5"),
+        ("friction.coefficient", sc.friction0 >= 0, f"{sc.friction0}: need >= 0"),
+        ("friction.slip_scale", sc.slip_scale > 0, f"{sc.slip_scale}: need > 0"),
+        ("design.C0", 0 < sc.C0 < sc.gamma, f"{sc.C0}: need 0 < C0 < gamma = {sc.gamma}"),
+        ("design.C1", sc.C1 > 0, f"{sc.C1}: need C1 > 0"),
+        ("design.C2", sc.C2 <= sc.C3, f"{sc.C2} > C3 = {sc.C3}: need C2 <= C3"),
+        ("design.initial", sc.initial in ("parabola", "vee", "flat"),
+         f"{sc.initial!r}: valid are 'parabola', 'vee', 'flat'"),
+        ("objective.power", sc.power >= 2, f"{sc.power}: need an integer >= 2"),
+    ]
+    for key, ok, msg in checks:
+        if not ok:
+            raise SceneError(f"{where}: {key} = {msg}")
+    bad = {k: v for k, v in sc.residuals(sc.initial_design()).items() if v > 1e-12}
+    if bad:
+        worst = max(bad, key=bad.get)
+        raise SceneError(f"{where}: design.initial = {sc.initial!r} with design.initial_height "
+                         f"= {sc.initial_height}: the initial design is not admissible "
+                         f"({worst} violated by {bad[worst]:.3g}; all: {bad})")
