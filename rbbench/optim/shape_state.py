@@ -24,6 +24,7 @@ from functools import lru_cache
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from rbbench.optim.shape_mesh import assemble_stiffness, top_load
@@ -118,17 +119,21 @@ def condense(sc: ShapeScene, alpha: np.ndarray) -> Condensed:
 
     The free stiffness is factorised in the order (interior by minimum degree, contact
     last) without pivoting (it is symmetric positive semi-definite, its kernel the vertical
-    translation, which only the contact dofs see): the trailing block of ``L U`` is
-    ``S = A_cc - A_ci A_ii^-1 A_ic`` and the leading blocks factor ``A_ii``; no
+    translation, which only the contact dofs see; ``shift I`` is added to the contact block
+    so that the last pivots stay regular and subtracted again): the trailing block of
+    ``L U`` is ``S = A_cc - A_ci A_ii^-1 A_ic`` and the leading blocks factor ``A_ii``; no
     ``A_ii^-1 A_ic`` is formed column by column.
     """
     A, L, free, contact = _free_system(sc, alpha)
     interior = _interior_order(sc)
     perm = np.concatenate([interior, contact])
-    lu = spla.splu(A[perm][:, perm].tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+    k, m = len(interior), len(contact)
+    # + shift I on the contact block: the factor stays regular, S + shift I comes out
+    shift = float(np.mean(A.diagonal()[contact]))
+    Ap = A[perm][:, perm] + sp.diags(np.r_[np.zeros(k), np.full(m, shift)])
+    lu = spla.splu(Ap.tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
                    options={"SymmetricMode": True, "Equil": False})
-    k = len(interior)
-    S = (lu.L[k:, k:] @ lu.U[k:, k:]).toarray()
+    S = (lu.L[k:, k:] @ lu.U[k:, k:]).toarray() - shift * np.eye(m)
     cond = Condensed(0.5 * (S + S.T), np.empty(len(contact)), free, contact, interior,
                      lu.L[:k, :k].tocsr(), lu.U[:k, :k].tocsr(), A, L)
     w = cond.solve_interior(L[interior])
