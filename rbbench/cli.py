@@ -18,6 +18,7 @@ from pathlib import Path
 
 from rbbench.bench.errors import ResultsError
 from rbbench.console import _print_reduce_summary, _Progress, print_summary
+from rbbench.optim.cli_optimize import add_parser as _add_optimize_parser
 from rbbench.registry import NotInstalledError, UnknownComponentError, default_registry
 from rbbench.scene.loading import PROBLEMS_DIR, SceneError, load_scene, tomllib
 
@@ -418,6 +419,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_nitsche_table_parser(sub)
     _add_nitsche_compare_parser(sub)
     _add_online_scaling_parser(sub)
+    _add_optimize_parser(sub)
     _add_run_parsers(sub)
     sc = sub.add_parser("scenes", help="list the scenes in problems/")
     sc.set_defaults(func=cmd_scenes)

@@ -85,6 +85,29 @@ def _shape_gradients(xi: np.ndarray) -> np.ndarray:
                             _REF[:, 1] * (1 + _REF[:, 0] * xi[0])], axis=1)
 
 
+def _strain_matrix(X: np.ndarray, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Strain-displacement matrices ``B`` ``(ne, 3, 8)`` and ``det J`` at reference point xi."""
+    dN = _shape_gradients(xi)
+    J = np.einsum("eka,kb->eab", X, dN)
+    det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+    inv = np.stack([np.stack([J[:, 1, 1], -J[:, 0, 1]], -1),
+                    np.stack([-J[:, 1, 0], J[:, 0, 0]], -1)], -2) / det[:, None, None]
+    g = np.einsum("kb,eba->eka", dN, inv)
+    B = np.zeros((X.shape[0], 3, 8), dtype=X.dtype)
+    B[:, 0, 0::2] = g[:, :, 0]
+    B[:, 1, 1::2] = g[:, :, 1]
+    B[:, 2, 0::2] = g[:, :, 1]
+    B[:, 2, 1::2] = g[:, :, 0]
+    return B, det
+
+
+def element_stress(grid: Grid, alpha: np.ndarray, D: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Stress ``(sigma_11, sigma_22, sigma_12)`` at the element centres ``(ne, 3)``."""
+    el = grid.elements()
+    B, _ = _strain_matrix(grid.coordinates(alpha)[el], np.zeros(2))
+    return np.einsum("ij,ejb,eb->ei", D, B, u[element_dofs(el)])
+
+
 def element_stiffness(X: np.ndarray, D: np.ndarray) -> np.ndarray:
     """Q1 element stiffness ``(ne, 8, 8)`` for node coordinates ``X`` ``(ne, 4, 2)``.
 
@@ -92,17 +115,7 @@ def element_stiffness(X: np.ndarray, D: np.ndarray) -> np.ndarray:
     """
     K = np.zeros((X.shape[0], 8, 8), dtype=X.dtype)
     for xi in _GAUSS:
-        dN = _shape_gradients(xi)
-        J = np.einsum("eka,kb->eab", X, dN)
-        det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-        inv = np.stack([np.stack([J[:, 1, 1], -J[:, 0, 1]], -1),
-                        np.stack([-J[:, 1, 0], J[:, 0, 0]], -1)], -2) / det[:, None, None]
-        g = np.einsum("kb,eba->eka", dN, inv)
-        B = np.zeros((X.shape[0], 3, 8), dtype=X.dtype)
-        B[:, 0, 0::2] = g[:, :, 0]
-        B[:, 1, 1::2] = g[:, :, 1]
-        B[:, 2, 0::2] = g[:, :, 1]
-        B[:, 2, 1::2] = g[:, :, 0]
+        B, det = _strain_matrix(X, xi)
         K += np.einsum("eia,ij,ejb->eab", B, D, B) * det[:, None, None]
     return K
 

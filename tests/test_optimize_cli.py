@@ -1,0 +1,63 @@
+"""`rbbench optimize`: files, summary fields, feasibility at the optimum, bad input (exit 2),
+a state solve failing mid-run (history kept, exit 1)."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from rbbench.cli import main
+from rbbench.optim import run as run_mod
+from rbbench.optim.shape_state import StateSolveError
+
+TINY = ["--set", "geometry.contact_nodes=11", "--set", "geometry.ny=4"]
+
+
+def test_hf_bundle_run_writes_everything(tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["optimize", *TINY, "--max-iter", "4", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    for key in ("J0", "J_opt", "ratio", "iterations", "hf_solves", "wall_s",
+                "constraint_residuals_opt", "stop_reason"):
+        assert key in s
+    assert s["J_opt"] <= s["J0"]
+    assert s["constraint_residual_max_opt"] <= 1e-8
+    assert s["J_opt"] >= s["J_uniform_bound"]
+    rows = list(csv.DictReader(open(out / "history.csv")))
+    assert len(rows) == s["evaluations"] and rows[0]["kind"] == "start"
+    assert int(rows[-1]["hf_solves"]) == s["hf_solves"]
+    for png in ("designs.png", "pressure.png", "history.png"):
+        assert (out / png).stat().st_size > 1000
+    assert "it " in capsys.readouterr().out                     # progress lines
+
+
+@pytest.mark.parametrize("args, key", [
+    (["--set", "design.C2=2.5"], "design.C2"),
+    (["--set", "geometry.contact_nodes=1"], "geometry.contact_nodes"),
+    (["--set", "design.initial_height=0.9"], "design.initial"),
+    (["--max-iter", "0"], "--max-iter"),
+    (["--set", "nodot=1"], "SECTION.KEY"),
+])
+def test_bad_input_exits_2_naming_the_key(tmp_path, capsys, args, key):
+    assert main(["optimize", *TINY, *args, "--out", str(tmp_path / "x")]) == 2
+    assert key in capsys.readouterr().err
+
+
+def test_failing_state_solve_keeps_the_history(tmp_path, monkeypatch):
+    real = run_mod.evaluate
+    calls = {"n": 0}
+
+    def flaky(sc, alpha, y0=None):
+        calls["n"] += 1
+        if calls["n"] == 4:
+            raise StateSolveError("semismooth Newton: no convergence (injected)")
+        return real(sc, alpha, y0=y0)
+
+    monkeypatch.setattr(run_mod, "evaluate", flaky)
+    out = tmp_path / "f"
+    assert main(["optimize", *TINY, "--max-iter", "20", "--out", str(out), "--quiet"]) == 1
+    s = json.loads((out / "summary.json").read_text())
+    assert s["stop_reason"].startswith("oracle failed") and "injected" in s["stop_reason"]
+    rows = list(csv.DictReader(open(out / "history.csv")))
+    assert len(rows) == 3
+    assert np.isfinite(s["J_opt"])
