@@ -1,0 +1,367 @@
+"""The bundle trust-region method (rbbench.optim.bundle) and the SLSQP baseline against
+independent references: LP optima (scipy linprog / HiGHS), closed-form minimisers,
+known minima of classic nonsmooth test functions (Luksan-Vlcek 2000), scipy's
+trust-constr on the subproblem, KKT systems solved by hand; every point the oracle
+sees is checked against the polyhedron on raw residuals."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.optimize import LinearConstraint, linprog, minimize
+
+from rbbench.optim.baselines import slsqp
+from rbbench.optim.bundle import (
+    BundleOptions,
+    Polyhedron,
+    bundle_trust,
+    kkt_residual,
+    solve_subproblem,
+)
+from rbbench.optim.bundle import _subproblem_data as subproblem_data
+
+FEAS = 1e-8
+
+
+class Recorder:
+    """An oracle that keeps every point it is asked for (and may fail on call ``fail_at``)."""
+
+    def __init__(self, fun, fail_at: int | None = None, exc: Exception | None = None):
+        self.fun, self.fail_at, self.exc = fun, fail_at, exc
+        self.points: list[np.ndarray] = []
+
+    def __call__(self, x):
+        self.points.append(np.array(x, dtype=float))
+        if self.fail_at is not None and len(self.points) >= self.fail_at:
+            raise self.exc
+        return self.fun(x)
+
+    def worst_violation(self, poly: Polyhedron) -> float:
+        return max(max(poly.residuals(p).values()) for p in self.points)
+
+
+def max_affine(seed: int, n: int = 6, m: int = 15, mc: int = 2):
+    """``f = max_i a_i.x + b_i`` over a box and ``mc`` two-sided rows; its minimum by LP."""
+    rng = np.random.default_rng(seed)
+    A, b, C = rng.normal(size=(m, n)), rng.normal(size=m), rng.normal(size=(mc, n))
+    poly = Polyhedron(-np.ones(n), np.ones(n), C, np.full(mc, -0.5), np.full(mc, 0.5))
+    lp = linprog(np.r_[np.zeros(n), 1.0],
+                 A_ub=np.vstack([np.c_[A, -np.ones(m)], np.c_[C, np.zeros(mc)],
+                                 np.c_[-C, np.zeros(mc)]]),
+                 b_ub=np.r_[-b, np.full(2 * mc, 0.5)],
+                 bounds=[(-1, 1)] * n + [(None, None)], method="highs")
+    assert lp.status == 0
+
+    def oracle(x):
+        v = A @ x + b
+        i = int(np.argmax(v))
+        return float(v[i]), A[i].copy()
+
+    return oracle, poly, float(lp.fun)
+
+
+def crescent(x):
+    """Luksan-Vlcek problem 2.2 (nonconvex): min 0 at (0, 0)."""
+    a = x[0] ** 2 + (x[1] - 1) ** 2 + x[1] - 1
+    b = -x[0] ** 2 - (x[1] - 1) ** 2 + x[1] + 1
+    if a >= b:
+        return a, np.array([2 * x[0], 2 * x[1] - 1])
+    return b, np.array([-2 * x[0], -2 * x[1] + 3])
+
+
+def mifflin2(x):
+    """Luksan-Vlcek problem 2.4 (nonconvex): min -1 at (1, 0)."""
+    r = x @ x - 1
+    return -x[0] + 2 * r + 1.75 * abs(r), np.array([-1.0, 0.0]) + (2 + 1.75 * np.sign(r)) * 2 * x
+
+
+# ---------------------------------------------------------------- the subproblem
+
+
+def random_subproblem(seed: int):
+    rng = np.random.default_rng(seed)
+    n, m = int(rng.integers(2, 5)), int(rng.integers(1, 6))
+    poly = Polyhedron(-np.ones(n), np.full(n, 0.3), rng.normal(size=(1, n)), [-0.2], [0.2])
+    x = np.zeros(n)
+    G = rng.normal(size=(m, n)) * 3
+    alpha = np.r_[0.0, rng.uniform(0, 0.5, m - 1)]
+    return x, float(rng.uniform(0.1, 5.0)), G, alpha, poly
+
+
+def qp_trust_constr(x, t, G, alpha, poly):
+    """The subproblem in (d, v) by scipy's trust-constr (no proximal trick)."""
+    n = x.size
+    cons = [LinearConstraint(np.c_[G, -np.ones(len(G))], -np.inf, alpha),
+            LinearConstraint(np.c_[poly.C, np.zeros(1)], poly.cl, poly.cu),
+            LinearConstraint(np.eye(n + 1)[:n], poly.lb - x, poly.ub - x)]
+    return minimize(lambda z: z[n] + z[:n] @ z[:n] / (2 * t), np.zeros(n + 1),
+                    jac=lambda z: np.r_[z[:n] / t, 1.0],
+                    hess=lambda z: np.diag(np.r_[np.full(n, 1 / t), 0.0]), constraints=cons,
+                    method="trust-constr", options={"gtol": 1e-12, "xtol": 1e-14})
+
+
+def qp_brute_force(x, t, G, alpha, poly):
+    """The subproblem by enumerating active sets: every subset of at most n + 1 of the
+    constraints ``a_i.z <= b_i`` (z = (d, v)) held with equality, its KKT system solved
+    directly; the first point feasible with nonnegative multipliers is optimal (convex)."""
+    from itertools import combinations
+
+    n = x.size
+    E = np.eye(n + 1)[:n]
+    rows = np.vstack([np.c_[G, -np.ones(len(G))], E, -E,
+                      np.c_[poly.C, np.zeros(len(poly.C))], -np.c_[poly.C, np.zeros(len(poly.C))]])
+    rhs = np.r_[alpha, poly.ub - x, x - poly.lb, poly.cu - poly.C @ x, poly.C @ x - poly.cl]
+    H = np.diag(np.r_[np.full(n, 1 / t), 0.0])
+    f = np.r_[np.zeros(n), 1.0]
+    for k in range(1, n + 2):
+        for S in map(list, combinations(range(len(rows)), k)):
+            K = np.block([[H, rows[S].T], [rows[S], np.zeros((k, k))]])
+            if abs(np.linalg.det(K)) < 1e-12:
+                continue
+            sol = np.linalg.solve(K, np.r_[-f, rhs[S]])
+            z, mu = sol[:n + 1], sol[n + 1:]
+            if (rows @ z - rhs).max() <= 1e-10 and mu.min() >= -1e-10:
+                return z
+    raise AssertionError("no KKT point found")
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_subproblem_matches_brute_force_and_trust_constr(seed):
+    """daqp (proximal option for the singular v block) against two other solutions of the
+    same QP in (d, v): active sets enumerated by hand (equal to 1e-9) and scipy's
+    trust-constr (an interior point: its objective is an upper bound, measured up to
+    3e-5 above); daqp's point feasible on raw values, its KKT certificate; sigma only
+    rescales the problem."""
+    x, t, G, alpha, poly = random_subproblem(seed)
+    qp = solve_subproblem(x, t, G, alpha, poly)
+    assert qp.ok and qp.kkt < 1e-9
+    assert max((G @ qp.d - qp.v - alpha).max(), *poly.residuals(x + qp.d).values()) <= 1e-12
+    assert qp.lam.sum() == pytest.approx(1.0, abs=1e-9) and qp.lam.min() > -1e-10
+    obj = qp.v + qp.d @ qp.d / (2 * t)
+    z = qp_brute_force(x, t, G, alpha, poly)
+    np.testing.assert_allclose(qp.d, z[:-1], atol=1e-9)
+    assert qp.v == pytest.approx(z[-1], abs=1e-9)
+    interior = qp_trust_constr(x, t, G, alpha, poly)
+    assert interior.status in (1, 2)
+    assert obj <= interior.fun + 1e-12 and interior.fun - obj <= 1e-4
+    for sigma in (1e-6, 1e3):
+        other = solve_subproblem(x, t, G, alpha, poly, sigma=sigma)
+        np.testing.assert_allclose(other.d, qp.d, atol=1e-8)
+        assert other.v == pytest.approx(qp.v, abs=1e-9)
+
+
+def test_kkt_residual_detects_a_wrong_point():
+    x, t, G, alpha, poly = random_subproblem(3)
+    H, f, A, up, lo, _, _ = subproblem_data(x, t, G, alpha, poly, 1.0)
+    z = np.zeros(x.size + 1)
+    z[-1] = 1.0  # feasible (v above every cut) but not optimal
+    assert kkt_residual(H, f, A, up, lo, z, np.zeros(up.size)) >= 1.0 - 1e-12
+
+
+# ---------------------------------------------------------------- convex problems
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_max_of_affine_reaches_the_lp_minimum(seed):
+    oracle, poly, f_lp = max_affine(seed)
+    rec = Recorder(oracle)
+    res = bundle_trust(rec, np.zeros(6), poly, BundleOptions(eps=1e-10))
+    assert res.stop_reason.startswith("converged"), res.stop_reason
+    assert abs(res.f - f_lp) <= 1e-8 * (1 + abs(f_lp))
+    assert res.f >= f_lp - 1e-12  # raw: never below the LP optimum
+    assert rec.worst_violation(poly) <= FEAS
+    assert res.history[-1]["evaluations"] == res.evaluations == len(rec.points)
+    assert {r["evaluations"] for r in res.history} == set(range(1, res.evaluations + 1))
+
+
+def l1_quadratic(n: int, seed: int = 1):
+    """``|x|_1 + |x - c|^2 / 2`` on a box: the minimiser is the clipped soft threshold."""
+    rng = np.random.default_rng(seed)
+    c = rng.normal(scale=2, size=n)
+    lb, ub = np.full(n, -0.5), np.full(n, 1.5)
+    x_star = np.clip(np.sign(c) * np.maximum(np.abs(c) - 1, 0), lb, ub)
+
+    def oracle(x):
+        return float(np.abs(x).sum() + 0.5 * (x - c) @ (x - c)), np.sign(x) + (x - c)
+
+    return oracle, Polyhedron.box(lb, ub), x_star
+
+
+@pytest.mark.parametrize("n, max_bundle", [(10, 40), (5, 3)])
+def test_l1_plus_quadratic_closed_form(n, max_bundle):
+    """Strongly convex (modulus 1): f - f* >= |x - x*|^2 / 2; a bundle cap of 3 < n
+    exercises the aggregation."""
+    oracle, poly, x_star = l1_quadratic(n)
+    rec = Recorder(oracle)
+    res = bundle_trust(rec, np.zeros(n), poly,
+                       BundleOptions(eps=1e-10, max_bundle=max_bundle, max_evals=300))
+    assert res.stop_reason.startswith("converged"), res.stop_reason
+    f_star = oracle(x_star)[0]
+    assert -1e-12 <= res.f - f_star <= 1e-8
+    assert np.abs(res.x - x_star).max() <= 1e-4
+    assert rec.worst_violation(poly) <= FEAS
+
+
+# ---------------------------------------------------------------- nonconvex problems
+
+BOX2 = Polyhedron.box([-10, -10], [10, 10])
+CUT2 = Polyhedron([-10, -10], [10, 10], [[1.0, 0.0]], [-np.inf], [0.8])
+
+
+@pytest.mark.parametrize("fun, x0, poly, f_star, x_star", [
+    (crescent, [-1.5, 2.0], BOX2, 0.0, [0.0, 0.0]),
+    (mifflin2, [-1.0, -1.0], BOX2, -1.0, [1.0, 0.0]),
+    # x1 <= 0.8: inside the unit circle f = -x1 + (|x|^2 - 1)/4, minimal at (0.8, 0)
+    (mifflin2, [-1.0, -1.0], CUT2, -0.89, [0.8, 0.0]),
+], ids=["crescent", "mifflin2", "mifflin2_x1_le_0.8"])
+def test_nonconvex_known_minima(fun, x0, poly, f_star, x_star):
+    rec = Recorder(fun)
+    res = bundle_trust(rec, np.array(x0), poly, BundleOptions(eps=1e-10))
+    assert res.stop_reason.startswith("converged"), res.stop_reason
+    assert abs(res.f - f_star) <= 1e-7
+    assert np.abs(res.x - x_star).max() <= 1e-3
+    assert rec.worst_violation(poly) <= FEAS
+
+
+# ---------------------------------------------------------------- properties
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), n=st.integers(2, 6), mc=st.integers(0, 3),
+       gamma=st.sampled_from([0.0, 0.01, 0.5]))
+def test_serious_steps_descend_and_iterates_stay_feasible(seed, n, mc, gamma):
+    """A max of affine functions plus a random convex quadratic over a random polyhedron
+    around x0: every oracle point feasible (raw), the centre value never increases, each
+    serious step satisfies the descent test against the previous centre."""
+    rng = np.random.default_rng(seed)
+    A, b = rng.normal(size=(8, n)), rng.normal(size=8)
+    M = rng.normal(size=(n, n)) * 0.3
+    x0 = rng.uniform(-0.5, 0.5, n)
+    C = rng.normal(size=(mc, n))
+    poly = Polyhedron(x0 - rng.uniform(0, 1, n), x0 + rng.uniform(0, 1, n), C,
+                      C @ x0 - rng.uniform(0, 0.3, mc), C @ x0 + rng.uniform(0, 0.3, mc))
+
+    def oracle(x):
+        v = A @ x + b
+        i = int(np.argmax(v))
+        return float(v[i] + x @ M.T @ M @ x), A[i] + 2 * M.T @ M @ x
+
+    rec = Recorder(oracle)
+    res = bundle_trust(rec, x0, poly, BundleOptions(gamma=gamma, max_evals=60))
+    assert rec.worst_violation(poly) <= FEAS
+    centre = [row["f"] for row in res.history]
+    assert all(b_ <= a_ for a_, b_ in zip(centre[:-1], centre[1:], strict=True))
+    for prev, row in zip(res.history[:-1], res.history[1:], strict=True):
+        if row["serious"]:
+            assert row["f"] < prev["f"]
+    assert res.f == centre[-1] and res.f == oracle(res.x)[0]
+
+
+def test_scale_invariance():
+    """f and 1e11 f give the same iterates (normalisation by |f(x0)|)."""
+    oracle, poly, _ = l1_quadratic(5)
+    big = lambda x: tuple(1e11 * np.asarray(v) for v in oracle(x))  # noqa: E731
+    r1 = bundle_trust(oracle, np.zeros(5), poly, BundleOptions(eps=1e-8))
+    r2 = bundle_trust(big, np.zeros(5), poly, BundleOptions(eps=1e-8))
+    assert r1.evaluations == r2.evaluations
+    np.testing.assert_allclose(r2.x, r1.x, atol=1e-9)
+    assert r2.f == pytest.approx(1e11 * r1.f, rel=1e-12)
+    assert [h["kind"] for h in r1.history] == [h["kind"] for h in r2.history]
+
+
+# ---------------------------------------------------------------- failures and bad input
+
+
+def test_oracle_failure_keeps_history():
+    oracle, poly, _ = max_affine(0)
+    rows = []
+    rec = Recorder(oracle, fail_at=6, exc=RuntimeError("state solve diverged"))
+    res = bundle_trust(rec, np.zeros(6), poly, callback=rows.append)
+    assert res.stop_reason == "oracle failed: RuntimeError: state solve diverged"
+    assert len(res.history) == 5 and rows == res.history
+    assert res.evaluations == 6
+    assert res.f == min(h["f"] for h in res.history)
+    assert poly.is_feasible(res.x)
+
+
+@pytest.mark.parametrize("bad, message", [
+    (lambda x: (math.nan, np.zeros(6)), "non-finite"),
+    (lambda x: (1.0, np.zeros(5)), "5 entries"),
+])
+def test_oracle_bad_values_end_the_run(bad, message):
+    _, poly, _ = max_affine(0)
+    res = bundle_trust(bad, np.zeros(6), poly)
+    assert res.stop_reason.startswith("oracle failed") and message in res.stop_reason
+    assert res.history == [] and res.evaluations == 1 and math.isnan(res.f)
+
+
+@pytest.mark.parametrize("x0, group, amount", [
+    ([2.0, 0.0], "ub", "1"), ([0.0, -3.5], "lb", "2.5"), ([0.9, 0.0], "cu", "0.1"),
+    ([-0.9, 0.2], "cl", "0.3"),
+])
+def test_infeasible_x0_names_the_group(x0, group, amount):
+    poly = Polyhedron([-1, -1], [1, 1], [[1.0, 1.0]], [-0.4], [0.8])
+    for run in (bundle_trust, slsqp):
+        with pytest.raises(ValueError, match=rf"x0 is infeasible: {group} .*by {amount}"):
+            run(crescent, np.array(x0), poly)
+
+
+def test_polyhedron_input_errors_and_residuals():
+    with pytest.raises(ValueError, match="lb > ub at index 1"):
+        Polyhedron([0, 1], [1, 0], np.zeros((0, 2)), [], [])
+    with pytest.raises(ValueError, match="cl: 2 entries, need 1"):
+        Polyhedron([0, 0], [1, 1], [[1.0, 1.0]], [0, 0], [1])
+    poly = Polyhedron([0, -np.inf], [1, np.inf], [[1.0, -1.0]], [-np.inf], [0.5])
+    r = poly.residuals(np.array([1.25, 0.5]))
+    assert r == {"lb": -1.25, "ub": 0.25, "cl": -math.inf, "cu": 0.25}
+    assert not poly.is_feasible([1.25, 0.5]) and poly.is_feasible([1.0, 0.5])
+
+
+@pytest.mark.parametrize("kw, key", [({"m_L": 0.6}, "m_L, m_R"), ({"t0": 1e4}, "t0"),
+                                     ({"max_bundle": 2}, "max_bundle"), ({"gamma": -1}, "gamma")])
+def test_options_validation(kw, key):
+    with pytest.raises(ValueError, match=f"BundleOptions.{key}"):
+        BundleOptions(**kw)
+
+
+@pytest.mark.parametrize("kw, reason", [({"max_evals": 7}, "max_evals"),
+                                        ({"max_iter": 3}, "max_iter")])
+def test_budgets(kw, reason):
+    oracle, poly, _ = max_affine(1)
+    res = bundle_trust(oracle, np.zeros(6), poly, BundleOptions(eps=1e-12, **kw))
+    assert res.stop_reason == reason
+    assert res.evaluations <= kw.get("max_evals", 10**9)
+    assert res.iterations <= kw.get("max_iter", 10**9)
+
+
+# ---------------------------------------------------------------- SLSQP baseline
+
+
+def test_slsqp_smooth_quadratic_against_kkt():
+    """``x'Qx/2 - b'x`` with the active row ``sum x <= -0.5``: the KKT system by hand."""
+    rng = np.random.default_rng(0)
+    n = 4
+    M = rng.normal(size=(n, n))
+    Q, b = M @ M.T + n * np.eye(n), rng.normal(size=n) * 5
+    poly = Polyhedron(np.full(n, -5.0), np.full(n, 5.0), np.ones((1, n)), [-np.inf], [-0.5])
+    assert np.linalg.solve(Q, b).sum() > -0.5  # the row is active at the minimiser
+    K = np.block([[Q, np.ones((n, 1))], [np.ones((1, n)), np.zeros((1, 1))]])
+    x_star = np.linalg.solve(K, np.r_[b, -0.5])[:n]
+    rows = []
+    res = slsqp(lambda x: (0.5 * x @ Q @ x - b @ x, Q @ x - b), np.full(n, -0.5), poly,
+                callback=rows.append)
+    assert "successfully" in res.stop_reason
+    np.testing.assert_allclose(res.x, x_star, atol=1e-6)
+    assert rows == res.history and rows[0]["kind"] == "start"
+    assert max(poly.residuals(res.x).values()) <= 1e-8
+
+
+def test_slsqp_oracle_failure():
+    oracle, poly, _ = max_affine(0)
+    res = slsqp(Recorder(oracle, fail_at=4, exc=RuntimeError("boom")), np.zeros(6), poly)
+    assert res.stop_reason == "oracle failed: RuntimeError: boom"
+    assert res.history and res.evaluations == 4
