@@ -8,6 +8,8 @@ from rbbench.hookspecs import hookimpl
 from rbbench.registry import ComponentSpec
 
 _ALL_PHYSICS = ("elasticity", "poisson")
+#: The linear scenes (issue 18): assembled by each backend's ``linear_target``, no contact.
+_LINEAR_PHYSICS = ("thermal", "heat")
 _COMP = "rbbench.rb.compressors"
 
 #: Dual compressors: (name, class, is a cone, nested in R, modules, description).
@@ -53,8 +55,11 @@ def _backends(add):
         modules=("skfem",),
         capabilities={"physics": _ALL_PHYSICS, "degree": (1, 2),
                       "multiplier": ("lac", "p0", "p1", "nodal"),
-                      "friction": ("none", "tresca", "coulomb")},
-        description="scikit-fem: graded triangle meshes, P1/P2, GPTS contact pairing",
+                      "friction": ("none", "tresca", "coulomb"),
+                      "linear_physics": _LINEAR_PHYSICS,
+                      "linear_target": "rbbench_plugins.backends.linear_skfem:SkfemLinearBackend"},
+        description="scikit-fem: graded triangle meshes, P1/P2, GPTS contact pairing; linear "
+                    "scenes (thermal, heat): unit square, no contact",
     ))
     add(ComponentSpec(
         name="ngsolve", role="backend",
@@ -62,9 +67,12 @@ def _backends(add):
         extras=("ngsolve",), modules=("ngsolve",),
         capabilities={"physics": _ALL_PHYSICS, "degree": (1, 2),
                       "multiplier": ("lac", "p0", "p1", "nodal"),
-                      "friction": ("none", "tresca", "coulomb")},
+                      "friction": ("none", "tresca", "coulomb"),
+                      "linear_physics": _LINEAR_PHYSICS,
+                      "linear_target":
+                          "rbbench_plugins.backends.linear_ngsolve:NGSolveLinearBackend"},
         description="NGSolve: Netgen meshes (or arrays), P1/P2, sparse Cholesky, "
-                    "GPTS contact pairing",
+                    "GPTS contact pairing; linear scenes (P1, the scikit-fem mesh)",
     ))
 
 
@@ -78,6 +86,14 @@ def _formulations(add):
                                   "petsc-vi", "petsc-tao")},
         description="Lagrange multipliers: A u + B^T lam = F, 0 <= lam _|_ G - B u >= 0; "
                     "friction: P1 nodal (lam_n, lam_t), Tresca box / Coulomb wedge",
+    ))
+    add(ComponentSpec(
+        name="linear", role="formulation",
+        target="rbbench_plugins.formulations.linear:LinearFormulation",
+        capabilities={"physics": _LINEAR_PHYSICS, "roles": ("backend", "primal", "hyper")},
+        description="linear elliptic / parabolic (implicit Euler), no constraint: no contact "
+                    "operator, dual or stabiliser; POD / POD-greedy, exact affine, "
+                    "residual error bound",
     ))
     add(ComponentSpec(
         name="nitsche", role="formulation",

@@ -43,6 +43,8 @@ _COPIED = ("n_hf_dofs", "n_contact", "n_train", "n_valid", "N", "R", "M_eim", "e
 #: ``S_tau`` is its ``S`` (the row's ``S`` is the stabiliser size).
 _FRICTION = ("err_lam_t_max", "err_lam_t_mean", "lam_t_best_max", "friction_residual_max",
              "online_iterations_max", "S_q", "gcns_iterations", "dim_v_off", "delta_pga")
+#: Summary keys of a reduced model with an a posteriori error bound (linear scenes).
+_ESTIMATOR = ("err_est_max", "effectivity_min", "effectivity_max")
 #: Summary entries of a friction reduction kept in the case details (report figures).
 _FRICTION_DETAILS = ("gcns_history", "lam_t_profiles")
 _TIMINGS = {"t_snapshots_s": "snapshots_s", "t_primal_s": "primal_s", "t_dual_s": "dual_s",
@@ -109,6 +111,7 @@ def _fill(row: dict, s: dict) -> None:
         row[f"beta_{b}_min"] = s.get(f"beta_{b}_min")
         row[f"beta_{b}_kind"] = (s.get("beta_kind") or {}).get(b)
     row["beta_dec_zero_any"] = s.get("beta_dec_zero_any")
+    row.update({k: s.get(k) for k in _ESTIMATOR})
     if _is_friction(s):
         row.update({k: s.get(k) for k in _FRICTION})
         row["S_tau"] = s.get("S")
@@ -126,7 +129,8 @@ def _is_friction(s: dict) -> bool:
 
 
 def _finite(s: dict) -> bool:
-    keys = ("err_u_max", "err_lam_max", "t_online_median_s")
+    keys = ("err_u_max", "t_online_median_s") + (("err_lam_max",) if s.get("n_contact")
+                                                  is not None else ())
     return all(s.get(k) is not None and np.isfinite(s[k]) for k in keys)
 
 
@@ -179,7 +183,10 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
     """Mode rb: the reduction and its online validation; fills the row's columns and
     status and returns the case's details (per-mu values, histories, validation mus)."""
     from rbbench.rb.offline import reduce
+    from rbbench.scene.linear import is_linear
 
+    if is_linear(scene):  # no contact: the linear skeleton (rbbench.rb.linear_offline)
+        from rbbench.rb.linear_offline import reduce_linear as reduce
     res = reduce(scene, case.reduce_config(cache_dir), progress=progress or _quiet,
                  registry=registry)
     s = res.summary()
@@ -191,7 +198,7 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
     elif bad_stops:
         row.update(status="diverged", reason=f"online solves did not converge: {bad_stops}")
     else:
-        row.update(status="ok", reason="")
+        row.update(status="ok", reason=s.get("reason", ""))  # linear: why no contact columns
     details = {"per_mu": s.get("per_mu", {}), "histories": s.get("histories", {}),
                "valid_mus": np.asarray(res.valid_mus).tolist(), "timings": s.get("timings", {})}
     if _is_friction(s):
@@ -203,8 +210,15 @@ def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) ->
     """Mode hf: ``hf_repeats`` HF solves at the scene's default mu (components built once,
     meshing not timed); fills the sizes, force, iterations and HF time columns."""
     from rbbench.hf.model import make_components, solve_hf
+    from rbbench.scene.linear import is_linear
 
     c = case.components
+    if is_linear(scene):
+        from rbbench.hf.linear import hf_row
+
+        row.update(hf_row(scene, c["backend"], int(case.params.get("hf_repeats", 3)),
+                          registry))
+        return
     comps = make_components(scene, c["backend"], c["formulation"], c["solver"], registry)
     times, sol = [], None
     repeats = int(case.params.get("hf_repeats", 3))

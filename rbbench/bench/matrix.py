@@ -129,6 +129,9 @@ class Case:
         c = self.components
         if self.mode == "hf":
             return f"{self.scene} HF {c['backend']}/{c['formulation']}/{c['solver']}"
+        if not c["dual"]:  # no dual space (linear formulation)
+            return (f"{self.scene} {c['backend']}/{c['formulation']}/{c['primal']} N={self.N}"
+                    + (f" rep {self.repetition}" if self.repetition else ""))
         fd = self.params.get("friction_dual")
         gcns = "".join(f" {k}={v}" for k, v in self.params.items() if k.startswith("gcns_"))
         return (f"{self.scene} {c['dual']}+{c['stabilizer']}+{c['hyper']}"
@@ -421,12 +424,20 @@ def _scene_cases(plan: _Plan, sname: str, sel: dict[str, list[str]],
         raise MatrixError(f"{where}: [matrix] scenes: {sname!r}: {exc}") from None
     scene_seed, fingerprint = int(scene.data["sampling"]["seed"]), scene.fingerprint()
     cases: list[Case] = []
+    seen: set[tuple] = set()
     for combo in itertools.product(*plan.axes.values()):
         values = dict(zip(plan.axes, combo, strict=True))
         if not all(_selected(v, sel.get(r)) for r, v in values.items()):
             continue
         comp = {r: values[r] for r in COMPONENT_ROLES}
         model = {a: values[a] for a in MODEL_AXES if a in values}
+        used = _applicable(registry, comp)
+        if used != comp:  # roles its formulation does not use, emptied: one case for them
+            key = (tuple(used.items()), tuple(model.items()))
+            if key in seen:
+                continue
+            seen.add(key)
+            comp = used
         status, reason = compatibility(scene, comp, registry)
         option_sets = [plan.grids.get((r, v), [{}]) for r, v in values.items()]
         for N, R in plan.pairs:  # mode hf: no [sizes], the one pair (None, None)
@@ -440,6 +451,18 @@ def _scene_cases(plan: _Plan, sname: str, sel: dict[str, list[str]],
                                fingerprint, plan.mode, st, why)
                           for rep in range(plan.repetitions)]
     return cases
+
+
+def _applicable(registry: Registry | None, comp: dict[str, str]) -> dict[str, str]:
+    """``comp`` with the roles its formulation declares unused emptied (``""``: not
+    applicable; the formulation's ``capabilities["roles"]``, e.g. the linear formulation:
+    no solver, dual nor stabiliser)."""
+    if registry is None or comp["formulation"] not in registry.names("formulation"):
+        return comp
+    roles = registry.get("formulation", comp["formulation"]).capabilities.get("roles")
+    if roles is None:
+        return comp
+    return {r: (v if r in (*roles, "formulation") else "") for r, v in comp.items()}
 
 
 def _case_params(plan: _Plan, opts: tuple[dict, ...]) -> dict[str, Any]:
@@ -496,15 +519,16 @@ def compatibility(scene: Scene, comp: dict[str, str],
         physics = scene.data["scene"]["physics"]
         for r in ("backend", "formulation"):
             ok = caps[r].get("physics")
+            ok = ok if ok is None else (*ok, *caps[r].get("linear_physics", ()))
             if ok is not None and physics not in ok:
                 return "skip", f"{r} {comp[r]!r} does not support {physics} (supports {ok})"
         law = friction_of(scene).law
         for r in ("formulation", "solver"):
-            laws = caps[r].get("friction", ("none",))
+            laws = caps[r].get("friction", ("none",)) if r in caps else (law,)
             if law not in laws:
                 return "skip", (f"{r} {comp[r]!r} does not support the friction law "
                                 f"{law!r} (supports {tuple(laws)})")
-        forms = caps["solver"].get("formulations")
+        forms = caps["solver"].get("formulations") if "solver" in caps else None
         if forms is not None and comp["formulation"] not in forms:
             return "skip", (f"solver {comp['solver']!r} does not solve the "
                             f"{comp['formulation']!r} formulation (solves {forms})")

@@ -125,6 +125,14 @@ COLUMNS: tuple[Column, ...] = (
     _c("complementarity_max", "float", "accuracy", "1", "|lam_R . (G - B u_N)| / "
        "(||lam_R|| ||G||) at the HF rows, max " + _VALID),
     _c("energy_err_max", "float", "accuracy", "1", "|J(u_N) - J(u)| / |J(u)|, max " + _VALID),
+    # a posteriori error bound (linear scenes, rbbench.rb.linear_model)
+    _c("err_est_max", "float", "accuracy", "1", "linear scenes: the residual-based error "
+       "bound (coercivity lower bound by min-theta) divided by ||u||, in err_u's norm, max "
+       + _VALID),
+    _c("effectivity_min", "float", "accuracy", "1", "linear scenes: error bound / true "
+       "error, min " + _VALID + " (>= 1: the bound is rigorous)"),
+    _c("effectivity_max", "float", "accuracy", "1", "linear scenes: error bound / true "
+       "error, max " + _VALID),
     # accuracy of the reduced friction models (mode rb, friction scenes)
     _c("err_lam_t_max", "float", "accuracy", "1", _ERR_T + ", max " + _VALID),
     _c("err_lam_t_mean", "float", "accuracy", "1", _ERR_T + ", mean " + _VALID),

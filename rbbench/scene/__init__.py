@@ -1,6 +1,7 @@
-"""Scenes: the schema, loading and validation of scene files (:mod:`.loading`) and parameter
-sampling (:mod:`.sampling`)."""
+"""Scenes: the schema, loading and validation of scene files (:mod:`.loading`; the linear
+scenes without contact: :mod:`.linear`) and parameter sampling (:mod:`.sampling`)."""
 
+from rbbench.scene.linear import LINEAR_PHYSICS  # registers the linear scenes' schema
 from rbbench.scene.loading import (
     PROBLEMS_DIR,
     Parameter,
@@ -13,5 +14,5 @@ from rbbench.scene.loading import (
 )
 from rbbench.scene.sampling import parameter_set
 
-__all__ = ["PROBLEMS_DIR", "Parameter", "Scene", "SceneError", "find_scene", "load_scene",
-           "parameter_set", "parse_override", "validate"]
+__all__ = ["LINEAR_PHYSICS", "PROBLEMS_DIR", "Parameter", "Scene", "SceneError", "find_scene",
+           "load_scene", "parameter_set", "parse_override", "validate"]

@@ -105,7 +105,8 @@ SCHEMA: dict[str, dict[str, Field]] = {
     "scene": {
         "name": Field("str", required=True),
         "description": Field("str", default=""),
-        "physics": Field("str", required=True, choices=("elasticity", "poisson")),
+        "physics": Field("str", required=True, choices=("elasticity", "poisson", "thermal",
+                                                        "heat")),  # the last two: linear.py
         "friction": Field("str", default="none", choices=("none",)),
     },
     "geometry": {
@@ -570,9 +571,17 @@ def _check_kind(data: dict[str, Any], path: str) -> None:
         raise _err(path, "[scene] physics", "geometry kind 'unit_square' needs 'poisson'")
 
 
+#: Validators of scene kinds with their own schema, by physics: ``(data, path, overrides)
+#: -> Scene`` (registered by :mod:`rbbench.scene.linear` for ``thermal`` and ``heat``).
+PHYSICS_VALIDATORS: dict[str, Any] = {}
+
+
 def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, ...] = ()) -> Scene:
     """Validate raw scene data; fill defaults; return a :class:`Scene`."""
     data = copy.deepcopy(data)
+    physics = data["scene"].get("physics") if isinstance(data.get("scene"), dict) else None
+    if physics in PHYSICS_VALIDATORS:  # e.g. the linear scenes (rbbench.scene.linear)
+        return PHYSICS_VALIDATORS[physics](data, path, tuple(overrides))
     _check_sections(data, path)
     params = _parameters(data, path)  # first: other keys may reference them
     _fill_schema(data, path, params)
