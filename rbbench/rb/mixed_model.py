@@ -48,6 +48,13 @@ class OnlineResult:
     #: daqp: the smallest multiplier it returned, before the clip at 0, relative to the
     #: largest (round-off only: tests assert it is >= -1e-10); pdas: min(alpha) / max
     alpha_raw_min: float = 0.0
+    #: which online path ran: "python" (the reference) or "compiled"
+    #: (:mod:`rbbench.rb.compiled_online`)
+    path: str = "python"
+
+
+#: Online paths of :meth:`ReducedModel.solve`: "auto" (compiled where available)
+ONLINE_PATHS = ("auto", "compiled", "python")
 
 
 #: Online solvers of the reduced saddle point (``ReducedModel.solve(method=...)``).
@@ -203,17 +210,62 @@ class ReducedModel:
         return self.A(th), self.F(th), B, G
 
     def solve(self, mu: np.ndarray, warm_start: np.ndarray | None = None,
-              max_iter: int = 100, method: str = "daqp") -> OnlineResult:
+              max_iter: int = 100, method: str = "daqp", path: str = "auto") -> OnlineResult:
         """Online solve: check mu against D (:attr:`parameters`, a
         :class:`~rbbench.scene.parameters.SceneError` outside it, as the HF solve), assemble
-        the reduced arrays, then :func:`solve_reduced`."""
+        the reduced arrays, then :func:`solve_reduced`.
+
+        ``path``: ``"python"`` (the reference), ``"compiled"`` (:mod:`rbbench.rb.compiled_online`,
+        a RuntimeError saying why when it is unavailable) or ``"auto"`` (compiled where
+        available: :meth:`online_path`). The compiled kernels are prepared on the first
+        call, outside the timed solve (``compiled_online.COMPILE`` has that time).
+        """
+        fast = self._compiled(method, path)
         t0 = time.perf_counter()
+        if fast is not None:
+            out = fast.solve(mu)
+            if out is not None:
+                return OnlineResult(out[0], out[1], out[2], "converged",
+                                    time.perf_counter() - t0, out[3], "compiled")
         if self.parameters is not None:
             mu = self.parameters.check(mu)
         res = solve_reduced(*self.arrays(mu), warm_start=warm_start, max_iter=max_iter,
                             cho=self._cho, method=method)
         res.time_s = time.perf_counter() - t0
         return res
+
+    def online_path(self, method: str = "daqp") -> str:
+        """The path :meth:`solve` takes with ``path = "auto"``: ``"compiled (numba X)"`` or
+        ``"python (<why>)"``."""
+        from rbbench.rb import compiled_online
+
+        fast = self._compiled(method, "auto")
+        if fast is not None:
+            return f"compiled (numba {compiled_online.NUMBA_VERSION})"
+        return f"python ({self._online_state[method]})"
+
+    def _compiled(self, method: str, path: str):
+        """The prepared compiled solve for ``method``, or None (the Python path)."""
+        if path not in ONLINE_PATHS:
+            raise ValueError(f"online path {path!r}: valid: {', '.join(ONLINE_PATHS)}")
+        if path == "python":
+            return None
+        state = self.__dict__.setdefault("_online_state", {})
+        if method not in state:
+            from rbbench.rb.compiled_online import prepare
+
+            state[method] = prepare(self, method)
+        if isinstance(state[method], str):
+            if path == "compiled":
+                raise RuntimeError(f"compiled online path unavailable: {state[method]}")
+            return None
+        return state[method]
+
+    def __getstate__(self) -> dict:
+        """Pickle without the compiled solve (buffers and daqp views: rebuilt on use)."""
+        state = dict(self.__dict__)
+        state.pop("_online_state", None)
+        return state
 
 
 @dataclass

@@ -1,0 +1,363 @@
+"""numba kernels of the compiled online stage (:mod:`rbbench.rb.compiled_online`).
+
+One call of :func:`online_qp` does, for one mu, what the Python reference does in about 500
+Python calls: the pairing of the EIM magic rows' quadrature points in their master windows
+(:func:`rbbench.hf.pairing.pair`, :func:`rbbench.hf.facets.ray_cast_window`), the magic
+entries of ``C(mu) = B(mu) Z`` and the magic rows of ``G(mu)``
+(:meth:`rbbench.rb.contact_eim.RowEvaluator.entries`), the EIM coefficient solves, the
+reduced ``B_N``, ``G_N``, ``A_N``, ``F_N`` (:class:`rbbench.rb.contact_eim.ContactEIM`) and
+the scaled QP data of :func:`rbbench.rb.mixed_model._solve_daqp`. The formulas are the
+reference's, written per point; only the summation order differs (round-off).
+
+Arguments are packed into two flat buffers (``fb`` float64, ``ib`` int64) and a table
+``meta`` (one row ``[offset, s0, s1, s2]`` per array, in the order of :data:`FLOATS` then
+:data:`INTS`): a numba call costs ~0.2 us per array argument, so five arguments instead of
+thirty. The module imports numba at the top: import it only when numba is installed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+#: float arrays of the plan, in buffer order (shapes: see ``compiled_online.plan_arrays``)
+FLOATS = ("mu_lo", "mu_hi", "s_scale", "s_shift", "m_scale", "m_shift", "s_a", "s_b",
+          "s_inner", "s_na", "s_nb", "m_a", "m_b", "ranges", "sg", "wg", "z_loc", "vals_b",
+          "vals_g", "lu_b", "lu_g", "t_b", "t_g", "a_terms", "f_terms")
+#: int arrays of the plan: ``dims = [degree, has_master, vertex_normals]``
+INTS = ("dims", "s_dofs", "m_dofs", "lo", "hi", "pts_b", "cols_b", "pts_g", "piv_b", "piv_g")
+
+(MU_LO, MU_HI, S_SCALE, S_SHIFT, M_SCALE, M_SHIFT, S_A, S_B, S_INNER, S_NA, S_NB, M_A, M_B,
+ RANGES, SG, WG, Z_LOC, VALS_B, VALS_G, LU_B, LU_G, T_B, T_G, A_TERMS, F_TERMS) = range(25)
+(DIMS, S_DOFS, M_DOFS, LO, HI, PTS_B, COLS_B, PTS_G, PIV_B, PIV_G) = range(25, 35)
+
+#: statuses of :func:`online_qp` (anything but OK: the caller reruns the Python path,
+#: which raises the reference's error)
+OK, OUTSIDE_D, NO_HIT = 0, 1, 2
+
+_TOL = 1e-10  # ray_cast's tolerance on the facet coordinate
+_EPS = 1e-9  # ray_cast_window's margin on the angles
+
+
+@njit(cache=True)
+def _f(fb, meta, k):
+    o = meta[k, 0]
+    return fb[o:o + meta[k, 1] * meta[k, 2] * meta[k, 3]]
+
+
+@njit(cache=True)
+def _f2(fb, meta, k):
+    return _f(fb, meta, k).reshape((meta[k, 1], meta[k, 2] * meta[k, 3]))
+
+
+@njit(cache=True)
+def _i(ib, meta, k):
+    o = meta[k, 0]
+    return ib[o:o + meta[k, 1] * meta[k, 2] * meta[k, 3]]
+
+
+@njit(cache=True)
+def _i2(ib, meta, k):
+    return _i(ib, meta, k).reshape((meta[k, 1], meta[k, 2] * meta[k, 3]))
+
+
+@njit(cache=True)
+def _map(th, scale, shift):
+    """``(s, cx, cy)`` of :class:`~rbbench.hf.facet_chains.AffineMap` at ``th = [1, mu]``."""
+    s, cx, cy = 0.0, 0.0, 0.0
+    p1 = th.size
+    for j in range(p1):
+        s += scale[j] * th[j]
+        cx += shift[j] * th[j]
+        cy += shift[p1 + j] * th[j]
+    return s, cx, cy
+
+
+@njit(cache=True)
+def _shape(s, degree, out):
+    """:func:`~rbbench.hf.facets.facet_shape` at one point, into ``out``."""
+    if degree == 1:
+        out[0], out[1] = 1.0 - s, s
+    else:
+        out[0] = (1 - s) * (1 - 2 * s)
+        out[1] = s * (2 * s - 1)
+        out[2] = 4 * s * (1 - s)
+
+
+@njit(cache=True)
+def slave_points(th, fb, ib, meta, x, nrm, w, sphi):
+    """Points, unit outward normals, weights and slave shape values of the Gauss rule on
+    every slave facet at mu (:func:`~rbbench.hf.pairing.pair`,
+    :meth:`~rbbench.hf.facet_chains.FacetChain.normals_at`)."""
+    sa, sb, inner = _f2(fb, meta, S_A), _f2(fb, meta, S_B), _f2(fb, meta, S_INNER)
+    na, nb = _f2(fb, meta, S_NA), _f2(fb, meta, S_NB)
+    sg, wg = _f(fb, meta, SG), _f(fb, meta, WG)
+    dims = _i(ib, meta, DIMS)
+    s, cx, cy = _map(th, _f(fb, meta, S_SCALE), _f(fb, meta, S_SHIFT))
+    ng = sg.size
+    sign = 1.0 if s > 0 else (-1.0 if s < 0 else 0.0)
+    for f in range(sa.shape[0]):
+        ax, ay = s * sa[f, 0] + cx, s * sa[f, 1] + cy
+        bx, by = s * sb[f, 0] + cx, s * sb[f, 1] + cy
+        dx, dy = bx - ax, by - ay
+        length = np.sqrt(dx * dx + dy * dy)
+        fnx, fny = dy / length, -dx / length
+        ix, iy = s * inner[f, 0] + cx, s * inner[f, 1] + cy
+        if fnx * (ix - 0.5 * (ax + bx)) + fny * (iy - 0.5 * (ay + by)) > 0:
+            fnx, fny = -fnx, -fny
+        for g in range(ng):
+            q = f * ng + g
+            sq = sg[g]
+            x[q, 0], x[q, 1] = ax + sq * dx, ay + sq * dy
+            if dims[2]:
+                vx = (1.0 - sq) * na[f, 0] + sq * nb[f, 0]
+                vy = (1.0 - sq) * na[f, 1] + sq * nb[f, 1]
+                nv = np.sqrt(vx * vx + vy * vy)
+                nrm[q, 0], nrm[q, 1] = sign * vx / nv, sign * vy / nv
+            else:
+                nrm[q, 0], nrm[q, 1] = fnx, fny
+            w[q] = wg[g] * length
+            _shape(sq, dims[0], sphi[q])
+
+
+@njit(cache=True)
+def _cast(x0, x1, n0, n1, ax, ay, bx, by):
+    """One ray-segment test of :func:`~rbbench.hf.facets.ray_cast`: ``(ok, s, |t|, t)``."""
+    d0, d1 = bx - ax, by - ay
+    det = n0 * (-d1) - n1 * (-d0)
+    r0, r1 = ax - x0, ay - x1
+    if not abs(det) > 1e-14:
+        return False, 0.0, np.inf, 0.0
+    t = (r0 * (-d1) - r1 * (-d0)) / det
+    s = (n0 * r1 - n1 * r0) / det
+    return (s >= -_TOL) and (s <= 1 + _TOL), s, abs(t), t
+
+
+@njit(cache=True)
+def _best(x0, x1, n0, n1, ma, mb, first, last, lo, hi):
+    """Best hit (smallest ``|t|``, first on ties) over facets ``first .. last`` kept in
+    ``lo .. hi``: ``(segment or -1, s clipped to [0, 1], t)``."""
+    seg, best, bs, bt = -1, np.inf, 0.0, np.nan
+    for j in range(first, last + 1):
+        if j < lo or j > hi:
+            continue
+        ok, s, at, t = _cast(x0, x1, n0, n1, ma[j, 0], ma[j, 1], mb[j, 0], mb[j, 1])
+        if ok and at < best:
+            seg, best, bs, bt = j, at, s, t
+    return seg, min(max(bs, 0.0), 1.0), bt
+
+
+@njit(cache=True)
+def _side(x0, x1, n0, n1, ma, mb, j):
+    """``cross(n, P_j - x)`` for chain vertex ``j`` (``a[j]``, or ``b[-1]`` at the end)."""
+    if j < ma.shape[0]:
+        px, py = ma[j, 0], ma[j, 1]
+    else:
+        px, py = mb[j - 1, 0], mb[j - 1, 1]
+    return n0 * (py - x1) - n1 * (px - x0)
+
+
+@njit(cache=True)
+def ray_cast_window(x, nrm, ma, mb, lo, hi, ranges, seg, s2, gap):
+    """:func:`~rbbench.hf.facets.ray_cast_window` per point: bisection where the window's
+    facet directions are monotone along the ray, then an exact cast on the facet found and
+    its two neighbours; else (or without a hit) brute force over the window. Returns False
+    when a point hits no facet."""
+    for q in range(x.shape[0]):
+        x0, x1, n0, n1 = x[q, 0], x[q, 1], nrm[q, 0], nrm[q, 1]
+        th = np.arctan2(n1, n0)
+        monotone = (np.floor((ranges[q, 0] - th - _EPS) / np.pi)
+                    == np.floor((ranges[q, 1] - th + _EPS) / np.pi))
+        left, right = lo[q], hi[q] + 1
+        f_left = np.sign(_side(x0, x1, n0, n1, ma, mb, left))
+        while right - left > 1:
+            mid = (left + right) // 2
+            if np.sign(_side(x0, x1, n0, n1, ma, mb, mid)) == f_left:
+                left = mid
+            else:
+                right = mid
+        j, s, t = _best(x0, x1, n0, n1, ma, mb, left - 1, left + 1, lo[q], hi[q])
+        if j < 0 or not monotone:
+            j, s, t = _best(x0, x1, n0, n1, ma, mb, lo[q], hi[q], lo[q], hi[q])
+        if j < 0:
+            return False
+        seg[q], s2[q], gap[q] = j, s, t
+    return True
+
+
+@njit(cache=True)
+def _jump_entry(q, col, nrm, sphi, sdofs, mphi, mdofs, z, has_master):
+    """``sum_j coef[q, j] Z[dof[q, j], col]`` of the normal jump at point ``q``
+    (:meth:`~rbbench.hf.pairing.Pairing.jump_terms`): slave term, then master term."""
+    k = sphi.shape[1]
+    acc = 0.0
+    for a in range(k):
+        for d in range(2):
+            acc += sphi[q, a] * nrm[q, d] * z[sdofs[q, 2 * a + d], col]
+    if has_master:
+        for a in range(k):
+            for d in range(2):
+                acc += -(mphi[q, a] * nrm[q, d]) * z[mdofs[q, 2 * a + d], col]
+    return acc
+
+
+@njit(cache=True)
+def magic_values(fb, ib, meta, nrm, w, gap, sphi, sdofs, mphi, mdofs, has_master):
+    """The magic entries of ``C(mu)`` and magic rows of ``G(mu)``
+    (:meth:`~rbbench.rb.contact_eim.RowEvaluator.entries`)."""
+    z = _f2(fb, meta, Z_LOC)
+    vals_b, pts_b, cols = _f2(fb, meta, VALS_B), _i2(ib, meta, PTS_B), _i(ib, meta, COLS_B)
+    vals_g, pts_g = _f2(fb, meta, VALS_G), _i2(ib, meta, PTS_G)
+    c = np.zeros(pts_b.shape[0])
+    for e in range(pts_b.shape[0]):
+        for p in range(pts_b.shape[1]):
+            q = pts_b[e, p]
+            c[e] += vals_b[e, p] * w[q] * _jump_entry(q, cols[e], nrm, sphi, sdofs, mphi,
+                                                      mdofs, z, has_master)
+    g = np.zeros(pts_g.shape[0])
+    for r in range(pts_g.shape[0]):
+        for p in range(pts_g.shape[1]):
+            q = pts_g[r, p]
+            g[r] += vals_g[r, p] * w[q] * gap[q]
+    return c, g
+
+
+@njit(cache=True)
+def lu_solve(lu, piv, b):
+    """``scipy.linalg.lu_solve((lu, piv), b)`` for one right-hand side (getrs: the row
+    interchanges of getrf, then the unit lower and the upper triangular solves)."""
+    n = b.size
+    y = b.copy()
+    for i in range(n):
+        j = piv[i]
+        if j != i:
+            y[i], y[j] = y[j], y[i]
+    for i in range(n):
+        for j in range(i):
+            y[i] -= lu[i, j] * y[j]
+    for i in range(n - 1, -1, -1):
+        for j in range(i + 1, n):
+            y[i] -= lu[i, j] * y[j]
+        y[i] /= lu[i, i]
+    return y
+
+
+@njit(cache=True)
+def _combine(coef, terms, out):
+    """``out = sum_k coef[k] terms[k]`` (terms flattened per k)."""
+    out[:] = 0.0
+    for k in range(coef.size):
+        ck = coef[k]
+        for i in range(out.size):
+            out[i] += ck * terms[k, i]
+
+
+@njit(cache=True)
+def pair_points(th, fb, ib, meta, nq, k):
+    """The pairing of the plan's quadrature points at mu: ``(status, nrm, w, gap, sphi,
+    sdofs, mphi, mdofs)`` (dofs per point flattened as ``(degree + 1) x 2``)."""
+    dims = _i(ib, meta, DIMS)
+    x, nrm = np.empty((nq, 2)), np.empty((nq, 2))
+    w, gap, sphi = np.empty(nq), np.empty(nq), np.empty((nq, k))
+    slave_points(th, fb, ib, meta, x, nrm, w, sphi)
+    ng = _f(fb, meta, SG).size
+    s_dofs, m_dofs = _i2(ib, meta, S_DOFS), _i2(ib, meta, M_DOFS)
+    sdofs = np.empty((nq, 2 * k), dtype=np.int64)
+    for q in range(nq):
+        sdofs[q] = s_dofs[q // ng]
+    mphi, mdofs = np.zeros((nq, k)), np.zeros((nq, 2 * k), dtype=np.int64)
+    if not dims[1]:  # rigid plane y = 0
+        for q in range(nq):
+            gap[q] = -x[q, 1] / nrm[q, 1]
+        return OK, nrm, w, gap, sphi, sdofs, mphi, mdofs
+    s, cx, cy = _map(th, _f(fb, meta, M_SCALE), _f(fb, meta, M_SHIFT))
+    ma, mb = s * _f2(fb, meta, M_A), s * _f2(fb, meta, M_B)
+    ma[:, 0] += cx
+    ma[:, 1] += cy
+    mb[:, 0] += cx
+    mb[:, 1] += cy
+    seg, s2 = np.empty(nq, dtype=np.int64), np.empty(nq)
+    if not ray_cast_window(x, nrm, ma, mb, _i(ib, meta, LO), _i(ib, meta, HI),
+                           _f2(fb, meta, RANGES), seg, s2, gap):
+        return NO_HIT, nrm, w, gap, sphi, sdofs, mphi, mdofs
+    for q in range(nq):
+        _shape(s2[q], dims[0], mphi[q])
+        mdofs[q] = m_dofs[seg[q]]
+    return OK, nrm, w, gap, sphi, sdofs, mphi, mdofs
+
+
+@njit(cache=True)
+def online_qp(mu, fb, ib, meta, qp):
+    """The scaled QP data of one online solve at ``mu``, written into ``qp``.
+
+    ``qp`` holds ``[H (n x n), f (n), A (m x n), b_upper (m), row norms of B_N (m), |F_N|]``
+    with ``H = A_N``, ``f = -F_N / |F_N|``, ``A = B_N / rows``, ``b_upper = G_N / rows /
+    |F_N|`` (:func:`rbbench.rb.mixed_model._solve_daqp`). Returns a status: :data:`OK`,
+    :data:`OUTSIDE_D` (mu is not in D: wrong size, not finite or outside the bounds) or
+    :data:`NO_HIT` (a point left its master window).
+    """
+    lo_mu, hi_mu = _f(fb, meta, MU_LO), _f(fb, meta, MU_HI)
+    if mu.size != lo_mu.size:
+        return OUTSIDE_D
+    for j in range(mu.size):
+        if not (np.isfinite(mu[j]) and lo_mu[j] <= mu[j] <= hi_mu[j]):
+            return OUTSIDE_D
+    th = np.empty(mu.size + 1)
+    th[0] = 1.0
+    th[1:] = mu
+    dims = _i(ib, meta, DIMS)
+    k = dims[0] + 1
+    nq = _f(fb, meta, SG).size * meta[S_A, 1]
+    status, nrm, w, gap, sphi, sdofs, mphi, mdofs = pair_points(th, fb, ib, meta, nq, k)
+    if status != OK:
+        return status
+    c, g = magic_values(fb, ib, meta, nrm, w, gap, sphi, sdofs, mphi, mdofs, dims[1])
+    theta = lu_solve(_f2(fb, meta, LU_B), _i(ib, meta, PIV_B), c)
+    eta = lu_solve(_f2(fb, meta, LU_G), _i(ib, meta, PIV_G), g)
+    a_terms, t_b = _f2(fb, meta, A_TERMS), _f2(fb, meta, T_B)
+    n = meta[A_TERMS, 2]
+    m = meta[T_B, 2]
+    _combine(th, a_terms, qp[:n * n])
+    f = np.empty(n)
+    _combine(th, _f2(fb, meta, F_TERMS), f)
+    b = qp[n * n + n:n * n + n + m * n]
+    _combine(theta, t_b, b)
+    gn = np.empty(m)
+    _combine(eta, _f2(fb, meta, T_G), gn)
+    _scale(f, b.reshape((m, n)), gn, qp[n * n:], n, m)
+    return OK
+
+
+@njit(cache=True)
+def _scale(f, b, gn, out, n, m):
+    """Row and load scaling of :func:`rbbench.rb.mixed_model._solve_daqp` into ``out`` =
+    ``[f (n), A (m x n, in place: b is its storage), b_upper (m), rows (m), |F|]``."""
+    fs = np.sqrt(np.sum(f * f))
+    if fs == 0.0:
+        fs = 1.0
+    for i in range(n):
+        out[i] = -f[i] / fs
+    o = n + m * n
+    for r in range(m):
+        rn = np.sqrt(np.sum(b[r] * b[r]))
+        if rn == 0.0:
+            rn = 1.0
+        b[r] /= rn
+        out[o + r] = gn[r] / rn / fs
+        out[o + m + r] = rn
+    out[o + 2 * m] = fs
+
+
+@njit(cache=True)
+def unscale(y, lam, qp, n, m):
+    """``(c, alpha, finite, rel_min)`` from daqp's ``(y, lam)``: ``c = y |F|``, raw
+    multipliers ``lam |F| / rows``, ``alpha = max(raw, 0)``, ``min(raw) / max|raw|``."""
+    o = n + n * n + m * n + m
+    fs = qp[o + m]
+    c = y * fs
+    raw = lam * fs / qp[o:o + m]
+    alpha = np.maximum(raw, 0.0)
+    finite = np.all(np.isfinite(c)) and np.all(np.isfinite(alpha))
+    top = np.max(np.abs(raw)) if raw.size else 0.0
+    rel = np.min(raw) / top if top > 0 else 0.0
+    return c, alpha, finite, rel

@@ -1,0 +1,199 @@
+"""The compiled online path of the mixed reduced model with the contact EIM (issue 17, item 1).
+
+:meth:`rbbench.rb.mixed_model.ReducedModel.solve` with ``method = "daqp"`` spends ~95 % of
+its ~420 us in about 500 Python calls: the EIM's contact pairing, the magic entries, the
+coefficient solves, the reduced assembly, the daqp input scaling and the result. Here one
+numba kernel (:func:`rbbench.rb._kernels.online_qp`) does all of it for one mu, daqp solves
+the same QP as the Python path (same scaled data, same tolerances), and a second kernel
+unscales its answer. The Python path stays the reference (``path = "python"``);
+``tests/test_compiled_online.py`` compares the two on the same inputs.
+
+Why numba rather than Cython or pythran: the kernels are plain loops over small float arrays
+(numba's sweet spot), numba is one ``pip install`` with wheels for every platform the
+README's set-up covers (no C compiler at install time, unlike Cython and pythran), the
+compiled code is cached on disk (``cache=True``: ~1 s to load in a new process instead of
+~10 s to compile), and without numba the package still works: the Python path is used and
+reported as such (:func:`path_reason`). Cython would also have let us call daqp's C API
+without the Python wrapper (~1-2 us less), not worth a build step.
+
+Every deviation (mu outside D, a point leaving its master window, daqp not reporting
+optimality, non-finite numbers) returns None and the caller reruns the Python path, which
+raises the reference's error or falls back to PDAS as before.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+try:  # optional: without numba the Python path is the online path
+    import numba
+
+    NUMBA_VERSION: str | None = numba.__version__
+except ImportError:  # pragma: no cover - exercised where numba is absent
+    NUMBA_VERSION = None
+
+__all__ = ["COMPILE", "NUMBA_VERSION", "CompiledOnline", "path_reason", "plan_arrays",
+           "prepare"]
+
+#: first call of the kernels in this process: ``{"first_call_s": s, "from_disk_cache": bool}``
+#: (compilation, or loading numba's on-disk cache; never part of an online time)
+COMPILE: dict[str, Any] = {}
+
+#: daqp settings of the online QP (:func:`rbbench.rb.mixed_model._solve_daqp`)
+DAQP_TOL = 1e-12
+
+
+def path_reason(model: Any, method: str = "daqp") -> str | None:
+    """Why ``model`` cannot take the compiled path (None when it can)."""
+    from rbbench.rb.affine import LinearInMu
+    from rbbench.rb.contact_eim import ContactEIM
+
+    if NUMBA_VERSION is None:
+        return "numba is not installed"
+    if method != "daqp":
+        return f"online method {method!r} (the compiled path solves the QP by daqp)"
+    ceim = model.constraint
+    if not isinstance(ceim, ContactEIM):
+        return f"constraint {type(ceim).__name__} (the compiled path is the contact EIM's)"
+    if not isinstance(model.coefficients, LinearInMu):
+        return f"coefficient map {type(model.coefficients).__name__} (not theta = [1, mu])"
+    lay = ceim.evaluator.layout
+    if lay.degree not in (1, 2) or lay.integration != "gauss":
+        return f"facet degree {lay.degree}, integration {lay.integration!r}"
+    if lay.master is not None and ceim.evaluator.windows is None:
+        return "a master chain without windows"
+    return None
+
+
+def plan_arrays(model: Any) -> dict[str, np.ndarray]:
+    """The arrays of the kernels' plan (:data:`rbbench.rb._kernels.FLOATS`, ``INTS``) from a
+    reduced model whose constraint is a :class:`~rbbench.rb.contact_eim.ContactEIM`."""
+    ceim = model.constraint
+    ev, lay = ceim.evaluator, ceim.evaluator.layout
+    p = int(model.A.terms.shape[0]) - 1
+    if model.parameters is not None:
+        lo, hi = np.asarray(model.parameters.low), np.asarray(model.parameters.high)
+    else:
+        lo, hi = np.full(p, -np.inf), np.full(p, np.inf)
+    sl, ms = lay.slave, lay.master
+    none2 = np.zeros((1, 2))
+    pts_b, vals_b = ceim._support
+    pts_g, vals_g = ev.support(ceim.pos_G)
+    out = {"mu_lo": lo, "mu_hi": hi, "s_scale": sl.map.scale, "s_shift": sl.map.shift,
+           "m_scale": sl.map.scale if ms is None else ms.map.scale,
+           "m_shift": sl.map.shift if ms is None else ms.map.shift,
+           "s_a": sl.a, "s_b": sl.b, "s_inner": sl.inner,
+           "s_na": none2 if sl.na is None else sl.na, "s_nb": none2 if sl.nb is None else sl.nb,
+           "m_a": none2 if ms is None else ms.a, "m_b": none2 if ms is None else ms.b,
+           "ranges": none2 if ms is None else ev.windows[2],
+           "sg": gauss(lay.n_gauss)[0], "wg": gauss(lay.n_gauss)[1], "z_loc": ceim.Z_loc,
+           "vals_b": vals_b, "vals_g": vals_g, "lu_b": ceim.lu_B[0], "lu_g": ceim.lu_G[0],
+           "t_b": ceim.T_B, "t_g": ceim.T_G, "a_terms": model.A.terms,
+           "f_terms": model.F.terms,
+           "dims": np.array([lay.degree, ms is not None, sl.na is not None]),
+           "s_dofs": sl.dofs, "m_dofs": sl.dofs[:1] if ms is None else ms.dofs,
+           "lo": np.zeros(1) if ms is None else ev.windows[0],
+           "hi": np.zeros(1) if ms is None else ev.windows[1],
+           "pts_b": pts_b, "cols_b": ceim.entry_col, "pts_g": pts_g,
+           "piv_b": ceim.lu_B[1], "piv_g": ceim.lu_G[1]}
+    return out
+
+
+def gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The layout's Gauss rule on [0, 1] (:func:`rbbench.hf.facets.gauss_legendre_01`)."""
+    from rbbench.hf.facets import gauss_legendre_01
+
+    return gauss_legendre_01(n)
+
+
+def pack(arrays: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(fb, ib, meta)``: the float and int arrays of :func:`plan_arrays` in the kernels'
+    order, one row ``[offset, s0, s1, s2]`` of ``meta`` per array (shape padded with 1)."""
+    from rbbench.rb import _kernels
+
+    meta, chunks = [], {"f": [], "i": []}
+    offsets = {"f": 0, "i": 0}
+    for kind, names in (("f", _kernels.FLOATS), ("i", _kernels.INTS)):
+        dtype = np.float64 if kind == "f" else np.int64
+        for name in names:
+            a = np.ascontiguousarray(arrays[name], dtype=dtype)
+            shape = (*a.shape, 1, 1, 1)[:3] if a.ndim else (1, 1, 1)
+            if a.ndim > 3 or int(np.prod(shape)) != a.size:
+                raise ValueError(f"plan array {name}: shape {a.shape} (at most 3 axes)")
+            meta.append([offsets[kind], *shape])
+            chunks[kind].append(a.ravel())
+            offsets[kind] += a.size
+    fb = np.concatenate(chunks["f"])
+    ib = np.concatenate(chunks["i"])
+    return fb, ib, np.asarray(meta, dtype=np.int64)
+
+
+class CompiledOnline:
+    """One reduced model's compiled online solve (module docstring).
+
+    Holds the packed plan and the preallocated QP buffer ``qp`` (``[H, f, A, b_upper, rows,
+    |F|]``, :func:`rbbench.rb._kernels.online_qp`) with daqp's views of it. Not picklable
+    state: :class:`~rbbench.rb.mixed_model.ReducedModel` rebuilds it after unpickling.
+    """
+
+    def __init__(self, model: Any) -> None:
+        from rbbench.rb import _kernels
+
+        self._k = _kernels
+        self.fb, self.ib, self.meta = pack(plan_arrays(model))
+        self.n = int(model.A.terms.shape[-1])
+        self.m = int(model.constraint.T_B.shape[1])
+        n, m = self.n, self.m
+        self.qp = np.zeros(n * n + n + m * n + 3 * m + 1)
+        self.H = self.qp[:n * n].reshape(n, n)
+        self.f = self.qp[n * n:n * n + n]
+        self.A = self.qp[n * n + n:n * n + n + m * n].reshape(m, n)
+        self.bu = self.qp[n * n + n + m * n:n * n + n + m * n + m]
+        self.bl = np.full(m, -1e30)
+        self.sense = np.zeros(m, dtype=np.int32)
+
+    def warm_up(self, mu: np.ndarray) -> None:
+        """First call of every kernel (compile or load the disk cache), timed into
+        :data:`COMPILE` once per process."""
+        if COMPILE:
+            return
+        t0 = time.perf_counter()
+        self.solve(mu)
+        COMPILE["first_call_s"] = time.perf_counter() - t0
+        stats = self._k.online_qp.stats
+        COMPILE["from_disk_cache"] = bool(stats.cache_hits) and not stats.cache_misses
+
+    def solve(self, mu: Any) -> tuple[np.ndarray, np.ndarray, int, float] | None:
+        """The online solve at ``mu``: ``(c, alpha, daqp iterations, min(raw alpha) /
+        max|raw alpha|)``, or None where the Python path must decide."""
+        import daqp
+
+        mu = np.asarray(mu, dtype=np.float64).reshape(-1)
+        if self._k.online_qp(mu, self.fb, self.ib, self.meta, self.qp) != self._k.OK:
+            return None
+        y, _, flag, info = daqp.solve(self.H, self.f, self.A, self.bu, self.bl, self.sense,
+                                      primal_tol=DAQP_TOL, dual_tol=DAQP_TOL)
+        if flag != 1:
+            return None
+        c, alpha, finite, rel = self._k.unscale(y, info["lam"], self.qp, self.n, self.m)
+        if not finite:
+            return None
+        return c, alpha, info["iterations"], rel
+
+
+def prepare(model: Any, method: str = "daqp") -> CompiledOnline | str:
+    """The compiled solve of ``model`` (kernels compiled or loaded, :data:`COMPILE`), or the
+    reason (:func:`path_reason`) it takes the Python path."""
+    reason = path_reason(model, method)
+    if reason is not None:
+        return reason
+    online = CompiledOnline(model)
+    if model.parameters is not None:
+        centre = 0.5 * (np.asarray(model.parameters.low) + np.asarray(model.parameters.high))
+    else:
+        centre = np.zeros(int(model.A.terms.shape[0]) - 1)
+    online.warm_up(centre)
+    return online

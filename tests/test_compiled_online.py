@@ -1,0 +1,158 @@
+"""The compiled online path (rbbench.rb.compiled_online, numba) against the Python reference.
+
+Raw values (the magic entries of ``C(mu) = B(mu) Z``, the magic rows of ``G(mu)``, the EIM
+coefficients and the scaled QP data handed to daqp) agree to 1e-12 relative, before any
+clipping; the reduced solutions to the QP's round-off. Variants: a deformable master
+(facet and smooth normals), the rigid plane, P2 facets with P1 multipliers.
+"""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+pytest.importorskip("numba")
+
+from rbbench.hf.model import make_components  # noqa: E402
+from rbbench.rb import _kernels, compiled_online  # noqa: E402
+from rbbench.rb.affine import AffineOperator, LinearInMu  # noqa: E402
+from rbbench.rb.contact_eim import HyperReductionError, contact_eim  # noqa: E402
+from rbbench.rb.mixed_model import ReducedModel  # noqa: E402
+from rbbench.scene.loading import load_scene  # noqa: E402
+from rbbench.scene.parameters import SceneError  # noqa: E402
+from rbbench.testing import HERTZ_COARSE  # noqa: E402
+
+VARIANTS = {"facet": (), "smooth": ('discretization.normals="smooth"',),
+            "rigid": ('geometry.lower="rigid_flat"',),
+            "p2": ("discretization.degree=2", 'discretization.multiplier="p1"')}  # slow: ~20 s
+MUS = (0.7, 0.83, 1.0, 1.17, 1.3)
+
+
+def _model(extra: tuple[str, ...]) -> ReducedModel:
+    """A reduced model on coarse Hertz: the contact EIM of random bases (fixed seed) with a
+    mu-dependent SPD ``A_N`` and a load ``F_N`` (affine in mu)."""
+    sc = load_scene("hertz_halfdisks", [*HERTZ_COARSE, *extra])
+    b, f, _ = make_components(sc, "skfem", "mixed", "ssn")
+    mus = np.linspace(0.7, 1.3, 5)[:, None]
+    probs = [f.build(b.discretize(mu)) for mu in mus]
+    rng = np.random.default_rng(7)
+    n, N, R = probs[0].A.shape[0], 6, 5
+    Z = np.linalg.qr(rng.standard_normal((n, N)))[0]
+    Vg = np.abs(rng.standard_normal((probs[0].B.shape[0], R)))
+    ceim = contact_eim(b.contact_layout(), [p.B for p in probs],
+                       np.stack([p.G for p in probs], axis=1), Z, Vg, probs[0].free,
+                       mus, tol=1e-12)
+    X = rng.standard_normal((2, N, N))
+    A = np.stack([X[0] @ X[0].T + N * np.eye(N), 0.1 * (X[1] + X[1].T)])
+    Bn, Gn = ceim(np.array([1.0]))
+    c_star = rng.standard_normal(N)  # loads that make some constraints active
+    F = np.stack([A[0] @ c_star + Bn.T @ np.abs(rng.standard_normal(R)), A[1] @ c_star])
+    return ReducedModel(AffineOperator(A), AffineOperator(F), LinearInMu(1), ceim,
+                        parameters=sc.parameter_space)
+
+
+@pytest.fixture(scope="module", params=[
+    pytest.param(v, marks=pytest.mark.slow) if v == "p2" else v for v in VARIANTS])
+def model(request) -> ReducedModel:
+    return _model(VARIANTS[request.param])
+
+
+def _python_qp(model: ReducedModel, mu: float) -> np.ndarray:
+    """The scaled QP data of :func:`rbbench.rb.mixed_model._solve_daqp`, as the kernel lays
+    them out (``[H, f, A, b_upper, rows, |F|]``), from the Python path."""
+    A, F, B, G = model.arrays(np.array([mu]))
+    rows = np.linalg.norm(B, axis=1)
+    rows[rows == 0.0] = 1.0
+    fs = float(np.linalg.norm(F)) or 1.0
+    return np.concatenate([A.ravel(), -F / fs, (B / rows[:, None]).ravel(), G / rows / fs,
+                           rows, [fs]])
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.abs(a - b).max() / np.abs(b).max())
+
+
+def test_raw_values_equal_the_python_path(model):
+    """Magic entries, G rows, EIM coefficients and the QP data: 1e-12 relative."""
+    ceim = model.constraint
+    ev = ceim.evaluator
+    online = compiled_online.CompiledOnline(model)
+    fb, ib, meta = online.fb, online.ib, online.meta
+    k = ev.layout.degree + 1
+    nq = ev.Mrows.shape[1]
+    for mu in MUS:
+        th = np.array([1.0, mu])
+        status, nrm, w, gap, sphi, sdofs, mphi, mdofs = _kernels.pair_points(
+            th, fb, ib, meta, nq, k)
+        assert status == _kernels.OK
+        p = ev.pairing(np.array([mu]))
+        np.testing.assert_allclose(nrm, p.nrm, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(gap, p.gap, rtol=0, atol=1e-12 * np.abs(p.gap).max())
+        c, g = _kernels.magic_values(fb, ib, meta, nrm, w, gap, sphi, sdofs, mphi, mdofs,
+                                     ev.layout.master is not None)
+        c_py, g_py = ev.entries(np.array([mu]), ceim.Z_loc, *ceim._support, ceim.entry_col,
+                                ceim.pos_G)
+        assert _rel(c, c_py) <= 1e-12 and _rel(g, g_py) <= 1e-12
+        theta = _kernels.lu_solve(ceim.lu_B[0], ceim.lu_B[1].astype(np.int64), c)
+        assert _rel(theta, sla.lu_solve(ceim.lu_B, c_py)) <= 1e-12
+        assert _kernels.online_qp(np.array([mu]), fb, ib, meta, online.qp) == _kernels.OK
+        ref = _python_qp(model, mu)
+        n = model.N
+        assert _rel(online.qp[:n * n], ref[:n * n]) <= 1e-12  # H = A_N
+        for part in np.split(np.arange(n * n, ref.size), np.cumsum(
+                [n, model.R * n, model.R, model.R])):  # f, A, b_upper, rows, |F|
+            assert _rel(online.qp[part], ref[part]) <= 1e-12
+
+
+def test_reduced_solution_equals_the_python_path(model):
+    for mu in MUS:
+        py = model.solve(mu, path="python")
+        co = model.solve(mu, path="compiled")
+        assert py.path == "python" and co.path == "compiled"
+        assert co.stop_reason == py.stop_reason == "converged"
+        assert co.iterations == py.iterations
+        assert _rel(co.c, py.c) <= 1e-12
+        # the multipliers: the QP's round-off on inputs equal to ~1e-16 (measured <= 5e-12
+        # on Hertz level 0 with N + K = 60, R = 20)
+        np.testing.assert_allclose(co.alpha, py.alpha, rtol=0, atol=1e-10 * py.alpha.max())
+        assert co.alpha_raw_min >= -1e-10 and co.time_s > 0
+
+
+def test_deviations_take_the_python_path_and_its_errors():
+    """Outside D: the reference's SceneError; a point leaving its master window: the
+    reference's HyperReductionError (both from the Python path the compiled one defers to)."""
+    model = _model(())
+    ev = model.constraint.evaluator
+    lo, _, ranges = ev.windows
+    ev.windows = (lo, lo.copy(), ranges)  # one-facet windows: points leave them
+    with pytest.raises(HyperReductionError, match="window"):
+        model.solve(0.7, path="python")
+    with pytest.raises(HyperReductionError, match="window"):
+        model.solve(0.7, path="compiled")
+    with pytest.raises(SceneError, match="outside its domain"):
+        model.solve(1.5, path="compiled")
+    with pytest.raises(SceneError, match="value"):
+        model.solve([1.0, 1.0], path="compiled")
+
+
+def test_without_numba_the_python_path_is_used_and_reported(monkeypatch):
+    model = _model(())
+    monkeypatch.setattr(compiled_online, "NUMBA_VERSION", None)
+    assert model.online_path() == "python (numba is not installed)"
+    assert model.solve(1.0).path == "python"
+    with pytest.raises(RuntimeError, match="numba is not installed"):
+        model.solve(1.0, path="compiled")
+
+
+def test_pickle_drops_the_compiled_state_and_rebuilds_it(model):
+    assert model.online_path().startswith("compiled (numba ")
+    assert model.online_path("pdas").startswith("python (online method 'pdas'")
+    clone = pickle.loads(pickle.dumps(model))
+    assert "_online_state" not in clone.__dict__
+    a, b = model.solve(1.1), clone.solve(1.1)
+    assert a.path == b.path == "compiled"
+    np.testing.assert_array_equal(a.c, b.c)
+    assert compiled_online.COMPILE["first_call_s"] > 0
