@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
+from rbbench.hf import lcp
 from rbbench.hf.snapshots import (
     Snapshot,
     SnapshotSet,
@@ -94,9 +94,11 @@ def build_linear(disc: Discretization) -> LinearProblem:
 
 
 def _factor(problem: LinearProblem, S: sp.csr_matrix):
+    """The backend's direct solver, else SuperLU in symmetric mode as the HF contact solvers
+    (:func:`rbbench.hf.lcp.factorize`)."""
     if problem.factorize is not None:
         return problem.factorize(S)
-    return spla.splu(sp.csc_matrix(S)).solve
+    return lcp.factorize(S).solve
 
 
 def solve_linear(problem: LinearProblem) -> np.ndarray:
