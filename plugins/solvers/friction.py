@@ -29,8 +29,12 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
-from rbbench_plugins.solvers.condensed import SemismoothNewtonSolver, UzawaSolver
+from rbbench_plugins.solvers.condensed import (
+    CondensationOptions,
+    SemismoothNewtonSolver,
+    UzawaSolver,
+    condensation_info,
+)
 
 from rbbench.hf import friction_algebra as fa
 from rbbench.hf import friction_solvers as fs
@@ -47,22 +51,24 @@ def scaled_law(name: str, node_weights: np.ndarray) -> fa.CoefficientLaw:
 
 
 class _Condensed:
-    """One factorisation of ``A``, ``A^{-1} B^T`` and ``D`` for all load steps
-    (:func:`rbbench.hf.friction_algebra.condense_friction` at the first step)."""
+    """One condensation of the friction problem for all load steps
+    (:func:`rbbench.hf.friction_algebra.condense_friction` at the first step, ``solver``'s
+    ``condensation`` / ``linear_solver`` options)."""
 
-    def __init__(self, problem: FrictionProblem) -> None:
+    def __init__(self, problem: FrictionProblem, solver: CondensationOptions) -> None:
         first = problem.steps[0]
         self.c = fa.condense_friction(problem.A, first.F, problem.Bn, problem.Bt, first.Gn,
-                                      -first.ut_lift, factorize=problem.factorize)
-        self.Bn, self.Bt = sp.csr_matrix(problem.Bn), sp.csr_matrix(problem.Bt)
-        self.AinvBt, self.D = self.c.AinvBt, self.c.D
+                                      -first.ut_lift, factorize=problem.factorize,
+                                      condensation=solver.condensation,
+                                      linear_solver=solver.linear_solver)
+        self.D = self.c.D
         self.t_factor, self.t_condense = self.c.t_factor, self.c.t_condense
 
-    def step(self, step: Any, ut_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(u0, q)`` of a load step: ``q = [Gn - Bn u0; ut_prev - ut_lift - Bt u0]``."""
-        u0 = self.c.solve(np.asarray(step.F, float))
-        q = np.concatenate([step.Gn - self.Bn @ u0, ut_prev - step.ut_lift - self.Bt @ u0])
-        return u0, q
+    def step(self, step: Any, ut_prev: np.ndarray) -> Any:
+        """The condensed problem of a load step (its ``q`` and ``displacement``):
+        ``G = [Gn; ut_prev - ut_lift]``, so ``q = [Gn - Bn u0; ut_prev - ut_lift - Bt u0]``."""
+        return self.c.load(np.asarray(step.F, float),
+                           np.concatenate([step.Gn, ut_prev - step.ut_lift]))
 
 
 def _warm(warm_start: np.ndarray | None, m: int) -> np.ndarray | None:
@@ -95,28 +101,35 @@ def _law_info(info: dict) -> dict:
 
 
 def solve_steps(problem: FrictionProblem, run: Callable[..., fa.FrictionResult],
-                warm_start: np.ndarray | None = None) -> SolveResult:
-    """Solve the load steps of ``problem`` in order with ``run(D, q, ut_prev, x0)``."""
-    cond = _Condensed(problem)
+                warm_start: np.ndarray | None = None,
+                solver: CondensationOptions | None = None) -> SolveResult:
+    """Solve the load steps of ``problem`` in order with ``run(D, q, ut_prev, x0)``;
+    condensed with ``solver``'s options (default: the Schur complement, ``"auto"``)."""
+    if solver is None:
+        solver = CondensationOptions()
+        solver._set_condensation("schur", "auto")
+    cond = _Condensed(problem, solver)
     m = problem.n_nodes
     x, ut_prev = _warm(warm_start, m), np.zeros(m)
     records, history, t0 = [], [], time.perf_counter()
     for k, step in enumerate(problem.steps):
-        u0, q = cond.step(step, ut_prev)
+        loaded = cond.step(step, ut_prev)
+        q = loaded.q
         r = run(cond.D, q, ut_prev, x)
         records.append(_step_record(r))
         history = [float(h) for h in r.history]
-        u_free = u0 - cond.AinvBt @ r.x if np.all(np.isfinite(r.x)) else np.full_like(u0, np.nan)
+        u_free = loaded.displacement(r.x) if np.all(np.isfinite(r.x)) \
+            else np.full(problem.A.shape[0], np.nan)
         if r.stop_reason != "converged" or k == len(problem.steps) - 1:
             break
-        x, ut_prev = r.x, np.asarray(cond.Bt @ u_free).ravel() + step.ut_lift
+        x, ut_prev = r.x, np.asarray(problem.Bt @ u_free).ravel() + step.ut_lift
     u = step.u_lift.copy()
     u[problem.free] = u_free
     info = {**_law_info(r.info), "law": problem.law, "n_contact_unknowns": int(2 * m),
             "load_steps": records, "steps_solved": len(records),
             "friction_residuals": dict(r.residuals),
             "lam_t": r.lam_t, "states": list(r.states), "ut_prev": ut_prev,
-            "slip": fa.slip(cond.D, q, r.lam_n, r.lam_t)}
+            "slip": fa.slip(cond.D, q, r.lam_n, r.lam_t), **condensation_info(cond.c)}
     if "coefficient" in r.info:  # model B: the final coefficient per node
         info["coefficient"] = np.asarray(r.info["coefficient"], float)
     times = {"factor_s": cond.t_factor, "condense_s": cond.t_condense,
@@ -162,9 +175,10 @@ def tresca_runner(problem: FrictionProblem, tresca: Callable[..., fa.FrictionRes
         D, q, problem.coefficient, lam0=x0, tol=tol, tresca=inner))
 
 
-class _FrictionSolver(Solver):
+class _FrictionSolver(Solver, CondensationOptions):
     """Common driver: a ContactProblem goes to ``self.frictionless``, a FrictionProblem
-    through :func:`solve_steps` with :meth:`_runner`."""
+    through :func:`solve_steps` with :meth:`_runner`; options ``condensation`` and
+    ``linear_solver`` as :mod:`rbbench_plugins.solvers.condensed`."""
 
     frictionless: Solver
 
@@ -174,7 +188,7 @@ class _FrictionSolver(Solver):
         if not isinstance(problem, FrictionProblem):
             raise TypeError(f"{self.name}: expected a FrictionProblem or a ContactProblem, "
                             f"got {type(problem).__name__}")
-        return solve_steps(problem, self._runner(problem), warm_start)
+        return solve_steps(problem, self._runner(problem), warm_start, solver=self)
 
     def _runner(self, problem: FrictionProblem) -> Callable[..., fa.FrictionResult]:
         raise NotImplementedError  # pragma: no cover - abstract
@@ -192,12 +206,16 @@ class FrictionSSNSolver(_FrictionSolver):
     name = "friction-ssn"
     METHODS = ("direct", "fixed_point", "newton")
 
-    def __init__(self, method: str = "direct", max_iter: int = 100, tol: float = 1e-10):
+    def __init__(self, method: str = "direct", max_iter: int = 100, tol: float = 1e-10,
+                 condensation: str = "schur", linear_solver: str = "auto"):
         if method not in self.METHODS:
             raise ValueError(f"friction-ssn: method {method!r} is not valid; expected one of "
                              + ", ".join(map(repr, self.METHODS)))
         self.method, self.max_iter, self.tol = method, int(max_iter), float(tol)
-        self.frictionless = SemismoothNewtonSolver(max_iter=max_iter, tol=tol)
+        self._set_condensation(condensation, linear_solver)
+        self.frictionless = SemismoothNewtonSolver(max_iter=max_iter, tol=tol,
+                                                   condensation=condensation,
+                                                   linear_solver=linear_solver)
 
     def _runner(self, problem: FrictionProblem) -> Callable[..., fa.FrictionResult]:
         kw = {"max_iter": self.max_iter, "tol": self.tol}
@@ -221,9 +239,12 @@ class FrictionUzawaSolver(_FrictionSolver):
 
     name = "friction-uzawa"
 
-    def __init__(self, omega: float = 1.0, tol: float = 1e-9, max_iter: int = 200_000):
+    def __init__(self, omega: float = 1.0, tol: float = 1e-9, max_iter: int = 200_000,
+                 condensation: str = "schur", linear_solver: str = "auto"):
         self.omega, self.tol, self.max_iter = float(omega), float(tol), int(max_iter)
-        self.frictionless = UzawaSolver(omega=omega, tol=tol, max_iter=max_iter)
+        self._set_condensation(condensation, linear_solver)
+        self.frictionless = UzawaSolver(omega=omega, tol=tol, max_iter=max_iter,
+                                        condensation=condensation, linear_solver=linear_solver)
 
     def _uzawa(self, D, q, s=None, F=None, lam0=None) -> fa.FrictionResult:
         return fa.uzawa_friction(D, q, s=s, F=F, lam0=lam0, omega=self.omega, tol=self.tol,

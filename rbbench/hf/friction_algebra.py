@@ -40,7 +40,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.optimize import lsq_linear
 
-from rbbench.hf.lcp import Condensed, _scaling, condense
+from rbbench.hf.condensation import condense_problem
+from rbbench.hf.lcp import _scaling
 from rbbench.interfaces import Factorize
 
 #: names of the per-condition residuals reported by every friction solver
@@ -97,11 +98,14 @@ COEFFICIENT_LAWS: dict[str, CoefficientLaw] = {"seed001": SEED001}
 
 def condense_friction(A: sp.spmatrix, F: np.ndarray, Bn: sp.spmatrix, Bt: sp.spmatrix,
                       G: np.ndarray, ut_prev: np.ndarray | None = None,
-                      factorize: Factorize | None = None) -> Condensed:
-    """Condense the friction problem with one factorisation of ``A``.
+                      factorize: Factorize | None = None, condensation: str = "columns",
+                      linear_solver: str = "auto") -> Any:
+    """Condense the friction problem with one factorisation.
 
-    ``B = [Bn; Bt]`` and ``G = [G; ut_prev]`` in :func:`rbbench.hf.lcp.condense`, so
-    ``q_t = ut_prev - Bt u0`` and ``Condensed.displacement([lam_n; lam_t])`` is ``u``.
+    ``B = [Bn; Bt]`` and ``G = [G; ut_prev]`` in
+    :func:`rbbench.hf.condensation.condense_problem` (``condensation``, ``linear_solver``;
+    default: the dense ``A^{-1} B^T`` of :func:`rbbench.hf.lcp.condense`), so
+    ``q_t = ut_prev - Bt u0`` and ``displacement([lam_n; lam_t])`` is ``u``.
     """
     G = np.asarray(G, float).ravel()
     m = G.size
@@ -110,7 +114,8 @@ def condense_friction(A: sp.spmatrix, F: np.ndarray, Bn: sp.spmatrix, Bt: sp.spm
         raise ValueError(f"condense_friction: Bn ({Bn.shape[0]} rows), Bt ({Bt.shape[0]} "
                          f"rows), G ({m}) and ut_prev ({ut_prev.size}) must match")
     B = sp.vstack([sp.csr_matrix(Bn), sp.csr_matrix(Bt)]).tocsr()
-    return condense(A, F, B, np.concatenate([G, ut_prev]), factorize=factorize)
+    return condense_problem(A, F, B, np.concatenate([G, ut_prev]), condensation=condensation,
+                            linear_solver=linear_solver, factorize=factorize)
 
 
 def check_problem(D: np.ndarray, q: np.ndarray) -> int:

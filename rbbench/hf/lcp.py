@@ -20,7 +20,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg as sla
@@ -42,9 +42,16 @@ class Condensed:
     t_factor: float
     t_condense: float
     solve: Callable[[np.ndarray], np.ndarray] | None = None  # A^{-1}, for further loads
+    B: sp.csr_matrix | None = None
+    info: dict = field(default_factory=dict)
 
     def displacement(self, lam: np.ndarray) -> np.ndarray:
         return self.u0 - self.AinvBt @ lam
+
+    def load(self, F: np.ndarray, G: np.ndarray) -> Condensed:
+        """The same ``D`` with another load: ``u0 = A^{-1} F``, ``q = G - B u0``."""
+        u0 = self.solve(np.asarray(F, dtype=float))
+        return replace(self, u0=u0, q=np.asarray(G - self.B @ u0, dtype=float).ravel())
 
 
 def factorize(A: sp.spmatrix):
@@ -69,12 +76,14 @@ def condense(A: sp.spmatrix, F: np.ndarray, B: sp.spmatrix, G: np.ndarray,
     solve = (factorize or _scipy_solver)(A)
     t1 = time.perf_counter()
     u0 = solve(np.asarray(F, dtype=float))
-    Bt = np.asarray(sp.csr_matrix(B).T.toarray())
+    B = sp.csr_matrix(B)
+    Bt = np.asarray(B.T.toarray())
     AinvBt = solve(Bt) if Bt.shape[1] else np.zeros((A.shape[0], 0))
     D = np.asarray(B @ AinvBt)
     D = 0.5 * (D + D.T)
     q = np.asarray(G - B @ u0).ravel()
-    return Condensed(u0, AinvBt, D, q, t1 - t0, time.perf_counter() - t1, solve)
+    return Condensed(u0, AinvBt, D, q, t1 - t0, time.perf_counter() - t1, solve, B,
+                     {"condensation": "columns"})
 
 
 def natural_residual(D: np.ndarray, q: np.ndarray, lam: np.ndarray, c: float) -> float:
