@@ -276,9 +276,21 @@ def _status_section(d: _Doc, ctx: _Ctx) -> None:
     d.use("status")
 
 
+def _without_values(ctx: _Ctx, col: str) -> list[str]:
+    """The scenes with ok rows, none of which has a value of ``col``."""
+    ok = [r for r in ctx.records if r.get("status") == "ok"]
+    scenes = sorted({r["scene"] for r in ok})
+    return [sc for sc in scenes if all(pd.isna(r.get(col)) for r in ok if r["scene"] == sc)]
+
+
 def _best_section(d: _Doc, ctx: _Ctx, col: str) -> None:
     d.heading(f"Best combination per scene at each error level ({col})")
     bp = best_per_level(ctx.run.rows, col, levels="front") if ctx.records else pd.DataFrame()
+    na = _without_values(ctx, col)
+    if na:  # e.g. err_lam_max of the linear scenes: no contact, no multiplier
+        d.para(f"Not applicable to {', '.join(na)}: no ok row has a value of {col} (a "
+               "scene without contact has no multiplier; the rows' reason says so).")
+        bp = bp[~bp["scene"].isin(na)] if not bp.empty else bp
     if bp.empty:
         d.para("No rows.")
         return
