@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from rbbench.hf.linear import NO_CONTACT, LinearHF, linear_snapshots, space_time_norm
+from rbbench.hf.threads import one_blas_thread
 from rbbench.rb.compressors import PrimalBasis
 from rbbench.rb.infsup import make_solver
 from rbbench.rb.linear_model import ReducedLinear, build_reduced, coercivity_reference
@@ -39,7 +40,6 @@ from rbbench.rb.offline import (
     primal_histories,
     reduction_steps,
 )
-from rbbench.rb.pod import pod
 from rbbench.rb.validation import ReducedStage, ReduceResult, validate, xnorm2
 from rbbench.registry import Registry, default_registry
 from rbbench.scene.linear import check_physics, is_parabolic
@@ -190,7 +190,8 @@ def pod_greedy(lin: LinearData, U: np.ndarray, mus: np.ndarray, n_max: int,
             if tol is not None and est[j] <= tol:
                 break
         E = trajs[j].T - Z @ (Z.T @ (lin.X @ trajs[j].T))
-        mode = pod(E, lin.X, n=1).Z
+        w, V = np.linalg.eigh(E.T @ (lin.X @ E))  # first X-POD mode of E (K x K)
+        mode = E @ V[:, -1:]
         mode = mode - Z @ (Z.T @ (lin.X @ mode))  # re-orthogonalise
         Z = np.hstack([Z, mode / np.sqrt(xnorm2(lin.X, mode[:, 0]))])
         picks.append(j)
@@ -224,21 +225,23 @@ def reduce_linear(scene: Scene, config: ReduceConfig,
     train = linear_snapshots(scene, mus_train, hf, config.backend, config.cache_dir, reg)
     valid = linear_snapshots(scene, mus_valid, hf, config.backend, config.cache_dir, reg)
     timings = {"snapshots_s": time.perf_counter() - t0}
-    t1 = time.perf_counter()
-    lin = LinearData(hf, scene)
-    if is_parabolic(scene):
-        progress(f"primal POD-greedy (N = {config.N})")
-        primal = pod_greedy(lin, train.U, mus_train, config.N or len(mus_train),
-                            None if config.N else config.tol_pod)
-        X_ctx, problem_at = _space_time(lin)
-    else:
-        primal = primal_basis(reg, config, train.U, lin.X, progress)
-        X_ctx, problem_at = lin.X, lin
-    timings["primal_s"] = time.perf_counter() - t1
-    form = reg.create("formulation", config.formulation)
-    ctx = OfflineContext(scene, config, reg, progress, hf.backend, form, problem_at, X_ctx,
-                         mus_train, train, np.asarray(mus_valid), valid, primal, t0, timings)
-    ctx.linear = lin
-    stage = steps.reduce(ctx)
+    with one_blas_thread():  # small dense algebra: one thread (2 shared cores)
+        t1 = time.perf_counter()
+        lin = LinearData(hf, scene)
+        if is_parabolic(scene):
+            progress(f"primal POD-greedy (N = {config.N})")
+            primal = pod_greedy(lin, train.U, mus_train, config.N or len(mus_train),
+                                None if config.N else config.tol_pod)
+            X_ctx, problem_at = _space_time(lin)
+        else:
+            primal = primal_basis(reg, config, train.U, lin.X, progress)
+            X_ctx, problem_at = lin.X, lin
+        timings["primal_s"] = time.perf_counter() - t1
+        form = reg.create("formulation", config.formulation)
+        ctx = OfflineContext(scene, config, reg, progress, hf.backend, form, problem_at, X_ctx,
+                             mus_train, train, np.asarray(mus_valid), valid, primal, t0,
+                             timings)
+        ctx.linear = lin
+        stage = steps.reduce(ctx)
     timings["offline_s"] = time.perf_counter() - t0
     return validate(ctx, stage)

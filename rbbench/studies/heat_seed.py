@@ -1,0 +1,87 @@
+"""The seed's heat equation side by side with its figure (issue 18; ``rbbench studies
+heat-seed``).
+
+Seed 000, "Numerical results on an industrial test case": the valve's heat problem, HF
+51,500 nodes x 50 time steps in about 140 s; the reduced model with N = 25 in about
+0.1 s, error below 1 % in L2(0, T; H1). rbbench: the scene ``heat_robin`` (the seed's toy
+heat equation on the unit square, data in its file), POD-greedy to ``N``, validated on the
+scene's validation set (a fresh snapshot cache: the HF solves are timed, not read).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+from typing import Any
+
+from rbbench.studies.formatting import markdown_table
+
+__all__ = ["SEED", "add_parser", "heat_seed", "heat_seed_markdown", "run"]
+
+#: The seed's figures (seed 000, the valve; a nonlinear problem on another geometry).
+SEED = {"n_hf_dofs": 51500, "steps": 50, "t_hf_s": 140.0, "N": 25, "t_online_s": 0.1,
+        "err_max": "< 1 %"}
+
+
+def heat_seed(n_cells: int = 64, N: int = 25, n_train: int | None = None,
+              n_valid: int | None = None, repeats: int = 20, backend: str = "skfem",
+              progress=print) -> dict[str, Any]:
+    """rbbench's figures on ``heat_robin`` (``n_cells`` squares per side) with ``N``."""
+    from rbbench.rb.linear_offline import reduce_linear
+    from rbbench.rb.offline import ReduceConfig
+    from rbbench.scene.loading import load_scene
+
+    scene = load_scene("heat_robin", [f"discretization.n_cells={n_cells}"])
+    progress(f"heat_robin, {n_cells} x {n_cells} squares, N = {N} ({backend})")
+    with tempfile.TemporaryDirectory() as cache:
+        cfg = ReduceConfig(formulation="linear", primal="pod", dual="", stabilizer="", N=N,
+                           n_train=n_train, n_valid=n_valid, cache_dir=cache,
+                           online_repeats=repeats, backend=backend)
+        s = reduce_linear(scene, cfg).summary()
+    return {"n_hf_dofs": s["n_hf_dofs"], "steps": scene.data["time"]["steps"],
+            "t_hf_s": s["t_hf_median_s"], "N": s["N"], "t_online_s": s["t_online_median_s"],
+            "err_max": s["err_u_max"], "err_est_max": s["err_est_max"],
+            "effectivity_min": s["effectivity_min"], "t_offline_s": s["t_offline_hf_s"],
+            "n_train": s["n_train"], "n_valid": s["n_valid"], "backend": backend}
+
+
+def heat_seed_markdown(res: dict[str, Any]) -> str:
+    """The seed's column beside rbbench's."""
+    rows = [("HF nodes", f"{SEED['n_hf_dofs']:,}", f"{res['n_hf_dofs']:,}"),
+            ("time steps", SEED["steps"], res["steps"]),
+            ("HF solve, one trajectory (s)", f"{SEED['t_hf_s']:g}", f"{res['t_hf_s']:.3g}"),
+            ("N", SEED["N"], res["N"]),
+            ("reduced solve, one trajectory (s)", f"{SEED['t_online_s']:g}",
+             f"{res['t_online_s']:.3g}"),
+            ("max relative error, L2(0, T; H1)", SEED["err_max"], f"{res['err_max']:.2e}"),
+            ("error bound relative to u, max", "", f"{res['err_est_max']:.2e}"),
+            ("bound effectivity, min", "", f"{res['effectivity_min']:.3g}"),
+            ("offline (training HF + POD-greedy + model) (s)", "",
+             f"{res['t_offline_s']:.3g}")]
+    return (f"Seed 000's valve (a nonlinear heat problem, its mesh) against rbbench's "
+            f"heat_robin ({res['backend']}, {res['n_train']} training / {res['n_valid']} "
+            "validation mus)\n\n"
+            + markdown_table(("quantity", "seed 000 (valve)", "rbbench heat_robin"), rows))
+
+
+def add_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies heat-seed`` (``sub``: argparse subparsers)."""
+    p = sub.add_parser("heat-seed", help="the seed's heat equation (N = 25) beside its "
+                       "valve figure: HF / RB times, L2(0, T; H1) error")
+    p.add_argument("--n-cells", type=int, default=64, help="squares per side (default 64)")
+    p.add_argument("-N", type=int, default=25)
+    p.add_argument("--repeats", type=int, default=20, help="online repeats per mu")
+    p.add_argument("--backend", default="skfem")
+    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the study and print its table."""
+    res = heat_seed(args.n_cells, args.N, repeats=args.repeats, backend=args.backend)
+    print(heat_seed_markdown(res))
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(res, fh, indent=1, default=float)
+    return 0
