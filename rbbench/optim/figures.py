@@ -38,7 +38,8 @@ def plot_bodies(sc: ShapeScene, states: dict[str, ShapeState], path: Path,
     g = sc.grid
     umax = max(float(np.abs(s.u).max()) for s in states.values())
     k = magnify if magnify is not None else max(1.0, round(0.1 / max(umax, 1e-300)))
-    fig, axes = plt.subplots(len(states), 1, figsize=(8, 3.2 * len(states)), squeeze=False)
+    fig, axes = plt.subplots(len(states), 1, figsize=(8, 3.4 * len(states)), squeeze=False,
+                             layout="constrained")
     sig = {n: element_stress(g, s.alpha, sc.D, s.u)[:, 1] for n, s in states.items()}
     lo = min(float(v.min()) for v in sig.values())
     hi = max(float(v.max()) for v in sig.values())
@@ -53,12 +54,13 @@ def plot_bodies(sc: ShapeScene, states: dict[str, ShapeState], path: Path,
         ring = _outline(sc, st.alpha, None, 0.0)
         ax.plot(*np.vstack([ring, ring[:1]]).T, "k--", lw=0.8, label="unloaded")
         ax.axhline(0.0, color="0.3", lw=2, label="rigid foundation x2 = 0")
-        ax.set_title(f"{name}: deformed (displacement x {k:g}), sigma_22 at element centres")
+        ax.set_title(f"{name}: deformed (displacement x {k:g})", fontsize=10)
         ax.set_aspect("equal")
         ax.set_xlim(sc.a - 0.05, sc.b + 0.05 + k * float(np.abs(st.u[0::2]).max()))
         ax.set_ylim(min(-0.05, float(x[:, 1].min()) - 0.05), sc.gamma + 0.1)
         ax.legend(loc="upper right", fontsize=7)
-    fig.colorbar(pc, ax=axes[:, 0].tolist(), label="sigma_22 (kPa)")
+    fig.colorbar(pc, ax=axes[:, 0].tolist(),
+                 label="normal stress sigma_22 at element centres (kPa)")
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
