@@ -262,15 +262,35 @@ def test_serious_steps_descend_and_iterates_stay_feasible(seed, n, mc, gamma):
 
 
 def test_scale_invariance():
-    """f and 1e11 f give the same iterates (normalisation by |f(x0)|)."""
+    """f -> 1e11 f and x -> 10 x (polyhedron mapped along) give the same iterates: f is
+    normalised by |f(x0)|, t and gamma by the first subgradient's norm."""
     oracle, poly, _ = l1_quadratic(5)
     big = lambda x: tuple(1e11 * np.asarray(v) for v in oracle(x))  # noqa: E731
-    r1 = bundle_trust(oracle, np.zeros(5), poly, BundleOptions(eps=1e-8))
-    r2 = bundle_trust(big, np.zeros(5), poly, BundleOptions(eps=1e-8))
-    assert r1.evaluations == r2.evaluations
+    wide = lambda x: (oracle(x / 10)[0], oracle(x / 10)[1] / 10)  # noqa: E731
+    opts = BundleOptions(eps=1e-8)
+    r1 = bundle_trust(oracle, np.zeros(5), poly, opts)
+    r2 = bundle_trust(big, np.zeros(5), poly, opts)
+    r3 = bundle_trust(wide, np.zeros(5), Polyhedron.box(10 * poly.lb, 10 * poly.ub), opts)
+    assert r1.evaluations == r2.evaluations == r3.evaluations
     np.testing.assert_allclose(r2.x, r1.x, atol=1e-9)
+    np.testing.assert_allclose(r3.x / 10, r1.x, atol=1e-9)
     assert r2.f == pytest.approx(1e11 * r1.f, rel=1e-12)
-    assert [h["kind"] for h in r1.history] == [h["kind"] for h in r2.history]
+    assert r3.f == pytest.approx(r1.f, rel=1e-12)
+    kinds = [[h["kind"] for h in r.history] for r in (r1, r2, r3)]
+    assert kinds[0] == kinds[1] == kinds[2]
+
+
+def test_lower_bound_cut():
+    """``f_lower``: the model never predicts below the bound (pred <= f - f_lower on every
+    row, raw) and the minimum is still reached: f = 2 + max_i a_i.x + b_i >= its LP value."""
+    oracle, poly, f_lp = max_affine(2)
+    shifted = lambda x: (oracle(x)[0] + 2.0, oracle(x)[1])  # noqa: E731
+    res = bundle_trust(shifted, np.zeros(6), poly, BundleOptions(eps=1e-10, f_lower=f_lp + 2.0))
+    assert res.stop_reason.startswith("converged")
+    assert abs(res.f - (f_lp + 2.0)) <= 1e-8
+    h = res.history  # a row's pred comes from the centre of the row before
+    assert all(b["pred"] <= a["f"] - (f_lp + 2.0) + 1e-12
+               for a, b in zip(h[:-1], h[1:], strict=True))
 
 
 # ---------------------------------------------------------------- failures and bad input
@@ -326,6 +346,32 @@ def test_polyhedron_input_errors_and_residuals():
 def test_options_validation(kw, key):
     with pytest.raises(ValueError, match=f"BundleOptions.{key}"):
         BundleOptions(**kw)
+
+
+def test_qp_failure_resets_the_bundle_then_stops(monkeypatch):
+    """A daqp failure (forced) resets the bundle to the centre, the newer cuts and the last
+    aggregate and the run still reaches the LP optimum; a second failure in a row stops
+    the run with the reason."""
+    import rbbench.optim.bundle as bt
+
+    oracle, poly, f_lp = max_affine(0)
+    real, calls = bt.solve_subproblem, []
+
+    def flaky(*args, **kw):
+        calls.append(len(args[2]))
+        if len(calls) == 6:
+            return bt.Subproblem(np.zeros(6), 0.0, np.zeros(len(args[2])), 1.0, ok=False,
+                                 message="forced")
+        return real(*args, **kw)
+
+    monkeypatch.setattr(bt, "solve_subproblem", flaky)
+    res = bundle_trust(oracle, np.zeros(6), poly, BundleOptions(eps=1e-10))
+    assert calls[6] < calls[5]  # the retry saw the reset bundle
+    assert res.stop_reason.startswith("converged") and abs(res.f - f_lp) <= 1e-8
+    monkeypatch.setattr(bt, "solve_subproblem", lambda *a, **k: bt.Subproblem(
+        np.zeros(6), 0.0, np.zeros(len(a[2])), 1.0, ok=False, message="forced"))
+    res = bundle_trust(oracle, np.zeros(6), poly)
+    assert res.stop_reason == "qp failed: forced" and res.evaluations == 1
 
 
 @pytest.mark.parametrize("kw, reason", [({"max_evals": 7}, "max_evals"),

@@ -1,42 +1,43 @@
 """Bundle trust-region method (BT) for a nonsmooth, nonconvex f over a polyhedron.
 
-The method of Schramm and Zowe (1992, SIAM J. Optim. 2:121-152), the "BT" algorithm used in
+The method of Schramm and Zowe (1992, SIAM J. Optim. 2:121-152), the "BT" algorithm of
 Outrata, Kocvara, Zowe (1998, *Nonsmooth approach to optimization problems with
-equilibrium constraints*, ch. 7), written on plain arrays. An oracle returns ``(f(x), g)``
-with ``g`` one (Clarke) subgradient at ``x``.
+equilibrium constraints*), on plain arrays. The oracle returns ``(f(x), g)``, ``g`` one
+(Clarke) subgradient. What is implemented (deviations from the papers marked *):
 
-* **Model.** Every evaluated point ``y_j`` gives a cut; relative to the stability centre
-  ``x_k`` it is ``f(x_k) - alpha_j + g_j.d`` with the nonnegative linearisation error of the
-  distance measure (Schramm-Zowe eq. 2.9; Lemarechal-Strodiot-Bihain)
+* **Model.** Each evaluated ``y_j`` gives the cut ``f(x_k) - alpha_j + g_j.d`` at the centre
+  ``x_k`` with the distance-measure error (Schramm-Zowe; Lemarechal-Strodiot-Bihain)
   ``alpha_j = max(|f(x_k) - f_j - g_j.(x_k - y_j)|, gamma s_j^2)``, ``s_j = |x_k - y_j|``
-  (for an aggregated cut ``s_j`` is the convex combination of its members' distances,
-  increased by the length of every later serious step: an upper bound).
-* **Subproblem.** ``min v + |d|^2/(2t)`` s.t. ``v >= g_j.d - alpha_j``, ``x_k + d`` in
-  the polyhedron, solved by daqp (Arnstrom, Bemporad, Axehill 2022) in the variables
-  ``(d, v)``. Its Hessian ``diag(I/t, 0)`` is singular in ``v``: daqp's proximal option
-  (``eps_prox > 0``, proximal-point iterations that converge to the exact solution of the
-  semidefinite QP) handles it. The multipliers ``lambda_j`` of the cuts sum to one and give
-  the aggregate subgradient ``p = sum lambda_j g_j``, the aggregate error
-  ``alpha_p = sum lambda_j alpha_j`` and ``s = -d/t = p + nu`` (``nu`` in the normal cone of
-  the polyhedron at ``x_k + d``).
-* **Trust-parameter loop** (BT's inner iteration, Schramm-Zowe sec. 3). Trial
-  ``y = x_k + d`` with model decrease ``v < 0``: descent if ``f(y) - f(x_k) <= m_L v``.
-  Descent and ``g(y).d < m_R v`` (still steeply descending at ``y``): keep ``y`` as the
-  candidate, enlarge ``t`` and retry; otherwise a serious step (to the best candidate).
-  No descent: a null step (``x_k`` stays, the cut of ``y`` enters the bundle) if that cut
-  changes the model at ``d``, ``g(y).d - alpha_y >= m_R v``, or ``t`` is at ``t_min``;
-  else reduce ``t`` and retry.
-* **Stopping rule.** The predicted decrease ``-v = |d|^2/t + nu.d + alpha_p`` (a sum of
-  nonnegative terms) is at most ``eps``, tested at ``max(t, t0)`` (the model decrease grows
-  with ``t``, so a trust parameter shrunk by failures cannot fake convergence).
-* **Scale.** ``f`` and ``g`` are divided internally by ``f_scale = |f(x0)|`` (the norm of
-  the first subgradient if ``f(x0) = 0``, else 1): the run is invariant under ``f -> c f``,
-  ``c > 0``. ``eps`` and ``gamma`` are in these normalised units; ``t`` in units of
-  ``|x|^2 / (f / f_scale)``. History values of ``f``, ``pred``, ``agg_norm`` are in the
-  oracle's own units.
-* **Bundle size.** Above ``max_bundle`` the cuts with zero multiplier go first (oldest
-  first); if still too many, the active cuts other than the centre's and the newest are
-  aggregated into one (Kiwiel 1985).
+  exactly (an aggregated cut: the convex combination of its members' ``s_j`` plus the
+  length of every later serious step, an upper bound). *Optional lower bound: the cut
+  ``v >= f_lower - f(x_k)`` (``J >= 0``: ``f_lower = 0``).
+* **Subproblem.** ``min v + |d|^2/(2t)`` s.t. ``v >= g_j.d - alpha_j``, ``x_k + d`` in the
+  polyhedron, by daqp (Arnstrom, Bemporad, Axehill 2022) in ``(d, v)``, scaled so that it
+  is O(1) (:func:`_subproblem_data`). Its Hessian is singular in ``v``: daqp's proximal
+  option (``eps_prox > 0``, proximal-point iterations converging to the exact solution of
+  the semidefinite QP), checked against active-set enumeration and trust-constr in the
+  tests. Cut multipliers ``lambda_j`` (sum 1) give ``p = sum lambda_j g_j``,
+  ``alpha_p = sum lambda_j alpha_j`` and ``d = -t (p + nu)``, ``nu`` in the normal cone.
+* **Trust-parameter loop** (BT's inner iteration). Trial ``y = x_k + d``, model decrease
+  ``v < 0``. Descent, ``f(y) - f(x_k) <= m_L v``: if ``g(y).d < m_R v`` (still steep at
+  ``y``) keep ``y`` as candidate, ``t *= t_increase`` and retry (*no new trial when the
+  step no longer changes, within 1e-3), else a serious step to the best candidate. No
+  descent: a pending candidate becomes the serious step; else a null step (the cut of
+  ``y`` changes the model, ``g(y).d - alpha_y >= m_R v``, or ``t = t_min``) or
+  ``t *= t_decrease`` and retry. *Every evaluated cut enters the bundle.
+* **Stopping rule.** ``-v = |d|^2/t + nu.d + alpha_p <= eps`` (nonnegative terms), tested
+  at ``max(t, t0)``: the model decrease grows with ``t``, so a ``t`` shrunk by failures
+  cannot fake convergence.
+* **Scale.** ``f``, ``g`` are divided by ``f_scale = |f(x0)|`` (else ``|g(x0)|``, else 1);
+  ``t`` and ``gamma`` are dimensionless: internally ``t |g_0|^-2`` and ``gamma |g_0|^2``
+  with ``g_0`` the normalised first subgradient, so ``t = 1`` means the first model step
+  predicts a decrease of ``|f(x0)| / 2``. The run is invariant under ``f -> c f`` and
+  ``x -> c x`` (``c > 0``); ``eps`` is relative to ``|f(x0)|``. History ``f``, ``pred``,
+  ``agg_norm`` are in the oracle's units, ``t`` in the options' units.
+* **Bundle size.** Above ``max_bundle`` cuts with zero multiplier go (oldest first), then
+  the active ones except the centre's and the newest are aggregated (Kiwiel 1985). *If
+  daqp fails (nearly parallel cuts), the bundle is reset once to the centre, the newer
+  cuts and the last aggregate.
 """
 
 from __future__ import annotations
@@ -63,21 +64,19 @@ class Polyhedron:
     cu: np.ndarray
 
     def __post_init__(self) -> None:
-        self.lb = np.asarray(self.lb, dtype=float).ravel()
-        self.ub = np.asarray(self.ub, dtype=float).ravel()
+        for key in ("lb", "ub", "cl", "cu"):
+            setattr(self, key, np.asarray(getattr(self, key), dtype=float).ravel())
         n = self.lb.size
         self.C = np.asarray(self.C, dtype=float).reshape(-1, n)
-        self.cl = np.asarray(self.cl, dtype=float).ravel()
-        self.cu = np.asarray(self.cu, dtype=float).ravel()
-        m = self.C.shape[0]
-        for key, arr, size in (("ub", self.ub, n), ("cl", self.cl, m), ("cu", self.cu, m)):
-            if arr.size != size:
-                raise ValueError(f"Polyhedron.{key}: {arr.size} entries, need {size}")
+        sizes = {"ub": n, "cl": self.C.shape[0], "cu": self.C.shape[0]}
+        for key, size in sizes.items():
+            if (got := getattr(self, key).size) != size:
+                raise ValueError(f"Polyhedron.{key}: {got} entries, need {size}")
         for lo, hi in (("lb", "ub"), ("cl", "cu")):
             bad = np.flatnonzero(getattr(self, lo) > getattr(self, hi))
             if bad.size:
                 raise ValueError(f"Polyhedron: {lo} > {hi} at index {int(bad[0])}")
-        if np.isnan(self.C).any() or not np.isfinite(self.C).all():
+        if not np.isfinite(self.C).all():
             raise ValueError("Polyhedron.C: non-finite entries")
 
     @classmethod
@@ -116,8 +115,8 @@ class Polyhedron:
 
 @dataclass
 class BundleOptions:
-    """Parameters of :func:`bundle_trust` (``0 < m_L < m_R < 1``; ``eps``, ``gamma`` and ``t``
-    in the normalised units of the module docstring)."""
+    """Parameters of :func:`bundle_trust` (``0 < m_L < m_R < 1``; ``eps`` relative to
+    ``|f(x0)|``, ``t`` and ``gamma`` dimensionless: see the module docstring)."""
 
     t0: float = 1.0
     t_min: float = 1e-10
@@ -129,6 +128,7 @@ class BundleOptions:
     max_evals: int = 400
     max_bundle: int = 40
     gamma: float = 0.01
+    f_lower: float = -math.inf
     t_increase: float = 4.0
     t_decrease: float = 0.25
 
@@ -137,6 +137,7 @@ class BundleOptions:
                   ("t0", 0 < self.t_min <= self.t0 <= self.t_max, "need 0 < t_min <= t0 <= t_max"),
                   ("eps", self.eps >= 0, "need eps >= 0"),
                   ("gamma", self.gamma >= 0, "need gamma >= 0"),
+                  ("f_lower", not math.isnan(self.f_lower), "need a number (-inf: none)"),
                   ("max_iter", self.max_iter >= 1, "need max_iter >= 1"),
                   ("max_evals", self.max_evals >= 1, "need max_evals >= 1"),
                   ("max_bundle", self.max_bundle >= 3, "need max_bundle >= 3"),
@@ -203,20 +204,13 @@ class Subproblem:
     message: str = ""
 
     @property
-    def pred(self) -> float:
-        """Predicted decrease ``-v`` (>= 0)."""
+    def pred(self) -> float:  # predicted decrease -v >= 0
         return -self.v
 
     @property
     def agg_norm(self) -> float:
         """``|s| = |d| / t``: the aggregate subgradient plus its normal-cone part."""
         return float(np.linalg.norm(self.d)) / self.t
-
-
-def _unit_rows(A: np.ndarray) -> np.ndarray:
-    r = np.linalg.norm(A, axis=1)
-    r[r == 0.0] = 1.0
-    return r
 
 
 def _subproblem_data(x: np.ndarray, t: float, G: np.ndarray, alpha: np.ndarray,
@@ -229,13 +223,11 @@ def _subproblem_data(x: np.ndarray, t: float, G: np.ndarray, alpha: np.ndarray,
     cuts; general rows scaled to unit norm. Also returns the row norms and ``a``."""
     n, m, mc = x.size, G.shape[0], poly.C.shape[0]
     a = math.sqrt(sigma * t)
-    H = np.zeros((n + 1, n + 1))
-    H[np.arange(n), np.arange(n)] = 1.0
-    f = np.zeros(n + 1)
-    f[n] = 1.0
+    H, f = np.diag(np.r_[np.ones(n), 0.0]), np.r_[np.zeros(n), 1.0]
     A = np.vstack([np.hstack([poly.C, np.zeros((mc, 1))]),
                    np.hstack([(a / sigma) * G, -np.ones((m, 1))])])
-    rows = _unit_rows(A)
+    rows = np.linalg.norm(A, axis=1)
+    rows[rows == 0.0] = 1.0
     Cx = poly.C @ x
     scale = np.r_[np.full(n, a), 1.0, rows[:mc] * a, rows[mc:] * sigma]
     up = np.concatenate([poly.ub - x, [math.inf], poly.cu - Cx, alpha]) / scale
@@ -317,9 +309,6 @@ class _Bundle:
     def __len__(self) -> int:
         return self.c.size
 
-    def index(self, cut_id: int) -> int:
-        return int(np.flatnonzero(self.ids == cut_id)[0])
-
     def add(self, x: np.ndarray, y: np.ndarray, f: float, g: np.ndarray) -> int:
         """Append the cut of ``(y, f, g)``; returns its id."""
         return self._append(g, f + g @ (x - y), float(np.linalg.norm(x - y)), y)
@@ -348,7 +337,7 @@ class _Bundle:
     def alpha(self, fx: float, gamma: float) -> np.ndarray:
         """Schramm-Zowe's nonnegative errors ``max(|f(x) - c_j|, gamma s_j^2)``."""
         a = np.maximum(np.abs(fx - self.c), gamma * self.s**2)
-        a[self.index(self.centre_id)] = 0.0
+        a[self.ids == self.centre_id] = 0.0
         return a
 
     def remember(self, lam: np.ndarray) -> None:
@@ -422,6 +411,7 @@ class _Run:
         self.fx, self.gx = math.nan, np.full(x0.size, math.nan)
         self.raw: tuple[float, np.ndarray] = (math.nan, self.gx)
         self.t, self.scale, self.sigma = opts.t0, 1.0, 1.0
+        self.tunit, self.gamma, self.f_low = 1.0, opts.gamma, -math.inf
         self.iters = self.evals = self.resets = 0
         self.history: list[dict] = []
         self.bundle = _Bundle(x0.size)
@@ -438,6 +428,10 @@ class _Run:
             return f"oracle failed: {exc}"
         self.scale = objective_scale(f, g)
         self.fx, self.gx, self.raw = f / self.scale, g / self.scale, (f, g)
+        g2 = float(self.gx @ self.gx)
+        self.tunit = 1.0 / g2 if g2 > 0 else 1.0
+        self.gamma = self.o.gamma / self.tunit
+        self.f_low = self.o.f_lower / self.scale
         self.bundle.centre_id = self.bundle.add(self.x, self.x, self.fx, self.gx)
         self.record("start", f, None)
         return None
@@ -446,8 +440,7 @@ class _Run:
         """The subproblem, scaled by the last predicted decrease (floor 1e-14); if daqp
         fails (degenerate, nearly parallel cuts), once more after a bundle reset."""
         for attempt in range(2):
-            alpha = self.bundle.alpha(self.fx, self.o.gamma)
-            qp = solve_subproblem(self.x, t, self.bundle.G, alpha, self.poly, self.sigma)
+            qp = self.solve(t)
             if qp.ok or attempt or self.bundle.agg is None:
                 break
             self.bundle.reset(protect or set())
@@ -461,18 +454,29 @@ class _Run:
         """``-v <= eps`` at ``t`` and, if ``t < t0``, also at ``t0``."""
         if qp.pred > self.o.eps:
             return False
-        if qp.t >= self.o.t0:
+        if qp.t >= self.o.t0 * self.tunit:
             return True
-        alpha = self.bundle.alpha(self.fx, self.o.gamma)
-        ref = solve_subproblem(self.x, self.o.t0, self.bundle.G, alpha, self.poly, self.sigma)
+        ref = self.solve(self.o.t0)
         return ref.ok and ref.pred <= self.o.eps
+
+    def solve(self, t: float) -> Subproblem:
+        """The subproblem at ``t`` (options' units), with the cut ``v >= f_lower - f(x)``
+        if a lower bound is given; ``lam`` of the bundle's cuts only."""
+        G, alpha = self.bundle.G, self.bundle.alpha(self.fx, self.gamma)
+        low = math.isfinite(self.f_low)
+        if low:
+            G, alpha = np.vstack([G, np.zeros(self.n)]), np.r_[alpha, max(self.fx - self.f_low, 0)]
+        qp = solve_subproblem(self.x, t * self.tunit, G, alpha, self.poly, self.sigma)
+        if low:
+            qp.lam = qp.lam[:-1]
+        return qp
 
     def record(self, kind: str, f_trial: float, qp: Subproblem | None) -> None:
         row = {"iteration": self.iters + (kind in ("t_up", "t_down")), "kind": kind,
                "serious": kind in ("serious", "start"), "f": self.raw[0],
                "f_trial": f_trial,
                "step_norm": float(np.linalg.norm(qp.d)) if qp else 0.0,
-               "t": qp.t if qp else self.t,
+               "t": qp.t / self.tunit if qp else self.t,
                "agg_norm": qp.agg_norm * self.scale if qp else math.nan,
                "pred": qp.pred * self.scale if qp else math.nan,
                "evaluations": self.evals, "bundle_size": len(self.bundle)}
@@ -482,7 +486,8 @@ class _Run:
 
     def serious(self, trial: _Trial) -> None:
         self.bundle.move(self.x, trial.y, trial.cut_id)
-        self.x, self.fx, self.gx, self.t = trial.y, trial.f, trial.g, trial.qp.t
+        self.x, self.fx, self.gx = trial.y, trial.f, trial.g
+        self.t = trial.qp.t / self.tunit
         self.raw = trial.raw
 
     def finish(self, cand: _Trial | None, reason: str) -> str:
@@ -539,7 +544,7 @@ class _Run:
         if cand is not None:
             self.serious(cand)
             return "serious", None
-        alpha_y = max(abs(self.fx - (trial.f - slope)), o.gamma * float(d @ d))
+        alpha_y = max(abs(self.fx - (trial.f - slope)), self.gamma * float(d @ d))
         if slope - alpha_y >= o.m_R * v or self.t <= o.t_min:
             return "null", None
         self.t = max(self.t * o.t_decrease, o.t_min)
