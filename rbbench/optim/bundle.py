@@ -35,7 +35,7 @@ equilibrium constraints*), on plain arrays. The oracle returns ``(f(x), g)``, ``
   ``x -> c x`` (``c > 0``); ``eps`` is relative to ``|f(x0)|``. History ``f``, ``pred``,
   ``agg_norm`` are in the oracle's units, ``t`` in the options' units.
 * **Bundle size.** Above ``max_bundle`` cuts with zero multiplier go (oldest first), then
-  the active ones except the centre's and the newest are aggregated (Kiwiel 1985). *If
+  the active ones except the centre's are aggregated (Kiwiel 1985). *If
   daqp fails (nearly parallel cuts), the bundle is reset once to the centre, the newer
   cuts and the last aggregate.
 """
@@ -140,7 +140,7 @@ class BundleOptions:
                   ("f_lower", not math.isnan(self.f_lower), "need a number (-inf: none)"),
                   ("max_iter", self.max_iter >= 1, "need max_iter >= 1"),
                   ("max_evals", self.max_evals >= 1, "need max_evals >= 1"),
-                  ("max_bundle", self.max_bundle >= 3, "need max_bundle >= 3"),
+                  ("max_bundle", self.max_bundle >= 4, "need max_bundle >= 4"),
                   ("t_increase", self.t_increase > 1, "need t_increase > 1"),
                   ("t_decrease", 0 < self.t_decrease < 1, "need 0 < t_decrease < 1")]
         for key, ok, why in checks:
@@ -358,13 +358,13 @@ class _Bundle:
         self.agg = None
 
     def make_room(self, lam: np.ndarray, cap: int, protect: set[int]) -> None:
-        """Keep at most ``cap - 1`` cuts (room for one more): drop inactive ones (oldest
-        first), then aggregate the active ones except the centre's, the newest and the
-        ids in ``protect``."""
+        """Keep at most ``cap - 1`` cuts (room for one more; ``cap >= 4``): drop inactive
+        ones (oldest first), then aggregate the active ones except the centre's and the
+        ids in ``protect`` (the aggregate keeps the last subproblem's solution)."""
         if len(self) < cap:
             return
         keep = np.ones(len(self), dtype=bool)
-        fixed = np.isin(self.ids, [self.centre_id, int(self.ids[-1]), *protect])
+        fixed = np.isin(self.ids, [self.centre_id, *protect])
         for j in range(len(self)):
             if keep.sum() < cap:
                 break
