@@ -72,6 +72,14 @@ def test_schur_condensation_equals_the_dense_columns(solver):
     assert _rel(new.load(F2, G2).displacement(lam), ref.load(F2, G2).displacement(lam)) < 1e-12
 
 
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_no_active_row_is_the_plain_solve(solver):
+    A, F, B, G = _problem()
+    cond = cd.condense_schur(A, F, 0.0 * B, G, linear_solver=solver)
+    assert np.all(cond.D == 0) and np.array_equal(cond.q, G)
+    assert _rel(cond.displacement(np.ones(G.size)), np.linalg.solve(A.toarray(), F)) < 1e-12
+
+
 def test_trailing_schur_eliminates_dofs_ordered_after_the_multipliers():
     A, _, B, _ = _problem(zero_row=False)
     n, m = B.shape[1], B.shape[0]

@@ -23,7 +23,7 @@ from rbbench_plugins.solvers.petsc_common import (
 )
 
 from rbbench.hf import friction_algebra as fa
-from rbbench.hf import lcp
+from rbbench.hf.condensation import condense_problem
 from rbbench.interfaces import ContactProblem, FrictionProblem, SolveResult
 
 __all__ = ["TAO_TYPES", "PetscTaoSolver"]
@@ -55,7 +55,8 @@ def _tao_callbacks(Ds: np.ndarray, q: np.ndarray, qnorm: float, counts: dict[str
 class PetscTaoSolver(_PetscSolver):
     """PETSc TAO bound-constrained QP on the condensed dual problem.
 
-    :func:`rbbench.hf.lcp.condense` factorises ``A`` once and forms the Delassus
+    :func:`rbbench.hf.condensation.condense_problem` (the Schur complement of the KKT
+    matrix; a backend's own solver: the dense columns) forms the Delassus
     operator ``D = B A^{-1} B^T`` and ``q = G - B A^{-1} F``; the multipliers
     solve LCP(q, D), the optimality system of::
 
@@ -133,7 +134,8 @@ class PetscTaoSolver(_PetscSolver):
             return _nan_result(problem, "non-finite data or warm start")
         m = problem.B.shape[0]
         lam0 = _check_warm(warm_start, m)
-        cond = lcp.condense(problem.A, problem.F, problem.B, problem.G)
+        cond = condense_problem(problem.A, problem.F, problem.B, problem.G,
+                                factorize=problem.factorize)
         times = {"factor_s": cond.t_factor, "condense_s": cond.t_condense}
         info: dict[str, Any] = {"tao_type": self.tao_type, "n_contact_unknowns": m,
                                 "options_prefix": self.prefix}
@@ -159,7 +161,7 @@ class PetscTaoSolver(_PetscSolver):
         return SolveResult(u=problem.expand(u), lam=lam, iterations=its, stop_reason=reason,
                            residuals=history, times=times, info=info)
 
-    def _no_contact(self, problem: ContactProblem, cond: lcp.Condensed,
+    def _no_contact(self, problem: ContactProblem, cond: Any,
                     times: dict[str, float], info: dict[str, Any]) -> SolveResult:
         """The solution without contact unknowns (TAO not run)."""
         info["petsc_reason"] = "not run (no contact unknowns)"

@@ -267,7 +267,7 @@ def condense_schur(A: sp.spmatrix, F: np.ndarray, B: sp.spmatrix, G: np.ndarray,
     m = B.shape[0]
     keep = _nonzero_rows(B)
     t0 = time.perf_counter()
-    fac = schur_factor(A, B[keep], linear_solver)
+    fac = schur_factor(A, B[keep], linear_solver if keep.size else "superlu")
     _check_definite(fac.D)
     t1 = time.perf_counter()
     D = np.zeros((m, m))

@@ -61,7 +61,8 @@ class _Handle:
         self.ja = np.ascontiguousarray(U.indices, dtype=np.int32)
         self.pt = np.zeros(64, dtype=np.int64)
         self.iparm = np.zeros(64, dtype=np.int32)
-        self.iparm[[0, 1, 7, 9, 17, 20, 34, 35]] = [1, 2, 0, 13, -1, 1, 1, 2]
+        self.iparm[[0, 1, 7, 9, 17, 20, 34, 35]] = [1, 2, 0, 13, -1, 1, 1,
+                                                    2 if len(schur_rows) else 0]
         self.perm = np.zeros(self.n, dtype=np.int32)
         self.perm[schur_rows] = 1
         self._finalizer = weakref.finalize(self, _release, self.pt, self.iparm, self.n)
@@ -120,3 +121,14 @@ def schur_pardiso(K_upper: sp.csr_matrix, m: int) -> tuple[np.ndarray, Any, dict
     if h.iparm[13] > 0:
         raise np.linalg.LinAlgError(f"PARDISO perturbed {int(h.iparm[13])} pivots")
     return S, h.solve, {"factor_nnz": int(h.iparm[17]), "perturbed_pivots": int(h.iparm[13])}
+
+
+def factorized(A: sp.spmatrix) -> Any:
+    """``solve = factorized(A)``: PARDISO's factorisation of a symmetric ``A`` (its upper
+    triangle; no Schur complement) and ``solve(b) = A^{-1} b`` (:data:`rbbench.interfaces.
+    Factorize`), e.g. the floor of a PARDISO solve."""
+    U = sp.triu(A, format="csr")
+    U.sort_indices()
+    h = _Handle(U, np.zeros(0, dtype=int))
+    h.call(12, np.zeros(1), np.zeros(1))
+    return h.solve
