@@ -142,45 +142,57 @@ class ContactPairing:
 
 class HFFloor:
     """The HF contact solve against its floor (issue 17): ``hertz_halfdisks`` at mu = 1 on
-    the default mesh refined ``level`` times (36910 / 75226 dofs at levels 0 / 1).
+    the default mesh refined ``level`` times (36910 / 75226 / 159k dofs at levels 0 / 1 / 2),
+    per direct solver of the condensation (``linear_solver`` of ``ssn``: the Schur
+    complement of the KKT matrix by SuperLU or PARDISO, :mod:`rbbench.hf.condensation`;
+    PARDISO skipped when ``pypardiso`` is not installed).
 
-    ``setup_cache`` runs ``rbbench solve``'s solve once per level (:func:`solve_hf`, one
+    ``setup_cache`` runs ``rbbench solve``'s solve once per case (:func:`solve_hf`, one
     BLAS thread, the floor timed right after the solve in the same process): the solver's
     time ``times_s.solve_s`` (condensation, contact iterations, recovery of u; no
-    assembly), the floor ``floor_s`` (one factorisation + one solve of the same stiffness
-    with the solver's direct solver) and their ratio ``solve_over_floor`` (goal <= 1.5).
+    assembly), the floor ``floor_s`` (one factorisation + one solve of the same stiffness,
+    SuperLU) and their ratio ``solve_over_floor`` (goal <= 1.5).
     """
 
-    params = (["0", "1"],)
-    param_names = ["level"]
+    params = (["0", "1", "2"], ["superlu", "pardiso"])
+    param_names = ["level", "linear_solver"]
     timeout = TIMEOUT
 
     def setup_cache(self):
+        from rbbench.hf.pardiso_schur import available
         from rbbench.scene.loading import load_scene
 
         out = {}
         for level in self.params[0]:
-            sol = solve_hf(load_scene("hertz_halfdisks", [f"discretization.level={level}"]))
-            if not sol.result.converged:
-                raise RuntimeError(f"level {level}: HF solve {sol.result.stop_reason}")
-            m = sol.metrics
-            out[level] = {"solve_s": m["times_s"]["solve_s"], "floor_s": m["floor_s"],
-                          "solve_over_floor": m["solve_over_floor"]}
+            for ls in self.params[1]:
+                if ls == "pardiso" and not available():
+                    continue
+                sol = solve_hf(load_scene("hertz_halfdisks", [f"discretization.level={level}"]),
+                               solver_options={"linear_solver": ls})
+                if not sol.result.converged:
+                    raise RuntimeError(f"level {level}: HF solve {sol.result.stop_reason}")
+                m = sol.metrics
+                out[(level, ls)] = {"solve_s": m["times_s"]["solve_s"], "floor_s": m["floor_s"],
+                                    "solve_over_floor": m["solve_over_floor"]}
         return out
 
-    setup_cache.timeout = 2 * TIMEOUT
+    setup_cache.timeout = 4 * TIMEOUT
 
-    def track_solve_s(self, cache, level):
+    def setup(self, cache, level, linear_solver):
+        if (level, linear_solver) not in cache:
+            raise NotImplementedError  # asv: skipped (pypardiso not installed)
+
+    def track_solve_s(self, cache, level, linear_solver):
         """The solver's time of one HF solve (s): times_s.solve_s."""
-        return finite(cache[level]["solve_s"], "HF solver time")
+        return finite(cache[(level, linear_solver)]["solve_s"], "HF solver time")
 
-    def track_floor_s(self, cache, level):
+    def track_floor_s(self, cache, level, linear_solver):
         """One factorisation + one solve of the same stiffness (s), timed after the solve."""
-        return finite(cache[level]["floor_s"], "floor")
+        return finite(cache[(level, linear_solver)]["floor_s"], "floor")
 
-    def track_solve_over_floor(self, cache, level):
+    def track_solve_over_floor(self, cache, level, linear_solver):
         """times_s.solve_s / floor_s (dimensionless, lower is better; goal <= 1.5)."""
-        return finite(cache[level]["solve_over_floor"], "solve over floor")
+        return finite(cache[(level, linear_solver)]["solve_over_floor"], "solve over floor")
 
     track_solve_s.unit = "s"
     track_floor_s.unit = "s"
