@@ -17,8 +17,11 @@ nonsmooth ``Theta`` of seed 001 and the bundle method:
    candidate to the basis (the model becomes exact there too).
 4. Stop when the reduced run at the centre predicts no decrease (the bundle's own stopping
    rule on a model exact at the centre: an HF stationarity certificate of the bundle's
-   kind), when the predicted decrease is below ``ftol J_k``, when ``Delta < delta_min``,
-   or after ``max_outer`` outer iterations.
+   kind) or below ``ftol J_k``; when an accepted step ends inside the trust region
+   (``|step|_inf < Delta / 2``: the region did not limit it) and the reduced run converged
+   there, or its HF relative decrease is below ``stall_rtol`` (the reduced bundle run
+   stalled, as the HF-driven one does in the same valleys of ``J ~ lam^6``: null steps
+   until ``max_iter``); when ``Delta < delta_min``; after ``max_outer`` iterations.
 
 Every accepted iterate is HF-evaluated, so the reported ``J_hf`` is the HF value at the
 returned design and the history's ``J`` is monotone on accepted steps.
@@ -56,6 +59,7 @@ class RBOptions:
     shrink: float = 0.5
     max_outer: int = 30
     ftol: float = 1e-8
+    stall_rtol: float = 0.05
     inner: BundleOptions = field(default_factory=_inner_default)
 
     def __post_init__(self) -> None:
@@ -115,6 +119,7 @@ class _Outer:
     hf: int = 1
     rb: int = 0
     rho: float = math.nan
+    err: tuple = (math.nan, math.nan)
     history: list = field(default_factory=list)
 
 
@@ -147,6 +152,7 @@ def optimize_rb(sc: ShapeScene, alpha0: np.ndarray, options: RBOptions | None = 
     model.enrich(interior_space(sc, run.ev.state), reset=True)
     f_red, reason = run.ev.J, "max_outer"
     for k in range(1, o.max_outer + 1):
+        run.rho, run.err = math.nan, (math.nan, math.nan)
         res, oracle = _inner(model, run, poly, o)
         run.rb += oracle.calls
         f_red = res.history[0]["f"]
@@ -163,8 +169,20 @@ def optimize_rb(sc: ShapeScene, alpha0: np.ndarray, options: RBOptions | None = 
             reason = f"HF state solve failed: {exc}"
             break
         run.hf += 1
+        run.err = (abs(res.f - ev.J) / abs(ev.J),
+                   float(np.linalg.norm(res.g - ev.xi) / max(np.linalg.norm(ev.xi), 1e-300)))
+        J_old, interior = run.ev.J, step < 0.5 * run.delta
         kind = _update(run, ev, res, pred, step, model, sc, o)
         _record(run, k, kind, ev.J, pred, step, model, t0, callback)
+        if kind == "accepted" and interior:
+            gain = (J_old - ev.J) / abs(J_old)
+            if res.stop_reason.startswith("converged"):
+                reason = f"converged: reduced optimum inside the trust region ({res.stop_reason})"
+                break
+            if gain < o.stall_rtol:
+                reason = (f"stalled: step inside the trust region gained {gain:.3g} < "
+                          f"stall_rtol (inner: {res.stop_reason})")
+                break
         if run.delta < o.delta_min:
             reason = f"trust radius {run.delta:.3g} < delta_min"
             break
@@ -201,10 +219,56 @@ def _update(run: _Outer, ev: Evaluation, res: BundleResult, pred: float, step: f
 def _record(run: _Outer, k: int, kind: str, J_trial: float, pred: float, step: float,
             model: ReducedModel, t0: float, callback) -> None:
     row = {"iteration": k, "kind": kind, "J": run.ev.J, "J_trial": J_trial,
-           "pred": pred, "rho": run.rho, "step_inf": step,
+           "pred": pred, "rho": run.rho, "err_J_trial": run.err[0],
+           "err_xi_trial": run.err[1], "step_inf": step,
            "delta": run.delta, "hf_solves": run.hf, "rb_solves": run.rb,
            "basis_size": model.N, "grad_norm": float(np.linalg.norm(run.ev.xi)),
            "wall_s": time.perf_counter() - t0}
     run.history.append(row)
     if callback is not None:
         callback(row)
+
+
+def side_by_side(sc: ShapeScene, rb_options: RBOptions | None = None,
+                 hf_options: BundleOptions | None = None, repeats: int = 3) -> dict:
+    """HF-driven bundle and RB-driven runs from ``sc.initial_design()`` in this process
+    with one BLAS thread, then the per-evaluation times (median of ``repeats`` cold
+    solves + subgradients) of the HF and of the final reduced model at the RB optimum."""
+    from statistics import median
+
+    from rbbench.hf.threads import one_blas_thread
+
+    poly = Polyhedron(**sc.admissible())
+    out: dict = {"J0": None}
+    with one_blas_thread():
+        t = time.perf_counter()
+        hf = bundle_trust(_hf_oracle(sc), sc.initial_design(), poly, hf_options)
+        hf_wall = time.perf_counter() - t
+        rb = optimize_rb(sc, sc.initial_design(), rb_options)
+        model = ReducedModel(sc)
+        model.enrich(interior_space(sc, evaluate(sc, rb.x).state))
+        times = {}
+        for name, fun in (("hf", lambda: evaluate(sc, rb.x)), ("rb", lambda: model.evaluate(rb.x))):
+            samples = []
+            for _ in range(repeats):
+                t = time.perf_counter()
+                fun()
+                samples.append(time.perf_counter() - t)
+            times[name] = median(samples)
+    out.update(J0=hf.history[0]["f"], hf_J=hf.f, hf_evaluations=hf.evaluations,
+               hf_iterations=hf.iterations, hf_stop=hf.stop_reason, hf_wall_s=hf_wall,
+               rb_J=rb.f, rb_J_hf=rb.J_hf, rb_hf_solves=rb.hf_solves, rb_solves=rb.rb_solves,
+               rb_outer=rb.iterations, rb_basis=rb.basis_size, rb_stop=rb.stop_reason,
+               rb_wall_s=rb.wall_s, wall_ratio=hf_wall / rb.wall_s,
+               J_rel_diff=(rb.J_hf - hf.f) / hf.f, eval_hf_s=times["hf"],
+               eval_rb_s=times["rb"], eval_speedup=times["hf"] / times["rb"],
+               rb_history=rb.history, rb_residuals=sc.residuals(rb.x),
+               hf_residuals=sc.residuals(hf.x))
+    return out
+
+
+def _hf_oracle(sc: ShapeScene):
+    def oracle(alpha: np.ndarray) -> tuple[float, np.ndarray]:
+        ev = evaluate(sc, alpha)
+        return ev.J, ev.xi
+    return oracle
