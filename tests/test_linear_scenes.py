@@ -125,8 +125,10 @@ def test_thermal_bound_equals_the_dense_residual_bound_and_is_rigorous(tmp_path)
         assert bound >= np.sqrt(e @ (lin.X @ e))  # raw values, no clipping
 
 
-def test_heat_bound_equals_the_dense_residual_bound_and_is_rigorous(tmp_path):
-    sc = load_scene("heat_robin", SMALL + ["time.steps=10"])
+@pytest.mark.parametrize("u0", [0.0, 0.5])
+def test_heat_bound_equals_the_dense_residual_bound_and_is_rigorous(tmp_path, u0):
+    """u0 = 0.5 is not in the basis: the bound's ||e0||_M term is exercised."""
+    sc = load_scene("heat_robin", SMALL + ["time.steps=10", f"thermal.initial={u0}"])
     lin = LinearData(LinearHF(sc), sc)
     mus = np.linspace(0.05, 1.0, 6)[:, None]
     U = np.column_stack([solve_linear(lin(m)).ravel() for m in mus])
@@ -147,6 +149,7 @@ def test_heat_bound_equals_the_dense_residual_bound_and_is_rigorous(tmp_path):
         E = solve_linear(p) - W
         err = np.sqrt(p.dt * np.einsum("ki,ij,kj->", E, lin.X.toarray(), E))
         assert rom.estimate(mu, C) >= err
+    assert (rom.e0_m > 0) == (u0 != 0)
 
 
 def test_reduce_linear_errors_fall_with_n_and_bound_the_error(tmp_path):
