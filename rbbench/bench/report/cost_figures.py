@@ -38,6 +38,8 @@ def _size_marks(cases: list[dict[str, Any]]) -> dict[tuple[int, int], float]:
 
 
 def _size_text(s: tuple[int, int]) -> str:
+    if s[1] == -1 and s[0] != -1:  # no dual space (a scene without contact)
+        return f"N={s[0]}"
     return f"N={s[0]}, R={s[1]}".replace("-1", "?")
 
 
@@ -135,7 +137,7 @@ def _fig_pareto(ctx: _Ctx):
                 continue
             slow = _pareto_panel(ax, ctx, mine, m, marks)
             slower[sc] = max(slow, slower.get(sc, 0))
-            ax.set_title(f"{sc}: " + ("displacement u" if i == 0 else "multiplier lam")
+            ax.set_title(f"{sc}: " + ("solution u" if i == 0 else "multiplier lam")
                          + (f"\n({slow} case(s) slower than the HF solve: shaded)"
                             if slow else ""), fontsize=10)
             ax.set_xlabel(_axis_label("t_online_median_s"), fontsize=8)
