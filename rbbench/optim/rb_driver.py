@@ -131,7 +131,8 @@ def optimize_rb(sc: ShapeScene, alpha0: np.ndarray, options: RBOptions | None = 
     ----------
     sc, alpha0 : scene and a feasible start (ValueError naming the violated groups else).
     options : :class:`RBOptions`.
-    callback : called with each history row (one per outer iteration).
+    callback : called with each history row (``start``, then one per outer iteration:
+        ``accepted`` / ``rejected`` / ``stationary``).
 
     Returns
     -------
@@ -151,11 +152,12 @@ def optimize_rb(sc: ShapeScene, alpha0: np.ndarray, options: RBOptions | None = 
     model = ReducedModel(sc)
     model.enrich(interior_space(sc, run.ev.state), reset=True)
     f_red, reason = run.ev.J, "max_outer"
+    _record(run, 0, "start", run.ev.J, math.nan, 0.0, model, t0, callback)
     for k in range(1, o.max_outer + 1):
         run.rho, run.err = math.nan, (math.nan, math.nan)
         res, oracle = _inner(model, run, poly, o)
         run.rb += oracle.calls
-        f_red = res.history[0]["f"]
+        f_red = res.history[0]["f"]       # the reduced J at the centre
         pred = f_red - res.f
         step = float(np.max(np.abs(res.x - run.x)))
         if pred <= o.ftol * abs(run.ev.J) or step == 0.0:
@@ -174,6 +176,7 @@ def optimize_rb(sc: ShapeScene, alpha0: np.ndarray, options: RBOptions | None = 
         J_old, interior = run.ev.J, step < 0.5 * run.delta
         kind = _update(run, ev, res, pred, step, model, sc, o)
         _record(run, k, kind, ev.J, pred, step, model, t0, callback)
+        f_red = res.f if kind == "accepted" else f_red
         if kind == "accepted" and interior:
             gain = (J_old - ev.J) / abs(J_old)
             if res.stop_reason.startswith("converged"):
@@ -186,8 +189,9 @@ def optimize_rb(sc: ShapeScene, alpha0: np.ndarray, options: RBOptions | None = 
         if run.delta < o.delta_min:
             reason = f"trust radius {run.delta:.3g} < delta_min"
             break
-    return RBResult(x=run.x.copy(), f=f_red, g=run.ev.xi.copy(), iterations=len(run.history),
-                    evaluations=run.hf + run.rb, stop_reason=reason, history=run.history,
+    return RBResult(x=run.x.copy(), f=f_red, g=run.ev.xi.copy(),
+                    iterations=len(run.history) - 1, evaluations=run.hf + run.rb,
+                    stop_reason=reason, history=run.history,
                     hf_solves=run.hf, rb_solves=run.rb, basis_size=model.N,
                     wall_s=time.perf_counter() - t0, J_hf=run.ev.J)
 
@@ -272,3 +276,46 @@ def _hf_oracle(sc: ShapeScene):
         ev = evaluate(sc, alpha)
         return ev.J, ev.xi
     return oracle
+
+
+class RBHistory:
+    """``history.csv`` appended row by row (flushed) and the progress line of an RB run;
+    ``rows`` carry ``f`` (the HF ``J`` at the centre) and ``serious`` (start / accepted)
+    as the HF driver's rows do."""
+
+    FIELDS = ("iteration", "kind", "serious", "f", "J_trial", "pred", "rho", "step_inf",
+              "delta", "grad_norm", "hf_solves", "rb_solves", "basis_size", "err_J_trial",
+              "err_xi_trial", "wall_s")
+
+    def __init__(self, path, quiet: bool = False) -> None:
+        import csv
+
+        self.path, self.quiet, self.rows, self._csv = path, quiet, [], csv
+        with open(path, "w", newline="") as fh:
+            csv.writer(fh).writerow(self.FIELDS)
+
+    def __call__(self, row: dict) -> None:
+        row = {**row, "f": row["J"], "serious": row["kind"] in ("start", "accepted")}
+        self.rows.append(row)
+        with open(self.path, "a", newline="") as fh:
+            self._csv.writer(fh).writerow([row.get(k, "") for k in self.FIELDS])
+        if not self.quiet:
+            print(f"  it {row['iteration']:>3} {row['kind']:<10} J {row['J']:.6e}  "
+                  f"trial {row['J_trial']:.4e}  step {row['step_inf']:.2e}  "
+                  f"Delta {row['delta']:.2e}  |xi| {row['grad_norm']:.2e}  "
+                  f"HF solves {row['hf_solves']}  RB solves {row['rb_solves']}  "
+                  f"N {row['basis_size']}  {row['wall_s']:.1f} s", flush=True)
+
+
+def optimize_rb_run(sc: ShapeScene, cfg, out) -> tuple[RBResult, dict, RBHistory]:
+    """``rbbench optimize --driver rb``: :func:`optimize_rb` with ``max_outer = cfg.max_iter``
+    and the inner bundle's ``eps = cfg.eps``; ``history.csv`` in ``out``."""
+    if cfg.method != "bundle":
+        raise ValueError(f"--method {cfg.method!r}: the rb driver runs the bundle method only")
+    hist = RBHistory(out / "history.csv", cfg.quiet)
+    opts = RBOptions(max_outer=cfg.max_iter,
+                     inner=BundleOptions(max_iter=100, max_evals=200, eps=cfg.eps))
+    res = optimize_rb(sc, sc.initial_design(), opts, hist)
+    counts = {"hf_solves": res.hf_solves, "rb_solves": res.rb_solves,
+              "basis_size": res.basis_size, "J_opt_hf": res.J_hf, "J_opt_reduced": res.f}
+    return res, counts, hist
