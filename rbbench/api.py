@@ -21,7 +21,8 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rbbench.scene.loading import Scene, load_scene
+from rbbench.scene.linear import is_linear
+from rbbench.scene.loading import Scene, SceneError, load_scene
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -29,10 +30,10 @@ if TYPE_CHECKING:
     from rbbench.bench.matrix import Matrix
     from rbbench.bench.runner import RunSummary
     from rbbench.hf.model import HFSolution
-    from rbbench.rb.offline import ReduceResult
+    from rbbench.rb.offline import ReduceConfig, ReduceResult
     from rbbench.registry import Registry
 
-__all__ = ["load_results", "load_scene", "reduce", "run", "solve"]
+__all__ = ["linear_config", "load_results", "load_scene", "reduce", "run", "solve"]
 
 
 def as_scene(scene: str | Path | Scene) -> Scene:
@@ -71,10 +72,21 @@ def solve(scene: str | Path | Scene, mu: Any = None, backend: str = "skfem",
     HFSolution
         ``.result`` (``u``, ``lam``, ``converged``), ``.metrics`` (the numbers of
         ``summary.json``), ``.disc``, ``.problem``, ``.times``.
+        A linear scene (``thermal_block``, ``heat_robin``; no contact, issue 18):
+        :func:`rbbench.hf.linear_solve.solve_linear_hf`, ``.problem`` a
+        :class:`~rbbench.hf.linear.LinearProblem`, ``.metrics`` without contact fields.
     """
     from rbbench.hf.model import make_components, solve_hf
 
     sc = as_scene(scene)
+    if is_linear(sc):  # no contact: one sparse solve (rbbench.hf.linear_solve)
+        from rbbench.hf.linear_solve import solve_linear_hf
+
+        if solver is not None or formulation_options:
+            raise SceneError(f"{sc.path}: a linear scene has one direct solve: no solver or "
+                             "formulation options")
+        return solve_linear_hf(sc, mu, backend, formulation, options.get("registry"),
+                               backend_options, options.get("progress", lambda m: None))
     if backend_options or formulation_options:
         options["components"] = make_components(
             sc, backend, formulation, solver, options.get("registry"),
@@ -99,7 +111,9 @@ def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None 
     **config_fields
         Fields of :class:`rbbench.rb.offline.ReduceConfig` (``N``, ``R``, ``n_train``,
         ``n_valid``, ``primal``, ``dual``, ``stabilizer``, ``hyper``, ``formulation``,
-        ...). ``solver`` defaults to the formulation's own, as on the command line.
+        ...). ``solver`` defaults to the formulation's own, as on the command line. A
+        linear scene: :func:`linear_config` (formulation ``linear``, no dual, stabiliser
+        or solver) and :func:`rbbench.rb.linear_offline.reduce_linear`.
 
     Returns
     -------
@@ -113,12 +127,44 @@ def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None 
     from rbbench.scene.friction import friction_of
 
     scene = as_scene(scene)
+    kwargs = {"progress": progress} if progress is not None else {}
+    if is_linear(scene):  # no contact: the linear skeleton (rbbench.rb.linear_offline)
+        from rbbench.rb.linear_offline import reduce_linear
+
+        return reduce_linear(scene, linear_config(scene, **config_fields), registry=registry,
+                             **kwargs)
     if "solver" not in config_fields:
         config_fields["solver"] = default_solver(config_fields.get("formulation", "mixed"),
                                                  registry, friction_of(scene).law)
     config = ReduceConfig(**config_fields)
-    kwargs = {"progress": progress} if progress is not None else {}
     return reduce_offline(scene, config, registry=registry, **kwargs)
+
+
+#: The fields of a linear scene's reduction that have one value (no dual space, no
+#: stabiliser, no contact solver).
+LINEAR_FIXED = {"formulation": "linear", "dual": "", "stabilizer": ""}
+
+
+def linear_config(scene: Scene, **config_fields: Any) -> ReduceConfig:
+    """The :class:`~rbbench.rb.offline.ReduceConfig` of a linear scene (issue 18):
+    :data:`LINEAR_FIXED`, the other fields as given (``N``, ``n_train``, ``primal``, ...).
+
+    Raises
+    ------
+    SceneError
+        A field of :data:`LINEAR_FIXED` or ``R``, ``S``, ``solver`` given otherwise; ``N``,
+        ``n_train`` or ``n_valid`` below 1.
+    """
+    from rbbench.rb.offline import ReduceConfig
+
+    for key, value in config_fields.items():
+        if key in ("N", "n_train", "n_valid") and value is not None and value < 1:
+            raise SceneError(f"{key} = {value}: must be an integer >= 1")
+        if (key in LINEAR_FIXED and value != LINEAR_FIXED[key]) or \
+                (key in ("R", "S", "solver") and value is not None):
+            raise SceneError(f"{scene.path}: a linear scene (no contact) is reduced with "
+                             f"{LINEAR_FIXED} and no R, S or solver; got {key} = {value!r}")
+    return ReduceConfig(**{**config_fields, **LINEAR_FIXED})
 
 
 def run(matrix: str | Path | Matrix, out: str | Path | None = None,

@@ -5,6 +5,7 @@
 ``rbbench plugins``: every registered component and whether it is importable;
 ``rbbench scenes``: the scenes in ``problems/``;
 ``rbbench run MATRIX``: a run matrix, one results row per case;
+``rbbench studies STUDY``: the linear scenes beside pyMOR and the seed (issue 18);
 ``rbbench report DIR`` / ``rbbench compare A B``: plots, tables, regressions.
 Bad input exits with status 2 and a message naming what is wrong.
 """
@@ -20,6 +21,7 @@ from rbbench.bench.errors import ResultsError
 from rbbench.console import _print_reduce_summary, _Progress, print_summary
 from rbbench.optim.cli_optimize import add_parser as _add_optimize_parser
 from rbbench.registry import NotInstalledError, UnknownComponentError, default_registry
+from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import PROBLEMS_DIR, SceneError, load_scene, tomllib
 
 
@@ -80,6 +82,8 @@ def cmd_solve(args) -> int:
     if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
         raise SceneError(f"--out {args.out}: exists and is not a directory")
     progress = _Progress(args.quiet)
+    if is_linear(scene):
+        return _solve_linear(scene, mu, args, options, progress)
     from rbbench.hf.model import solve_hf
     from rbbench.hf.output import write_all
 
@@ -89,13 +93,32 @@ def cmd_solve(args) -> int:
         components = _solve_components(scene, args, options, f_options)
     sol = solve_hf(scene, mu, backend=args.backend, formulation=args.formulation,
                    solver=args.solver, progress=progress, components=components)
-    mu_txt = "_".join(f"{k}{v:g}" for k, v in scene.mu_dict(mu).items())
-    out = Path(args.out) if args.out else Path("results") / "solve" / f"{scene.name}_{mu_txt}"
+    out = _solve_out(args, scene, mu)
     progress(f"writing {out}")
     paths = write_all(sol, out, plot=not args.no_plot)
     print_summary(sol.metrics, scene.mu_dict(mu))
     print("wrote: " + ", ".join(str(p) for p in paths))
     return 0 if sol.result.converged else 1
+
+
+def _solve_out(args, scene, mu) -> Path:
+    mu_txt = "_".join(f"{k}{v:g}" for k, v in scene.mu_dict(mu).items())
+    return Path(args.out) if args.out else Path("results") / "solve" / f"{scene.name}_{mu_txt}"
+
+
+def _solve_linear(scene, mu, args, options: dict, progress) -> int:
+    """``rbbench solve`` of a linear scene (no contact): :mod:`rbbench.hf.linear_solve`."""
+    from rbbench.console_linear import print_linear_summary
+    from rbbench.hf.linear_solve import solve_linear_hf, write_linear
+
+    sol = solve_linear_hf(scene, mu, args.backend, args.formulation,
+                          backend_options=options, progress=progress)
+    out = _solve_out(args, scene, mu)
+    progress(f"writing {out}")
+    paths = write_linear(sol, out, plot=not args.no_plot)
+    print_linear_summary(sol.metrics, scene.mu_dict(mu))
+    print("wrote: " + ", ".join(str(p) for p in paths))
+    return 0
 
 
 def cmd_plugins(args) -> int:
@@ -183,10 +206,11 @@ def cmd_online_scaling(args) -> int:
 
 
 def cmd_reduce(args) -> int:
-    from rbbench.provenance import _jsonable, provenance
     from rbbench.rb.offline import reduce
 
     scene = load_scene(args.scene, overrides=args.set or [])
+    if is_linear(scene):
+        return _reduce_linear(scene, args)
     _resolve_solver(args, scene)  # a friction scene: the solver declaring its law
     cfg = _reduce_config(args)
     progress = _Progress(args.quiet)
@@ -196,12 +220,38 @@ def cmd_reduce(args) -> int:
         f"{args.dual}_{args.stabilizer}"
     if cfg.friction_dual != "seed":
         tag += f"_{cfg.friction_dual}"
+    path = _write_result(args, scene, tag, s)
+    _print_reduce_summary(s, cfg.formulation)
+    print(f"wrote: {path}")
+    return 0
+
+
+def _write_result(args, scene, tag: str, s: dict) -> Path:
+    """``result.json`` of ``rbbench reduce`` (``--out``, default results/reduce/<scene>_<tag>)."""
+    from rbbench.provenance import _jsonable, provenance
+
     out = Path(args.out) if args.out else Path("results") / "reduce" / f"{scene.name}_{tag}"
     out.mkdir(parents=True, exist_ok=True)
     (out / "result.json").write_text(json.dumps(_jsonable({**s, "provenance": provenance()}),
                                                 indent=2) + "\n")
-    _print_reduce_summary(s, cfg.formulation)
-    print(f"wrote: {out / 'result.json'}")
+    return out / "result.json"
+
+
+def _reduce_linear(scene, args) -> int:
+    """``rbbench reduce`` of a linear scene (:func:`rbbench.api.linear_config`)."""
+    from rbbench.api import linear_config
+    from rbbench.console_linear import print_linear_reduce
+    from rbbench.rb.linear_offline import reduce_linear
+    from rbbench.scene.linear import is_parabolic
+
+    fields = {"formulation": args.formulation} if args.formulation != "mixed" else {}
+    cfg = linear_config(scene, **fields, primal=args.primal, hyper=args.hyper, N=args.N,
+                        n_train=args.n_train, n_valid=args.n_valid, backend=args.backend,
+                        backend_options=_backend_options(args.backend_option))
+    s = reduce_linear(scene, cfg, progress=_Progress(args.quiet)).summary()
+    path = _write_result(args, scene, "linear", s)
+    print_linear_reduce(s, is_parabolic(scene), scene.data["discretization"]["inner_product"])
+    print(f"wrote: {path}")
     return 0
 
 
@@ -420,10 +470,21 @@ def build_parser() -> argparse.ArgumentParser:
     _add_nitsche_compare_parser(sub)
     _add_online_scaling_parser(sub)
     _add_optimize_parser(sub)
+    _add_studies_parser(sub)
     _add_run_parsers(sub)
     sc = sub.add_parser("scenes", help="list the scenes in problems/")
     sc.set_defaults(func=cmd_scenes)
     return p
+
+
+def _add_studies_parser(sub) -> None:
+    """``rbbench studies NAME``: the studies with their own ``add_parser`` / ``run``."""
+    from rbbench.studies import heat_seed, pymor_thermal_block
+
+    st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-seed)")
+    group = st.add_subparsers(dest="study", required=True, metavar="STUDY")
+    for module in (pymor_thermal_block, heat_seed):
+        module.add_parser(group).set_defaults(func=module.run)
 
 
 def _add_solve_parser(sub) -> None:

@@ -32,6 +32,7 @@ from rbbench.interfaces import (
 )
 from rbbench.registry import Registry, default_registry
 from rbbench.scene.friction import friction_of, friction_value
+from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import Scene, SceneError
 
 #: Relative threshold on lam (w.r.t. max lam) above which a multiplier counts as active.
@@ -81,7 +82,12 @@ def check_names(scene: Scene, registry: Registry, backend: str, formulation: str
                 solver: str | None) -> str:
     """Check the three HF component names before any meshing (unknown names list the valid
     ones; a friction law the formulation or the solver does not declare is refused) and
-    return the solver (``None``: :func:`default_solver` for the scene's friction law)."""
+    return the solver (``None``: :func:`default_solver` for the scene's friction law).
+    A linear scene has no contact components: a :class:`SceneError` naming its solve."""
+    if is_linear(scene):
+        raise SceneError(f"{scene.path}: a linear scene (no contact) is solved by "
+                         "rbbench.hf.linear_solve.solve_linear_hf (rbbench solve, "
+                         "rbbench.solve) and reduced by rbbench reduce / rbbench.reduce")
     check_friction_support(scene, registry.get("formulation", formulation))
     if solver is None:
         solver = default_solver(formulation, registry, friction_of(scene).law)
