@@ -23,6 +23,7 @@ from rbbench.optim.bundle import (
     solve_subproblem,
 )
 from rbbench.optim.bundle import _subproblem_data as subproblem_data
+from rbbench.optim.bundle_metric import VariableMetric
 
 FEAS = 1e-8
 
@@ -104,10 +105,11 @@ def qp_trust_constr(x, t, G, alpha, poly):
                     method="trust-constr", options={"gtol": 1e-12, "xtol": 1e-14})
 
 
-def qp_brute_force(x, t, G, alpha, poly):
-    """The subproblem by enumerating active sets: every subset of at most n + 1 of the
-    constraints ``a_i.z <= b_i`` (z = (d, v)) held with equality, its KKT system solved
-    directly; the first point feasible with nonnegative multipliers is optimal (convex)."""
+def qp_brute_force(x, t, G, alpha, poly, M=None):
+    """The subproblem (metric ``M``, None: identity) by enumerating active sets: every
+    subset of at most n + 1 of the constraints ``a_i.z <= b_i`` (z = (d, v)) held with
+    equality, its KKT system solved directly; the first point feasible with nonnegative
+    multipliers is optimal (convex)."""
     from itertools import combinations
 
     n = x.size
@@ -116,6 +118,8 @@ def qp_brute_force(x, t, G, alpha, poly):
                       np.c_[poly.C, np.zeros(len(poly.C))], -np.c_[poly.C, np.zeros(len(poly.C))]])
     rhs = np.r_[alpha, poly.ub - x, x - poly.lb, poly.cu - poly.C @ x, poly.C @ x - poly.cl]
     H = np.diag(np.r_[np.full(n, 1 / t), 0.0])
+    if M is not None:
+        H[:n, :n] = M / t
     f = np.r_[np.zeros(n), 1.0]
     for k in range(1, n + 2):
         for S in map(list, combinations(range(len(rows)), k)):
@@ -292,6 +296,86 @@ def test_lower_bound_cut():
     h = res.history  # a row's pred comes from the centre of the row before
     assert all(b["pred"] <= a["f"] - (f_lp + 2.0) + 1e-12
                for a, b in zip(h[:-1], h[1:], strict=True))
+
+
+# ---------------------------------------------------------------- variable metric
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 6), steps=st.integers(1, 8))
+def test_bfgs_metric_secant_and_bounds(seed, n, steps):
+    """Damped BFGS (:class:`VariableMetric`) on raw values: M symmetric with eigenvalues in
+    [m_min, m_max] after every update; an undamped, unclipped update satisfies the secant
+    equation M s = y; a damped one gives s'y_damped >= 0.2 s'M_old s > 0."""
+    rng = np.random.default_rng(seed)
+    vm = VariableMetric(n, "bfgs", 1e-3, 1e3)
+    for _ in range(steps):
+        s, y = rng.normal(size=n), rng.normal(size=n)
+        old, clips = vm.M.copy(), vm.clips
+        first = vm.updates == 0 and s @ y > 0
+        vm.update(s, y)
+        w = np.linalg.eigvalsh(vm.M)
+        assert np.array_equal(vm.M, vm.M.T) or np.abs(vm.M - vm.M.T).max() <= 1e-12 * w.max()
+        assert w.min() >= 1e-3 * (1 - 1e-9) and w.max() <= 1e3 * (1 + 1e-9)
+        if not first and s @ y >= 0.2 * s @ old @ s and vm.clips == clips:
+            np.testing.assert_allclose(vm.M @ s, y, rtol=1e-8, atol=1e-8 * np.abs(y).max())
+
+
+def test_identity_metric_is_none_and_bad_kind():
+    vm = VariableMetric(3)
+    vm.update(np.ones(3), np.ones(3))
+    assert vm.M is None and vm.updates == 0
+    with pytest.raises(ValueError, match="'identity', 'bfgs'"):
+        VariableMetric(3, "newton")
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_subproblem_in_a_metric_matches_brute_force(seed):
+    """``min v + d'Md/(2t)``: daqp against enumerated active sets, M random SPD."""
+    x, t, G, alpha, poly = random_subproblem(seed)
+    rng = np.random.default_rng(100 + seed)
+    L = rng.normal(size=(x.size, x.size))
+    M = L @ L.T + 0.1 * np.eye(x.size)
+    qp = solve_subproblem(x, t, G, alpha, poly, M=M)
+    assert qp.ok and qp.kkt < 1e-9
+    z = qp_brute_force(x, t, G, alpha, poly, M)
+    np.testing.assert_allclose(qp.d, z[:-1], atol=1e-8)
+    assert qp.v == pytest.approx(z[-1], abs=1e-9)
+    np.testing.assert_allclose(qp.Md, M @ qp.d)
+
+
+def test_bfgs_metric_reaches_known_minima():
+    """metric='bfgs' on the convex problems with known minima (LP value, closed form)."""
+    oracle, poly, f_lp = max_affine(1)
+    res = bundle_trust(oracle, np.zeros(6), poly, BundleOptions(eps=1e-10, metric="bfgs"))
+    assert res.stop_reason.startswith("converged") and abs(res.f - f_lp) <= 1e-8
+    assert res.f >= f_lp - 1e-12
+    oracle, poly, x_star = l1_quadratic(10)
+    res = bundle_trust(oracle, np.zeros(10), poly,
+                       BundleOptions(eps=1e-10, metric="bfgs", max_evals=300))
+    assert res.stop_reason.startswith("converged")
+    assert -1e-12 <= res.f - oracle(x_star)[0] <= 1e-7
+
+
+def test_bfgs_metric_beats_identity_on_an_ill_conditioned_quadratic():
+    """What the metric is for: a smooth quadratic with condition number 1e3 on a box
+    (minimiser inside, x* = Q^-1 c): BFGS converges to x* within the evaluation budget
+    in which the identity metric does not (measured 77 against > 200 evaluations)."""
+    n = 10
+    Q, c = np.diag(np.logspace(0, 3, n)), np.random.default_rng(0).normal(size=n)
+    x_star = np.linalg.solve(Q, c)
+
+    def oracle(x):
+        return float(0.5 * x @ Q @ x - c @ x), Q @ x - c
+
+    poly = Polyhedron.box(np.full(n, -5.0), np.full(n, 5.0))
+    runs = {m: bundle_trust(oracle, np.ones(n), poly,
+                            BundleOptions(eps=1e-10, metric=m, max_evals=150))
+            for m in ("identity", "bfgs")}
+    assert runs["bfgs"].stop_reason.startswith("converged")
+    assert np.abs(runs["bfgs"].x - x_star).max() <= 1e-3
+    assert not runs["identity"].stop_reason.startswith("converged")
+    assert runs["bfgs"].f < runs["identity"].f
 
 
 # ---------------------------------------------------------------- failures and bad input

@@ -24,8 +24,8 @@ OUTSIDE_GRAPH = {"rbbench", "rbbench._compat"}
 
 #: a module of layer k may import modules of layers <= k only (top-level modules such as
 #: registry, interfaces, hookspecs, provenance are layer 0: the shared vocabulary)
-LAYERS = {"scene": 1, "hf": 2, "rb": 3, "bench": 4, "optim": 4, "studies": 5, "testing": 5, "api": 6,
-          "cli": 7}
+LAYERS = {"scene": 1, "hf": 2, "rb": 3, "bench": 4, "optim": 4, "studies": 5, "testing": 5,
+          "api": 6, "cli": 7}
 
 
 def _rel(p: Path) -> str:

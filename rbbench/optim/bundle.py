@@ -11,13 +11,17 @@ equilibrium constraints*), on plain arrays. The oracle returns ``(f(x), g)``, ``
   exactly (an aggregated cut: the convex combination of its members' ``s_j`` plus the
   length of every later serious step, an upper bound). *Optional lower bound: the cut
   ``v >= f_lower - f(x_k)`` (``J >= 0``: ``f_lower = 0``).
-* **Subproblem.** ``min v + |d|^2/(2t)`` s.t. ``v >= g_j.d - alpha_j``, ``x_k + d`` in the
-  polyhedron, by daqp (Arnstrom, Bemporad, Axehill 2022) in ``(d, v)``, scaled so that it
-  is O(1) (:func:`_subproblem_data`). Its Hessian is singular in ``v``: daqp's proximal
-  option (``eps_prox > 0``, proximal-point iterations converging to the exact solution of
-  the semidefinite QP), checked against active-set enumeration and trust-constr in the
-  tests. Cut multipliers ``lambda_j`` (sum 1) give ``p = sum lambda_j g_j``,
-  ``alpha_p = sum lambda_j alpha_j`` and ``d = -t (p + nu)``, ``nu`` in the normal cone.
+* **Subproblem.** ``min v + d'Md/(2t)`` s.t. ``v >= g_j.d - alpha_j``, ``x_k + d`` in the
+  polyhedron (``M = I``: ``metric="identity"``, BT itself; ``metric="bfgs"``: ``M`` a damped
+  BFGS matrix updated at serious steps, eigenvalues in ``metric_bounds``: the variable
+  metric bundle method of Lemarechal-Sagastizabal 1997 / Vlcek-Luksan 2001 inside BT's
+  safeguards, :mod:`rbbench.optim.bundle_metric`), by daqp (Arnstrom, Bemporad, Axehill
+  2022) in ``(d, v)``, scaled so that it is O(1) (:func:`_subproblem_data`). Its Hessian is
+  singular in ``v``: daqp's proximal option (``eps_prox > 0``, proximal-point iterations
+  converging to the exact solution of the semidefinite QP), checked against active-set
+  enumeration and trust-constr in the tests. Cut multipliers ``lambda_j`` (sum 1) give ``p =
+  sum lambda_j g_j``, ``alpha_p = sum lambda_j alpha_j`` and ``d = -t M^-1 (p + nu)``,
+  ``nu`` in the normal cone.
 * **Trust-parameter loop** (BT's inner iteration). Trial ``y = x_k + d``, model decrease
   ``v < 0``. Descent, ``f(y) - f(x_k) <= m_L v``: if ``g(y).d < m_R v`` (still steep at
   ``y``) keep ``y`` as candidate, ``t *= t_increase`` and retry (*no new trial when the
@@ -25,9 +29,12 @@ equilibrium constraints*), on plain arrays. The oracle returns ``(f(x), g)``, ``
   descent: a pending candidate becomes the serious step; else a null step (the cut of
   ``y`` changes the model, ``g(y).d - alpha_y >= m_R v``, or ``t = t_min``) or
   ``t *= t_decrease`` and retry. *Every evaluated cut enters the bundle.
-* **Stopping rule.** ``-v = |d|^2/t + nu.d + alpha_p <= eps`` (nonnegative terms), tested
+* **Stopping rule.** ``-v = d'Md/t + nu.d + alpha_p <= eps`` (nonnegative terms), tested
   at ``max(t, t0)``: the model decrease grows with ``t``, so a ``t`` shrunk by failures
-  cannot fake convergence.
+  cannot fake convergence. In a metric, ``d'Md/t = t |p + nu|^2_{M^-1}`` is the predicted
+  decrease of the quasi-Newton model; the eigenvalue bounds ``m_min <= M <= m_max`` give
+  ``t0 |p + nu|^2 <= m_max eps`` and ``alpha_p <= eps`` at a stop: still an
+  ``eps``-stationarity certificate, relative to ``|f(x0)|``.
 * **Scale.** ``f``, ``g`` are divided by ``f_scale = |f(x0)|`` (else ``|g(x0)|``, else 1);
   ``t`` and ``gamma`` are dimensionless: internally ``t |g_0|^-2`` and ``gamma |g_0|^2``
   with ``g_0`` the normalised first subgradient, so ``t = 1`` means the first model step
@@ -48,69 +55,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rbbench.optim.bundle_metric import (  # noqa: F401 - re-exported
+    FEAS_TOL,
+    Subproblem,
+    VariableMetric,
+    _subproblem_data,
+    kkt_residual,
+    solve_subproblem,
+)
+from rbbench.optim.polyhedron import Polyhedron  # noqa: F401 - re-exported
+
 Oracle = Callable[[np.ndarray], tuple[float, np.ndarray]]
-_INF = 1e30  # daqp's infinity
-_GROUPS = {"lb": "x >= lb", "ub": "x <= ub", "cl": "C x >= cl", "cu": "C x <= cu"}
-
-
-@dataclass
-class Polyhedron:
-    """The set ``{x : lb <= x <= ub, cl <= C x <= cu}`` (infinite bounds allowed)."""
-
-    lb: np.ndarray
-    ub: np.ndarray
-    C: np.ndarray
-    cl: np.ndarray
-    cu: np.ndarray
-
-    def __post_init__(self) -> None:
-        for key in ("lb", "ub", "cl", "cu"):
-            setattr(self, key, np.asarray(getattr(self, key), dtype=float).ravel())
-        n = self.lb.size
-        self.C = np.asarray(self.C, dtype=float).reshape(-1, n)
-        sizes = {"ub": n, "cl": self.C.shape[0], "cu": self.C.shape[0]}
-        for key, size in sizes.items():
-            if (got := getattr(self, key).size) != size:
-                raise ValueError(f"Polyhedron.{key}: {got} entries, need {size}")
-        for lo, hi in (("lb", "ub"), ("cl", "cu")):
-            bad = np.flatnonzero(getattr(self, lo) > getattr(self, hi))
-            if bad.size:
-                raise ValueError(f"Polyhedron: {lo} > {hi} at index {int(bad[0])}")
-        if not np.isfinite(self.C).all():
-            raise ValueError("Polyhedron.C: non-finite entries")
-
-    @classmethod
-    def box(cls, lb: np.ndarray, ub: np.ndarray) -> Polyhedron:
-        """A box ``lb <= x <= ub`` without general constraints."""
-        lb = np.asarray(lb, dtype=float).ravel()
-        return cls(lb, ub, np.zeros((0, lb.size)), np.zeros(0), np.zeros(0))
-
-    @property
-    def n(self) -> int:
-        return self.lb.size
-
-    def residuals(self, x: np.ndarray) -> dict[str, float]:
-        """Largest violation per group ``lb, ub, cl, cu`` (raw: > 0 violated, -inf if the
-        group has no finite bound)."""
-        x = np.asarray(x, dtype=float).ravel()
-        Cx = self.C @ x
-        parts = {"lb": self.lb - x, "ub": x - self.ub, "cl": self.cl - Cx, "cu": Cx - self.cu}
-        return {k: float(np.max(v, initial=-math.inf)) for k, v in parts.items()}
-
-    def is_feasible(self, x: np.ndarray, tol: float = 1e-8) -> bool:
-        return all(r <= tol for r in self.residuals(x).values())
-
-    def check(self, x: np.ndarray, name: str = "x0", tol: float = 1e-8) -> None:
-        """Raise ValueError naming every violated group and by how much."""
-        x = np.asarray(x, dtype=float).ravel()
-        if x.size != self.n:
-            raise ValueError(f"{name}: {x.size} entries, the polyhedron has {self.n}")
-        if not np.isfinite(x).all():
-            raise ValueError(f"{name}: non-finite entries")
-        res = self.residuals(x)
-        bad = [f"{k} ({_GROUPS[k]}) violated by {v:.3g}" for k, v in res.items() if v > tol]
-        if bad:
-            raise ValueError(f"{name} is infeasible: " + "; ".join(bad))
 
 
 @dataclass
@@ -131,6 +86,8 @@ class BundleOptions:
     f_lower: float = -math.inf
     t_increase: float = 4.0
     t_decrease: float = 0.25
+    metric: str = "identity"
+    metric_bounds: tuple[float, float] = (1e-4, 1e8)
 
     def __post_init__(self) -> None:
         checks = [("m_L, m_R", 0 < self.m_L < self.m_R < 1, "need 0 < m_L < m_R < 1"),
@@ -142,7 +99,10 @@ class BundleOptions:
                   ("max_evals", self.max_evals >= 1, "need max_evals >= 1"),
                   ("max_bundle", self.max_bundle >= 4, "need max_bundle >= 4"),
                   ("t_increase", self.t_increase > 1, "need t_increase > 1"),
-                  ("t_decrease", 0 < self.t_decrease < 1, "need 0 < t_decrease < 1")]
+                  ("t_decrease", 0 < self.t_decrease < 1, "need 0 < t_decrease < 1"),
+                  ("metric", self.metric in ("identity", "bfgs"), "'identity' or 'bfgs'"),
+                  ("metric_bounds", 0 < self.metric_bounds[0] <= 1 <= self.metric_bounds[1],
+                   "need 0 < m_min <= 1 <= m_max")]
         for key, ok, why in checks:
             if not ok:
                 raise ValueError(f"BundleOptions.{key}: {why}")
@@ -189,107 +149,6 @@ def objective_scale(f0: float, g0: np.ndarray) -> float:
         if s > 0 and math.isfinite(s):
             return s
     return 1.0
-
-
-@dataclass
-class Subproblem:
-    """Solution of the BT subproblem at trust parameter ``t`` (normalised units)."""
-
-    d: np.ndarray
-    v: float
-    lam: np.ndarray  # multipliers of the cuts (sum 1)
-    t: float
-    kkt: float = math.nan
-    ok: bool = True
-    message: str = ""
-
-    @property
-    def pred(self) -> float:  # predicted decrease -v >= 0
-        return -self.v
-
-    @property
-    def agg_norm(self) -> float:
-        """``|s| = |d| / t``: the aggregate subgradient plus its normal-cone part."""
-        return float(np.linalg.norm(self.d)) / self.t
-
-
-def _subproblem_data(x: np.ndarray, t: float, G: np.ndarray, alpha: np.ndarray,
-                     poly: Polyhedron, sigma: float) -> tuple[np.ndarray, ...]:
-    """daqp's ``(H, f, A, bupper, blower)`` of the BT subproblem in the scaled variables
-    ``z = (d / a, v / sigma)``, ``a = sqrt(sigma t)``: ``min z_v + |z_d|^2 / 2`` s.t.
-    ``(a / sigma) g_j.z_d - z_v <= alpha_j / sigma`` and the polyhedron, so that a model
-    decrease of order ``sigma`` gives an O(1) problem for daqp's absolute tolerances.
-    The first ``n + 1`` bounds are simple bounds on ``z``, then the rows of C, then the
-    cuts; general rows scaled to unit norm. Also returns the row norms and ``a``."""
-    n, m, mc = x.size, G.shape[0], poly.C.shape[0]
-    a = math.sqrt(sigma * t)
-    H, f = np.diag(np.r_[np.ones(n), 0.0]), np.r_[np.zeros(n), 1.0]
-    A = np.vstack([np.hstack([poly.C, np.zeros((mc, 1))]),
-                   np.hstack([(a / sigma) * G, -np.ones((m, 1))])])
-    rows = np.linalg.norm(A, axis=1)
-    rows[rows == 0.0] = 1.0
-    Cx = poly.C @ x
-    scale = np.r_[np.full(n, a), 1.0, rows[:mc] * a, rows[mc:] * sigma]
-    up = np.concatenate([poly.ub - x, [math.inf], poly.cu - Cx, alpha]) / scale
-    lo = np.concatenate([poly.lb - x, [-math.inf], poly.cl - Cx, np.full(m, -math.inf)]) / scale
-    return (H, f, np.ascontiguousarray(A / rows[:, None]), np.minimum(up, _INF),
-            np.maximum(lo, -_INF), rows, a)
-
-
-def kkt_residual(H: np.ndarray, f: np.ndarray, A: np.ndarray, up: np.ndarray,
-                 lo: np.ndarray, z: np.ndarray, lam: np.ndarray) -> float:
-    """Largest violation of the KKT conditions of ``min z'Hz/2 + f'z``,
-    ``lo <= [I; A] z <= up`` at ``(z, lam)`` (lam > 0 on upper, < 0 on lower bounds):
-    stationarity, primal feasibility and complementarity: an optimality certificate
-    that does not trust the solver's exit flag."""
-    Af = np.vstack([np.eye(z.size), A])
-    Az = Af @ z
-    stat = np.abs(H @ z + f + Af.T @ lam).max()
-    feas = max(float(np.max(Az - up)), float(np.max(lo - Az)), 0.0)
-    slack = np.where(lam > 0, up - Az, np.where(lam < 0, Az - lo, 0.0))
-    comp = float(np.max(np.abs(lam * slack)))
-    return float(max(stat, feas, comp))
-
-
-#: daqp settings tried in turn: its proximal-point iterations (eps_prox > 0) for the zero
-#: Hessian block of v, tolerances loosened only if a tighter try fails. Measured on 4117
-#: subproblems of the test problems: eps_prox = 1e-6 cycled (exit -2) 13 times, eps_prox = 1
-#: never, KKT residuals <= 2e-12; near-parallel cuts at 1e-10 of the optimum need 1e-10.
-_DAQP_TRIES = tuple({"eps_prox": e, "eta_prox": eta, "primal_tol": tol, "dual_tol": tol}
-                    for e, eta, tol in ((1.0, 1e-12, 1e-12), (1.0, 1e-12, 1e-10),
-                                        (0.1, 1e-9, 1e-9), (-1e-6, -1.0, 1e-9)))
-#: largest violation of the polyhedron accepted at a trial point
-FEAS_TOL = 1e-9
-
-
-def solve_subproblem(x: np.ndarray, t: float, G: np.ndarray, alpha: np.ndarray,
-                     poly: Polyhedron, sigma: float = 1.0) -> Subproblem:
-    """``min v + |d|^2/(2t)`` s.t. ``G d - v <= alpha``, ``x + d`` in ``poly``, by daqp.
-
-    ``sigma`` is the expected size of ``-v`` (the problem is scaled by it, see
-    :func:`_subproblem_data`). The Hessian is singular in ``v``: daqp's proximal option
-    (``eps_prox > 0``) handles it; the next setting of :data:`_DAQP_TRIES` is tried if
-    daqp fails or ``x + d`` violates ``poly`` by more than :data:`FEAS_TOL`. The cut
-    multipliers sum to one at an exact solution; ``kkt`` is :func:`kkt_residual` of the
-    scaled problem (in units of ``sigma``).
-    """
-    import daqp
-
-    n, mc = x.size, poly.C.shape[0]
-    H, f, A, up, lo, rows, a = _subproblem_data(x, t, G, alpha, poly, sigma)
-    sense = np.zeros(up.size, dtype=np.int32)
-    flags = []
-    for settings in _DAQP_TRIES:
-        z, _, flag, info = daqp.solve(H, f, A, up, lo, sense, **settings)
-        z, lam = np.asarray(z, dtype=float), np.asarray(info["lam"], dtype=float)
-        ok = int(flag) == 1 and np.isfinite(z).all() and np.isfinite(lam).all()
-        d = a * z[:n]
-        flags.append(int(flag) if not ok or poly.is_feasible(x + d, FEAS_TOL) else "infeasible")
-        if flags[-1] == 1:
-            return Subproblem(d=d, v=sigma * float(z[n]), lam=lam[n + 1 + mc:] / rows[mc:],
-                              t=t, kkt=kkt_residual(H, f, A, up, lo, z, lam))
-    return Subproblem(d=np.zeros(n), v=0.0, lam=np.zeros(G.shape[0]), t=t, ok=False,
-                      message=f"daqp exit flags {flags}")
 
 
 class _Bundle:
@@ -415,6 +274,7 @@ class _Run:
         self.iters = self.evals = self.resets = 0
         self.history: list[dict] = []
         self.bundle = _Bundle(x0.size)
+        self.metric = VariableMetric(x0.size, opts.metric, *opts.metric_bounds)
 
     def evaluate(self, y: np.ndarray) -> tuple[float, np.ndarray]:
         self.evals += 1
@@ -466,7 +326,8 @@ class _Run:
         low = math.isfinite(self.f_low)
         if low:
             G, alpha = np.vstack([G, np.zeros(self.n)]), np.r_[alpha, max(self.fx - self.f_low, 0)]
-        qp = solve_subproblem(self.x, t * self.tunit, G, alpha, self.poly, self.sigma)
+        qp = solve_subproblem(self.x, t * self.tunit, G, alpha, self.poly, self.sigma,
+                              self.metric.M)
         if low:
             qp.lam = qp.lam[:-1]
         return qp
@@ -485,6 +346,9 @@ class _Run:
             self.callback(row)
 
     def serious(self, trial: _Trial) -> None:
+        """Move the centre to ``trial``; update the metric (M's units: ``g`` times the unit
+        of ``t``)."""
+        self.metric.update(trial.y - self.x, (trial.g - self.gx) * self.tunit)
         self.bundle.move(self.x, trial.y, trial.cut_id)
         self.x, self.fx, self.gx = trial.y, trial.f, trial.g
         self.t = trial.qp.t / self.tunit
