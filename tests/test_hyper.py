@@ -163,4 +163,7 @@ def test_online_scaling_study_runs_on_two_levels(tmp_path, monkeypatch):
     assert [r["level"] for r in rows] == [0, 1]
     assert rows[1]["n_hf_dofs"] > rows[0]["n_hf_dofs"]
     assert rows[0]["ratio_to_first"] == 1.0 and rows[1]["t_online_median_s"] > 0
+    from rbbench.rb.compiled_online import NUMBA_VERSION
+
+    assert {r["online_path"] for r in rows} == {"compiled" if NUMBA_VERSION else "python"}
     assert "| 1 |" in scaling_markdown(rows)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rbbench.hf.threads import one_blas_thread
 from rbbench.scene.loading import load_scene
 from rbbench.studies.formatting import markdown_table
 
@@ -16,9 +17,10 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
 
     One reduced model is built per ``discretization.level``; then every model
     solves every validation mu ``repeats`` times, the models interleaved in
-    each round so that machine load hits them alike. Reports per level the
-    HF size, the reduced sizes, the median and inter-quartile range of the
-    online time (s) and its ratio to the first level.
+    each round so that machine load hits them alike, under one BLAS thread. Reports
+    per level the HF size, the reduced sizes, the median and inter-quartile range of
+    the online time (s), its ratio to the first level and the online path that ran
+    (``compiled`` or ``python``, :attr:`OnlineResult.path`).
     """
     from rbbench.rb.offline import reduce
 
@@ -32,10 +34,14 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                              "or 'affine'")
         results.append(res)
     times: list[list[float]] = [[] for _ in results]
-    for _ in range(repeats):
-        for k, res in enumerate(results):
-            for mu in res.valid_mus:
-                times[k].append(res.model.solve(mu).time_s)
+    paths: set[str] = set()
+    with one_blas_thread():
+        for _ in range(repeats):
+            for k, res in enumerate(results):
+                for mu in res.valid_mus:
+                    out = res.model.solve(mu)
+                    times[k].append(out.time_s)
+                    paths.add(str(getattr(out, "path", "python")))
     rows = []
     base = float(np.median(times[0]))
     for level, res, t in zip(levels, results, times, strict=True):
@@ -46,16 +52,19 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                      "err_u_max": s["err_u_max"], "err_lam_max": s["err_lam_max"],
                      "t_online_median_s": med,
                      "t_online_iqr_s": float(np.subtract(*np.percentile(t, [75, 25]))),
-                     "ratio_to_first": med / base, "t_hf_median_s": s["t_hf_median_s"]})
+                     "ratio_to_first": med / base, "t_hf_median_s": s["t_hf_median_s"],
+                     "online_path": "/".join(sorted(paths))})
     return rows
 
 
 def scaling_markdown(rows: list[dict]) -> str:
     """The rows of :func:`online_scaling` as a Markdown table (times in ms)."""
     head = ("level", "HF dofs", "contact rows", "N + K", "R", "EIM rows", "err u max",
-            "err lam max", "online median (ms)", "IQR (ms)", "ratio", "HF median (s)")
+            "err lam max", "online median (ms)", "IQR (ms)", "ratio", "HF median (s)",
+            "online path")
     return markdown_table(head, (
         (r["level"], r["n_hf_dofs"], r["n_contact"], f"{r['N']} + {r['K_pga']}", r["R"],
          r["M_eim"], f"{r['err_u_max']:.2e}", f"{r['err_lam_max']:.2e}",
          f"{1e3 * r['t_online_median_s']:.3f}", f"{1e3 * r['t_online_iqr_s']:.3f}",
-         f"{r['ratio_to_first']:.2f}", f"{r['t_hf_median_s']:.2f}") for r in rows))
+         f"{r['ratio_to_first']:.2f}", f"{r['t_hf_median_s']:.2f}", r["online_path"])
+        for r in rows))
