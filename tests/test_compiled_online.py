@@ -85,13 +85,14 @@ def test_raw_values_equal_the_python_path(model):
     nq = ev.Mrows.shape[1]
     for mu in MUS:
         th = np.array([1.0, mu])
-        status, nrm, w, gap, sphi, sdofs, mphi, mdofs = _kernels.pair_points(
-            th, fb, ib, meta, nq, k)
+        status, nrm, w, gap, sphi, mphi, seg = _kernels.pair_points(th, fb, ib, meta, nq, k)
         assert status == _kernels.OK
         p = ev.pairing(np.array([mu]))
         np.testing.assert_allclose(nrm, p.nrm, rtol=0, atol=1e-15)
         np.testing.assert_allclose(gap, p.gap, rtol=0, atol=1e-12 * np.abs(p.gap).max())
-        c, g = _kernels.magic_values(fb, ib, meta, nrm, w, gap, sphi, sdofs, mphi, mdofs,
+        if ev.layout.master is not None:
+            np.testing.assert_array_equal(seg, p.master_seg)
+        c, g = _kernels.magic_values(fb, ib, meta, nrm, w, gap, sphi, mphi, seg,
                                      ev.layout.master is not None)
         c_py, g_py = ev.entries(np.array([mu]), ceim.Z_loc, *ceim._support, ceim.entry_col,
                                 ceim.pos_G)

@@ -89,7 +89,7 @@ def plan_arrays(model: Any) -> dict[str, np.ndarray]:
            "s_na": none2 if sl.na is None else sl.na, "s_nb": none2 if sl.nb is None else sl.nb,
            "m_a": none2 if ms is None else ms.a, "m_b": none2 if ms is None else ms.b,
            "ranges": none2 if ms is None else ev.windows[2],
-           "sg": gauss(lay.n_gauss)[0], "wg": gauss(lay.n_gauss)[1], "z_loc": ceim.Z_loc,
+           "sg": gauss(lay.n_gauss)[0], "wg": gauss(lay.n_gauss)[1], "zt_loc": ceim.Z_loc.T,
            "vals_b": vals_b, "vals_g": vals_g, "lu_b": ceim.lu_B[0], "lu_g": ceim.lu_G[0],
            "t_b": ceim.T_B, "t_g": ceim.T_G, "a_terms": model.A.terms,
            "f_terms": model.F.terms,
@@ -97,7 +97,8 @@ def plan_arrays(model: Any) -> dict[str, np.ndarray]:
            "s_dofs": sl.dofs, "m_dofs": sl.dofs[:1] if ms is None else ms.dofs,
            "lo": np.zeros(1) if ms is None else ev.windows[0],
            "hi": np.zeros(1) if ms is None else ev.windows[1],
-           "pts_b": pts_b, "cols_b": ceim.entry_col, "pts_g": pts_g,
+           "pts_b": pts_b, "cols_b": ceim.entry_col,
+           "order_b": np.argsort(ceim.entry_col, kind="stable"), "pts_g": pts_g,
            "piv_b": ceim.lu_B[1], "piv_g": ceim.lu_G[1]}
     return out
 
