@@ -141,3 +141,29 @@ def test_floor_solves_the_stiffness():
     fl = solve_floor(SimpleNamespace(A=p.A, F=p.F, factorize=factorize))
     assert fl["solver"] == "backend factorize" and fl["floor_s"] > 0
     np.testing.assert_allclose(got["x"], x, rtol=1e-10, atol=1e-14 * np.abs(x).max())
+
+
+def test_floor_uses_the_solves_linear_solver():
+    """A solve condensed on PARDISO is timed against a PARDISO floor (same solver, not
+    SuperLU), named in floor.solver; the floor's x solves A x = F (dense reference)."""
+    from rbbench.hf.pardiso_schur import available, warm_up
+
+    if not available():
+        pytest.skip("pypardiso not installed")
+    assert warm_up() and warm_up()  # once per process, then free
+    sc = load_scene("membrane_obstacle")
+    sol = solve_hf(sc, solver_options={"condensation": "schur", "linear_solver": "pardiso"})
+    assert sol.result.info["condensation_linear_solver"] == "pardiso"
+    assert sol.metrics["floor"]["solver"].startswith("PARDISO")
+    assert sol.metrics["solve_over_floor"] == pytest.approx(
+        sol.times["solve_s"] / sol.metrics["floor_s"], rel=1e-12)
+    p = sol.problem
+    fl = solve_floor(p, "pardiso")
+    assert fl["solver"].startswith("PARDISO")
+    from rbbench.hf.pardiso_schur import factorized
+
+    x = factorized(p.A)(np.asarray(p.F, float))
+    ref = np.linalg.solve(p.A.toarray(), p.F)
+    np.testing.assert_allclose(x, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+    sol_lu = solve_hf(sc, solver_options={"condensation": "schur", "linear_solver": "superlu"})
+    assert sol_lu.metrics["floor"]["solver"].startswith("SuperLU")

@@ -23,8 +23,15 @@ class CondensationOptions:
     """The ``condensation`` and ``linear_solver`` options (checked when the solver is made)."""
 
     def _set_condensation(self, condensation: str, linear_solver: str) -> None:
+        """Check the options; a Schur condensation that may use PARDISO loads it now
+        (:func:`rbbench.hf.pardiso_schur.warm_up`: its first call is a per-process cost,
+        paid at construction, outside the timed solves)."""
         check_options(condensation, linear_solver)
         self.condensation, self.linear_solver = condensation, linear_solver
+        if condensation == "schur" and linear_solver in ("auto", "pardiso"):
+            from rbbench.hf.pardiso_schur import warm_up
+
+            warm_up()
 
     def condense(self, A, F, B, G, factorize=None):
         """:func:`~rbbench.hf.condensation.condense_problem` with this solver's options."""

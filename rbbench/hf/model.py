@@ -259,30 +259,37 @@ class HFModel:
         return sol
 
 
-def solve_floor(problem: Any) -> dict[str, float]:
+def solve_floor(problem: Any, linear_solver: str | None = None) -> dict[str, Any]:
     """Time one factorisation + one solve ``A x = F`` of the problem's stiffness on the free
-    dofs with the direct solver the HF solvers use (``problem.factorize``, the backend's,
-    else SuperLU :func:`rbbench.hf.lcp.factorize`): the floor of a contact solve (issue 17).
+    dofs with the direct solver the HF solve used: PARDISO when ``linear_solver`` is
+    ``"pardiso"`` (the solve's condensation ran on it), else ``problem.factorize`` (the
+    backend's), else SuperLU (:func:`rbbench.hf.lcp.factorize`): the floor of a contact
+    solve (issue 17).
 
     Returns ``factor_s``, ``solve_s`` and their sum ``floor_s`` (s) and ``solver``.
     """
     t0 = time.perf_counter()
-    solve = (problem.factorize(problem.A) if problem.factorize is not None
-             else lcp.factorize(problem.A).solve)
+    if linear_solver == "pardiso":
+        from rbbench.hf.pardiso_schur import factorized
+
+        solve, name = factorized(problem.A), "PARDISO (rbbench.hf.pardiso_schur.factorized)"
+    elif problem.factorize is not None:
+        solve, name = problem.factorize(problem.A), "backend factorize"
+    else:
+        solve, name = lcp.factorize(problem.A).solve, "SuperLU (rbbench.hf.lcp.factorize)"
     t1 = time.perf_counter()
     x = solve(np.asarray(problem.F, dtype=float))
     t2 = time.perf_counter()
     if not np.all(np.isfinite(x)):
         raise FloatingPointError("floor: the solve of A x = F gave a non-finite x")
-    return {"floor_s": t2 - t0, "factor_s": t1 - t0, "solve_s": t2 - t1,
-            "solver": "backend factorize" if problem.factorize is not None
-            else "SuperLU (rbbench.hf.lcp.factorize)"}
+    return {"floor_s": t2 - t0, "factor_s": t1 - t0, "solve_s": t2 - t1, "solver": name}
 
 
 def floor_metrics(sol: HFSolution) -> dict[str, Any]:
     """``floor_s``, ``solve_over_floor`` (solver time ``times["solve_s"]`` / ``floor_s``)
-    and the ``floor`` block of :func:`solve_floor`, timed now (see :data:`DEFINITIONS`)."""
-    fl = solve_floor(sol.problem)
+    and the ``floor`` block of :func:`solve_floor` with the solve's own linear solver
+    (``condensation_linear_solver`` of its info), timed now (see :data:`DEFINITIONS`)."""
+    fl = solve_floor(sol.problem, sol.result.info.get("condensation_linear_solver"))
     return {"floor_s": fl["floor_s"], "solve_over_floor": sol.times["solve_s"] / fl["floor_s"],
             "floor": fl}
 
@@ -562,10 +569,12 @@ DEFINITIONS = {
                          "conditions' consistency error)",
     "mindlin": MINDLIN_DEFINITION,
     "floor_s": "the floor of the solve (s): one factorisation + one solve A x = F of the same "
-               "stiffness on the free dofs with the solver's direct solver (the backend's "
-               "factorize, else SuperLU as rbbench.hf.lcp.factorize), timed in the same run "
+               "stiffness on the free dofs with the direct solver of the solve's condensation "
+               "(PARDISO when it ran on PARDISO, else the backend's factorize, else SuperLU "
+               "as rbbench.hf.lcp.factorize; floor.solver names it), timed in the same run "
                "right after the solve, with one BLAS thread as the solve; floor.factor_s, "
-               "floor.solve_s its parts",
+               "floor.solve_s its parts. PARDISO's first call in a process (library "
+               "loading, ~0.6 s) is paid at solver construction (times_s.setup_s)",
     "solve_over_floor": "times_s.solve_s / floor_s: the solver's time (condensation, "
                         "contact iterations, recovery of u; no assembly, no meshing) over "
                         "the floor; 1 is one factorisation + one solve (issue 17 goal: "
