@@ -20,6 +20,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--max-iter", type=int, default=100, help="iterations (default 100)")
     p.add_argument("--max-evals", type=int, default=300,
                    help="objective evaluations at most (default 300)")
+    p.add_argument("--metric", choices=("identity", "bfgs"), default="identity",
+                   help="bundle subproblem metric: identity (Schramm-Zowe BT, default) or "
+                        "bfgs (damped BFGS at serious steps, rbbench.optim.bundle_metric)")
     p.add_argument("--eps", type=float, default=1e-6,
                    help="stopping tolerance on the predicted decrease, relative to J0")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
@@ -59,7 +62,8 @@ def run(args) -> int:
     sc = load_shape_scene(args.scene, _overrides(args.set))
     out = args.out or Path("results") / "optimize" / f"{sc.name}_{args.driver}_{args.method}"
     cfg = OptimizeConfig(driver=args.driver, method=args.method, max_iter=args.max_iter,
-                         max_evals=args.max_evals, eps=args.eps, quiet=args.quiet)
+                         max_evals=args.max_evals, eps=args.eps, quiet=args.quiet,
+                         metric=args.metric)
     print(f"rbbench optimize {sc.name}: driver {cfg.driver}, method {cfg.method}, "
           f"I = {sc.n_contact}, mesh {sc.n_contact - 1} x {sc.ny} Q1 -> {out}")
     s = run_optimization(sc, cfg, out)

@@ -314,7 +314,8 @@ def optimize_rb_run(sc: ShapeScene, cfg, out) -> tuple[RBResult, dict, RBHistory
         raise ValueError(f"--method {cfg.method!r}: the rb driver runs the bundle method only")
     hist = RBHistory(out / "history.csv", cfg.quiet)
     opts = RBOptions(max_outer=cfg.max_iter,
-                     inner=BundleOptions(max_iter=100, max_evals=200, eps=cfg.eps))
+                     inner=BundleOptions(max_iter=100, max_evals=200, eps=cfg.eps,
+                                         metric=cfg.metric))
     res = optimize_rb(sc, sc.initial_design(), opts, hist)
     counts = {"hf_solves": res.hf_solves, "rb_solves": res.rb_solves,
               "basis_size": res.basis_size, "J_opt_hf": res.J_hf, "J_opt_reduced": res.f}

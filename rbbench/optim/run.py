@@ -35,6 +35,7 @@ class OptimizeConfig:
     max_evals: int = 300
     eps: float = 1e-6
     quiet: bool = False
+    metric: str = "identity"
 
 
 class HFOracle:
@@ -92,7 +93,8 @@ def _optimise(sc: ShapeScene, cfg: OptimizeConfig, oracle, callback):
     poly = Polyhedron(**sc.admissible())
     alpha0 = sc.initial_design()
     if cfg.method == "bundle":
-        opts = BundleOptions(max_iter=cfg.max_iter, max_evals=cfg.max_evals, eps=cfg.eps)
+        opts = BundleOptions(max_iter=cfg.max_iter, max_evals=cfg.max_evals, eps=cfg.eps,
+                             metric=cfg.metric)
         return bundle_trust(oracle, alpha0, poly, opts, callback)
     if cfg.method == "slsqp":
         from rbbench.optim.baselines import slsqp
