@@ -479,11 +479,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_studies_parser(sub) -> None:
     """``rbbench studies NAME``: the studies with their own ``add_parser`` / ``run``."""
-    from rbbench.studies import heat_seed, pymor_thermal_block
+    from rbbench.studies import heat_seed, pymor_thermal_block, shape_side_by_side
 
-    st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-seed)")
+    st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-seed, "
+                        "shape-side-by-side)")
     group = st.add_subparsers(dest="study", required=True, metavar="STUDY")
-    for module in (pymor_thermal_block, heat_seed):
+    for module in (pymor_thermal_block, heat_seed, shape_side_by_side):
         module.add_parser(group).set_defaults(func=module.run)
 
 

@@ -61,3 +61,20 @@ def test_failing_state_solve_keeps_the_history(tmp_path, monkeypatch):
     rows = list(csv.DictReader(open(out / "history.csv")))
     assert len(rows) == 3
     assert np.isfinite(s["J_opt"])
+
+
+def test_shape_side_by_side_study(tmp_path, capsys):
+    """``rbbench studies shape-side-by-side`` on a coarse scene: both drivers from the same
+    J0, the RB driver's J is its HF-verified value, both designs feasible on raw residuals,
+    the printed table and the JSON agree."""
+    out = tmp_path / "s.json"
+    assert main(["studies", "shape-side-by-side", "--set", "geometry.ny=8", "--set",
+                 "geometry.contact_nodes=21", "--max-evals", "10", "--max-iter", "10",
+                 "--json", str(out)]) == 0
+    r = json.loads(out.read_text())
+    assert r["hf_evaluations"] <= 10 and r["rb_hf_solves"] >= 1
+    assert r["hf_J"] <= r["J0"] and r["rb_J_hf"] <= r["J0"]
+    assert max(r["hf_residuals"].values()) <= 1e-8 and max(r["rb_residuals"].values()) <= 1e-8
+    assert r["J_uniform_bound"] <= min(r["hf_J"], r["rb_J_hf"])  # sum lam = load: a bound
+    text = capsys.readouterr().out
+    assert f"{r['hf_J']:.6e}" in text and "uniform-pressure bound" in text
