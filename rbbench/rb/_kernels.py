@@ -23,14 +23,13 @@ from numba import njit
 #: float arrays of the plan, in buffer order (shapes: see ``compiled_online.plan_arrays``)
 FLOATS = ("mu_lo", "mu_hi", "s_scale", "s_shift", "m_scale", "m_shift", "s_a", "s_b",
           "s_inner", "s_na", "s_nb", "m_a", "m_b", "ranges", "sg", "wg", "zt_loc", "vals_b",
-          "vals_g", "lu_b", "lu_g", "t_b", "t_g", "a_terms", "f_terms")
+          "vals_g", "w_b", "w_g", "a_terms", "f_terms")
 #: int arrays of the plan: ``dims = [degree, has_master, vertex_normals]``
-INTS = ("dims", "s_dofs", "m_dofs", "lo", "hi", "pts_b", "cols_b", "order_b", "pts_g", "piv_b",
-        "piv_g")
+INTS = ("dims", "s_dofs", "m_dofs", "lo", "hi", "pts_b", "cols_b", "order_b", "pts_g")
 
 (MU_LO, MU_HI, S_SCALE, S_SHIFT, M_SCALE, M_SHIFT, S_A, S_B, S_INNER, S_NA, S_NB, M_A, M_B,
- RANGES, SG, WG, ZT_LOC, VALS_B, VALS_G, LU_B, LU_G, T_B, T_G, A_TERMS, F_TERMS) = range(25)
-(DIMS, S_DOFS, M_DOFS, LO, HI, PTS_B, COLS_B, ORDER_B, PTS_G, PIV_B, PIV_G) = range(25, 36)
+ RANGES, SG, WG, ZT_LOC, VALS_B, VALS_G, W_B, W_G, A_TERMS, F_TERMS) = range(23)
+(DIMS, S_DOFS, M_DOFS, LO, HI, PTS_B, COLS_B, ORDER_B, PTS_G) = range(23, 32)
 
 #: statuses of :func:`online_qp` (anything but OK: the caller reruns the Python path,
 #: which raises the reference's error)
@@ -256,26 +255,6 @@ def magic_values(fb, ib, meta, nrm, w, gap, sphi, mphi, seg, has_master):
 
 
 @njit(cache=True)
-def lu_solve(lu, piv, b):
-    """``scipy.linalg.lu_solve((lu, piv), b)`` for one right-hand side (getrs: the row
-    interchanges of getrf, then the unit lower and the upper triangular solves)."""
-    n = b.size
-    y = b.copy()
-    for i in range(n):
-        j = piv[i]
-        if j != i:
-            y[i], y[j] = y[j], y[i]
-    for i in range(n):
-        for j in range(i):
-            y[i] -= lu[i, j] * y[j]
-    for i in range(n - 1, -1, -1):
-        for j in range(i + 1, n):
-            y[i] -= lu[i, j] * y[j]
-        y[i] /= lu[i, i]
-    return y
-
-
-@njit(cache=True)
 def _combine(coef, terms, out):
     """``out = sum_k coef[k] terms[k]`` (terms flattened per k)."""
     out[:] = 0.0
@@ -342,18 +321,16 @@ def online_qp(mu, fb, ib, meta, qp):
     if status != OK:
         return status
     c, g = magic_values(fb, ib, meta, nrm, w, gap, sphi, mphi, seg, dims[1])
-    theta = lu_solve(_f2(fb, meta, LU_B), _i(ib, meta, PIV_B), c)
-    eta = lu_solve(_f2(fb, meta, LU_G), _i(ib, meta, PIV_G), g)
-    a_terms, t_b = _f2(fb, meta, A_TERMS), _f2(fb, meta, T_B)
+    a_terms = _f2(fb, meta, A_TERMS)
     n = meta[A_TERMS, 2]
-    m = meta[T_B, 2]
+    m = meta[W_B, 2]
     _combine(th, a_terms, qp[:n * n])
     f = np.empty(n)
     _combine(th, _f2(fb, meta, F_TERMS), f)
     b = qp[n * n + n:n * n + n + m * n]
-    _combine(theta, t_b, b)
+    _combine(c, _f2(fb, meta, W_B), b)  # sum_j theta_j T_B[j], theta = B^-1 c
     gn = np.empty(m)
-    _combine(eta, _f2(fb, meta, T_G), gn)
+    _combine(g, _f2(fb, meta, W_G), gn)
     _scale(f, b.reshape((m, n)), gn, qp[n * n:], n, m)
     return OK
 

@@ -68,6 +68,18 @@ def path_reason(model: Any, method: str = "daqp") -> str | None:
     return None
 
 
+def coefficient_map(lu_piv: tuple[np.ndarray, np.ndarray], T: np.ndarray) -> np.ndarray:
+    """``W = P^-T T`` (``P = lu_piv``, the EIM interpolation matrix at the magic entries,
+    ``T`` the EIM terms, first axis the term): online ``sum_j theta_j T[j]`` with
+    ``theta = P^-1 c`` is ``sum_i c_i W[i]``, one pass over the terms and no triangular
+    solves (the coefficient solve folded offline into the terms; measured 4.6 us of the
+    online solve at M = 81)."""
+    import scipy.linalg as sla
+
+    flat = sla.lu_solve(lu_piv, T.reshape(T.shape[0], -1), trans=1)
+    return flat.reshape(T.shape)
+
+
 def plan_arrays(model: Any) -> dict[str, np.ndarray]:
     """The arrays of the kernels' plan (:data:`rbbench.rb._kernels.FLOATS`, ``INTS``) from a
     reduced model whose constraint is a :class:`~rbbench.rb.contact_eim.ContactEIM`."""
@@ -90,16 +102,15 @@ def plan_arrays(model: Any) -> dict[str, np.ndarray]:
            "m_a": none2 if ms is None else ms.a, "m_b": none2 if ms is None else ms.b,
            "ranges": none2 if ms is None else ev.windows[2],
            "sg": gauss(lay.n_gauss)[0], "wg": gauss(lay.n_gauss)[1], "zt_loc": ceim.Z_loc.T,
-           "vals_b": vals_b, "vals_g": vals_g, "lu_b": ceim.lu_B[0], "lu_g": ceim.lu_G[0],
-           "t_b": ceim.T_B, "t_g": ceim.T_G, "a_terms": model.A.terms,
+           "vals_b": vals_b, "vals_g": vals_g, "w_b": coefficient_map(ceim.lu_B, ceim.T_B),
+           "w_g": coefficient_map(ceim.lu_G, ceim.T_G), "a_terms": model.A.terms,
            "f_terms": model.F.terms,
            "dims": np.array([lay.degree, ms is not None, sl.na is not None]),
            "s_dofs": sl.dofs, "m_dofs": sl.dofs[:1] if ms is None else ms.dofs,
            "lo": np.zeros(1) if ms is None else ev.windows[0],
            "hi": np.zeros(1) if ms is None else ev.windows[1],
            "pts_b": pts_b, "cols_b": ceim.entry_col,
-           "order_b": np.argsort(ceim.entry_col, kind="stable"), "pts_g": pts_g,
-           "piv_b": ceim.lu_B[1], "piv_g": ceim.lu_G[1]}
+           "order_b": np.argsort(ceim.entry_col, kind="stable"), "pts_g": pts_g}
     return out
 
 
