@@ -23,6 +23,7 @@ from rbbench.optim.cli_optimize import add_parser as _add_optimize_parser
 from rbbench.registry import NotInstalledError, UnknownComponentError, default_registry
 from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import PROBLEMS_DIR, SceneError, load_scene, tomllib
+from rbbench.studies.cli_studies import add_parser as _add_studies_parser
 
 
 def _backend_options(items: list[str] | None, flag: str = "--backend-option") -> dict:
@@ -475,17 +476,6 @@ def build_parser() -> argparse.ArgumentParser:
     sc = sub.add_parser("scenes", help="list the scenes in problems/")
     sc.set_defaults(func=cmd_scenes)
     return p
-
-
-def _add_studies_parser(sub) -> None:
-    """``rbbench studies NAME``: the studies with their own ``add_parser`` / ``run``."""
-    from rbbench.studies import heat_seed, pymor_thermal_block, shape_side_by_side
-
-    st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-seed, "
-                        "shape-side-by-side)")
-    group = st.add_subparsers(dest="study", required=True, metavar="STUDY")
-    for module in (pymor_thermal_block, heat_seed, shape_side_by_side):
-        module.add_parser(group).set_defaults(func=module.run)
 
 
 def _add_solve_parser(sub) -> None:

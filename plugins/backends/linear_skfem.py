@@ -10,18 +10,8 @@ from __future__ import annotations
 import numpy as np
 from rbbench_plugins.backends.linear_common import LinearBackend, LinearPieces, block_of
 from rbbench_plugins.backends.meshes import unit_square
-from skfem import Basis, BilinearForm, ElementTriP1, ElementTriP2, FacetBasis, LinearForm, asm
-from skfem.helpers import dot, grad
-
-
-@BilinearForm
-def _laplace(u, v, w):
-    return dot(grad(u), grad(v))
-
-
-@BilinearForm
-def _mass(u, v, w):
-    return u * v
+from rbbench_plugins.backends.skfem_backend import _laplace, _mass
+from skfem import Basis, ElementTriP1, ElementTriP2, FacetBasis, LinearForm, asm
 
 
 @LinearForm

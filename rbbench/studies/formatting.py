@@ -29,3 +29,14 @@ def observed_order(e_prev: float | None, e: float | None, h_prev: float, h: floa
     if not e_prev or not e or e_prev <= 0 or e <= 0:
         return ""
     return f"{np.log(e_prev / e) / np.log(h_prev / h):.2f}"
+
+
+def print_and_dump(text: str, figures: dict[str, Any], path: str | None) -> int:
+    """Print a study's table and, with ``path``, write its figures as JSON (exit 0)."""
+    import json
+
+    print(text)
+    if path:
+        with open(path, "w") as fh:
+            json.dump(figures, fh, indent=1, default=float)
+    return 0

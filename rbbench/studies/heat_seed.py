@@ -11,11 +11,10 @@ scene's validation set (a fresh snapshot cache: the HF solves are timed, not rea
 from __future__ import annotations
 
 import argparse
-import json
 import tempfile
 from typing import Any
 
-from rbbench.studies.formatting import markdown_table
+from rbbench.studies.formatting import markdown_table, print_and_dump
 
 __all__ = ["SEED", "add_parser", "heat_seed", "heat_seed_markdown", "run"]
 
@@ -80,8 +79,4 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     """Run the study and print its table."""
     res = heat_seed(args.n_cells, args.N, repeats=args.repeats, backend=args.backend)
-    print(heat_seed_markdown(res))
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(res, fh, indent=1, default=float)
-    return 0
+    return print_and_dump(heat_seed_markdown(res), res, args.json)

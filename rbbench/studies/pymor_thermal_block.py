@@ -24,7 +24,6 @@ solve median. pyMOR is an optional extra (``pip install pymor``): without it its
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import tempfile
 import time
@@ -32,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.studies.formatting import markdown_table
+from rbbench.studies.formatting import markdown_table, print_and_dump
 
 __all__ = ["INSTALL_HINT", "add_parser", "pymor_column", "rbbench_column", "run",
            "side_by_side", "side_by_side_markdown"]
@@ -216,8 +215,4 @@ def run(args: argparse.Namespace) -> int:
     """Run the study and print its table (exit 0; pyMOR missing is a row, not an error)."""
     res = side_by_side(args.n_cells, args.blocks, args.N, args.n_train, args.n_valid,
                        args.repeats, args.backend)
-    print(side_by_side_markdown(res))
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(res, fh, indent=1, default=float)
-    return 0
+    return print_and_dump(side_by_side_markdown(res), res, args.json)

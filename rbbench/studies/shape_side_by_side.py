@@ -12,10 +12,9 @@ time, stop reasons and the largest constraint residual (raw, > 0 violated).
 from __future__ import annotations
 
 import argparse
-import json
 from typing import Any
 
-from rbbench.studies.formatting import markdown_table
+from rbbench.studies.formatting import markdown_table, print_and_dump
 
 __all__ = ["add_parser", "run", "shape_markdown", "shape_side_by_side"]
 
@@ -87,8 +86,4 @@ def run(args: argparse.Namespace) -> int:
 
     res = shape_side_by_side(args.scene, _overrides(args.set), args.metric, args.max_iter,
                              args.max_evals, args.eps)
-    print(shape_markdown(res))
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(res, fh, indent=1, default=float)
-    return 0
+    return print_and_dump(shape_markdown(res), res, args.json)
