@@ -64,7 +64,7 @@ def _timed(f):
         return time.perf_counter() - t0, time.thread_time() - c0, out
 
 
-def time_variant(problem, name: str):
+def measure_variant(problem, name: str):
     """``(wall s, CPU s, SolveResult)`` of one ``ssn`` solve with the options of ``name``."""
     from rbbench.registry import default_registry
 
@@ -72,7 +72,7 @@ def time_variant(problem, name: str):
     return _timed(lambda: solver.solve(problem))
 
 
-def time_floor(problem) -> tuple[float, float, None]:
+def measure_floor(problem) -> tuple[float, float, None]:
     """One SuperLU factorisation + one solve of the stiffness (:func:`rbbench.hf.model.
     solve_floor`, as ``rbbench solve``'s ``floor_s``)."""
     from rbbench.hf.model import solve_floor
@@ -81,7 +81,7 @@ def time_floor(problem) -> tuple[float, float, None]:
     return w, c, None
 
 
-def time_floor_pardiso(problem) -> tuple[float, float, None]:
+def measure_floor_pardiso(problem) -> tuple[float, float, None]:
     """The floor with PARDISO (:func:`rbbench.hf.pardiso_schur.factorized`)."""
     from rbbench.hf.pardiso_schur import factorized
 
@@ -94,9 +94,9 @@ def side_by_side(level: int, repeats: int, columns_repeats: int) -> dict:
     variant against ``columns`` (raw values, relative to max |u|)."""
     problem = contact_problem(level)
     names = _variants()
-    runs = {"floor": time_floor, **({"floor_pardiso": time_floor_pardiso}
+    runs = {"floor": measure_floor, **({"floor_pardiso": measure_floor_pardiso}
                                     if "pardiso" in names else {}),
-            **{k: (lambda p, k=k: time_variant(p, k)) for k in names}}
+            **{k: (lambda p, k=k: measure_variant(p, k)) for k in names}}
     wall: dict[str, list[float]] = {k: [] for k in runs}
     cpu: dict[str, list[float]] = {k: [] for k in runs}
     u: dict[str, np.ndarray] = {}
@@ -126,7 +126,7 @@ def side_by_side(level: int, repeats: int, columns_repeats: int) -> dict:
 #: peak is reset through /proc/self/clear_refs, so the assembly's peak does not hide it)
 _MEMORY_CODE = """
 import gc, json, resource, sys
-from benchmarks.bench_hf_condensation import contact_problem, time_variant
+from benchmarks.bench_hf_condensation import contact_problem, measure_variant
 def status(key):
     for line in open("/proc/self/status"):
         if line.startswith(key):
@@ -135,7 +135,7 @@ p = contact_problem({level}); gc.collect()
 peak_all = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 open("/proc/self/clear_refs", "w").write("5")
 before = status("VmRSS:")
-time_variant(p, {name!r})
+measure_variant(p, {name!r})
 print(json.dumps([peak_all, before, status("VmHWM:")]))
 """
 
@@ -200,8 +200,8 @@ class HFCondensation:
             for name in _variants():
                 if name == "columns" and level == "2":
                     continue
-                t = [time_variant(problem, name)[0] for _ in range(3)]
-                f = [time_floor(problem)[0] for _ in range(3)]
+                t = [measure_variant(problem, name)[0] for _ in range(3)]
+                f = [measure_floor(problem)[0] for _ in range(3)]
                 out[(level, name)] = float(np.median(t) / np.median(f))
         return out
 
@@ -214,7 +214,7 @@ class HFCondensation:
 
     def time_solve(self, cache, level, condensation):
         """One ``ssn`` solve (s): condensation, PDAS, u; assembly excluded."""
-        time_variant(self.problem, condensation)
+        measure_variant(self.problem, condensation)
 
     def track_over_floor(self, cache, level, condensation):
         """Median solve / median floor (one factorisation + one solve), same process."""

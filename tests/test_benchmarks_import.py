@@ -99,6 +99,19 @@ def test_every_module_imports_and_benchmarks_are_callable(modules):
     assert not missing, f"benchmarks missing: {sorted(missing)}"
 
 
+def test_module_level_benchmarks_take_no_arguments(modules):
+    """asv runs every module-level function with a benchmark prefix without arguments:
+    a helper named ``time_...`` (taking the problem) fails ``asv check``; name helpers
+    otherwise."""
+    for mname, module in modules.items():
+        for qual, fn, cls in _benchmarks(module):
+            if cls is None:
+                required = [p for p in inspect.signature(fn).parameters.values()
+                            if p.default is p.empty and p.kind in (p.POSITIONAL_ONLY,
+                                                                    p.POSITIONAL_OR_KEYWORD)]
+                assert not required, f"benchmarks/{mname}.py: {qual} needs {required}"
+
+
 def test_asv_discovers_the_same_benchmarks(bench_pkg, modules):
     discovery = pytest.importorskip("asv_runner.discovery")
     names = {b.name for b in discovery.disc_benchmarks(str(ROOT / "benchmarks"))}
