@@ -34,17 +34,17 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                              "or 'affine'")
         results.append(res)
     times: list[list[float]] = [[] for _ in results]
-    paths: set[str] = set()
+    paths: list[set[str]] = [set() for _ in results]
     with one_blas_thread():
         for _ in range(repeats):
             for k, res in enumerate(results):
                 for mu in res.valid_mus:
                     out = res.model.solve(mu)
                     times[k].append(out.time_s)
-                    paths.add(str(getattr(out, "path", "python")))
+                    paths[k].add(str(getattr(out, "path", "python")))
     rows = []
     base = float(np.median(times[0]))
-    for level, res, t in zip(levels, results, times, strict=True):
+    for level, res, t, path in zip(levels, results, times, paths, strict=True):
         s = res.summary()
         med = float(np.median(t))
         rows.append({"level": level, "n_hf_dofs": s["n_hf_dofs"], "n_contact": s["n_contact"],
@@ -53,7 +53,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                      "t_online_median_s": med,
                      "t_online_iqr_s": float(np.subtract(*np.percentile(t, [75, 25]))),
                      "ratio_to_first": med / base, "t_hf_median_s": s["t_hf_median_s"],
-                     "online_path": "/".join(sorted(paths))})
+                     "online_path": "/".join(sorted(path))})
     return rows
 
 
