@@ -50,8 +50,10 @@ def matrix_file(tmp_path_factory):
 def test_shipped_linear_matrix_expands_without_contact_roles():
     m = load_matrix("linear", registry=default_registry())
     assert {c.scene for c in m.cases} == {"thermal_block", "heat_robin"}
-    for c in m.cases:
-        assert c.status == "run"
+    ngsolve = importlib.util.find_spec("ngsolve") is not None
+    for c in m.cases:  # without the ngsolve extra its cases are not_installed rows
+        assert c.status == ("run" if ngsolve or c.components["backend"] != "ngsolve"
+                            else "not_installed")
         assert (c.components["solver"], c.components["dual"],
                 c.components["stabilizer"]) == ("", "", "")
 
