@@ -72,20 +72,12 @@ def measure_variant(problem, name: str):
     return _timed(lambda: solver.solve(problem))
 
 
-def measure_floor(problem) -> tuple[float, float, None]:
-    """One SuperLU factorisation + one solve of the stiffness (:func:`rbbench.hf.model.
-    solve_floor`, as ``rbbench solve``'s ``floor_s``)."""
+def measure_floor(problem, linear_solver: str | None = None) -> tuple[float, float, None]:
+    """One factorisation + one solve of the stiffness, SuperLU (default) or ``"pardiso"``
+    (:func:`rbbench.hf.model.solve_floor`, as ``rbbench solve``'s ``floor_s``)."""
     from rbbench.hf.model import solve_floor
 
-    w, c, _ = _timed(lambda: solve_floor(problem))
-    return w, c, None
-
-
-def measure_floor_pardiso(problem) -> tuple[float, float, None]:
-    """The floor with PARDISO (:func:`rbbench.hf.pardiso_schur.factorized`)."""
-    from rbbench.hf.pardiso_schur import factorized
-
-    w, c, _ = _timed(lambda: factorized(problem.A)(np.asarray(problem.F, float)))
+    w, c, _ = _timed(lambda: solve_floor(problem, linear_solver))
     return w, c, None
 
 
@@ -94,8 +86,9 @@ def side_by_side(level: int, repeats: int, columns_repeats: int) -> dict:
     variant against ``columns`` (raw values, relative to max |u|)."""
     problem = contact_problem(level)
     names = _variants()
-    runs = {"floor": measure_floor, **({"floor_pardiso": measure_floor_pardiso}
-                                    if "pardiso" in names else {}),
+    runs = {"floor": measure_floor,
+            **({"floor_pardiso": lambda p: measure_floor(p, "pardiso")}
+               if "pardiso" in names else {}),
             **{k: (lambda p, k=k: measure_variant(p, k)) for k in names}}
     wall: dict[str, list[float]] = {k: [] for k in runs}
     cpu: dict[str, list[float]] = {k: [] for k in runs}

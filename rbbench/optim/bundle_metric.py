@@ -15,12 +15,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:  # bundle imports this module
-    from rbbench.optim.polyhedron import Polyhedron
+from rbbench.optim.polyhedron import Polyhedron
 
 _INF = 1e30  # daqp's infinity
 

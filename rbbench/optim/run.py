@@ -106,14 +106,13 @@ def _optimise(sc: ShapeScene, cfg: OptimizeConfig, oracle, callback):
 def summary_of(sc: ShapeScene, cfg: OptimizeConfig, res, J0: float, wall_s: float,
                counts: dict) -> dict:
     """``summary.json``: J0, J_opt, their ratio, counts, residuals at the optimum, reasons."""
-    P, n = sc.pressure * (sc.b - sc.a), sc.n_contact
     res_opt = sc.residuals(res.x)
     return {
         "scene": sc.name, "driver": cfg.driver, "method": cfg.method,
         "J_definition": "J = sum_i lam_i^6, lam_i the nodal normal contact force (kN per m "
                         "of depth) at the I design nodes (seed 001)",
         "J0": J0, "J_opt": res.f, "ratio": res.f / J0 if J0 else math.nan,
-        "J_uniform_bound": n * (P / n) ** 6,
+        "J_uniform_bound": sc.uniform_pressure_bound(),
         "seed": {"J0": SEED_J0, "J_opt": SEED_J_OPT, "ratio": SEED_J_OPT / SEED_J0,
                  "note": "seed 001's own (unstated) material and load; compare the ratios"},
         "iterations": res.iterations, "evaluations": res.evaluations, **counts,

@@ -63,6 +63,13 @@ class ShapeScene:
         F = self.friction0 / (s * s + 1.0)
         return F, -2.0 * self.friction0 * s / ((s * s + 1.0) ** 2 * self.slip_scale)
 
+    def uniform_pressure_bound(self) -> float:
+        """``J >= I (P / I)^p``: the whole top load ``P = pressure (b - a)`` passes through
+        the ``I`` contact nodes (``sum lam = P``), and by Jensen's inequality ``sum lam^p``
+        is least when the forces are equal (``summary.json`` ``J_uniform_bound``)."""
+        n = self.n_contact
+        return n * (self.pressure * (self.b - self.a) / n) ** self.power
+
     def initial_design(self) -> np.ndarray:
         """``alpha_0``: ``parabola`` (height at the ends, 0 in the middle), ``vee`` or ``flat``."""
         x = self.grid.x1

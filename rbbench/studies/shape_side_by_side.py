@@ -34,11 +34,10 @@ def shape_side_by_side(scene: str = "shape_coulomb", overrides: dict | None = No
     rb_opts = RBOptions(inner=BundleOptions(max_iter=100, max_evals=200, eps=eps,
                                             metric=metric))
     res = side_by_side(sc, rb_opts, hf_opts)
-    load = sc.pressure * (sc.b - sc.a)
     res.pop("rb_history", None)
     return {**res, "metric": metric, "initial": sc.initial,
             "initial_height": sc.initial_height,
-            "J_uniform_bound": sc.n_contact * (load / sc.n_contact) ** 6}
+            "J_uniform_bound": sc.uniform_pressure_bound()}
 
 
 def shape_markdown(r: dict[str, Any]) -> str:
