@@ -106,6 +106,15 @@ def window_tangent_ranges(a: np.ndarray, b: np.ndarray, lo: np.ndarray,
     return np.stack([phi[lo] + rel.min(axis=1), phi[lo] + rel.max(axis=1)], axis=1)
 
 
+def window_monotone(n: np.ndarray, ranges: np.ndarray, eps: float = 1e-9) -> np.ndarray:
+    """Whether the side function ``cross(n, P_j - x)`` of each point is monotone along
+    its window: ``[alpha - theta_n, beta - theta_n]`` (``ranges``,
+    :func:`window_tangent_ranges`) holds no multiple of pi (margin ``eps``)."""
+    th = np.arctan2(n[:, 1], n[:, 0])
+    return np.floor((ranges[:, 0] - th - eps) / np.pi) == np.floor((ranges[:, 1] - th + eps)
+                                                                   / np.pi)
+
+
 def ray_cast_window(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
                     lo: np.ndarray, hi: np.ndarray, ranges: np.ndarray | None = None,
                     tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -125,12 +134,7 @@ def ray_cast_window(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
     verts = np.vstack([a, b[-1:]])  # chain vertices 0 .. n_facets
     if ranges is None:
         ranges = window_tangent_ranges(a, b, lo, hi)
-    # monotone side function: [alpha - theta_n, beta - theta_n] holds no multiple of pi
-    th = np.arctan2(n[:, 1], n[:, 0])
-    eps = 1e-9
-    lo_k = np.floor((ranges[:, 0] - th - eps) / np.pi)
-    hi_k = np.floor((ranges[:, 1] - th + eps) / np.pi)
-    monotone = lo_k == hi_k
+    monotone = window_monotone(n, ranges)
 
     def side(j: np.ndarray) -> np.ndarray:
         d = verts[j] - x

@@ -21,22 +21,22 @@ import numpy as np
 from numba import njit
 
 #: float arrays of the plan, in buffer order (shapes: see ``compiled_online.plan_arrays``)
-FLOATS = ("mu_lo", "mu_hi", "s_scale", "s_shift", "m_scale", "m_shift", "s_a", "s_b",
-          "s_inner", "s_na", "s_nb", "m_a", "m_b", "ranges", "sg", "wg", "zt_loc", "vals_b",
-          "vals_g", "w_b", "w_g", "a_terms", "f_terms")
-#: int arrays of the plan: ``dims = [degree, has_master, vertex_normals]``
-INTS = ("dims", "s_dofs", "m_dofs", "lo", "hi", "pts_b", "cols_b", "order_b", "pts_g")
+FLOATS = ("mu_lo", "mu_hi", "s_scale", "s_shift", "m_scale", "m_shift", "x_hat", "n_hat",
+          "w_hat", "m_a", "m_b", "zt_m", "slave_b", "vals_b", "vals_g", "w_b", "w_g",
+          "a_terms", "f_terms")
+#: int arrays of the plan: ``dims = [degree, has_master]``
+INTS = ("dims", "mono", "guess", "m_dofs", "lo", "hi", "pts_b", "cols_b", "order_b",
+        "pts_g")
 
-(MU_LO, MU_HI, S_SCALE, S_SHIFT, M_SCALE, M_SHIFT, S_A, S_B, S_INNER, S_NA, S_NB, M_A, M_B,
- RANGES, SG, WG, ZT_LOC, VALS_B, VALS_G, W_B, W_G, A_TERMS, F_TERMS) = range(23)
-(DIMS, S_DOFS, M_DOFS, LO, HI, PTS_B, COLS_B, ORDER_B, PTS_G) = range(23, 32)
+(MU_LO, MU_HI, S_SCALE, S_SHIFT, M_SCALE, M_SHIFT, X_HAT, N_HAT, W_HAT, M_A, M_B, ZT_M,
+ SLAVE_B, VALS_B, VALS_G, W_B, W_G, A_TERMS, F_TERMS) = range(19)
+(DIMS, MONO, GUESS, M_DOFS, LO, HI, PTS_B, COLS_B, ORDER_B, PTS_G) = range(19, 29)
 
 #: statuses of :func:`online_qp` (anything but OK: the caller reruns the Python path,
 #: which raises the reference's error)
 OK, OUTSIDE_D, NO_HIT = 0, 1, 2
 
 _TOL = 1e-10  # ray_cast's tolerance on the facet coordinate
-_EPS = 1e-9  # ray_cast_window's margin on the angles
 
 
 @njit(cache=True)
@@ -85,39 +85,36 @@ def _shape(s, degree, out, q):
 
 
 @njit(cache=True)
-def slave_points(th, fb, ib, meta, x, nrm, w, sphi):
+def slave_points(sa, sb, inner, na, nb, sg, wg, degree, vertex_normals, x, nrm, w, sphi):
     """Points, unit outward normals, weights and slave shape values of the Gauss rule on
-    every slave facet at mu (:func:`~rbbench.hf.pairing.pair`,
-    :meth:`~rbbench.hf.facet_chains.FacetChain.normals_at`)."""
-    sa, sb, inner = _f2(fb, meta, S_A), _f2(fb, meta, S_B), _f2(fb, meta, S_INNER)
-    na, nb = _f2(fb, meta, S_NA), _f2(fb, meta, S_NB)
-    sg, wg = _f(fb, meta, SG), _f(fb, meta, WG)
-    dims = _i(ib, meta, DIMS)
-    s, cx, cy = _map(th, _f(fb, meta, S_SCALE), _f(fb, meta, S_SHIFT))
+    every facet of the reference slave chain (:func:`~rbbench.hf.pairing.pair`,
+    :meth:`~rbbench.hf.facet_chains.FacetChain.normals_at`), computed once offline.
+
+    The slave map is a similarity ``s x + c`` (:class:`~rbbench.hf.facet_chains.AffineMap`),
+    so at mu the points are ``s x + c``, the normals ``sign(s) n`` (the orientation test
+    against the inner point scales by ``|s|``), the weights ``|s| w`` and the shape values
+    unchanged: the online kernel only maps."""
     ng = sg.size
-    sign = 1.0 if s > 0 else (-1.0 if s < 0 else 0.0)
     for f in range(sa.shape[0]):
-        ax, ay = s * sa[f, 0] + cx, s * sa[f, 1] + cy
-        bx, by = s * sb[f, 0] + cx, s * sb[f, 1] + cy
+        ax, ay, bx, by = sa[f, 0], sa[f, 1], sb[f, 0], sb[f, 1]
         dx, dy = bx - ax, by - ay
         length = np.sqrt(dx * dx + dy * dy)
         fnx, fny = dy / length, -dx / length
-        ix, iy = s * inner[f, 0] + cx, s * inner[f, 1] + cy
-        if fnx * (ix - 0.5 * (ax + bx)) + fny * (iy - 0.5 * (ay + by)) > 0:
+        if fnx * (inner[f, 0] - 0.5 * (ax + bx)) + fny * (inner[f, 1] - 0.5 * (ay + by)) > 0:
             fnx, fny = -fnx, -fny
         for g in range(ng):
             q = f * ng + g
             sq = sg[g]
             x[q, 0], x[q, 1] = ax + sq * dx, ay + sq * dy
-            if dims[2]:
+            if vertex_normals:
                 vx = (1.0 - sq) * na[f, 0] + sq * nb[f, 0]
                 vy = (1.0 - sq) * na[f, 1] + sq * nb[f, 1]
                 nv = np.sqrt(vx * vx + vy * vy)
-                nrm[q, 0], nrm[q, 1] = sign * vx / nv, sign * vy / nv
+                nrm[q, 0], nrm[q, 1] = vx / nv, vy / nv
             else:
                 nrm[q, 0], nrm[q, 1] = fnx, fny
             w[q] = wg[g] * length
-            _shape(sq, dims[0], sphi, q)
+            _shape(sq, degree, sphi, q)
 
 
 @njit(cache=True)
@@ -128,44 +125,53 @@ def _cast(x0, x1, n0, n1, ax, ay, bx, by):
     r0, r1 = ax - x0, ay - x1
     if not abs(det) > 1e-14:
         return False, 0.0, np.inf, 0.0
-    t = (r0 * (-d1) - r1 * (-d0)) / det
     s = (n0 * r1 - n1 * r0) / det
-    return (s >= -_TOL) and (s <= 1 + _TOL), s, abs(t), t
+    if not ((s >= -_TOL) and (s <= 1 + _TOL)):  # a miss: its t is never read
+        return False, s, np.inf, 0.0
+    t = (r0 * (-d1) - r1 * (-d0)) / det
+    return True, s, abs(t), t
 
 
 @njit(cache=True)
-def _best(x0, x1, n0, n1, segs, first, last, lo, hi):
-    """Best hit (smallest ``|t|``, first on ties) over facets ``first .. last`` kept in
-    ``lo .. hi`` (``segs[j] = [a_j, b_j]``): ``(segment or -1, s clipped to [0, 1], t)``."""
+def _best(x0, x1, n0, n1, ma, mb, sm, cx, cy, first, last, lo, hi):
+    """Best hit (smallest ``|t|``, first on ties) over the master facets ``first .. last``
+    kept in ``lo .. hi``, each mapped as it is tested (``sm x + c``; mapping the whole
+    chain per solve was O(HF)): ``(facet or -1, s clipped to [0, 1], t)``."""
     seg, best, bs, bt = -1, np.inf, 0.0, np.nan
     for j in range(max(first, lo), min(last, hi) + 1):
-        ok, s, at, t = _cast(x0, x1, n0, n1, segs[j, 0], segs[j, 1], segs[j, 2], segs[j, 3])
+        ok, s, at, t = _cast(x0, x1, n0, n1, sm * ma[j, 0] + cx, sm * ma[j, 1] + cy,
+                             sm * mb[j, 0] + cx, sm * mb[j, 1] + cy)
         if ok and at < best:
             seg, best, bs, bt = j, at, s, t
     return seg, min(max(bs, 0.0), 1.0), bt
 
 
 @njit(cache=True)
-def _sign_side(x0, x1, n0, n1, px, py):
-    """The sign of ``cross(n, P - x)`` (the side of chain vertex P of the ray line)."""
+def _side(x0, x1, n0, n1, ma, mb, j, sm, cx, cy):
+    """The sign of ``cross(n, P_j - x)``: the side of the ray line of chain vertex ``P_j``
+    (``a_j``, the last ``b`` for ``j = n_facets``), mapped by ``sm x + c``."""
+    if j < ma.shape[0]:
+        px, py = sm * ma[j, 0] + cx, sm * ma[j, 1] + cy
+    else:
+        px, py = sm * mb[j - 1, 0] + cx, sm * mb[j - 1, 1] + cy
     return np.sign(n0 * (py - x1) - n1 * (px - x0))
 
 
 @njit(cache=True)
-def _last_same(x0, x1, n0, n1, verts, lo, hi, guess):
+def _last_same(x0, x1, n0, n1, ma, mb, sm, cx, cy, lo, hi, guess):
     """The bisection of :func:`~rbbench.hf.facets.ray_cast_window` on a monotone window:
     the last vertex ``L`` in ``lo .. hi`` whose side has the sign of vertex ``lo`` (those
     vertices are a prefix of the window, the side being monotone; vertex ``hi + 1`` is
-    never tested). Found by galloping from ``guess`` (the previous point's vertex: the
-    points follow the chains), then bisecting: the same ``L`` in ~4 side tests, not ~8."""
-    f = _sign_side(x0, x1, n0, n1, verts[lo, 0], verts[lo, 1])
+    never tested). Found by galloping from ``guess``, then bisecting: the same ``L`` in
+    ~3 side tests from a good guess, not ~2 log2(width)."""
+    f = _side(x0, x1, n0, n1, ma, mb, lo, sm, cx, cy)
     g = min(max(guess, lo), hi)
     step = 1
-    if _sign_side(x0, x1, n0, n1, verts[g, 0], verts[g, 1]) == f:  # L >= g
+    if _side(x0, x1, n0, n1, ma, mb, g, sm, cx, cy) == f:  # L >= g
         left, right = g, hi + 1
         while left + step <= hi:
             j = left + step
-            if _sign_side(x0, x1, n0, n1, verts[j, 0], verts[j, 1]) != f:
+            if _side(x0, x1, n0, n1, ma, mb, j, sm, cx, cy) != f:
                 right = j
                 break
             left = j
@@ -174,14 +180,14 @@ def _last_same(x0, x1, n0, n1, verts, lo, hi, guess):
         left, right = lo, g
         while right - step > lo:
             j = right - step
-            if _sign_side(x0, x1, n0, n1, verts[j, 0], verts[j, 1]) == f:
+            if _side(x0, x1, n0, n1, ma, mb, j, sm, cx, cy) == f:
                 left = j
                 break
             right = j
             step *= 2
     while right - left > 1:
         mid = (left + right) // 2
-        if _sign_side(x0, x1, n0, n1, verts[mid, 0], verts[mid, 1]) == f:
+        if _side(x0, x1, n0, n1, ma, mb, mid, sm, cx, cy) == f:
             left = mid
         else:
             right = mid
@@ -189,110 +195,122 @@ def _last_same(x0, x1, n0, n1, verts, lo, hi, guess):
 
 
 @njit(cache=True)
-def ray_cast_window(x, nrm, segs, verts, lo, hi, ranges, seg, s2, gap):
-    """:func:`~rbbench.hf.facets.ray_cast_window` per point: where the window's facet
-    directions are monotone along the ray, its facet by :func:`_last_same` and an exact
-    cast on it and its two neighbours; else (or without a hit) brute force over the
-    window. ``segs[j] = [a_j, b_j]``, ``verts``: the chain's vertices (``a``, then the
-    last ``b``). Returns False when a point hits no facet."""
-    guess = lo[0] if lo.size else 0
-    for q in range(x.shape[0]):
-        x0, x1, n0, n1 = x[q, 0], x[q, 1], nrm[q, 0], nrm[q, 1]
-        th = np.arctan2(n1, n0)
-        monotone = (np.floor((ranges[q, 0] - th - _EPS) / np.pi)
-                    == np.floor((ranges[q, 1] - th + _EPS) / np.pi))
+def pair_points(th, fb, ib, meta, w, gap, mphi, seg):
+    """The pairing at mu of the plan's quadrature points: weights ``w``, gaps ``gap``,
+    master shape values ``mphi`` and master facets ``seg`` (written in place), as
+    :func:`~rbbench.hf.pairing.pair` with :func:`~rbbench.hf.facets.ray_cast_window`.
+    Returns ``(status, s)``, ``s`` the slave map's scale (the normals are
+    ``sign(s) n_hat``, :func:`slave_points`).
+
+    Per point: its facet by :func:`_last_same` and an exact cast on it and its two
+    neighbours where the window's facet directions are monotone along the ray (``mono``,
+    the reference's test, computed offline for both signs of ``s``: it depends on the
+    normal only), else (or without a hit) brute force over the window. The search starts
+    from the point's facet at the centre of D (``guess``) moved by the previous point's
+    shift from its own: the facets hit move by tens with mu, but alike for neighbours."""
+    xh, nh, wh = _f2(fb, meta, X_HAT), _f2(fb, meta, N_HAT), _f(fb, meta, W_HAT)
+    dims = _i(ib, meta, DIMS)
+    s, cx, cy = _map(th, _f(fb, meta, S_SCALE), _f(fb, meta, S_SHIFT))
+    if not s != 0.0:  # a degenerate (or NaN) map: the reference decides
+        return NO_HIT, s
+    sign = 1.0 if s > 0 else -1.0
+    for q in range(xh.shape[0]):
+        w[q] = abs(s) * wh[q]
+    if not dims[1]:  # rigid plane y = 0
+        for q in range(xh.shape[0]):
+            gap[q] = -(s * xh[q, 1] + cy) / (sign * nh[q, 1])
+        return OK, s
+    sm, mx, my = _map(th, _f(fb, meta, M_SCALE), _f(fb, meta, M_SHIFT))
+    ma, mb = _f2(fb, meta, M_A), _f2(fb, meta, M_B)
+    lo, hi, mono = _i(ib, meta, LO), _i(ib, meta, HI), _i2(ib, meta, MONO)
+    guess = _i(ib, meta, GUESS)
+    col, shift = (0 if s > 0 else 1), 0
+    for q in range(xh.shape[0]):
+        x0, x1 = s * xh[q, 0] + cx, s * xh[q, 1] + cy
+        n0, n1 = sign * nh[q, 0], sign * nh[q, 1]
         j = -1
-        if monotone:
-            guess = _last_same(x0, x1, n0, n1, verts, lo[q], hi[q], guess)
-            j, s, t = _best(x0, x1, n0, n1, segs, guess - 1, guess + 1, lo[q], hi[q])
+        if mono[q, col]:
+            last = _last_same(x0, x1, n0, n1, ma, mb, sm, mx, my, lo[q], hi[q],
+                              guess[q] + shift)
+            shift = last - guess[q]  # the chains move together: the next point's likely shift
+            j, s2, t = _best(x0, x1, n0, n1, ma, mb, sm, mx, my, last - 1, last + 1,
+                             lo[q], hi[q])
         if j < 0:
-            j, s, t = _best(x0, x1, n0, n1, segs, lo[q], hi[q], lo[q], hi[q])
+            j, s2, t = _best(x0, x1, n0, n1, ma, mb, sm, mx, my, lo[q], hi[q], lo[q], hi[q])
         if j < 0:
-            return False
-        seg[q], s2[q], gap[q] = j, s, t
-    return True
+            return NO_HIT, s
+        seg[q], gap[q] = j, t
+        _shape(s2, dims[0], mphi, q)
+    return OK, s
 
 
 @njit(cache=True)
-def magic_values(fb, ib, meta, nrm, w, gap, sphi, mphi, seg, has_master):
-    """The magic entries of ``C(mu)`` and magic rows of ``G(mu)``
-    (:meth:`~rbbench.rb.contact_eim.RowEvaluator.entries`).
+def magic_values(fb, ib, meta, s, w, gap, mphi, seg, c, g):
+    """The magic entries ``c`` of ``C(mu)`` and magic rows ``g`` of ``G(mu)``
+    (:meth:`~rbbench.rb.contact_eim.RowEvaluator.entries`), written in place.
 
     Entry ``e`` sums over its row's points ``q``: ``vals[e, p] w_q`` times the normal jump
-    ``sum_j coef[q, j] Z[dof[q, j], col_e]`` (:meth:`~rbbench.hf.pairing.Pairing.jump_terms`:
-    slave term, then master term on facet ``seg[q]``), from ``Z^T`` (entries in the order
-    of their columns, ``order_b``, so that a row of ``Z^T`` stays in cache). Written out
-    in one loop nest: a helper function per point cost 3x (measured).
-    """
-    zt = _f2(fb, meta, ZT_LOC)
+    ``sum_j coef[q, j] Z[dof[q, j], col_e]`` (:meth:`~rbbench.hf.pairing.Pairing.jump_terms`).
+    With ``w = |s| w_hat`` and ``n = sign(s) n_hat`` (:func:`slave_points`) the entry is
+    ``s sum_p vals w_hat (S[e, p] - master term)``: the slave term ``S`` (``slave_b``) is
+    mu-independent and tabulated offline; the master term reads ``Z^T`` on the master
+    facet ``seg[q]`` (``zt_m``: the master dofs of the windows only; entries in the order
+    of their columns, ``order_b``, so that a row of ``Z^T`` stays in cache)."""
+    zt, slave, nh, wh = (_f2(fb, meta, ZT_M), _f2(fb, meta, SLAVE_B), _f2(fb, meta, N_HAT),
+                         _f(fb, meta, W_HAT))
     vals_b, pts_b, cols = _f2(fb, meta, VALS_B), _i2(ib, meta, PTS_B), _i(ib, meta, COLS_B)
-    s_dofs, m_dofs, order = _i2(ib, meta, S_DOFS), _i2(ib, meta, M_DOFS), _i(ib, meta, ORDER_B)
-    ng, k = _f(fb, meta, SG).size, sphi.shape[1]
-    c = np.zeros(pts_b.shape[0])
+    m_dofs, order = _i2(ib, meta, M_DOFS), _i(ib, meta, ORDER_B)
+    has_master, k = _i(ib, meta, DIMS)[1], mphi.shape[1]
     for i in range(order.size):
         e = order[i]
         col = cols[e]
+        acc_e = 0.0
         for p in range(pts_b.shape[1]):
             q = pts_b[e, p]
-            f = q // ng
-            acc = 0.0
-            for a in range(k):
-                for d in range(2):
-                    acc += sphi[q, a] * nrm[q, d] * zt[col, s_dofs[f, 2 * a + d]]
+            acc = slave[e, p]
             if has_master:
-                s = seg[q]
+                f = seg[q]
                 for a in range(k):
-                    for d in range(2):
-                        acc += -(mphi[q, a] * nrm[q, d]) * zt[col, m_dofs[s, 2 * a + d]]
-            c[e] += vals_b[e, p] * w[q] * acc
+                    jump = nh[q, 0] * zt[col, m_dofs[f, 2 * a]]
+                    jump += nh[q, 1] * zt[col, m_dofs[f, 2 * a + 1]]
+                    acc -= mphi[q, a] * jump
+            acc_e += vals_b[e, p] * wh[q] * acc
+        c[e] = s * acc_e
     vals_g, pts_g = _f2(fb, meta, VALS_G), _i2(ib, meta, PTS_G)
-    g = np.zeros(pts_g.shape[0])
     for r in range(pts_g.shape[0]):
+        acc = 0.0
         for p in range(pts_g.shape[1]):
             q = pts_g[r, p]
-            g[r] += vals_g[r, p] * w[q] * gap[q]
-    return c, g
+            acc += vals_g[r, p] * w[q] * gap[q]
+        g[r] = acc
 
 
 @njit(cache=True)
 def _combine(coef, terms, out):
-    """``out = sum_k coef[k] terms[k]`` (terms flattened per k)."""
+    """``out = sum_k coef[k] terms[k]`` (terms flattened per k), summed in the order of k
+    as one pass per term would (the same round-off), but eight terms per pass over
+    ``out``: the sum is bound by reading the terms (81 x 1200 doubles: 14 us one term per
+    pass, 9.4 us eight, measured warm)."""
     out[:] = 0.0
-    for k in range(coef.size):
-        ck = coef[k]
-        for i in range(out.size):
-            out[i] += ck * terms[k, i]
-
-
-@njit(cache=True)
-def pair_points(th, fb, ib, meta, nq, k):
-    """The pairing of the plan's quadrature points at mu: ``(status, nrm, w, gap, sphi,
-    mphi, seg)`` (shape values on the slave and master facets, master facet per point)."""
-    dims = _i(ib, meta, DIMS)
-    x, nrm = np.empty((nq, 2)), np.empty((nq, 2))
-    w, gap, sphi = np.empty(nq), np.empty(nq), np.empty((nq, k))
-    slave_points(th, fb, ib, meta, x, nrm, w, sphi)
-    mphi, seg = np.zeros((nq, k)), np.zeros(nq, dtype=np.int64)
-    if not dims[1]:  # rigid plane y = 0
-        for q in range(nq):
-            gap[q] = -x[q, 1] / nrm[q, 1]
-        return OK, nrm, w, gap, sphi, mphi, seg
-    s, cx, cy = _map(th, _f(fb, meta, M_SCALE), _f(fb, meta, M_SHIFT))
-    ma, mb = _f2(fb, meta, M_A), _f2(fb, meta, M_B)
-    nm = ma.shape[0]
-    segs, verts = np.empty((nm, 4)), np.empty((nm + 1, 2))
-    for j in range(nm):  # the map of AffineMap.__call__: s x_hat + c
-        segs[j, 0], segs[j, 1] = s * ma[j, 0] + cx, s * ma[j, 1] + cy
-        segs[j, 2], segs[j, 3] = s * mb[j, 0] + cx, s * mb[j, 1] + cy
-        verts[j, 0], verts[j, 1] = segs[j, 0], segs[j, 1]
-    verts[nm, 0], verts[nm, 1] = segs[nm - 1, 2], segs[nm - 1, 3]
-    s2 = np.empty(nq)
-    if not ray_cast_window(x, nrm, segs, verts, _i(ib, meta, LO), _i(ib, meta, HI),
-                           _f2(fb, meta, RANGES), seg, s2, gap):
-        return NO_HIT, nrm, w, gap, sphi, mphi, seg
-    for q in range(nq):
-        _shape(s2[q], dims[0], mphi, q)
-    return OK, nrm, w, gap, sphi, mphi, seg
+    n, kk = out.size, coef.size
+    k = 0
+    while k + 8 <= kk:
+        c0, c1, c2, c3 = coef[k], coef[k + 1], coef[k + 2], coef[k + 3]
+        c4, c5, c6, c7 = coef[k + 4], coef[k + 5], coef[k + 6], coef[k + 7]
+        for i in range(n):
+            acc = out[i] + c0 * terms[k, i]
+            acc += c1 * terms[k + 1, i]
+            acc += c2 * terms[k + 2, i]
+            acc += c3 * terms[k + 3, i]
+            acc += c4 * terms[k + 4, i]
+            acc += c5 * terms[k + 5, i]
+            acc += c6 * terms[k + 6, i]
+            out[i] = acc + c7 * terms[k + 7, i]
+        k += 8
+    for j in range(k, kk):
+        cj = coef[j]
+        for i in range(n):
+            out[i] += cj * terms[j, i]
 
 
 @njit(cache=True)
@@ -303,7 +321,7 @@ def online_qp(mu, fb, ib, meta, qp):
     with ``H = A_N``, ``f = -F_N / |F_N|``, ``A = B_N / rows``, ``b_upper = G_N / rows /
     |F_N|`` (:func:`rbbench.rb.mixed_model._solve_daqp`). Returns a status: :data:`OK`,
     :data:`OUTSIDE_D` (mu is not in D: wrong size, not finite or outside the bounds) or
-    :data:`NO_HIT` (a point left its master window).
+    :data:`NO_HIT` (a point left its master window, or a degenerate map).
     """
     lo_mu, hi_mu = _f(fb, meta, MU_LO), _f(fb, meta, MU_HI)
     if mu.size != lo_mu.size:
@@ -314,17 +332,17 @@ def online_qp(mu, fb, ib, meta, qp):
     th = np.empty(mu.size + 1)
     th[0] = 1.0
     th[1:] = mu
-    dims = _i(ib, meta, DIMS)
-    k = dims[0] + 1
-    nq = _f(fb, meta, SG).size * meta[S_A, 1]
-    status, nrm, w, gap, sphi, mphi, seg = pair_points(th, fb, ib, meta, nq, k)
+    nq = meta[X_HAT, 1]
+    w, gap = np.empty(nq), np.empty(nq)
+    mphi, seg = np.zeros((nq, _i(ib, meta, DIMS)[0] + 1)), np.zeros(nq, dtype=np.int64)
+    status, s = pair_points(th, fb, ib, meta, w, gap, mphi, seg)
     if status != OK:
         return status
-    c, g = magic_values(fb, ib, meta, nrm, w, gap, sphi, mphi, seg, dims[1])
-    a_terms = _f2(fb, meta, A_TERMS)
+    c, g = np.empty(meta[PTS_B, 1]), np.empty(meta[PTS_G, 1])
+    magic_values(fb, ib, meta, s, w, gap, mphi, seg, c, g)
     n = meta[A_TERMS, 2]
     m = meta[W_B, 2]
-    _combine(th, a_terms, qp[:n * n])
+    _combine(th, _f2(fb, meta, A_TERMS), qp[:n * n])
     f = np.empty(n)
     _combine(th, _f2(fb, meta, F_TERMS), f)
     b = qp[n * n + n:n * n + n + m * n]

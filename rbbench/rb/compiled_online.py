@@ -82,7 +82,12 @@ def coefficient_map(lu_piv: tuple[np.ndarray, np.ndarray], T: np.ndarray) -> np.
 
 def plan_arrays(model: Any) -> dict[str, np.ndarray]:
     """The arrays of the kernels' plan (:data:`rbbench.rb._kernels.FLOATS`, ``INTS``) from a
-    reduced model whose constraint is a :class:`~rbbench.rb.contact_eim.ContactEIM`."""
+    reduced model whose constraint is a :class:`~rbbench.rb.contact_eim.ContactEIM`.
+
+    What does not depend on mu is tabulated here: the reference slave points, normals,
+    weights (:func:`rbbench.rb._kernels.slave_points`), the monotonicity test of each
+    point's master window for both signs of the slave scale, the slave term of every
+    magic entry (``slave_b``) and ``Z^T`` on the master dofs of the windows (``zt_m``)."""
     ceim = model.constraint
     ev, lay = ceim.evaluator, ceim.evaluator.layout
     p = int(model.A.terms.shape[0]) - 1
@@ -91,27 +96,89 @@ def plan_arrays(model: Any) -> dict[str, np.ndarray]:
     else:
         lo, hi = np.full(p, -np.inf), np.full(p, np.inf)
     sl, ms = lay.slave, lay.master
-    none2 = np.zeros((1, 2))
+    x_hat, n_hat, w_hat, sphi = reference_points(lay)
     pts_b, vals_b = ceim._support
     pts_g, vals_g = ev.support(ceim.pos_G)
     out = {"mu_lo": lo, "mu_hi": hi, "s_scale": sl.map.scale, "s_shift": sl.map.shift,
            "m_scale": sl.map.scale if ms is None else ms.map.scale,
            "m_shift": sl.map.shift if ms is None else ms.map.shift,
-           "s_a": sl.a, "s_b": sl.b, "s_inner": sl.inner,
-           "s_na": none2 if sl.na is None else sl.na, "s_nb": none2 if sl.nb is None else sl.nb,
-           "m_a": none2 if ms is None else ms.a, "m_b": none2 if ms is None else ms.b,
-           "ranges": none2 if ms is None else ev.windows[2],
-           "sg": gauss(lay.n_gauss)[0], "wg": gauss(lay.n_gauss)[1], "zt_loc": ceim.Z_loc.T,
+           "x_hat": x_hat, "n_hat": n_hat, "w_hat": w_hat,
+           "slave_b": _slave_terms(ceim, sl.dofs, sphi, n_hat, pts_b, lay.n_gauss),
            "vals_b": vals_b, "vals_g": vals_g, "w_b": coefficient_map(ceim.lu_B, ceim.T_B),
            "w_g": coefficient_map(ceim.lu_G, ceim.T_G), "a_terms": model.A.terms,
-           "f_terms": model.F.terms,
-           "dims": np.array([lay.degree, ms is not None, sl.na is not None]),
-           "s_dofs": sl.dofs, "m_dofs": sl.dofs[:1] if ms is None else ms.dofs,
-           "lo": np.zeros(1) if ms is None else ev.windows[0],
-           "hi": np.zeros(1) if ms is None else ev.windows[1],
+           "f_terms": model.F.terms, "dims": np.array([lay.degree, ms is not None]),
            "pts_b": pts_b, "cols_b": ceim.entry_col,
            "order_b": np.argsort(ceim.entry_col, kind="stable"), "pts_g": pts_g}
+    out.update(_master_plan(ceim, n_hat, 0.5 * (lo + hi) if np.isfinite(lo + hi).all()
+                            else np.zeros(p)))
     return out
+
+
+def reference_points(lay: Any) -> tuple[np.ndarray, ...]:
+    """``(x, n, w, phi)`` of the slave Gauss points on the reference chain (the identity
+    map), :func:`rbbench.rb._kernels.slave_points`."""
+    from rbbench.rb import _kernels
+
+    sl = lay.slave
+    nq = sl.a.shape[0] * lay.n_gauss
+    x, n, w = np.empty((nq, 2)), np.empty((nq, 2)), np.empty(nq)
+    phi = np.empty((nq, lay.degree + 1))
+    none2 = np.zeros((1, 2))
+    sg, wg = gauss(lay.n_gauss)
+    _kernels.slave_points(np.asarray(sl.a, float), np.asarray(sl.b, float),
+                          np.asarray(sl.inner, float), none2 if sl.na is None else sl.na,
+                          none2 if sl.nb is None else sl.nb, sg, wg, lay.degree,
+                          sl.na is not None, x, n, w, phi)
+    return x, n, w, phi
+
+
+def _slave_terms(ceim: Any, dofs: np.ndarray, phi: np.ndarray, n: np.ndarray,
+                 pts: np.ndarray, n_gauss: int) -> np.ndarray:
+    """``S[e, p] = sum_(a, d) phi[q, a] n[q, d] Z[dofs[f, a, d], col_e]`` at ``q = pts[e, p]``
+    on slave facet ``f = q // n_gauss``: the slave half of the normal jump of every magic
+    entry on the reference chain (:func:`rbbench.rb._kernels.magic_values`)."""
+    d = np.asarray(dofs).reshape(dofs.shape[0], -1, 2)[pts // n_gauss]  # (E, P, k, 2)
+    z = ceim.Z_loc[d, ceim.entry_col[:, None, None, None]]
+    return np.einsum("epa,epd,epad->ep", phi[pts], n[pts], z)
+
+
+def _master_plan(ceim: Any, n_hat: np.ndarray, centre: np.ndarray) -> dict[str, np.ndarray]:
+    """The master chain, its windows, each point's master facet at ``centre`` (the
+    kernel's first guess), their monotonicity test (the reference's
+    :func:`~rbbench.hf.facets.ray_cast_window` formula for ``sign(s) n_hat``: column 0
+    for ``s > 0``, 1 for ``s < 0``) and ``Z^T`` on the master dofs the windows reach
+    (``m_dofs`` numbered into ``zt_m``; facets outside every window point at column 0)."""
+    from rbbench.hf.facets import window_monotone
+
+    ev, ms = ceim.evaluator, ceim.evaluator.layout.master
+    N = ceim.Z_loc.shape[1]
+    nq = n_hat.shape[0]
+    if ms is None:
+        none2 = np.zeros((1, 2))
+        return {"m_a": none2, "m_b": none2, "zt_m": np.zeros((N, 1)),
+                "mono": np.zeros((nq, 2), dtype=np.int64), "guess": np.zeros(nq, int),
+                "m_dofs": np.zeros((1, 2), int),
+                "lo": np.zeros(1, int), "hi": np.zeros(1, int)}
+    lo, hi, ranges = ev.windows
+    mono = np.stack([window_monotone(n_hat, ranges), window_monotone(-n_hat, ranges)], axis=1)
+    dofs = np.asarray(ms.dofs).reshape(ms.dofs.shape[0], -1)
+    reached = np.zeros(dofs.shape[0], dtype=bool)
+    for a, b in zip(lo, hi, strict=True):
+        reached[a:b + 1] = True
+    used = np.unique(dofs[reached])
+    m_dofs = np.where(reached[:, None], np.searchsorted(used, dofs), 0)
+    return {"m_a": ms.a, "m_b": ms.b, "zt_m": np.ascontiguousarray(ceim.Z_loc[used].T),
+            "mono": mono.astype(np.int64), "guess": _centre_facets(ev, centre, lo, hi),
+            "m_dofs": m_dofs, "lo": lo, "hi": hi}
+
+
+def _centre_facets(ev: Any, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Each point's master facet at ``centre`` (the Python pairing); a point that finds
+    none there starts from its window's first facet."""
+    try:
+        return np.asarray(ev.pairing(centre).master_seg, dtype=np.int64)
+    except Exception:  # noqa: BLE001 - only a starting guess: the kernel searches anyway
+        return np.asarray(lo, dtype=np.int64).copy()
 
 
 def gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
