@@ -166,3 +166,37 @@ def test_friction_ssn_over_load_steps_gives_todays_solution():
     assert _rel(new.u, ref.u) < 1e-10 and _rel(new.lam, ref.lam) < 1e-10
     assert _rel(new.info["lam_t"], ref.info["lam_t"]) < 1e-10
     assert list(new.info["states"]) == list(ref.info["states"])
+
+
+@pytest.mark.skipif("pardiso" not in SOLVERS, reason="pypardiso not installed")
+def test_pardiso_solves_in_halves_around_the_schur_block():
+    """PARDISO's KKT factorisation (Schur block left unfactorised): the forward half leaves
+    ``q = G - B A^{-1} F`` in the multiplier rows, the backward half with ``lam`` there gives
+    ``u = A^{-1} (F - B^T lam)``, and ``solve`` is ``K^{-1}`` (dense references)."""
+    A, F, B, G = _problem(zero_row=False)
+    fac = cd.schur_factor(A, B, "pardiso")
+    n, m = B.shape[1], B.shape[0]
+    Ad, Bd = A.toarray(), B.toarray()
+    K = np.block([[Ad, Bd.T], [Bd, np.zeros((m, m))]])
+    b = np.concatenate([F, G])
+    w = fac.halves.forward(b)
+    assert _rel(w[n:], G - Bd @ np.linalg.solve(Ad, F)) < 1e-12
+    lam = np.random.default_rng(2).standard_normal(m)
+    w[n:] = lam
+    assert _rel(fac.halves.backward(w)[:n], np.linalg.solve(Ad, F - Bd.T @ lam)) < 1e-12
+    assert _rel(fac.solve(b), np.linalg.solve(K, b)) < 1e-12
+    X = np.random.default_rng(3).standard_normal((n + m, 2))
+    assert _rel(fac.solve(X), np.linalg.solve(K, X)) < 1e-12
+
+
+@pytest.mark.skipif("pardiso" not in SOLVERS, reason="pypardiso not installed")
+def test_pardiso_floor_factorisation_takes_spd_and_indefinite_matrices():
+    """The floor's ``factorized``: Cholesky for an SPD stiffness, and a symmetric
+    indefinite matrix (which Cholesky refuses) still solved exactly by LDL^T."""
+    from rbbench.hf.pardiso_schur import factorized
+
+    A, F, _, _ = _problem(zero_row=False)
+    assert _rel(factorized(A)(F), np.linalg.solve(A.toarray(), F)) < 1e-12
+    Kd = np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 1.0], [0.0, 1.0, -3.0]])
+    b = np.array([1.0, -2.0, 0.5])
+    assert _rel(factorized(sp.csr_matrix(Kd))(b), np.linalg.solve(Kd, b)) < 1e-12

@@ -57,13 +57,18 @@ class SchurFactor:
     D: np.ndarray  # B_k A^{-1} B_k^T on the kept rows ``keep`` (m_k x m_k)
     solve: Callable[[np.ndarray], np.ndarray]  # K^{-1}, K of size n + m_k
     info: dict[str, Any] = field(default_factory=dict)
+    #: PARDISO: K^{-1} in two halves around the Schur block (``forward``, ``backward``:
+    #: :class:`rbbench.hf.pardiso_schur.SchurSolves`), else None
+    halves: Any = None
 
 
 def kkt_matrix(A: sp.spmatrix, B: sp.spmatrix, lower: bool = False) -> sp.csc_matrix:
     """``K = [[A, B^T], [B, Z]]`` in CSC, ``Z`` an explicit dense block of zeros (module).
 
     ``lower``: only the lower triangle (its CSC arrays are the CSR arrays of the upper
-    triangle, PARDISO's symmetric input). Built from the arrays directly (no COO sort).
+    triangle, PARDISO's symmetric input), ``Z`` its explicit zero diagonal only (PARDISO
+    keeps the multipliers last through its Schur rows, not through a clique). Built from the
+    arrays directly (no COO sort).
     """
     n, m = A.shape[0], B.shape[0]
     Ac = sp.csc_matrix(sp.tril(A) if lower else A)
@@ -75,7 +80,7 @@ def kkt_matrix(A: sp.spmatrix, B: sp.spmatrix, lower: bool = False) -> sp.csc_ma
     left = Ac.indptr + Bc.indptr  # column j < n: A's entries, then B's (rows n + i)
     nnz_left = int(left[-1])
     clique = np.arange(m) if not lower else None
-    zcount = np.full(m, m) if not lower else m - np.arange(m)
+    zcount = np.full(m, m) if not lower else np.ones(m, dtype=int)
     right_cnt = (np.diff(Br.indptr) if not lower else np.zeros(m, int)) + zcount
     indptr = np.concatenate([left, nnz_left + np.cumsum(right_cnt)])
     indices = np.empty(int(indptr[-1]), dtype=np.int32)
@@ -89,7 +94,7 @@ def kkt_matrix(A: sp.spmatrix, B: sp.spmatrix, lower: bool = False) -> sp.csc_ma
         rows = np.repeat(np.arange(m), np.diff(Br.indptr))
         pos = start[rows] + np.arange(nb) - Br.indptr[rows]
         indices[pos], data[pos] = Br.indices, Br.data
-    col = np.repeat(np.arange(m), zcount)  # the zero block: all rows, or i..m-1 (lower)
+    col = np.repeat(np.arange(m), zcount)  # the zero block: all rows, or the diagonal
     first = np.cumsum(zcount) - zcount
     offset = np.arange(col.size) - first[col]
     zrow = offset if clique is not None else col + offset
@@ -185,10 +190,12 @@ def schur_factor(A: sp.spmatrix, B: sp.spmatrix, linear_solver: str = "superlu"
 
     n, m = A.shape[0], B.shape[0]
     Kl = kkt_matrix(A, B, lower=True)  # its CSC arrays: the CSR of the upper triangle
-    S, solve, info = schur_pardiso(sp.csr_matrix((Kl.data, Kl.indices, Kl.indptr),
-                                                 shape=Kl.shape), m)
-    return SchurFactor(-0.5 * (S + S.T), solve,
-                       {"linear_solver": "pardiso", "kkt_size": n + m, **info})
+    S, solves, info = schur_pardiso(sp.csr_matrix((Kl.data, Kl.indices, Kl.indptr),
+                                                  shape=Kl.shape), m)
+    D = S.T + S
+    D *= -0.5
+    return SchurFactor(D, solves.solve, {"linear_solver": "pardiso", "kkt_size": n + m,
+                                         **info}, halves=solves)
 
 
 def _pardiso_available() -> bool:
@@ -213,6 +220,8 @@ class SchurCondensed:
     F: np.ndarray
     G: np.ndarray
     info: dict[str, Any] = field(default_factory=dict)
+    #: with ``factor.halves``: the forward substitution of ``[F; G]`` (``load``)
+    forward: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -222,16 +231,28 @@ class SchurCondensed:
         return self.factor.solve(np.concatenate([F, g[self.keep]]))
 
     def load(self, F: np.ndarray, G: np.ndarray) -> SchurCondensed:
-        """The same factorisation with another load: ``q = -D y``, ``K [x; y] = [F; G]``."""
+        """The same factorisation with another load: ``q = -D y``, ``K [x; y] = [F; G]``;
+        with ``factor.halves``, ``q = G - B A^{-1} F`` is read off the forward substitution
+        of ``[F; G]`` (its multiplier rows), kept for :meth:`displacement`."""
         F, G = np.asarray(F, float).ravel(), np.asarray(G, float).ravel()
         q = np.array(G, dtype=float)  # rows of B that are zero: q = G
+        if self.factor.halves is not None:
+            w = self.factor.halves.forward(np.concatenate([F, G[self.keep]]))
+            q[self.keep] = w[F.size:]
+            return dataclasses.replace(self, q=q, F=F, G=G, forward=w)
         y = self._kkt_solve(F, G)[F.size:]
         q[self.keep] = -(self.factor.D @ y)
         return dataclasses.replace(self, q=q, F=F, G=G)
 
     def displacement(self, lam: np.ndarray) -> np.ndarray:
-        """``u = A^{-1} (F - B^T lam)``: the first block of ``K^{-1} [F; G - q - D lam]``."""
+        """``u = A^{-1} (F - B^T lam)``: the first block of ``K^{-1} [F; G - q - D lam]``;
+        with ``factor.halves``, the backward substitution of the forward one of ``[F; G]``
+        with ``lam`` in its multiplier rows (the Schur unknowns)."""
         lam = np.asarray(lam, float)
+        if self.forward is not None:
+            w = self.forward.copy()
+            w[self.n:] = lam[self.keep]
+            return self.factor.halves.backward(w)[: self.n]
         s = self.q + self.D @ lam
         return self._kkt_solve(self.F, self.G - s)[: self.n]
 
