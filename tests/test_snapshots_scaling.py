@@ -75,8 +75,9 @@ def test_serial_builds_once_per_process(scene, tmp_path, log):
 
 @fork_only
 def test_fork_workers_inherit_and_tasks_balance(scene, tmp_path, log):
-    """No worker meshes; a slow first parameter occupies one worker while the other takes
-    every other task; the columns are in parameter order and equal the serial ones."""
+    """No worker meshes; a slow first parameter occupies the forked worker while this
+    process (the second of ``n_jobs = 2``) takes every other task; the columns are in
+    parameter order and equal the serial ones."""
     path, solve = log
     mus = parameter_set(scene, "train", n=6)
     solve.slow = mus[0]
@@ -110,3 +111,27 @@ def test_warm_up_before_the_first_solve(scene, tmp_path, log, monkeypatch):
     compute_snapshots(scene, parameter_set(scene, "train", n=2), cache_dir=tmp_path,
                       n_jobs=1, progress=False)
     assert calls == [True]
+
+
+@fork_only
+def test_a_dying_worker_costs_its_row_only(scene, tmp_path, monkeypatch):
+    """A worker killed in the middle of a solve: its parameter becomes an error row saying
+    so, every other one is solved (here, by this process) and cached; nothing raises."""
+    parent, real = os.getpid(), snapshots.solve_hf
+    mus = parameter_set(scene, "train", n=4)
+
+    def dies_in_a_worker(scene, mu, **kw):
+        if os.getpid() != parent and np.array_equal(np.atleast_1d(mu), mus[0]):
+            os._exit(3)
+        return real(scene, mu, **kw)
+
+    monkeypatch.setattr(snapshots, "solve_hf", dies_in_a_worker)
+    snapshots._COMPONENTS.clear()
+    out = compute_snapshots(scene, mus, cache_dir=tmp_path, n_jobs=2, progress=False,
+                            mp_context="fork", strict=False)
+    snapshots._COMPONENTS.clear()
+    assert out.stop_reasons[0] == "error" and "died" in out.errors[0]
+    solved = [j for j, r in enumerate(out.stop_reasons) if r == "converged"]
+    assert 3 in solved and 2 in solved  # this process's, from the end of the list
+    assert all(r in ("converged", "error") for r in out.stop_reasons)
+    assert np.isnan(out.U[:, 0]).all() and np.isfinite(out.U[:, solved]).all()

@@ -22,14 +22,13 @@ interrupted run loses nothing that finished and never leaves a partial file.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import multiprocessing
 import os
 import tempfile
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,20 +36,15 @@ from typing import Any
 
 import numpy as np
 
-import rbbench
 from rbbench.hf.model import make_components, solve_hf
+from rbbench.hf.snapshot_key import key_payload, payload_key, snapshot_key
 from rbbench.hf.threads import limit_blas_threads
 from rbbench.registry import default_registry
 from rbbench.scene.friction import friction_of
-from rbbench.scene.loading import key_data
 
 __all__ = ["Snapshot", "SnapshotError", "SnapshotSet", "atomic_write", "cache_path",
            "compute_snapshots", "limit_blas_threads", "load_snapshot", "n_cpus",
            "save_snapshot", "snapshot_key"]
-
-#: Parts of the scene data that cannot change a snapshot (excluded from the key).
-_NOT_IN_KEY = ("sampling", "reference")
-
 
 class SnapshotError(RuntimeError):
     """Some snapshots did not converge (or raised); ``failed`` lists ``(mu, reason)``."""
@@ -148,59 +142,8 @@ class SnapshotSet:
 
 
 # ---------------------------------------------------------------------------
-# cache key and files
+# cache files
 # ---------------------------------------------------------------------------
-def _formulation_params(formulation: str, options: dict | None = None,
-                        registry: Any = None) -> dict[str, Any]:
-    """The parameters a formulation declares for the cache key (``cache_params()``, e.g.
-    Nitsche's ``theta``, ``gamma0``, with ``options`` applied); ``{}`` for mixed."""
-    try:
-        f = (registry or default_registry()).create("formulation", formulation,
-                                                    **(options or {}))
-    except Exception:  # noqa: BLE001 - unknown names are reported by compute_snapshots
-        return {}
-    params = getattr(f, "cache_params", None)
-    return dict(params()) if callable(params) else {}
-
-
-def _key_payload(scene: Any, backend: str, formulation: str, solver: str,
-                 solver_options: dict | None,
-                 component_options: dict | None = None,
-                 registry: Any = None) -> dict[str, Any]:
-    data = {k: v for k, v in key_data(scene.data).items() if k not in _NOT_IN_KEY}
-    if "scene" in data:
-        data["scene"] = {k: v for k, v in data["scene"].items() if k != "description"}
-    payload = {"scene": data, "backend": backend, "formulation": formulation, "solver": solver,
-               "solver_options": dict(sorted((solver_options or {}).items())),
-               "rbbench": rbbench.__version__}
-    copts = component_options or {}
-    params = _formulation_params(formulation, copts.get("formulation"), registry)
-    if params:  # only then: the keys of existing (mixed) caches are unchanged
-        payload["formulation_params"] = params
-    for role in ("backend", "formulation"):  # likewise only when given
-        if copts.get(role):
-            payload[f"{role}_options"] = dict(sorted(copts[role].items()))
-    return payload
-
-
-def snapshot_key(scene: Any, backend: str = "skfem", formulation: str = "mixed",
-                 solver: str = "ssn", solver_options: dict | None = None,
-                 component_options: dict | None = None, registry: Any = None) -> str:
-    """sha256 (hex, 24 characters) of everything that determines a snapshot.
-
-    Unlike :meth:`Scene.fingerprint`, the ``[sampling]`` and ``[reference]`` tables and
-    the scene description are left out: changing the training set size or seed must
-    reuse the snapshots already computed.
-    """
-    return _payload_key(_key_payload(scene, backend, formulation, solver, solver_options,
-                                     component_options, registry))
-
-
-def _payload_key(payload: dict[str, Any]) -> str:
-    blob = json.dumps(payload, sort_keys=True, default=str).encode()
-    return hashlib.sha256(blob).hexdigest()[:24]
-
-
 def _mu_name(mu: np.ndarray) -> str:
     # repr of a Python float is the shortest string that round-trips exactly
     return "mu_" + "_".join(repr(float(x)) for x in np.atleast_1d(mu)) + ".npz"
@@ -395,9 +338,9 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     """
     mus = _parameter_rows(scene, mus)
     names = (backend, formulation, solver)
-    payload = _key_payload(scene, backend, formulation, solver, solver_options,
+    payload = key_payload(scene, backend, formulation, solver, solver_options,
                            component_options, registry)
-    key = _payload_key(payload)  # = snapshot_key(...), from the payload built once
+    key = payload_key(payload)  # = snapshot_key(...), from the payload built once
     root = Path(cache_dir)
     _write_key_file(root / key, scene, payload)
     paths = [cache_path(root, key, mu) for mu in mus]
@@ -495,42 +438,72 @@ class _Run:
 
     def parallel(self, snaps: list[Snapshot | None], todo: list[int], n_jobs: int,
                  mp_context: str | None, threads: int) -> None:
-        """Solve in ``n_jobs`` worker processes, one task per parameter (an idle worker
-        takes the next one: balanced), results in their places. The components are built
-        once: here before a ``fork`` pool (the workers inherit them), else once per worker
-        at its start-up."""
+        """Solve in ``n_jobs`` processes, one task per parameter (an idle process takes the
+        next one: balanced), results in their places. With ``fork`` this process builds the
+        components, ``n_jobs - 1`` forked workers inherit them and this process solves too
+        (from the end of the list, the workers from the front): a forked worker's first
+        solve is ~0.13 s slower (its copy-on-write memory), this process is warm. Else
+        ``n_jobs`` workers build the components once each at start-up."""
         bar = None
+        here = None
         try:
             ctx = multiprocessing.get_context(mp_context)
             if ctx.get_start_method() == "fork":
                 try:
-                    self.components()
+                    here = self.components()
                 except Exception:  # noqa: BLE001 - the workers retry and report it per mu
                     _COMPONENTS.clear()
-            with ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
+            n_workers = n_jobs - (here is not None)
+            with ProcessPoolExecutor(n_workers, mp_context=ctx,
+                                     initializer=_init_worker,
                                      initargs=(self.scene, self.names, self.solver_options,
                                                threads, self.component_options,
                                                self.registry, self.key)) as pool:
-                futures = {pool.submit(_worker_task, self.mus[i], self.paths[i]): i
-                           for i in todo}
                 # the bar only after the workers started: no fork with extra threads alive
                 bar = _progress_bar(self.progress, self.scene.name, len(self.mus), len(todo))
                 try:
-                    for fut in as_completed(futures):
-                        i = futures[fut]
-                        try:
-                            snaps[i] = fut.result()
-                        except BrokenProcessPool as exc:  # a worker died (e.g. killed)
-                            snaps[i] = _error_snapshot(self.mus[i],
-                                                       f"worker process died: {exc}")
-                        if bar is not None:
-                            bar.update()
+                    self._share(pool, n_workers, snaps, list(todo), here, bar)
                 except BaseException:
                     pool.shutdown(wait=True, cancel_futures=True)
                     raise
         finally:
             if bar is not None:
                 bar.close()
+
+    def _share(self, pool: ProcessPoolExecutor, n_workers: int, snaps: list[Snapshot | None],
+               pending: list[int], here: tuple | None, bar: Any) -> None:
+        """Hand ``pending`` out: one task in flight per worker, the next one to this process
+        (``here``: its components, or None) whenever it is free; results in their places."""
+        futures: dict[Any, int] = {}
+        broken = False
+        while pending or futures:
+            while pending and len(futures) < n_workers and not broken:
+                try:
+                    futures[pool.submit(_worker_task, self.mus[pending[0]],
+                                        self.paths[pending[0]])] = pending[0]
+                    pending.pop(0)
+                except BrokenProcessPool:  # a worker died: no more tasks to the pool
+                    broken = True
+            finished = 0
+            if here is not None and pending:
+                i = pending.pop()
+                snaps[i] = _solve_one(self.scene, self.mus[i], self.names, here, self.paths[i])
+                finished, done = 1, [f for f in futures if f.done()]
+            elif futures:
+                done = list(wait(futures, return_when=FIRST_COMPLETED).done)
+            else:  # a broken pool and no solving here: the rest is lost, and said so
+                for i in pending:
+                    snaps[i] = _error_snapshot(self.mus[i], "worker process died")
+                finished, done = len(pending), []
+                pending.clear()
+            for fut in done:
+                i = futures.pop(fut)
+                try:
+                    snaps[i] = fut.result()
+                except BrokenProcessPool as exc:  # a worker died (e.g. killed)
+                    snaps[i] = _error_snapshot(self.mus[i], f"worker process died: {exc}")
+            if bar is not None:
+                bar.update(finished + len(done))
 
 
 def n_cpus() -> int:
