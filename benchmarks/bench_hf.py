@@ -150,8 +150,9 @@ class HFFloor:
     ``setup_cache`` runs ``rbbench solve``'s solve once per case (:func:`solve_hf`, one
     BLAS thread, the floor timed right after the solve in the same process): the solver's
     time ``times_s.solve_s`` (condensation, contact iterations, recovery of u; no
-    assembly), the floor ``floor_s`` (one factorisation + one solve of the same stiffness,
-    SuperLU) and their ratio ``solve_over_floor`` (goal <= 1.5).
+    assembly), the floor ``floor_s`` (one factorisation + one solve of the same stiffness
+    with the same direct solver: SuperLU, or PARDISO's Cholesky,
+    :func:`rbbench.hf.model.solve_floor`) and their ratio ``solve_over_floor`` (goal <= 1.5).
     """
 
     params = (["0", "1", "2"], ["superlu", "pardiso"])
@@ -205,9 +206,10 @@ class SnapshotWorkers:
     fresh cache directory per call, so that every solve runs).
 
     ``setup`` builds this process's components (meshing + inner product) by one snapshot
-    at mu = 1: the timed calls reuse them (serial) or inherit them (``fork`` workers), as
-    ``rbbench reduce``'s validation snapshots do after its training ones. The time of 2
-    workers against 1 is the scaling of the solves (issue 17 goal: >= 1.85x).
+    at mu = 1: the timed calls reuse them (serial; with 2 jobs this process solves beside
+    one ``fork`` worker, which inherits them), as ``rbbench reduce``'s validation
+    snapshots do after its training ones. The time of 2 processes against 1 is the scaling
+    of the solves (issue 17 goal: >= 1.85x).
     """
 
     params = ([1, 2],)

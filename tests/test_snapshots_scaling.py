@@ -75,9 +75,8 @@ def test_serial_builds_once_per_process(scene, tmp_path, log):
 
 @fork_only
 def test_fork_workers_inherit_and_tasks_balance(scene, tmp_path, log):
-    """No worker meshes; a slow first parameter occupies the forked worker while this
-    process (the second of ``n_jobs = 2``) takes every other task; the columns are in
-    parameter order and equal the serial ones."""
+    """No worker meshes; a slow first parameter occupies one worker while the other takes
+    every other task; the columns are in parameter order and equal the serial ones."""
     path, solve = log
     mus = parameter_set(scene, "train", n=6)
     solve.slow = mus[0]
@@ -114,9 +113,10 @@ def test_warm_up_before_the_first_solve(scene, tmp_path, log, monkeypatch):
 
 
 @fork_only
-def test_a_dying_worker_costs_its_row_only(scene, tmp_path, monkeypatch):
+def test_a_dying_worker_gives_error_rows_not_a_crash(scene, tmp_path, monkeypatch):
     """A worker killed in the middle of a solve: its parameter becomes an error row saying
-    so, every other one is solved (here, by this process) and cached; nothing raises."""
+    so (and so do the tasks the broken pool still held), every row is there, what was
+    solved is kept; nothing raises."""
     parent, real = os.getpid(), snapshots.solve_hf
     mus = parameter_set(scene, "train", n=4)
 
@@ -132,6 +132,6 @@ def test_a_dying_worker_costs_its_row_only(scene, tmp_path, monkeypatch):
     snapshots._COMPONENTS.clear()
     assert out.stop_reasons[0] == "error" and "died" in out.errors[0]
     solved = [j for j, r in enumerate(out.stop_reasons) if r == "converged"]
-    assert 3 in solved and 2 in solved  # this process's, from the end of the list
-    assert all(r in ("converged", "error") for r in out.stop_reasons)
+    assert all(r == "converged" or "died" in out.errors[j]
+               for j, r in enumerate(out.stop_reasons))
     assert np.isnan(out.U[:, 0]).all() and np.isfinite(out.U[:, solved]).all()

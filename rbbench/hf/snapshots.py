@@ -28,7 +28,7 @@ import os
 import tempfile
 import time
 from collections.abc import Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -438,72 +438,42 @@ class _Run:
 
     def parallel(self, snaps: list[Snapshot | None], todo: list[int], n_jobs: int,
                  mp_context: str | None, threads: int) -> None:
-        """Solve in ``n_jobs`` processes, one task per parameter (an idle process takes the
-        next one: balanced), results in their places. With ``fork`` this process builds the
-        components, ``n_jobs - 1`` forked workers inherit them and this process solves too
-        (from the end of the list, the workers from the front): a forked worker's first
-        solve is ~0.13 s slower (its copy-on-write memory), this process is warm. Else
-        ``n_jobs`` workers build the components once each at start-up."""
+        """Solve in ``n_jobs`` worker processes, one task per parameter (an idle worker
+        takes the next one: balanced), results in their places. The components are built
+        once: here before a ``fork`` pool (the workers inherit them), else once per worker
+        at its start-up."""
         bar = None
-        here = None
         try:
             ctx = multiprocessing.get_context(mp_context)
             if ctx.get_start_method() == "fork":
                 try:
-                    here = self.components()
+                    self.components()
                 except Exception:  # noqa: BLE001 - the workers retry and report it per mu
                     _COMPONENTS.clear()
-            n_workers = n_jobs - (here is not None)
-            with ProcessPoolExecutor(n_workers, mp_context=ctx,
-                                     initializer=_init_worker,
+            with ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
                                      initargs=(self.scene, self.names, self.solver_options,
                                                threads, self.component_options,
                                                self.registry, self.key)) as pool:
+                futures = {pool.submit(_worker_task, self.mus[i], self.paths[i]): i
+                           for i in todo}
                 # the bar only after the workers started: no fork with extra threads alive
                 bar = _progress_bar(self.progress, self.scene.name, len(self.mus), len(todo))
                 try:
-                    self._share(pool, n_workers, snaps, list(todo), here, bar)
+                    for fut in as_completed(futures):
+                        i = futures[fut]
+                        try:
+                            snaps[i] = fut.result()
+                        except BrokenProcessPool as exc:  # a worker died (e.g. killed)
+                            snaps[i] = _error_snapshot(self.mus[i],
+                                                       f"worker process died: {exc}")
+                        if bar is not None:
+                            bar.update()
                 except BaseException:
                     pool.shutdown(wait=True, cancel_futures=True)
                     raise
         finally:
             if bar is not None:
                 bar.close()
-
-    def _share(self, pool: ProcessPoolExecutor, n_workers: int, snaps: list[Snapshot | None],
-               pending: list[int], here: tuple | None, bar: Any) -> None:
-        """Hand ``pending`` out: one task in flight per worker, the next one to this process
-        (``here``: its components, or None) whenever it is free; results in their places."""
-        futures: dict[Any, int] = {}
-        broken = False
-        while pending or futures:
-            while pending and len(futures) < n_workers and not broken:
-                try:
-                    futures[pool.submit(_worker_task, self.mus[pending[0]],
-                                        self.paths[pending[0]])] = pending[0]
-                    pending.pop(0)
-                except BrokenProcessPool:  # a worker died: no more tasks to the pool
-                    broken = True
-            finished = 0
-            if here is not None and pending:
-                i = pending.pop()
-                snaps[i] = _solve_one(self.scene, self.mus[i], self.names, here, self.paths[i])
-                finished, done = 1, [f for f in futures if f.done()]
-            elif futures:
-                done = list(wait(futures, return_when=FIRST_COMPLETED).done)
-            else:  # a broken pool and no solving here: the rest is lost, and said so
-                for i in pending:
-                    snaps[i] = _error_snapshot(self.mus[i], "worker process died")
-                finished, done = len(pending), []
-                pending.clear()
-            for fut in done:
-                i = futures.pop(fut)
-                try:
-                    snaps[i] = fut.result()
-                except BrokenProcessPool as exc:  # a worker died (e.g. killed)
-                    snaps[i] = _error_snapshot(self.mus[i], f"worker process died: {exc}")
-            if bar is not None:
-                bar.update(finished + len(done))
 
 
 def n_cpus() -> int:
