@@ -206,11 +206,10 @@ class SnapshotWorkers:
     fresh cache directory per call, so that every solve runs).
 
     ``setup`` builds this process's components (meshing + inner product) by one snapshot
-    at mu = 1 and warms the workers by two more (``n_jobs`` of them): the timed calls
-    reuse this process's components (serial) or the kept pool of ``fork`` workers that
-    inherited them (:data:`rbbench.hf.snapshots._POOL`), as ``rbbench reduce``'s
-    validation snapshots do after its training ones. The time of 2 workers against 1 is
-    the scaling of the solves (issue 17 goal: >= 1.85x).
+    at mu = 1: the timed calls reuse them (serial; with 2 jobs this process solves beside
+    one ``fork`` worker, which inherits them), as ``rbbench reduce``'s validation
+    snapshots do after its training ones. The time of 2 processes against 1 is the scaling
+    of the solves (issue 17 goal: >= 1.85x).
     """
 
     params = ([1, 2],)
@@ -228,15 +227,8 @@ class SnapshotWorkers:
 
         self.scene = scene("hertz_default")
         self.mus = np.linspace(0.7, 1.3, 8)
-        with tempfile.TemporaryDirectory() as d:  # warm: this process, then the workers
+        with tempfile.TemporaryDirectory() as d:
             compute_snapshots(self.scene, [1.0], cache_dir=d, n_jobs=1, progress=False)
-            compute_snapshots(self.scene, [0.95, 1.05], cache_dir=d, n_jobs=n_jobs,
-                              progress=False)
-
-    def teardown(self, n_jobs):
-        from rbbench.hf.snapshots import shutdown_pool
-
-        shutdown_pool()
 
     def time_snapshots(self, n_jobs):
         """Wall time (s) of 8 HF snapshots with n_jobs worker processes."""

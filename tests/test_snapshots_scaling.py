@@ -135,24 +135,3 @@ def test_a_dying_worker_gives_error_rows_not_a_crash(scene, tmp_path, monkeypatc
     assert all(r == "converged" or "died" in out.errors[j]
                for j, r in enumerate(out.stop_reasons))
     assert np.isnan(out.U[:, 0]).all() and np.isfinite(out.U[:, solved]).all()
-
-
-@fork_only
-def test_the_pool_stays_warm_for_the_same_components(scene, tmp_path, log):
-    """A second parallel call with the same components runs in the same (warm) worker
-    processes; other components (or another solve function) get a new pool."""
-    path, _ = log
-    mus = parameter_set(scene, "train", n=6, kind="lhs", seed=3)
-    compute_snapshots(scene, mus[:3], cache_dir=tmp_path / "a", n_jobs=2, progress=False,
-                      mp_context="fork")
-    first = {pid for pid, _ in _lines(path, "solve")}
-    compute_snapshots(scene, mus[3:], cache_dir=tmp_path / "a", n_jobs=2, progress=False,
-                      mp_context="fork")
-    assert {pid for pid, _ in _lines(path, "solve")} == first
-    assert str(os.getpid()) not in first and len(_lines(path, "build")) == 1
-    snapshots._COMPONENTS.clear()  # new components: a new pool
-    compute_snapshots(scene, mus[:2], cache_dir=tmp_path / "b", n_jobs=2, progress=False,
-                      mp_context="fork")
-    assert not {pid for pid, _ in _lines(path, "solve")[-2:]} & first
-    snapshots.shutdown_pool()
-    assert not snapshots._POOL

@@ -22,7 +22,6 @@ interrupted run loses nothing that finished and never leaves a partial file.
 
 from __future__ import annotations
 
-import atexit
 import json
 import multiprocessing
 import os
@@ -45,7 +44,7 @@ from rbbench.scene.friction import friction_of
 
 __all__ = ["Snapshot", "SnapshotError", "SnapshotSet", "atomic_write", "cache_path",
            "compute_snapshots", "limit_blas_threads", "load_snapshot", "n_cpus",
-           "save_snapshot", "shutdown_pool", "snapshot_key"]
+           "save_snapshot", "snapshot_key"]
 
 class SnapshotError(RuntimeError):
     """Some snapshots did not converge (or raised); ``failed`` lists ``(mu, reason)``."""
@@ -442,76 +441,39 @@ class _Run:
         """Solve in ``n_jobs`` worker processes, one task per parameter (an idle worker
         takes the next one: balanced), results in their places. The components are built
         once: here before a ``fork`` pool (the workers inherit them), else once per worker
-        at its start-up. The pool outlives the call (:func:`_pool`): the next call with
-        the same components finds its workers warm."""
+        at its start-up."""
         bar = None
         try:
-            pool = self._pool(n_jobs, multiprocessing.get_context(mp_context), threads)
-            futures = {pool.submit(_worker_task, self.mus[i], self.paths[i]): i for i in todo}
-            # the bar only after the workers started: no fork with extra threads alive
-            bar = _progress_bar(self.progress, self.scene.name, len(self.mus), len(todo))
-            for fut in as_completed(futures):
-                i = futures[fut]
+            ctx = multiprocessing.get_context(mp_context)
+            if ctx.get_start_method() == "fork":
                 try:
-                    snaps[i] = fut.result()
-                except BrokenProcessPool as exc:  # a worker died (e.g. killed)
-                    snaps[i] = _error_snapshot(self.mus[i], f"worker process died: {exc}")
-                    _POOL["broken"] = True
-                if bar is not None:
-                    bar.update()
-        except BaseException:  # an interrupt: cancel what is queued, stop the workers
-            shutdown_pool()
-            raise
+                    self.components()
+                except Exception:  # noqa: BLE001 - the workers retry and report it per mu
+                    _COMPONENTS.clear()
+            with ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
+                                     initargs=(self.scene, self.names, self.solver_options,
+                                               threads, self.component_options,
+                                               self.registry, self.key)) as pool:
+                futures = {pool.submit(_worker_task, self.mus[i], self.paths[i]): i
+                           for i in todo}
+                # the bar only after the workers started: no fork with extra threads alive
+                bar = _progress_bar(self.progress, self.scene.name, len(self.mus), len(todo))
+                try:
+                    for fut in as_completed(futures):
+                        i = futures[fut]
+                        try:
+                            snaps[i] = fut.result()
+                        except BrokenProcessPool as exc:  # a worker died (e.g. killed)
+                            snaps[i] = _error_snapshot(self.mus[i],
+                                                       f"worker process died: {exc}")
+                        if bar is not None:
+                            bar.update()
+                except BaseException:
+                    pool.shutdown(wait=True, cancel_futures=True)
+                    raise
         finally:
             if bar is not None:
                 bar.close()
-            if _POOL.get("broken"):
-                shutdown_pool()
-
-    def _pool(self, n_jobs: int, ctx: Any, threads: int) -> ProcessPoolExecutor:
-        """The worker pool of this run: the kept one (:data:`_POOL`) when it was started for
-        the same components (the same key, registry and, with ``fork``, the same
-        component objects it inherited), the same solve and build functions (a test's
-        monkeypatch is a new pool), the same number of workers, start method and BLAS
-        threads; else a new one, the old one shut down."""
-        fork = ctx.get_start_method() == "fork"
-        if fork:
-            try:
-                self.components()
-            except Exception:  # noqa: BLE001 - the workers retry and report it per mu
-                _COMPONENTS.clear()
-        pinned = (_COMPONENTS.get("components") if fork else None, solve_hf, make_components)
-        sig = (self.key, id(self.registry), n_jobs, ctx.get_start_method(), threads,
-               *map(id, pinned))
-        if _POOL.get("sig") == sig and not _POOL.get("broken"):
-            return _POOL["pool"]
-        shutdown_pool()
-        pool = ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
-                                   initargs=(self.scene, self.names, self.solver_options,
-                                             threads, self.component_options, self.registry,
-                                             self.key))
-        _POOL.update(sig=sig, pool=pool, pinned=pinned)
-        return pool
-
-
-#: the worker pool of the last parallel run, kept for the next one with the same components
-#: (``sig``, ``pool``; ``pinned`` holds the objects whose ids are in ``sig``, so that they
-#: stay unique): a forked worker's first solve is ~0.13 s slower than its next ones (its
-#: copy-on-write memory: hertz_halfdisks, discretisation 0.33 s against 0.18 s), so that
-#: ``rbbench reduce``'s validation snapshots and a sweep's next cases find warm workers.
-#: Idle workers keep their memory until the components change or the process exits.
-_POOL: dict[str, Any] = {}
-
-
-def shutdown_pool() -> None:
-    """Stop the kept worker pool (:data:`_POOL`), cancelling its queued tasks."""
-    pool = _POOL.get("pool")
-    _POOL.clear()
-    if pool is not None:
-        pool.shutdown(wait=True, cancel_futures=True)
-
-
-atexit.register(shutdown_pool)
 
 
 def n_cpus() -> int:
