@@ -168,13 +168,13 @@ def _master_plan(ceim: Any, n_hat: np.ndarray, centre: np.ndarray) -> dict[str, 
     used = np.unique(dofs[reached])
     m_dofs = np.where(reached[:, None], np.searchsorted(used, dofs), 0)
     return {"m_a": ms.a, "m_b": ms.b, "zt_m": np.ascontiguousarray(ceim.Z_loc[used].T),
-            "mono": mono.astype(np.int64), "guess": _centre_facets(ev, centre, lo, hi),
+            "mono": mono.astype(np.int64), "guess": _centre_facets(ev, centre, lo),
             "m_dofs": m_dofs, "lo": lo, "hi": hi}
 
 
-def _centre_facets(ev: Any, centre: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Each point's master facet at ``centre`` (the Python pairing); a point that finds
-    none there starts from its window's first facet."""
+def _centre_facets(ev: Any, centre: np.ndarray, lo: np.ndarray) -> np.ndarray:
+    """Each point's master facet at ``centre`` (the Python pairing); where that pairing
+    fails, every point starts from its window's first facet."""
     try:
         return np.asarray(ev.pairing(centre).master_seg, dtype=np.int64)
     except Exception:  # noqa: BLE001 - only a starting guess: the kernel searches anyway
