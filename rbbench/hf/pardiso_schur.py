@@ -73,8 +73,7 @@ def warm_up() -> bool:
 class _Handle:
     """One PARDISO factorisation (``pt``, ``iparm`` and the CSR arrays it refers to)."""
 
-    def __init__(self, U: sp.csr_matrix, schur_rows: np.ndarray, schur_mode: int = 1,
-                 mtype: int = _MTYPE) -> None:
+    def __init__(self, U: sp.csr_matrix, schur_rows: np.ndarray, mtype: int = _MTYPE) -> None:
         self.n, self.mtype = U.shape[0], mtype
         self.a = np.ascontiguousarray(U.data, dtype=np.float64)
         self.ia = np.ascontiguousarray(U.indptr, dtype=np.int32)
@@ -85,7 +84,7 @@ class _Handle:
         # the KKT matrix and the floor's A (issue 17: level 2 of hertz_halfdisks, analysis
         # included; level 0 even), exact as the classic one (no approximation)
         self.iparm[[0, 1, 7, 9, 17, 20, 23, 34, 35]] = [1, 2, 0, 13, -1, 1, 1, 1,
-                                                        schur_mode if len(schur_rows) else 0]
+                                                        1 if len(schur_rows) else 0]
         self.perm = np.zeros(self.n, dtype=np.int32)
         self.perm[schur_rows] = 1
         self._finalizer = weakref.finalize(self, _release, self.pt, self.iparm, self.n, mtype)

@@ -109,8 +109,7 @@ def plan_arrays(model: Any) -> dict[str, np.ndarray]:
            "f_terms": model.F.terms, "dims": np.array([lay.degree, ms is not None]),
            "pts_b": pts_b, "cols_b": ceim.entry_col,
            "order_b": np.argsort(ceim.entry_col, kind="stable"), "pts_g": pts_g}
-    out.update(_master_plan(ceim, n_hat, 0.5 * (lo + hi) if np.isfinite(lo + hi).all()
-                            else np.zeros(p)))
+    out.update(_master_plan(ceim, n_hat))
     return out
 
 
@@ -142,9 +141,8 @@ def _slave_terms(ceim: Any, dofs: np.ndarray, phi: np.ndarray, n: np.ndarray,
     return np.einsum("epa,epd,epad->ep", phi[pts], n[pts], z)
 
 
-def _master_plan(ceim: Any, n_hat: np.ndarray, centre: np.ndarray) -> dict[str, np.ndarray]:
-    """The master chain, its windows, each point's master facet at ``centre`` (the
-    kernel's first guess), their monotonicity test (the reference's
+def _master_plan(ceim: Any, n_hat: np.ndarray) -> dict[str, np.ndarray]:
+    """The master chain, its windows, their monotonicity test (the reference's
     :func:`~rbbench.hf.facets.ray_cast_window` formula for ``sign(s) n_hat``: column 0
     for ``s > 0``, 1 for ``s < 0``) and ``Z^T`` on the master dofs the windows reach
     (``m_dofs`` numbered into ``zt_m``; facets outside every window point at column 0)."""
@@ -156,7 +154,7 @@ def _master_plan(ceim: Any, n_hat: np.ndarray, centre: np.ndarray) -> dict[str, 
     if ms is None:
         none2 = np.zeros((1, 2))
         return {"m_a": none2, "m_b": none2, "zt_m": np.zeros((N, 1)),
-                "mono": np.zeros((nq, 2), dtype=np.int64), "guess": np.zeros(nq, int),
+                "mono": np.zeros((nq, 2), dtype=np.int64),
                 "m_dofs": np.zeros((1, 2), int),
                 "lo": np.zeros(1, int), "hi": np.zeros(1, int)}
     lo, hi, ranges = ev.windows
@@ -168,17 +166,8 @@ def _master_plan(ceim: Any, n_hat: np.ndarray, centre: np.ndarray) -> dict[str, 
     used = np.unique(dofs[reached])
     m_dofs = np.where(reached[:, None], np.searchsorted(used, dofs), 0)
     return {"m_a": ms.a, "m_b": ms.b, "zt_m": np.ascontiguousarray(ceim.Z_loc[used].T),
-            "mono": mono.astype(np.int64), "guess": _centre_facets(ev, centre, lo),
+            "mono": mono.astype(np.int64),
             "m_dofs": m_dofs, "lo": lo, "hi": hi}
-
-
-def _centre_facets(ev: Any, centre: np.ndarray, lo: np.ndarray) -> np.ndarray:
-    """Each point's master facet at ``centre`` (the Python pairing); where that pairing
-    fails, every point starts from its window's first facet."""
-    try:
-        return np.asarray(ev.pairing(centre).master_seg, dtype=np.int64)
-    except Exception:  # noqa: BLE001 - only a starting guess: the kernel searches anyway
-        return np.asarray(lo, dtype=np.int64).copy()
 
 
 def gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
