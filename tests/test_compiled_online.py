@@ -2,7 +2,8 @@
 
 Raw values (the magic entries of ``C(mu) = B(mu) Z``, the magic rows of ``G(mu)``, the EIM
 coefficients and the scaled QP data handed to daqp) agree to 1e-12 relative, before any
-clipping; the reduced solutions to the QP's round-off. Variants: a deformable master
+clipping; the reduced solutions of both compiled methods (``nnls``, ``daqp``) to the
+solvers' round-off. Variants: a deformable master
 (facet and smooth normals), the rigid plane, P2 facets with P1 multipliers.
 """
 
@@ -116,18 +117,46 @@ def test_raw_values_equal_the_python_path(model):
             assert _rel(online.qp[part], ref[part]) <= 1e-12
 
 
-def test_reduced_solution_equals_the_python_path(model):
+@pytest.mark.parametrize("method", compiled_online.METHODS)
+def test_reduced_solution_equals_the_python_path(model, method):
+    """Each compiled method against the Python path of the same method, and ``nnls``
+    (condensed through the eigenbasis of A_N) against the Python daqp QP too."""
     for mu in MUS:
-        py = model.solve(mu, path="python")
-        co = model.solve(mu, path="compiled")
+        py = model.solve(mu, path="python", method=method)
+        co = model.solve(mu, path="compiled", method=method)
         assert py.path == "python" and co.path == "compiled"
         assert co.stop_reason == py.stop_reason == "converged"
-        assert co.iterations == py.iterations
+        if method == "daqp":
+            assert co.iterations == py.iterations
         assert _rel(co.c, py.c) <= 1e-12
-        # the multipliers: the QP's round-off on inputs equal to ~1e-16 (measured <= 5e-12
-        # on Hertz level 0 with N + K = 60, R = 20)
+        # the multipliers: the solvers' round-off on D = B_N A_N^-1 B_N^T (cond ~5e5 on
+        # Hertz level 0 with N + K = 60, R = 20: measured <= 3e-11 relative there)
         np.testing.assert_allclose(co.alpha, py.alpha, rtol=0, atol=1e-10 * py.alpha.max())
         assert co.alpha_raw_min >= -1e-10 and co.time_s > 0
+        if method == "nnls":
+            qp = model.solve(mu, path="python", method="daqp")
+            assert _rel(co.c, qp.c) <= 1e-12
+            np.testing.assert_allclose(co.alpha, qp.alpha, rtol=0, atol=1e-10 * qp.alpha.max())
+
+
+def test_nnls_without_a_common_eigenbasis_takes_the_python_path():
+    """Two parameters with non-commuting stiffness terms: no V with V^T A_k V diagonal for
+    every k, so ``nnls`` says why and solves on the Python path (same answer as daqp)."""
+    model = _model(())
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal(model.A.terms.shape[1:])
+    extra = 0.05 * (X + X.T)
+    terms = model.A.terms
+    reason = compiled_online.eigenbasis(np.stack([terms[0], terms[1], extra]),
+                                        np.array([1.0, 1.0, 0.0]))
+    assert isinstance(reason, str) and "no common eigenbasis" in reason
+    basis = compiled_online.eigenbasis(terms, np.array([1.0, 1.0]))
+    V, lam = basis
+    for mu in MUS:  # A_N(mu)^-1 = V diag(1 / lam^T theta) V^T
+        th = np.array([1.0, mu])
+        inv = V @ np.diag(1.0 / (th @ lam)) @ V.T
+        A = np.tensordot(th, terms, 1)
+        assert np.abs(inv @ A - np.eye(A.shape[0])).max() <= 1e-12
 
 
 def test_deviations_take_the_python_path_and_its_errors():
@@ -159,9 +188,10 @@ def test_without_numba_the_python_path_is_used_and_reported(monkeypatch):
 def test_pickle_drops_the_compiled_state_and_rebuilds_it(model):
     assert model.online_path().startswith("compiled (numba ")
     assert model.online_path("pdas").startswith("python (online method 'pdas'")
+    assert model.online_path("daqp").startswith("compiled (numba ")
     clone = pickle.loads(pickle.dumps(model))
     assert "_online_state" not in clone.__dict__
     a, b = model.solve(1.1), clone.solve(1.1)
     assert a.path == b.path == "compiled"
     np.testing.assert_array_equal(a.c, b.c)
-    assert compiled_online.COMPILE["first_call_s"] > 0
+    assert compiled_online.COMPILE["nnls"]["first_call_s"] > 0

@@ -128,8 +128,9 @@ from rbbench.rb.mixed_model import solve_reduced  # noqa: E402
 @given(seed=st.integers(0, 10_000), n=st.integers(2, 40), m=st.integers(1, 30),
        row_scale=st.sampled_from([1e-8, 1e-6, 1.0, 1e3]),
        load_scale=st.sampled_from([1e-3, 1.0, 1e5]))
-def test_daqp_online_solve_matches_pdas(seed, n, m, row_scale, load_scale):
-    """Both solve the same KKT system: A c + B^T a = F, a >= 0, B c <= G, a.(G - Bc) = 0.
+def test_online_methods_match_pdas(seed, n, m, row_scale, load_scale):
+    """daqp, nnls and pdas solve the same KKT system: A c + B^T a = F, a >= 0, B c <= G,
+    a.(G - Bc) = 0.
 
     Scales mimic Hertz (rows 1e-6, loads 1e5) where daqp's absolute tolerances
     would otherwise accept infeasible points."""
@@ -143,16 +144,18 @@ def test_daqp_online_solve_matches_pdas(seed, n, m, row_scale, load_scale):
     G = B @ c_free - row_scale * load_scale * rng.random(m) * 0.1  # some rows violated
     G[: m // 2] += row_scale * load_scale  # others slack
     ref = solve_reduced(A, F, B, G, method="pdas")
-    got = solve_reduced(A, F, B, G, method="daqp")
     assert ref.stop_reason == "converged"
-    assert got.stop_reason.startswith("converged")
-    assert np.linalg.norm(got.c - ref.c) <= 1e-8 * np.linalg.norm(ref.c)
-    scale = np.linalg.norm(ref.alpha) + 1e-300
-    assert np.linalg.norm(got.alpha - ref.alpha) <= 1e-6 * scale + 1e-14 * load_scale / row_scale
-    assert np.all(got.alpha >= 0)
-    assert (B @ got.c - G).max() <= 1e-9 * row_scale * load_scale
+    for method in ("daqp", "nnls"):
+        got = solve_reduced(A, F, B, G, method=method)
+        assert got.stop_reason.startswith("converged")
+        assert np.linalg.norm(got.c - ref.c) <= 1e-8 * np.linalg.norm(ref.c)
+        scale = np.linalg.norm(ref.alpha) + 1e-300
+        assert (np.linalg.norm(got.alpha - ref.alpha)
+                <= 1e-6 * scale + 1e-14 * load_scale / row_scale)
+        assert np.all(got.alpha >= 0)
+        assert (B @ got.c - G).max() <= 1e-9 * row_scale * load_scale
 
 
 def test_unknown_online_method_is_refused():
-    with pytest.raises(ValueError, match="valid: daqp, pdas"):
+    with pytest.raises(ValueError, match="valid: nnls, daqp, pdas"):
         solve_reduced(np.eye(2), np.ones(2), np.ones((1, 2)), np.ones(1), method="qp")

@@ -119,13 +119,16 @@ def nnls_dual(D: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Solution of LCP(q, D) for SPD ``D`` by Lawson-Hanson NNLS.
 
     ``min_{lam>=0} ||L^T lam + L^{-1} q||^2`` with ``D = L L^T``: the same
-    minimiser as the dual QP. A singular ``D`` (redundant constraints) is
-    shifted by ``1e-14 trace(D)/m``; callers check the natural residual.
+    minimiser as the dual QP. A ``D`` that Cholesky finds singular (redundant
+    constraints) is shifted by ``1e-14 trace(D)/m``; callers check the natural residual.
     Raises ``numpy.linalg.LinAlgError`` if even the shifted ``D`` is not SPD.
     """
-    m = max(q.size, 1)
-    shift = 1e-14 * max(float(np.trace(D)) / m, np.finfo(float).tiny)
-    L = np.linalg.cholesky(D + shift * np.eye(q.size))
+    try:
+        L = np.linalg.cholesky(D)
+    except np.linalg.LinAlgError:
+        m = max(q.size, 1)
+        shift = 1e-14 * max(float(np.trace(D)) / m, np.finfo(float).tiny)
+        L = np.linalg.cholesky(D + shift * np.eye(q.size))
     rhs = -sla.solve_triangular(L, q, lower=True)
     lam, _ = nnls(L.T, rhs, maxiter=50 * max(q.size, 1))
     return lam

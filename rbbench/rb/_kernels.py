@@ -23,13 +23,13 @@ from numba import njit
 #: float arrays of the plan, in buffer order (shapes: see ``compiled_online.plan_arrays``)
 FLOATS = ("mu_lo", "mu_hi", "s_scale", "s_shift", "m_scale", "m_shift", "x_hat", "n_hat",
           "w_hat", "m_a", "m_b", "zt_m", "slave_b", "vals_b", "vals_g", "w_b", "w_g",
-          "a_terms", "f_terms")
+          "a_terms", "f_terms", "vt", "lam_a")
 #: int arrays of the plan: ``dims = [degree, has_master]``
 INTS = ("dims", "mono", "m_dofs", "lo", "hi", "pts_b", "cols_b", "order_b", "pts_g")
 
 (MU_LO, MU_HI, S_SCALE, S_SHIFT, M_SCALE, M_SHIFT, X_HAT, N_HAT, W_HAT, M_A, M_B, ZT_M,
- SLAVE_B, VALS_B, VALS_G, W_B, W_G, A_TERMS, F_TERMS) = range(19)
-(DIMS, MONO, M_DOFS, LO, HI, PTS_B, COLS_B, ORDER_B, PTS_G) = range(19, 28)
+ SLAVE_B, VALS_B, VALS_G, W_B, W_G, A_TERMS, F_TERMS, VT, LAM_A) = range(21)
+(DIMS, MONO, M_DOFS, LO, HI, PTS_B, COLS_B, ORDER_B, PTS_G) = range(21, 30)
 
 #: statuses of :func:`online_qp` (anything but OK: the caller reruns the Python path,
 #: which raises the reference's error)
@@ -312,6 +312,41 @@ def _combine(coef, terms, out):
 
 
 @njit(cache=True)
+def theta(mu, fb, meta):
+    """``(status, th)``: ``th = [1, mu]`` when mu is in D (:data:`OK`), else
+    :data:`OUTSIDE_D` (wrong size, not finite or outside the bounds)."""
+    lo_mu, hi_mu = _f(fb, meta, MU_LO), _f(fb, meta, MU_HI)
+    th = np.empty(mu.size + 1)
+    if mu.size != lo_mu.size:
+        return OUTSIDE_D, th
+    for j in range(mu.size):
+        if not (np.isfinite(mu[j]) and lo_mu[j] <= mu[j] <= hi_mu[j]):
+            return OUTSIDE_D, th
+    th[0] = 1.0
+    th[1:] = mu
+    return OK, th
+
+
+@njit(cache=True)
+def constraint_rows(th, fb, ib, meta, b, gn):
+    """The hyper-reduced constraint at ``th``: ``b = sum_e c_e W_B[e]`` (flat, in the
+    layout of the plan's ``w_b``) and ``gn = sum_r g_r W_G[r]`` from the pairing and the
+    magic entries ``c``, rows ``g`` (:func:`pair_points`, :func:`magic_values`). Returns a
+    status (:data:`NO_HIT`: a point left its master window, or a degenerate map)."""
+    nq = meta[X_HAT, 1]
+    w, gap = np.empty(nq), np.empty(nq)
+    mphi, seg = np.zeros((nq, _i(ib, meta, DIMS)[0] + 1)), np.zeros(nq, dtype=np.int64)
+    status, s = pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    if status != OK:
+        return status
+    c, g = np.empty(meta[PTS_B, 1]), np.empty(meta[PTS_G, 1])
+    magic_values(fb, ib, meta, s, w, gap, mphi, seg, c, g)
+    _combine(c, _f2(fb, meta, W_B), b)  # sum_j theta_j T_B[j], theta = B^-1 c
+    _combine(g, _f2(fb, meta, W_G), gn)
+    return OK
+
+
+@njit(cache=True)
 def online_qp(mu, fb, ib, meta, qp):
     """The scaled QP data of one online solve at ``mu``, written into ``qp``.
 
@@ -321,32 +356,19 @@ def online_qp(mu, fb, ib, meta, qp):
     :data:`OUTSIDE_D` (mu is not in D: wrong size, not finite or outside the bounds) or
     :data:`NO_HIT` (a point left its master window, or a degenerate map).
     """
-    lo_mu, hi_mu = _f(fb, meta, MU_LO), _f(fb, meta, MU_HI)
-    if mu.size != lo_mu.size:
-        return OUTSIDE_D
-    for j in range(mu.size):
-        if not (np.isfinite(mu[j]) and lo_mu[j] <= mu[j] <= hi_mu[j]):
-            return OUTSIDE_D
-    th = np.empty(mu.size + 1)
-    th[0] = 1.0
-    th[1:] = mu
-    nq = meta[X_HAT, 1]
-    w, gap = np.empty(nq), np.empty(nq)
-    mphi, seg = np.zeros((nq, _i(ib, meta, DIMS)[0] + 1)), np.zeros(nq, dtype=np.int64)
-    status, s = pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    status, th = theta(mu, fb, meta)
     if status != OK:
         return status
-    c, g = np.empty(meta[PTS_B, 1]), np.empty(meta[PTS_G, 1])
-    magic_values(fb, ib, meta, s, w, gap, mphi, seg, c, g)
     n = meta[A_TERMS, 2]
-    m = meta[W_B, 2]
+    m = meta[W_G, 2]
+    b = qp[n * n + n:n * n + n + m * n]
+    gn = np.empty(m)
+    status = constraint_rows(th, fb, ib, meta, b, gn)
+    if status != OK:
+        return status
     _combine(th, _f2(fb, meta, A_TERMS), qp[:n * n])
     f = np.empty(n)
     _combine(th, _f2(fb, meta, F_TERMS), f)
-    b = qp[n * n + n:n * n + n + m * n]
-    _combine(c, _f2(fb, meta, W_B), b)  # sum_j theta_j T_B[j], theta = B^-1 c
-    gn = np.empty(m)
-    _combine(g, _f2(fb, meta, W_G), gn)
     _scale(f, b.reshape((m, n)), gn, qp[n * n:], n, m)
     return OK
 

@@ -38,12 +38,18 @@ except ImportError:  # pragma: no cover - exercised where numba is absent
 __all__ = ["COMPILE", "NUMBA_VERSION", "CompiledOnline", "path_reason", "plan_arrays",
            "prepare"]
 
-#: first call of the kernels in this process: ``{"first_call_s": s, "from_disk_cache": bool}``
-#: (compilation, or loading numba's on-disk cache; never part of an online time)
+#: first call of the kernels in this process, per method: ``{method: {"first_call_s": s,
+#: "from_disk_cache": bool}}`` (compilation, or loading numba's on-disk cache; never part
+#: of an online time)
 COMPILE: dict[str, Any] = {}
 
 #: daqp settings of the online QP (:func:`rbbench.rb.mixed_model._solve_daqp`)
 DAQP_TOL = 1e-12
+#: the online methods with a compiled path
+METHODS = ("nnls", "daqp")
+#: ``method = "nnls"``: passive-set solves before giving up (the reference then decides)
+#: and the natural residual it must reach (the PDAS tolerance of :func:`rbbench.hf.lcp.pdas`)
+NNLS_MAX_ITER, NNLS_TOL = 200, 1e-10
 
 
 def path_reason(model: Any, method: str = "daqp") -> str | None:
@@ -53,8 +59,8 @@ def path_reason(model: Any, method: str = "daqp") -> str | None:
 
     if NUMBA_VERSION is None:
         return "numba is not installed"
-    if method != "daqp":
-        return f"online method {method!r} (the compiled path solves the QP by daqp)"
+    if method not in METHODS:
+        return f"online method {method!r} (compiled: {', '.join(METHODS)})"
     ceim = model.constraint
     if not isinstance(ceim, ContactEIM):
         return f"constraint {type(ceim).__name__} (the compiled path is the contact EIM's)"
@@ -80,7 +86,7 @@ def coefficient_map(lu_piv: tuple[np.ndarray, np.ndarray], T: np.ndarray) -> np.
     return flat.reshape(T.shape)
 
 
-def plan_arrays(model: Any) -> dict[str, np.ndarray]:
+def plan_arrays(model: Any, method: str = "daqp") -> dict[str, np.ndarray]:
     """The arrays of the kernels' plan (:data:`rbbench.rb._kernels.FLOATS`, ``INTS``) from a
     reduced model whose constraint is a :class:`~rbbench.rb.contact_eim.ContactEIM`.
 
@@ -108,9 +114,62 @@ def plan_arrays(model: Any) -> dict[str, np.ndarray]:
            "w_g": coefficient_map(ceim.lu_G, ceim.T_G), "a_terms": model.A.terms,
            "f_terms": model.F.terms, "dims": np.array([lay.degree, ms is not None]),
            "pts_b": pts_b, "cols_b": ceim.entry_col,
-           "order_b": np.argsort(ceim.entry_col, kind="stable"), "pts_g": pts_g}
+           "order_b": np.argsort(ceim.entry_col, kind="stable"), "pts_g": pts_g,
+           "vt": np.zeros((1, 1)), "lam_a": np.zeros((1, 1))}
     out.update(_master_plan(ceim, n_hat))
+    if method == "nnls":
+        out.update(_condensed_plan(model, out["w_b"]))
     return out
+
+
+def eigenbasis(terms: np.ndarray, theta_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
+    """``(V, lam)`` with ``V^T A_k V = diag(lam[k])`` for every affine term ``A_k`` of
+    ``A_N`` (``terms``, K x n x n), ``V^T A(theta_ref) V = I``: the generalised eigenvectors
+    of a combination of the terms against ``A(theta_ref)`` (scipy ``eigh``). Exists for one
+    term or two (one parameter) and for commuting families; otherwise the reason (a string).
+    Then ``A_N(mu)^-1 = V diag(1 / lam^T theta) V^T`` (:mod:`rbbench.rb._dual_kernels`)."""
+    import scipy.linalg as sla
+
+    ref = np.tensordot(theta_ref, terms, 1)
+    try:
+        if terms.shape[0] == 1:
+            V = sla.solve_triangular(sla.cholesky(ref, lower=True), np.eye(ref.shape[0]),
+                                     lower=True).T
+        else:  # fixed weights: a generic member of the span of the mu-dependent terms
+            mix = np.tensordot(1.0 / np.arange(1, terms.shape[0]), terms[1:], 1)
+            V = sla.eigh(0.5 * (mix + mix.T), ref)[1]
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        return f"A_N at the centre of D is not positive definite ({exc})"
+    proj = np.einsum("ai,kab,bj->kij", V, terms, V)
+    lam = np.einsum("kii->ki", proj)
+    off = proj - lam[:, :, None] * np.eye(ref.shape[0])
+    if np.abs(off).max() > 1e-10 * max(np.abs(lam).max(), 1.0):
+        return (f"A_N(mu) has no common eigenbasis (off-diagonal {np.abs(off).max():.1e}); "
+                "use online method 'daqp'")
+    return V, lam
+
+
+def _condensed_plan(model: Any, w_b: np.ndarray) -> dict[str, np.ndarray]:
+    """The arrays of :func:`rbbench.rb._dual_kernels.online_nnls`: the EIM terms of
+    ``B_N V`` transposed (n x R each), ``V^T F_k``, ``V^T`` and ``lam`` of
+    :func:`eigenbasis` (raises ValueError with its reason where there is none)."""
+    basis = eigenbasis(model.A.terms, _centre_theta(model))
+    if isinstance(basis, str):
+        raise ValueError(basis)
+    V, lam = basis
+    return {"w_b": np.ascontiguousarray(np.einsum("era,ak->ekr", w_b, V)),
+            "f_terms": model.F.terms @ V, "vt": np.ascontiguousarray(V.T), "lam_a": lam}
+
+
+def _centre_theta(model: Any) -> np.ndarray:
+    """``[1, mu]`` at the centre of D (mu = 0 without a parameter space)."""
+    return np.concatenate([[1.0], _centre(model)])
+
+
+def _centre(model: Any) -> np.ndarray:
+    if model.parameters is not None:
+        return 0.5 * (np.asarray(model.parameters.low) + np.asarray(model.parameters.high))
+    return np.zeros(int(model.A.terms.shape[0]) - 1)
 
 
 def reference_points(lay: Any) -> tuple[np.ndarray, ...]:
@@ -200,21 +259,30 @@ def pack(arrays: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 class CompiledOnline:
-    """One reduced model's compiled online solve (module docstring).
+    """One reduced model's compiled online solve (module docstring) by ``method``.
 
-    Holds the packed plan and the preallocated QP buffer ``qp`` (``[H, f, A, b_upper, rows,
-    |F|]``, :func:`rbbench.rb._kernels.online_qp`) with daqp's views of it. Not picklable
-    state: :class:`~rbbench.rb.mixed_model.ReducedModel` rebuilds it after unpickling.
+    ``"daqp"``: the packed plan and the preallocated QP buffer ``qp`` (``[H, f, A, b_upper,
+    rows, |F|]``, :func:`rbbench.rb._kernels.online_qp`) with daqp's views of it.
+    ``"nnls"``: the condensed plan (:func:`_condensed_plan`) and one kernel,
+    :func:`rbbench.rb._dual_kernels.online_nnls`. Not picklable state:
+    :class:`~rbbench.rb.mixed_model.ReducedModel` rebuilds it after unpickling.
     """
 
-    def __init__(self, model: Any) -> None:
+    def __init__(self, model: Any, method: str = "daqp") -> None:
         from rbbench.rb import _kernels
 
         self._k = _kernels
-        self.fb, self.ib, self.meta = pack(plan_arrays(model))
+        self.method = method
+        self.fb, self.ib, self.meta = pack(plan_arrays(model, method))
         self.n = int(model.A.terms.shape[-1])
         self.m = int(model.constraint.T_B.shape[1])
         n, m = self.n, self.m
+        if method == "nnls":
+            from rbbench.rb import _dual_kernels
+
+            self._kernel = _dual_kernels.online_nnls
+            return
+        self._kernel = _kernels.online_qp
         self.qp = np.zeros(n * n + n + m * n + 3 * m + 1)
         self.H = self.qp[:n * n].reshape(n, n)
         self.f = self.qp[n * n:n * n + n]
@@ -225,22 +293,35 @@ class CompiledOnline:
 
     def warm_up(self, mu: np.ndarray) -> None:
         """First call of every kernel (compile or load the disk cache), timed into
-        :data:`COMPILE` once per process."""
-        if COMPILE:
+        :data:`COMPILE` once per process and method."""
+        if self.method in COMPILE:
             return
         t0 = time.perf_counter()
         self.solve(mu)
-        COMPILE["first_call_s"] = time.perf_counter() - t0
-        stats = self._k.online_qp.stats
-        COMPILE["from_disk_cache"] = bool(stats.cache_hits) and not stats.cache_misses
+        stats = self._kernel.stats
+        COMPILE[self.method] = {"first_call_s": time.perf_counter() - t0,
+                                "from_disk_cache": bool(stats.cache_hits)
+                                and not stats.cache_misses}
 
     def solve(self, mu: Any) -> tuple[np.ndarray, np.ndarray, int, float] | None:
-        """The online solve at ``mu``: ``(c, alpha, daqp iterations, min(raw alpha) /
+        """The online solve at ``mu``: ``(c, alpha, iterations, min(raw alpha) /
         max|raw alpha|)``, or None where the Python path must decide."""
+        mu = np.asarray(mu, dtype=np.float64).reshape(-1)
+        if self.method == "nnls":
+            out = np.empty(self.n + self.m)
+            status, it = self._kernel(mu, self.fb, self.ib, self.meta, out, NNLS_MAX_ITER,
+                                      NNLS_TOL)
+            if status != self._k.OK:
+                return None
+            alpha = out[self.n:]
+            top = alpha.max() if alpha.size else 0.0
+            return out[:self.n], alpha, it, (alpha.min() / top if top > 0 else 0.0)
+        return self._solve_daqp(mu)
+
+    def _solve_daqp(self, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float] | None:
         import daqp
 
-        mu = np.asarray(mu, dtype=np.float64).reshape(-1)
-        if self._k.online_qp(mu, self.fb, self.ib, self.meta, self.qp) != self._k.OK:
+        if self._kernel(mu, self.fb, self.ib, self.meta, self.qp) != self._k.OK:
             return None
         y, _, flag, info = daqp.solve(self.H, self.f, self.A, self.bu, self.bl, self.sense,
                                       primal_tol=DAQP_TOL, dual_tol=DAQP_TOL)
@@ -258,10 +339,9 @@ def prepare(model: Any, method: str = "daqp") -> CompiledOnline | str:
     reason = path_reason(model, method)
     if reason is not None:
         return reason
-    online = CompiledOnline(model)
-    if model.parameters is not None:
-        centre = 0.5 * (np.asarray(model.parameters.low) + np.asarray(model.parameters.high))
-    else:
-        centre = np.zeros(int(model.A.terms.shape[0]) - 1)
-    online.warm_up(centre)
+    try:
+        online = CompiledOnline(model, method)
+    except ValueError as exc:  # no common eigenbasis of A_N's terms (method "nnls")
+        return str(exc)
+    online.warm_up(_centre(model))
     return online

@@ -57,8 +57,10 @@ class OnlineResult:
 ONLINE_PATHS = ("auto", "compiled", "python")
 
 
-#: Online solvers of the reduced saddle point (``ReducedModel.solve(method=...)``).
-ONLINE_METHODS = ("daqp", "pdas")
+#: Online solvers of the reduced saddle point (``ReducedModel.solve(method=...)``; the
+#: first is the default): the condensed LCP by Lawson-Hanson's active set, the primal QP by
+#: daqp, the condensed LCP by the primal-dual active set.
+ONLINE_METHODS = ("nnls", "daqp", "pdas")
 
 
 def _solve_daqp(A: np.ndarray, F: np.ndarray, B: np.ndarray,
@@ -97,6 +99,25 @@ def _rel_min(a: np.ndarray) -> float:
     return float(a.min()) / top if top > 0 else 0.0
 
 
+def _nnls_scaled(D: np.ndarray, q: np.ndarray, tol: float = 1e-10) -> np.ndarray | None:
+    """LCP(q, D) by :func:`rbbench.hf.lcp.nnls_dual` on ``D / max diag D``, ``q / max|q|``
+    (the scaling of the compiled kernel, :func:`rbbench.rb._dual_kernels.online_nnls`);
+    None when it fails or its natural residual exceeds ``tol``."""
+    dm = float(np.diag(D).max()) if q.size else 0.0
+    qm = float(np.abs(q).max()) if q.size else 0.0
+    if qm == 0.0:
+        return np.zeros(q.size)
+    if not dm > 0.0:
+        return None
+    try:
+        x = lcp.nnls_dual(D / dm, q / qm)
+    except (np.linalg.LinAlgError, RuntimeError):
+        return None
+    if not lcp.natural_residual(D / dm, q / qm, x, lcp._scaling(D / dm)) <= tol:
+        return None
+    return x * (qm / dm)
+
+
 def condense_dense(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
                    cho: tuple | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -116,6 +137,8 @@ def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
                   cho: tuple | None = None, method: str = "pdas") -> OnlineResult:
     """Solve the reduced saddle point.
 
+    ``method = "nnls"``: dense Cholesky of A_N, the R x R LCP by Lawson-Hanson's NNLS
+    (:func:`rbbench.hf.lcp.nnls_dual`; ``iterations`` is not counted there: 0).
     ``method = "pdas"``: dense Cholesky of A_N, R x R LCP by the primal-dual
     active set of :mod:`rbbench.hf.lcp` (warm-startable; ``cho``: a Cholesky factor
     of ``A`` computed once when A_N is independent of mu). ``method = "daqp"``:
@@ -127,6 +150,16 @@ def solve_reduced(A: np.ndarray, F: np.ndarray, B: np.ndarray, G: np.ndarray,
     if method not in ONLINE_METHODS:
         raise ValueError(f"online method {method!r}: valid: {', '.join(ONLINE_METHODS)}")
     t0 = time.perf_counter()
+    if method == "nnls":
+        c0, AinvBt, D, q = condense_dense(A, F, B, G, cho)
+        alpha = _nnls_scaled(D, q)
+        if alpha is not None:
+            return OnlineResult(c0 - AinvBt @ alpha, alpha, 0, "converged",
+                                time.perf_counter() - t0, _rel_min(alpha))
+        res = solve_reduced(A, F, B, G, warm_start, max_iter, cho, "pdas")
+        res.stop_reason += " (pdas fallback)" if res.stop_reason == "converged" else ""
+        res.time_s = time.perf_counter() - t0
+        return res
     if method == "daqp":
         out = _solve_daqp(A, F, B, G)
         if out is not None:
@@ -210,7 +243,7 @@ class ReducedModel:
         return self.A(th), self.F(th), B, G
 
     def solve(self, mu: np.ndarray, warm_start: np.ndarray | None = None,
-              max_iter: int = 100, method: str = "daqp", path: str = "auto") -> OnlineResult:
+              max_iter: int = 100, method: str = "nnls", path: str = "auto") -> OnlineResult:
         """Online solve: check mu against D (:attr:`parameters`, a
         :class:`~rbbench.scene.parameters.SceneError` outside it, as the HF solve), assemble
         the reduced arrays, then :func:`solve_reduced`.
@@ -234,7 +267,7 @@ class ReducedModel:
         res.time_s = time.perf_counter() - t0
         return res
 
-    def online_path(self, method: str = "daqp") -> str:
+    def online_path(self, method: str = "nnls") -> str:
         """The path :meth:`solve` takes with ``path = "auto"``: ``"compiled (numba X)"`` or
         ``"python (<why>)"``."""
         from rbbench.rb import compiled_online

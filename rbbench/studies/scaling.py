@@ -20,7 +20,8 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
     each round so that machine load hits them alike, under one BLAS thread. Reports
     per level the HF size, the reduced sizes, the median and inter-quartile range of
     the online time (s), its ratio to the first level and the online path that ran
-    (``compiled`` or ``python``, :attr:`OnlineResult.path`).
+    (``compiled`` or ``python``, :attr:`OnlineResult.path`) of the configured online method
+    (``online_method``, default ``nnls``).
     """
     from rbbench.rb.offline import reduce
 
@@ -39,7 +40,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
         for _ in range(repeats):
             for k, res in enumerate(results):
                 for mu in res.valid_mus:
-                    out = res.model.solve(mu)
+                    out = res.model.solve(mu, method=config.online_method)
                     times[k].append(out.time_s)
                     paths[k].add(str(getattr(out, "path", "python")))
     rows = []
@@ -53,6 +54,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                      "t_online_median_s": med,
                      "t_online_iqr_s": float(np.subtract(*np.percentile(t, [75, 25]))),
                      "ratio_to_first": med / base, "t_hf_median_s": s["t_hf_median_s"],
+                     "online_method": config.online_method,
                      "online_path": "/".join(sorted(path))})
     return rows
 
@@ -61,10 +63,11 @@ def scaling_markdown(rows: list[dict]) -> str:
     """The rows of :func:`online_scaling` as a Markdown table (times in ms)."""
     head = ("level", "HF dofs", "contact rows", "N + K", "R", "EIM rows", "err u max",
             "err lam max", "online median (ms)", "IQR (ms)", "ratio", "HF median (s)",
-            "online path")
+            "online method", "online path")
     return markdown_table(head, (
         (r["level"], r["n_hf_dofs"], r["n_contact"], f"{r['N']} + {r['K_pga']}", r["R"],
          r["M_eim"], f"{r['err_u_max']:.2e}", f"{r['err_lam_max']:.2e}",
          f"{1e3 * r['t_online_median_s']:.3f}", f"{1e3 * r['t_online_iqr_s']:.3f}",
-         f"{r['ratio_to_first']:.2f}", f"{r['t_hf_median_s']:.2f}", r["online_path"])
+         f"{r['ratio_to_first']:.2f}", f"{r['t_hf_median_s']:.2f}", r["online_method"],
+         r["online_path"])
         for r in rows))
