@@ -183,7 +183,7 @@ def _reduce_config(args):
                             n_valid=args.n_valid, n_jobs=args.jobs, solver=args.solver,
                             backend=args.backend, formulation=args.formulation,
                             tol_eim=args.tol_eim, m_eim=args.m_eim, delta_pga=args.delta_pga,
-                            k_pga_max=args.k_pga_max,
+                            k_pga_max=args.k_pga_max, online_method=args.online_method,
                             gcns_per_iteration=args.gcns_per_iteration,
                             gcns_patience=args.gcns_patience,
                             friction_dual=args.friction_dual,
@@ -416,6 +416,8 @@ def _add_reduce_args(rd) -> None:
                          "nitsche: auto = empirical cubature at the contact points, eim = DEIM, "
                          "none = plain; friction: auto = none (plain), eim = the wedge model's "
                          "EIM of its B, g and DEIM of the slip (--friction-dual wedge only)")
+    rd.add_argument("--online-method", default="nnls",
+                    help="reduced solver: nnls, pdas (condensed LCP), daqp (primal QP)")
     rd.add_argument("--tol-eim", type=float, default=1e-4,
                     help="EIM tolerance (relative max-norm training error)")
     rd.add_argument("--m-eim", type=int, default=None, dest="m_eim",

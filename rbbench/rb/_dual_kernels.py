@@ -29,6 +29,9 @@ from rbbench.rb import _kernels as K
 NNLS_OK, NNLS_DEPENDENT, NNLS_MAX_ITER, NNLS_RESIDUAL = 0, 3, 4, 5
 
 _EPS = np.finfo(np.float64).eps
+#: passive-set solves before :func:`online_nnls` gives up (the reference then decides) and
+#: the natural residual it must reach (the PDAS tolerance of :func:`rbbench.hf.lcp.pdas`)
+MAX_ITER, TOL = 200, 1e-10
 
 
 @njit(cache=True)
@@ -204,63 +207,64 @@ def _natural_residual(d, q, x):
 
 
 @njit(cache=True)
-def online_nnls(mu, fb, ib, meta, out, max_iter, tol):
-    """One condensed online solve at ``mu`` (module docstring) into ``out = [c (n),
-    alpha (R)]``. The plan's ``w_b`` holds ``(W_B[e] V)^T`` (n x R per term), ``f_terms``
-    ``V^T F_k``, ``vt`` ``V^T`` and ``lam_a`` the diagonals ``diag(V^T A_k V)``. ``D`` and
-    ``q`` are scaled by ``max diag D`` and ``max |q|`` before :func:`nnls_gram` (a
-    relative tolerance then means the same on every scene). Returns ``(status,
-    iterations)``: a :mod:`rbbench.rb._kernels` status, :data:`NNLS_OK`, another NNLS
-    status, or :data:`NNLS_RESIDUAL` when the natural residual exceeds ``tol``."""
+def online_nnls(mu, fb, ib, meta):
+    """One condensed online solve at ``mu`` (module docstring): ``(status, iterations,
+    min(alpha) / max(alpha), c, alpha)``.
+
+    The plan's ``w_b`` holds ``(W_B[e] V)^T`` (n x R per term), ``f_terms`` ``V^T F_k``,
+    ``vt`` ``V^T`` and ``lam_a`` the diagonals ``diag(V^T A_k V)``. ``D`` and ``q`` are
+    scaled by ``max diag D`` and ``max |q|`` before :func:`nnls_gram` (a relative tolerance
+    then means the same on every scene). The status is a :mod:`rbbench.rb._kernels` one,
+    :data:`NNLS_OK`, another NNLS status (at most :data:`MAX_ITER` passive-set solves), or
+    :data:`NNLS_RESIDUAL` when the natural residual exceeds :data:`TOL`."""
     status, th = K.theta(mu, fb, meta)
+    n, r = meta[K.VT, 1], meta[K.W_G, 2]
+    c, alpha = np.zeros(n), np.zeros(r)
     if status != K.OK:
-        return status, 0
-    vt = K._f2(fb, meta, K.VT)
-    n, r = vt.shape[0], meta[K.W_G, 2]
+        return status, 0, 0.0, c, alpha
     bt, gn = np.empty(n * r), np.empty(r)
     status = K.constraint_rows(th, fb, ib, meta, bt, gn)
     if status != K.OK:
-        return status, 0
+        return status, 0, 0.0, c, alpha
     bt2 = bt.reshape((n, r))
     s, ft = np.empty(n), np.empty(n)
     K._combine(th, K._f2(fb, meta, K.LAM_A), s)
     K._combine(th, K._f2(fb, meta, K.F_TERMS), ft)
     for k in range(n):
         if not s[k] > 0.0:  # A_N(mu) not positive definite: the reference decides
-            return NNLS_DEPENDENT, 0
+            return NNLS_DEPENDENT, 0, 0.0, c, alpha
     d, q = np.empty((r, r)), np.empty(r)
     condense(bt2, ft, s, d, q, gn)
     dm, qm = 0.0, 0.0
     for i in range(r):
         dm = max(dm, d[i, i])
         qm = max(qm, abs(q[i]))
-    alpha = out[n:n + r]
     it = 0
     if dm == 0.0 and qm > 0.0:  # B_N = 0: bounded only if q >= 0
         for i in range(r):
             if q[i] < 0.0:
-                return NNLS_DEPENDENT, 0
+                return NNLS_DEPENDENT, 0, 0.0, c, alpha
     if qm > 0.0 and dm > 0.0:
         ds, qs = d / dm, q / qm
-        status, it = nnls_gram(ds, qs, alpha, max_iter)
+        status, it = nnls_gram(ds, qs, alpha, MAX_ITER)
         if status != NNLS_OK:
-            return status, it
-        if not _natural_residual(ds, qs, alpha) <= tol:
-            return NNLS_RESIDUAL, it
+            return status, it, 0.0, c, alpha
+        if not _natural_residual(ds, qs, alpha) <= TOL:
+            return NNLS_RESIDUAL, it, 0.0, c, alpha
         alpha *= qm / dm
-    else:
-        alpha[:] = 0.0
     y = np.empty(n)
     for k in range(n):
         v = ft[k]
         for i in range(r):
             v -= bt2[k, i] * alpha[i]
         y[k] = v / s[k]
-    c = out[:n]
-    c[:] = 0.0
+    vt = K._f2(fb, meta, K.VT)
     for k in range(n):
         yk = y[k]
         row = vt[k]
         for a in range(n):
             c[a] += row[a] * yk
-    return NNLS_OK, it
+    lo, top = 0.0, 0.0
+    for i in range(r):
+        lo, top = min(lo, alpha[i]), max(top, alpha[i])
+    return NNLS_OK, it, (lo / top if top > 0 else 0.0), c, alpha

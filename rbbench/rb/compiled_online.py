@@ -47,9 +47,6 @@ COMPILE: dict[str, Any] = {}
 DAQP_TOL = 1e-12
 #: the online methods with a compiled path
 METHODS = ("nnls", "daqp")
-#: ``method = "nnls"``: passive-set solves before giving up (the reference then decides)
-#: and the natural residual it must reach (the PDAS tolerance of :func:`rbbench.hf.lcp.pdas`)
-NNLS_MAX_ITER, NNLS_TOL = 200, 1e-10
 
 
 def path_reason(model: Any, method: str = "daqp") -> str | None:
@@ -306,16 +303,11 @@ class CompiledOnline:
     def solve(self, mu: Any) -> tuple[np.ndarray, np.ndarray, int, float] | None:
         """The online solve at ``mu``: ``(c, alpha, iterations, min(raw alpha) /
         max|raw alpha|)``, or None where the Python path must decide."""
-        mu = np.asarray(mu, dtype=np.float64).reshape(-1)
+        if not (isinstance(mu, np.ndarray) and mu.dtype == np.float64 and mu.ndim == 1):
+            mu = np.asarray(mu, dtype=np.float64).reshape(-1)
         if self.method == "nnls":
-            out = np.empty(self.n + self.m)
-            status, it = self._kernel(mu, self.fb, self.ib, self.meta, out, NNLS_MAX_ITER,
-                                      NNLS_TOL)
-            if status != self._k.OK:
-                return None
-            alpha = out[self.n:]
-            top = alpha.max() if alpha.size else 0.0
-            return out[:self.n], alpha, it, (alpha.min() / top if top > 0 else 0.0)
+            status, it, rel, c, alpha = self._kernel(mu, self.fb, self.ib, self.meta)
+            return (c, alpha, it, rel) if status == self._k.OK else None
         return self._solve_daqp(mu)
 
     def _solve_daqp(self, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float] | None:
