@@ -206,9 +206,9 @@ class SnapshotWorkers:
     fresh cache directory per call, so that every solve runs).
 
     ``setup`` builds this process's components (meshing + inner product) by one snapshot
-    at mu = 1: the timed calls reuse them (serial; with 2 jobs this process solves beside
-    one ``fork`` worker, which inherits them), as ``rbbench reduce``'s validation
-    snapshots do after its training ones. The time of 2 processes against 1 is the scaling
+    at mu = 1: the timed calls reuse them (serial; with 2 jobs two ``fork`` workers
+    inherit them), as ``rbbench reduce``'s validation snapshots do after its training
+    ones. The time of 2 processes against 1 is the scaling
     of the solves (issue 17 goal: >= 1.85x).
     """
 

