@@ -91,3 +91,22 @@ def test_condense_equals_the_dense_formula():
     dk.condense(bt, ft, s, d, q, g)
     np.testing.assert_allclose(d, bt.T @ np.diag(1 / s) @ bt, rtol=1e-14, atol=1e-14)
     np.testing.assert_allclose(q, g - bt.T @ (ft / s), rtol=1e-14, atol=1e-14)
+
+
+def test_eigenbasis_one_term_and_commuting_terms():
+    """``V^T A_k V = diag(lam[k])`` and ``V^T A(theta_ref) V = I``: one constant term
+    (V = L^-T), and three terms that are polynomials of one SPD matrix (they commute, so a
+    common eigenbasis exists although there are two parameters)."""
+    from rbbench.rb.compiled_online import eigenbasis
+
+    rng = np.random.default_rng(5)
+    X = rng.standard_normal((7, 7))
+    S = X @ X.T + 7 * np.eye(7)
+    poly = np.stack([S, 0.1 * S @ S / 7, 0.01 * np.eye(7)])
+    for terms, th in ((S[None], np.array([1.0])), (poly, np.array([1.0, 0.5, 2.0]))):
+        V, lam = eigenbasis(terms, th)
+        for k in range(terms.shape[0]):
+            np.testing.assert_allclose(V.T @ terms[k] @ V, np.diag(lam[k]), atol=1e-12)
+        np.testing.assert_allclose(V.T @ np.tensordot(th, terms, 1) @ V, np.eye(7), atol=1e-12)
+    bad = eigenbasis(np.stack([S, -10 * S]), np.array([1.0, 1.0]))  # A(theta_ref) = -9 S
+    assert isinstance(bad, str) and "not positive definite" in bad

@@ -1,22 +1,28 @@
 """The compiled online path of the mixed reduced model with the contact EIM (issue 17, item 1).
 
-:meth:`rbbench.rb.mixed_model.ReducedModel.solve` with ``method = "daqp"`` spends ~95 % of
-its ~420 us in about 500 Python calls: the EIM's contact pairing, the magic entries, the
-coefficient solves, the reduced assembly, the daqp input scaling and the result. Here one
-numba kernel (:func:`rbbench.rb._kernels.online_qp`) does all of it for one mu, daqp solves
-the same QP as the Python path (same scaled data, same tolerances), and a second kernel
-unscales its answer. The Python path stays the reference (``path = "python"``);
-``tests/test_compiled_online.py`` compares the two on the same inputs.
+:meth:`rbbench.rb.mixed_model.ReducedModel.solve` spends ~95 % of its ~420 us on the
+Python path in about 500 Python calls: the EIM's contact pairing, the magic entries, the
+coefficient solves, the reduced assembly and the solver's input. Here one numba kernel does
+all of it for one mu, per online method:
+
+* ``nnls`` (the default): :func:`rbbench.rb._dual_kernels.online_nnls` condenses the
+  reduced saddle point on the cone coefficients through a common eigenbasis of ``A_N``'s
+  affine terms (:func:`eigenbasis`, offline) and solves ``LCP(q, D)`` by Lawson-Hanson's
+  active set inside the same kernel: no factorisation and no Python call online;
+* ``daqp``: :func:`rbbench.rb._kernels.online_qp` writes the scaled QP of the Python path,
+  daqp solves it (same tolerances), a second kernel unscales its answer.
+
+The Python path stays the reference (``path = "python"``); ``tests/test_compiled_online.py``
+compares the two on the same inputs.
 
 Why numba rather than Cython or pythran: the kernels are plain loops over small float arrays
 (numba's sweet spot), numba is one ``pip install`` with wheels for every platform the
 README's set-up covers (no C compiler at install time, unlike Cython and pythran), the
 compiled code is cached on disk (``cache=True``: ~1 s to load in a new process instead of
 ~10 s to compile), and without numba the package still works: the Python path is used and
-reported as such (:func:`path_reason`). Cython would also have let us call daqp's C API
-without the Python wrapper (~1-2 us less), not worth a build step.
+reported as such (:func:`path_reason`).
 
-Every deviation (mu outside D, a point leaving its master window, daqp not reporting
+Every deviation (mu outside D, a point leaving its master window, a solver not reporting
 optimality, non-finite numbers) returns None and the caller reruns the Python path, which
 raises the reference's error or falls back to PDAS as before.
 """
