@@ -137,8 +137,9 @@ def test_online_and_tracked_accuracy_on_a_tiny_reduction(modules, tmp_path):
         assert isinstance(value, float) and math.isfinite(value), (name, value)
         assert value >= 0.0, (name, value)
     bench = online.OnlineSolve()
-    bench.setup(cache, case)
-    bench.time_online_solve(cache, case)
+    for method in online.OnlineSolve.params[1]:
+        bench.setup(cache, case, method)
+        bench.time_online_solve(cache, case, method)
 
 
 def test_tracked_values_fail_instead_of_recording_nan(modules):
