@@ -416,8 +416,8 @@ def _add_reduce_args(rd) -> None:
                          "nitsche: auto = empirical cubature at the contact points, eim = DEIM, "
                          "none = plain; friction: auto = none (plain), eim = the wedge model's "
                          "EIM of its B, g and DEIM of the slip (--friction-dual wedge only)")
-    rd.add_argument("--online-method", default="nnls",
-                    help="reduced solver: nnls, pdas (condensed LCP), daqp (primal QP)")
+    rd.add_argument("--online-method", default="auto",
+                    help="reduced solver: auto, nnls, pdas (condensed LCP), daqp (primal QP)")
     rd.add_argument("--tol-eim", type=float, default=1e-4,
                     help="EIM tolerance (relative max-norm training error)")
     rd.add_argument("--m-eim", type=int, default=None, dest="m_eim",

@@ -195,3 +195,47 @@ def test_pickle_drops_the_compiled_state_and_rebuilds_it(model):
     assert a.path == b.path == "compiled"
     np.testing.assert_array_equal(a.c, b.c)
     assert compiled_online.COMPILE["nnls"]["first_call_s"] > 0
+
+
+def _affine_model(R: int, N: int = 6, seed: int = 11) -> ReducedModel:
+    """An exact-affine reduced model (no EIM): ``B_N = B_0 + mu B_1``, ``G_N`` likewise, an
+    SPD ``A_N(mu)``, a load that makes some constraints active."""
+    from rbbench.rb.mixed_model import AffineConstraint
+    from rbbench.scene.parameters import ParameterSpace
+
+    rng = np.random.default_rng(seed)
+    X = rng.standard_normal((2, N, N))
+    A = np.stack([X[0] @ X[0].T + N * np.eye(N), 0.1 * (X[1] + X[1].T)])
+    B = rng.standard_normal((2, R, N)) * np.array([1.0, 0.1])[:, None, None]
+    c_star = rng.standard_normal(N)
+    G = np.stack([B[0] @ c_star - 0.5 * rng.random(R), 0.1 * rng.standard_normal(R)])
+    F = np.stack([A[0] @ c_star + B[0].T @ np.abs(rng.standard_normal(R)), A[1] @ c_star])
+    return ReducedModel(AffineOperator(A), AffineOperator(F), LinearInMu(1),
+                        AffineConstraint(AffineOperator(B), AffineOperator(G), LinearInMu(1)),
+                        parameters=ParameterSpace(["mu"], [0.7], [1.3]))
+
+
+@pytest.mark.parametrize("method", compiled_online.METHODS)
+def test_exact_affine_constraint_compiled_equals_python(method):
+    model = _affine_model(R=4)
+    for mu in MUS:
+        py = model.solve(mu, path="python", method=method)
+        co = model.solve(mu, path="compiled", method=method)
+        assert co.path == "compiled" and co.stop_reason == py.stop_reason == "converged"
+        assert _rel(co.c, py.c) <= 1e-12
+        np.testing.assert_allclose(co.alpha, py.alpha, rtol=0,
+                                   atol=1e-10 * max(py.alpha.max(), 1e-300))
+
+
+def test_auto_takes_nnls_only_where_the_delassus_matrix_can_be_regular():
+    """R <= N: nnls (compiled); R > N (D = B_N A_N^-1 B_N^T singular): daqp, which the
+    result names; both equal to the pdas solution."""
+    for R, expected in ((4, "nnls"), (9, "daqp")):
+        model = _affine_model(R=R)
+        assert model.resolve_method() == expected
+        res = model.solve(1.0)
+        assert res.method == expected and res.path == "compiled"
+        ref = model.solve(1.0, method="pdas")
+        assert ref.method == "pdas" and _rel(res.c, ref.c) <= 1e-10
+    assert model.resolve_method(path="python") == "daqp"
+    assert model.resolve_method("pdas") == "pdas"

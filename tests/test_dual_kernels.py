@@ -110,3 +110,20 @@ def test_eigenbasis_one_term_and_commuting_terms():
         np.testing.assert_allclose(V.T @ np.tensordot(th, terms, 1) @ V, np.eye(7), atol=1e-12)
     bad = eigenbasis(np.stack([S, -10 * S]), np.array([1.0, 1.0]))  # A(theta_ref) = -9 S
     assert isinstance(bad, str) and "not positive definite" in bad
+
+
+def test_a_cache_older_than_the_kernels_it_inlines_is_dropped(tmp_path):
+    """numba would keep running the cached online_nnls after a change to _kernels.py alone
+    (it checks only _dual_kernels.py): the index is compared with _kernels.py's time."""
+    import os
+
+    index, source = tmp_path / "k.nbi", tmp_path / "k.py"
+    index.write_text("")
+    source.write_text("")
+    os.utime(index, (1000, 1000))
+    os.utime(source, (2000, 2000))
+    assert dk.is_stale(index, source) and not dk.is_stale(source, index)
+    assert not dk.is_stale(tmp_path / "missing.nbi", source)
+    # the numba internals it reads exist in this numba
+    assert str(dk.online_nnls._cache._cache_file._index_path).endswith(".nbi")
+    assert dk.drop_stale_cache() is False  # just imported: nothing stale left

@@ -157,5 +157,5 @@ def test_online_methods_match_pdas(seed, n, m, row_scale, load_scale):
 
 
 def test_unknown_online_method_is_refused():
-    with pytest.raises(ValueError, match="valid: nnls, daqp, pdas"):
+    with pytest.raises(ValueError, match="valid: auto, nnls, daqp, pdas"):
         solve_reduced(np.eye(2), np.ones(2), np.ones((1, 2)), np.ones(1), method="qp")

@@ -20,6 +20,8 @@ Python path. The module imports numba at the top: import it only when numba is i
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 from numba import njit
 
@@ -276,3 +278,27 @@ def online_nnls(mu, fb, ib, meta):
     for i in range(r):
         lo, top = min(lo, alpha[i]), max(top, alpha[i])
     return NNLS_OK, it, (lo / top if top > 0 else 0.0), c, alpha
+
+
+def is_stale(index: str | os.PathLike, dependency: str | os.PathLike) -> bool:
+    """Whether numba's cache index ``index`` predates the source file ``dependency``."""
+    try:
+        return os.path.getmtime(index) < os.path.getmtime(dependency)
+    except OSError:  # no index yet (nothing cached) or no source file (frozen install)
+        return False
+
+
+def drop_stale_cache() -> bool:
+    """Forget the cached :func:`online_nnls` when ``_kernels.py`` changed after it was
+    cached. numba checks only the stamp of this file, yet the compiled kernel inlines
+    ``_kernels``' functions (numba's documented cache-invalidation limit): after a change
+    there alone (an editable install updated) the cache would run the old code. Returns
+    whether it flushed. Called at import."""
+    cache = online_nnls._cache
+    if is_stale(cache._cache_file._index_path, K.__file__):
+        cache.flush()
+        return True
+    return False
+
+
+drop_stale_cache()

@@ -24,7 +24,8 @@ from numba import njit
 FLOATS = ("mu_lo", "mu_hi", "s_scale", "s_shift", "m_scale", "m_shift", "x_hat", "n_hat",
           "w_hat", "m_a", "m_b", "zt_m", "slave_b", "vals_b", "vals_g", "w_b", "w_g",
           "a_terms", "f_terms", "vt", "lam_a")
-#: int arrays of the plan: ``dims = [degree, has_master]``
+#: int arrays of the plan: ``dims = [degree, has_master, affine]`` (``affine``: an exact
+#: affine constraint, whose terms are ``w_b``, ``w_g``: no pairing)
 INTS = ("dims", "mono", "m_dofs", "lo", "hi", "pts_b", "cols_b", "order_b", "pts_g")
 
 (MU_LO, MU_HI, S_SCALE, S_SHIFT, M_SCALE, M_SHIFT, X_HAT, N_HAT, W_HAT, M_A, M_B, ZT_M,
@@ -329,10 +330,15 @@ def theta(mu, fb, meta):
 
 @njit(cache=True)
 def constraint_rows(th, fb, ib, meta, b, gn):
-    """The hyper-reduced constraint at ``th``: ``b = sum_e c_e W_B[e]`` (flat, in the
-    layout of the plan's ``w_b``) and ``gn = sum_r g_r W_G[r]`` from the pairing and the
-    magic entries ``c``, rows ``g`` (:func:`pair_points`, :func:`magic_values`). Returns a
-    status (:data:`NO_HIT`: a point left its master window, or a degenerate map)."""
+    """The reduced constraint at ``th``: ``b = sum_e c_e W_B[e]`` (flat, in the layout of
+    the plan's ``w_b``) and ``gn = sum_r g_r W_G[r]`` from the pairing and the magic
+    entries ``c``, rows ``g`` (:func:`pair_points`, :func:`magic_values`; an exact affine
+    constraint: ``c = g = th``). Returns a status (:data:`NO_HIT`: a point left its master
+    window, or a degenerate map)."""
+    if _i(ib, meta, DIMS)[2]:  # exact affine: B_N = sum_k theta_k B_k, G_N likewise
+        _combine(th, _f2(fb, meta, W_B), b)
+        _combine(th, _f2(fb, meta, W_G), gn)
+        return OK
     nq = meta[X_HAT, 1]
     w, gap = np.empty(nq), np.empty(nq)
     mphi, seg = np.zeros((nq, _i(ib, meta, DIMS)[0] + 1)), np.zeros(nq, dtype=np.int64)

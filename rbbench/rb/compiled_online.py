@@ -57,7 +57,7 @@ METHODS = ("nnls", "daqp")
 
 def path_reason(model: Any, method: str = "daqp") -> str | None:
     """Why ``model`` cannot take the compiled path (None when it can)."""
-    from rbbench.rb.affine import LinearInMu
+    from rbbench.rb.affine import AffineOperator, LinearInMu
     from rbbench.rb.contact_eim import ContactEIM
 
     if NUMBA_VERSION is None:
@@ -65,10 +65,16 @@ def path_reason(model: Any, method: str = "daqp") -> str | None:
     if method not in METHODS:
         return f"online method {method!r} (compiled: {', '.join(METHODS)})"
     ceim = model.constraint
-    if not isinstance(ceim, ContactEIM):
-        return f"constraint {type(ceim).__name__} (the compiled path is the contact EIM's)"
     if not isinstance(model.coefficients, LinearInMu):
         return f"coefficient map {type(model.coefficients).__name__} (not theta = [1, mu])"
+    if isinstance(getattr(ceim, "B", None), AffineOperator):  # mixed_model.AffineConstraint
+        if not isinstance(ceim.coefficients, LinearInMu):
+            return (f"constraint coefficient map {type(ceim.coefficients).__name__} "
+                    "(not theta = [1, mu])")
+        return None
+    if not isinstance(ceim, ContactEIM):
+        return (f"constraint {type(ceim).__name__} (compiled: the contact EIM and exact "
+                "affine constraints)")
     lay = ceim.evaluator.layout
     if lay.degree not in (1, 2) or lay.integration != "gauss":
         return f"facet degree {lay.degree}, integration {lay.integration!r}"
@@ -98,30 +104,54 @@ def plan_arrays(model: Any, method: str = "daqp") -> dict[str, np.ndarray]:
     point's master window for both signs of the slave scale, the slave term of every
     magic entry (``slave_b``) and ``Z^T`` on the master dofs of the windows (``zt_m``)."""
     ceim = model.constraint
+    if not hasattr(ceim, "evaluator"):  # an exact affine constraint (path_reason)
+        out = _affine_plan(model)
+        if method == "nnls":
+            out.update(_condensed_plan(model, out["w_b"]))
+        return out
     ev, lay = ceim.evaluator, ceim.evaluator.layout
-    p = int(model.A.terms.shape[0]) - 1
-    if model.parameters is not None:
-        lo, hi = np.asarray(model.parameters.low), np.asarray(model.parameters.high)
-    else:
-        lo, hi = np.full(p, -np.inf), np.full(p, np.inf)
     sl, ms = lay.slave, lay.master
     x_hat, n_hat, w_hat, sphi = reference_points(lay)
     pts_b, vals_b = ceim._support
     pts_g, vals_g = ev.support(ceim.pos_G)
-    out = {"mu_lo": lo, "mu_hi": hi, "s_scale": sl.map.scale, "s_shift": sl.map.shift,
+    out = {**_bounds(model), "s_scale": sl.map.scale, "s_shift": sl.map.shift,
            "m_scale": sl.map.scale if ms is None else ms.map.scale,
            "m_shift": sl.map.shift if ms is None else ms.map.shift,
            "x_hat": x_hat, "n_hat": n_hat, "w_hat": w_hat,
            "slave_b": _slave_terms(ceim, sl.dofs, sphi, n_hat, pts_b, lay.n_gauss),
            "vals_b": vals_b, "vals_g": vals_g, "w_b": coefficient_map(ceim.lu_B, ceim.T_B),
            "w_g": coefficient_map(ceim.lu_G, ceim.T_G), "a_terms": model.A.terms,
-           "f_terms": model.F.terms, "dims": np.array([lay.degree, ms is not None]),
+           "f_terms": model.F.terms, "dims": np.array([lay.degree, ms is not None, 0]),
            "pts_b": pts_b, "cols_b": ceim.entry_col,
            "order_b": np.argsort(ceim.entry_col, kind="stable"), "pts_g": pts_g,
            "vt": np.zeros((1, 1)), "lam_a": np.zeros((1, 1))}
     out.update(_master_plan(ceim, n_hat))
     if method == "nnls":
         out.update(_condensed_plan(model, out["w_b"]))
+    return out
+
+
+def _bounds(model: Any) -> dict[str, np.ndarray]:
+    """``mu_lo``, ``mu_hi``: the box D (unbounded without a parameter space)."""
+    p = int(model.A.terms.shape[0]) - 1
+    if model.parameters is not None:
+        return {"mu_lo": np.asarray(model.parameters.low, float),
+                "mu_hi": np.asarray(model.parameters.high, float)}
+    return {"mu_lo": np.full(p, -np.inf), "mu_hi": np.full(p, np.inf)}
+
+
+def _affine_plan(model: Any) -> dict[str, np.ndarray]:
+    """The plan of an exact affine constraint ``B_N = sum_k theta_k B_k``, ``G_N = sum_k
+    theta_k G_k``: its terms take the places of the EIM maps (``w_b``, ``w_g``, combined
+    with theta instead of the magic values, ``dims[2] = 1``); no pairing arrays (one-entry
+    placeholders)."""
+    from rbbench.rb import _kernels
+
+    one_f, one_i = np.zeros((1, 1)), np.zeros((1, 1), dtype=np.int64)
+    out = {name: one_f for name in _kernels.FLOATS}
+    out.update({name: one_i for name in _kernels.INTS})
+    out.update(_bounds(model), w_b=model.constraint.B.terms, w_g=model.constraint.G.terms,
+               a_terms=model.A.terms, f_terms=model.F.terms, dims=np.array([1, 0, 1]))
     return out
 
 
@@ -278,7 +308,7 @@ class CompiledOnline:
         self.method = method
         self.fb, self.ib, self.meta = pack(plan_arrays(model, method))
         self.n = int(model.A.terms.shape[-1])
-        self.m = int(model.constraint.T_B.shape[1])
+        self.m = int(model.R)
         n, m = self.n, self.m
         if method == "nnls":
             from rbbench.rb import _dual_kernels

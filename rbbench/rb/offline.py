@@ -73,7 +73,7 @@ class ReduceConfig:
     n_jobs: int | None = None
     cache_dir: str = ".rbbench_cache"
     online_repeats: int = 20
-    online_method: str = "nnls"  # reduced saddle-point solver: nnls or pdas (LCP), daqp (QP)
+    online_method: str = "auto"  # reduced solver: auto, nnls or pdas (LCP), daqp (QP)
     backend_options: dict = field(default_factory=dict)  # e.g. NGSolve {"mesh": "skfem"}
     formulation_options: dict = field(default_factory=dict)  # e.g. Nitsche {"gamma0": 1.0}
     exact_max_r: int = 10

@@ -20,8 +20,8 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
     each round so that machine load hits them alike, under one BLAS thread. Reports
     per level the HF size, the reduced sizes, the median and inter-quartile range of
     the online time (s), its ratio to the first level and the online path that ran
-    (``compiled`` or ``python``, :attr:`OnlineResult.path`) of the configured online method
-    (``online_method``, default ``nnls``).
+    (``compiled`` or ``python``, :attr:`OnlineResult.path`) and the online method that ran
+    (``online_method``; ``auto`` resolved, :attr:`OnlineResult.method`).
     """
     from rbbench.rb.offline import reduce
 
@@ -36,6 +36,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
         results.append(res)
     times: list[list[float]] = [[] for _ in results]
     paths: list[set[str]] = [set() for _ in results]
+    methods: list[set[str]] = [set() for _ in results]
     with one_blas_thread():
         for _ in range(repeats):
             for k, res in enumerate(results):
@@ -43,9 +44,10 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                     out = res.model.solve(mu, method=config.online_method)
                     times[k].append(out.time_s)
                     paths[k].add(str(getattr(out, "path", "python")))
+                    methods[k].add(str(getattr(out, "method", config.online_method)))
     rows = []
     base = float(np.median(times[0]))
-    for level, res, t, path in zip(levels, results, times, paths, strict=True):
+    for level, res, t, path, meth in zip(levels, results, times, paths, methods, strict=True):
         s = res.summary()
         med = float(np.median(t))
         rows.append({"level": level, "n_hf_dofs": s["n_hf_dofs"], "n_contact": s["n_contact"],
@@ -54,7 +56,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                      "t_online_median_s": med,
                      "t_online_iqr_s": float(np.subtract(*np.percentile(t, [75, 25]))),
                      "ratio_to_first": med / base, "t_hf_median_s": s["t_hf_median_s"],
-                     "online_method": config.online_method,
+                     "online_method": "/".join(sorted(meth)),
                      "online_path": "/".join(sorted(path))})
     return rows
 
