@@ -227,15 +227,23 @@ def test_exact_affine_constraint_compiled_equals_python(method):
                                    atol=1e-10 * max(py.alpha.max(), 1e-300))
 
 
-def test_auto_takes_nnls_only_where_the_delassus_matrix_can_be_regular():
-    """R <= N: nnls (compiled); R > N (D = B_N A_N^-1 B_N^T singular): daqp, which the
-    result names; both equal to the pdas solution."""
-    for R, expected in ((4, "nnls"), (9, "daqp")):
+def test_auto_takes_the_compiled_nnls_and_falls_back_to_the_compiled_daqp(monkeypatch):
+    """``auto``: the compiled nnls, also with R > N (D = B_N A_N^-1 B_N^T singular, the
+    active set only needs its passive blocks regular), equal to the pdas solution; a failed
+    nnls solve is retried by the compiled daqp, and the result says so."""
+    for R in (4, 9):
         model = _affine_model(R=R)
-        assert model.resolve_method() == expected
+        assert model.resolve_method() == "nnls"
         res = model.solve(1.0)
-        assert res.method == expected and res.path == "compiled"
+        assert res.method == "nnls" and res.path == "compiled"
+        assert res.stop_reason == "converged"
         ref = model.solve(1.0, method="pdas")
         assert ref.method == "pdas" and _rel(res.c, ref.c) <= 1e-10
     assert model.resolve_method(path="python") == "daqp"
     assert model.resolve_method("pdas") == "pdas"
+    monkeypatch.setattr(model._online_state["nnls"], "solve", lambda mu: None)
+    res = model.solve(1.0)
+    assert (res.method, res.path, res.stop_reason) == ("daqp", "compiled",
+                                                       "converged (daqp fallback)")
+    assert _rel(res.c, ref.c) <= 1e-10
+    assert model.solve(1.0, method="nnls").path == "python"  # asked for: its own fallback

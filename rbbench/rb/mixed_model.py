@@ -258,13 +258,18 @@ class ReducedModel:
         available: :meth:`online_path`). The compiled kernels are prepared on the first
         call, outside the timed solve (``compiled_online.COMPILE`` has that time).
         """
-        method = self.resolve_method(method, path)
+        requested, method = method, self.resolve_method(method, path)
         fast = self._compiled(method, path)
         t0 = time.perf_counter()
         if fast is not None:
             out = fast.solve(mu)
+            reason = "converged"
+            if out is None and requested == "auto":  # e.g. a dependent row of a singular D
+                fast = self._compiled("daqp", path)
+                out = fast.solve(mu) if fast is not None else None
+                method, reason = "daqp", "converged (daqp fallback)"
             if out is not None:
-                return OnlineResult(out[0], out[1], out[2], "converged",
+                return OnlineResult(out[0], out[1], out[2], reason,
                                     time.perf_counter() - t0, out[3], "compiled", method)
         if self.parameters is not None:
             mu = self.parameters.check(mu)
@@ -275,13 +280,13 @@ class ReducedModel:
         return res
 
     def resolve_method(self, method: str = "auto", path: str = "auto") -> str:
-        """``auto``: ``nnls`` where its compiled path is available and ``R <= N`` (else
-        ``D = B_N A_N^-1 B_N^T`` is singular and the active set would stop on a dependent
-        row every time), otherwise ``daqp`` (the faster on the Python path). Any other
-        method is returned as it is."""
+        """``auto``: ``nnls`` where its compiled path is available, otherwise ``daqp`` (the
+        faster on the Python path). A compiled ``nnls`` that fails (a dependent row when
+        ``D = B_N A_N^-1 B_N^T`` is singular, e.g. ``R > N``) is retried by the compiled
+        daqp (:meth:`solve`). Any other method is returned as it is."""
         if method != "auto":
             return method
-        if path != "python" and self.R <= self.N and self._compiled("nnls", "auto"):
+        if path != "python" and self._compiled("nnls", "auto"):
             return "nnls"
         return "daqp"
 
