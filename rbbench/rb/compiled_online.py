@@ -1,14 +1,16 @@
-"""The compiled online path of the mixed reduced model with the contact EIM (issue 17, item 1).
+"""The compiled online path of the mixed reduced model (issue 17, item 1): contact EIM or
+exact affine constraints.
 
 :meth:`rbbench.rb.mixed_model.ReducedModel.solve` spends ~95 % of its ~420 us on the
 Python path in about 500 Python calls: the EIM's contact pairing, the magic entries, the
 coefficient solves, the reduced assembly and the solver's input. Here one numba kernel does
 all of it for one mu, per online method:
 
-* ``nnls`` (the default): :func:`rbbench.rb._dual_kernels.online_nnls` condenses the
-  reduced saddle point on the cone coefficients through a common eigenbasis of ``A_N``'s
-  affine terms (:func:`eigenbasis`, offline) and solves ``LCP(q, D)`` by Lawson-Hanson's
-  active set inside the same kernel: no factorisation and no Python call online;
+* ``nnls`` (what the default ``auto`` takes): :func:`rbbench.rb._dual_kernels.online_nnls`
+  condenses the reduced saddle point on the cone coefficients through a common eigenbasis
+  of ``A_N``'s affine terms (:func:`eigenbasis`, offline) and solves ``LCP(q, D)`` by
+  Lawson-Hanson's active set inside the same kernel: no factorisation and no Python call
+  online;
 * ``daqp``: :func:`rbbench.rb._kernels.online_qp` writes the scaled QP of the Python path,
   daqp solves it (same tolerances), a second kernel unscales its answer.
 
@@ -97,18 +99,23 @@ def coefficient_map(lu_piv: tuple[np.ndarray, np.ndarray], T: np.ndarray) -> np.
 
 def plan_arrays(model: Any, method: str = "daqp") -> dict[str, np.ndarray]:
     """The arrays of the kernels' plan (:data:`rbbench.rb._kernels.FLOATS`, ``INTS``) from a
-    reduced model whose constraint is a :class:`~rbbench.rb.contact_eim.ContactEIM`.
+    reduced model whose constraint is a :class:`~rbbench.rb.contact_eim.ContactEIM` or exact
+    affine (:func:`_affine_plan`); ``method = "nnls"`` adds the condensed arrays
+    (:func:`_condensed_plan`)."""
+    out = _eim_plan(model) if hasattr(model.constraint, "evaluator") else _affine_plan(model)
+    if method == "nnls":
+        out.update(_condensed_plan(model, out["w_b"]))
+    return out
 
-    What does not depend on mu is tabulated here: the reference slave points, normals,
-    weights (:func:`rbbench.rb._kernels.slave_points`), the monotonicity test of each
-    point's master window for both signs of the slave scale, the slave term of every
-    magic entry (``slave_b``) and ``Z^T`` on the master dofs of the windows (``zt_m``)."""
+
+def _eim_plan(model: Any) -> dict[str, np.ndarray]:
+    """The plan of a :class:`~rbbench.rb.contact_eim.ContactEIM` constraint
+    (:func:`plan_arrays`). What does not depend on mu is tabulated here: the reference slave
+    points, normals, weights (:func:`rbbench.rb._kernels.slave_points`), the monotonicity
+    test of each point's master window for both signs of the slave scale, the slave term of
+    every magic entry (``slave_b``) and ``Z^T`` on the master dofs of the windows
+    (``zt_m``)."""
     ceim = model.constraint
-    if not hasattr(ceim, "evaluator"):  # an exact affine constraint (path_reason)
-        out = _affine_plan(model)
-        if method == "nnls":
-            out.update(_condensed_plan(model, out["w_b"]))
-        return out
     ev, lay = ceim.evaluator, ceim.evaluator.layout
     sl, ms = lay.slave, lay.master
     x_hat, n_hat, w_hat, sphi = reference_points(lay)
@@ -126,8 +133,6 @@ def plan_arrays(model: Any, method: str = "daqp") -> dict[str, np.ndarray]:
            "order_b": np.argsort(ceim.entry_col, kind="stable"), "pts_g": pts_g,
            "vt": np.zeros((1, 1)), "lam_a": np.zeros((1, 1))}
     out.update(_master_plan(ceim, n_hat))
-    if method == "nnls":
-        out.update(_condensed_plan(model, out["w_b"]))
     return out
 
 
