@@ -239,10 +239,11 @@ def _slave_terms(ceim: Any, dofs: np.ndarray, phi: np.ndarray, n: np.ndarray,
 
 
 def _master_plan(ceim: Any, n_hat: np.ndarray) -> dict[str, np.ndarray]:
-    """The master chain, its windows, their monotonicity test (the reference's
-    :func:`~rbbench.hf.facets.ray_cast_window` formula for ``sign(s) n_hat``: column 0
-    for ``s > 0``, 1 for ``s < 0``) and ``Z^T`` on the master dofs the windows reach
-    (``m_dofs`` numbered into ``zt_m``; facets outside every window point at column 0)."""
+    """The master chain (facet ends ``m_a``, ``m_b``, vertices ``m_v``), its windows, their
+    monotonicity test (the reference's :func:`~rbbench.hf.facets.ray_cast_window` formula
+    for ``sign(s) n_hat``: column 0 for ``s > 0``, 1 for ``s < 0``) and ``Z^T`` on the
+    master dofs the windows reach (``m_dofs`` numbered into ``zt_m``; facets outside every
+    window point at column 0)."""
     from rbbench.hf.facets import window_monotone
 
     ev, ms = ceim.evaluator, ceim.evaluator.layout.master
@@ -250,7 +251,7 @@ def _master_plan(ceim: Any, n_hat: np.ndarray) -> dict[str, np.ndarray]:
     nq = n_hat.shape[0]
     if ms is None:
         none2 = np.zeros((1, 2))
-        return {"m_a": none2, "m_b": none2, "zt_m": np.zeros((N, 1)),
+        return {"m_a": none2, "m_b": none2, "m_v": none2, "zt_m": np.zeros((N, 1)),
                 "mono": np.zeros((nq, 2), dtype=np.int64),
                 "m_dofs": np.zeros((1, 2), int),
                 "lo": np.zeros(1, int), "hi": np.zeros(1, int)}
@@ -262,7 +263,8 @@ def _master_plan(ceim: Any, n_hat: np.ndarray) -> dict[str, np.ndarray]:
         reached[a:b + 1] = True
     used = np.unique(dofs[reached])
     m_dofs = np.where(reached[:, None], np.searchsorted(used, dofs), 0)
-    return {"m_a": ms.a, "m_b": ms.b, "zt_m": np.ascontiguousarray(ceim.Z_loc[used].T),
+    return {"m_a": ms.a, "m_b": ms.b, "m_v": np.vstack([ms.a, ms.b[-1:]]),
+            "zt_m": np.ascontiguousarray(ceim.Z_loc[used].T),
             "mono": mono.astype(np.int64),
             "m_dofs": m_dofs, "lo": lo, "hi": hi}
 
