@@ -476,6 +476,13 @@ class Backend(ABC):
         (``"tangential"``: ``ContactOperators.Ut``; ``"stress"``: ``ContactOperators.Snn``
         and ``facet_length``)."""
 
+    def warm_up(self) -> None:
+        """Build what does not depend on mu now (default: ``inner_product()`` when the
+        backend has one), so that no timed ``discretize`` holds that one-off work."""
+        inner_product = getattr(self, "inner_product", None)
+        if callable(inner_product):
+            inner_product()
+
 
 class Formulation(ABC):
     """Formulation role: turn backend operators into the algebraic contact problem.

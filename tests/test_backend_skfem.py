@@ -67,11 +67,30 @@ def test_gap_matches_circle_geometry():
         assert np.isclose(c.weights.sum(), mu * np.pi / 4, rtol=1e-3)
 
 
-def test_stiffness_invariant_under_dilation():
-    """2D elasticity stiffness is invariant under x -> mu x (science.md): a property check."""
-    b = _backend()
-    A0, A1 = b.discretize(0.7).A, b.discretize(1.3).A
-    assert abs(A0 - A1).max() <= 1e-10 * abs(A0).max()
+@pytest.mark.parametrize("overrides", [[], ["material.upper.E='mu.mu'"],
+                                       ["geometry.lower='rigid_flat'"]])
+@pytest.mark.parametrize("mu", [0.7, 1.3])
+def test_stiffness_equals_assembly_on_the_mapped_mesh(overrides, mu):
+    """The stiffness combined from the reference Lame terms equals scikit-fem's assembly
+    on each body's mesh mapped at mu (2D elasticity is invariant under the similarity
+    ``x -> s x + c``, science.md), with a parameter-dependent Young's modulus too."""
+    import scipy.sparse as sp
+    from skfem import Basis, asm
+    from skfem.models.elasticity import lame_parameters, linear_elasticity
+
+    b = _backend(overrides)
+    A = b.discretize(mu).A
+    blocks = []
+    for body in b._bodies():
+        mesh = type(body.mesh_hat)(b._mapped(body, np.array([mu])), body.mesh_hat.t)
+        basis = Basis(mesh, body.basis_hat.elem)
+        E, nu = b.scene.material(body.name, np.array([mu]))
+        blocks.append(asm(linear_elasticity(*lame_parameters(E, nu)), basis))
+    ref = sp.block_diag(blocks).tocsr()
+    assert A.shape == ref.shape
+    assert abs(A - ref).max() <= 1e-12 * abs(ref).max()
+    if overrides and "E=" in overrides[0]:  # E(mu) = mu enters: not the default stiffness
+        assert abs(A - _backend().discretize(mu).A).max() > 0.1 * abs(A).max()
 
 
 def test_rigid_flat_has_one_body():

@@ -113,6 +113,7 @@ class SkfemBackend(common.HalfDiskContact, Backend):
             self._init_square()
         self.t_mesh = time.perf_counter() - t0
         self._X = None
+        self._k_ref = None
 
     # ------------------------------------------------------------------ setup
     def _init_halfdisks(self) -> None:
@@ -172,6 +173,12 @@ class SkfemBackend(common.HalfDiskContact, Backend):
                     self._X = sp.block_diag(blocks).tocsr()
         return self._X
 
+    def warm_up(self) -> None:
+        """The inner product and, for half-disks, the reference stiffness terms."""
+        super().warm_up()
+        if self.kind == "halfdisks":
+            self._reference_stiffness()
+
     def _bodies(self) -> list[_Body]:
         return [self.upper] + ([self.lower] if self.lower is not None else [])
 
@@ -182,14 +189,44 @@ class SkfemBackend(common.HalfDiskContact, Backend):
         return self._body_maps()[body.name](mu, body.mesh_hat.p.T).T
 
     def _elastic_operator(self, mu) -> sp.csr_matrix:
-        """Block-diagonal plane-strain stiffness, each body assembled on its mapped mesh."""
-        blocks = []
-        for body in self._bodies():
-            E, nu = self.scene.material(body.name, mu)
-            mesh = type(body.mesh_hat)(self._mapped(body, mu), body.mesh_hat.t)
-            basis = Basis(mesh, ElementVector(_element(self.degree)))
-            blocks.append(asm(linear_elasticity(*lame_parameters(E, nu)), basis))
-        return sp.block_diag(blocks).tocsr()
+        """Block-diagonal plane-strain stiffness at mu: ``sum_b lam_b K_div,b + mu_b
+        K_eps,b`` with the Lame parameters of each body at mu (:meth:`_reference_stiffness`).
+
+        Each body moves by a similarity ``x = s x_hat + c`` (:class:`AffineMap`): strains
+        scale by ``1 / s`` and areas by ``s^2``, so the stiffness on the mapped mesh is the
+        one on the reference mesh (2D), and only ``E(mu)``, ``nu(mu)`` enter. Equal to the
+        assembly on the mapped mesh up to round-off (``tests/test_skfem_backend.py``)."""
+        pattern, parts = self._reference_stiffness()
+        data = np.concatenate([lam * k_div + mu_l * k_eps for (k_div, k_eps), (lam, mu_l) in
+                               zip(parts, self._lame(mu), strict=True)])
+        return sp.csr_matrix((data, *pattern), shape=(self.ndofs, self.ndofs))
+
+    def _lame(self, mu) -> list[tuple[float, float]]:
+        """The plane-strain Lame parameters ``(lambda, mu)`` of each body at mu."""
+        return [lame_parameters(*self.scene.material(body.name, mu)) for body in self._bodies()]
+
+    def _reference_stiffness(self) -> tuple[tuple[np.ndarray, np.ndarray], list]:
+        """``((indices, indptr), [(K_div data, K_eps data) per body])``: a block-diagonal
+        CSR pattern and the data of the two Lame terms of each body on it, assembled once on
+        the reference meshes (``linear_elasticity(1, 0)`` and ``(0, 1)``; the pattern is
+        the union of theirs, which differ where one term vanishes)."""
+        if getattr(self, "_k_ref", None) is None:
+            terms = [sp.block_diag([asm(linear_elasticity(*lame), body.basis_hat)
+                                    for body in self._bodies()]).tocoo()
+                     for lame in ((1.0, 0.0), (0.0, 1.0))]
+            n = self.ndofs
+            keys = [t.row.astype(np.int64) * n + t.col for t in terms]
+            union = np.unique(np.concatenate(keys))
+            data = []
+            for t, k in zip(terms, keys, strict=True):
+                d = np.zeros(union.size)
+                np.add.at(d, np.searchsorted(union, k), t.data)
+                data.append(d)
+            indptr = np.searchsorted(union // n, np.arange(n + 1))
+            cuts = indptr[[body.offset for body in self._bodies()] + [n]]
+            parts = [(data[0][a:b], data[1][a:b]) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+            self._k_ref = ((union % n, indptr), parts)
+        return self._k_ref
 
     def discretize(self, mu, needs: frozenset[str] = frozenset()) -> Discretization:
         """Operators at ``mu``; ``needs`` may ask for ``"tangential"`` (friction) and
