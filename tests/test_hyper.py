@@ -100,6 +100,26 @@ def test_windowed_ray_cast_equals_brute_force_on_the_window(data):
     np.testing.assert_allclose(np.abs(t1[hit]), np.abs(t0[hit]), rtol=1e-9, atol=1e-12)
 
 
+@settings(max_examples=100, deadline=None)
+@given(chains(), st.integers(1, 50))
+def test_ray_cast_in_blocks_equals_one_block(data, block):
+    """The blocked brute force (``RAY_CAST_BLOCK`` pairs per block) gives exactly the
+    result of all points at once, with and without candidate windows."""
+    from rbbench.hf import facets
+
+    a, b, x, nrm, lo, hi = data
+    width = int((hi - lo).max()) + 1
+    cand = lo[:, None] + np.arange(width)[None, :]
+    cand = np.where(cand <= hi[:, None], cand, -1)
+    for candidates in (None, cand):
+        whole = facets._ray_cast_block(x, nrm, a, b, 1e-10, candidates)
+        with pytest.MonkeyPatch.context() as m:
+            m.setattr(facets, "RAY_CAST_BLOCK", block)
+            blocked = facets.ray_cast(x, nrm, a, b, candidates=candidates)
+        for u, v in zip(whole, blocked, strict=True):
+            np.testing.assert_array_equal(u, v)
+
+
 @pytest.fixture(scope="module")
 def hertz_train():
     sc, (b, f, _) = _components()

@@ -53,6 +53,11 @@ def outward_normals(a: np.ndarray, b: np.ndarray, inner: np.ndarray) -> np.ndarr
     return n
 
 
+#: (point, segment) pairs per block of :func:`ray_cast`: eight work arrays of this many
+#: doubles stay within a core's L2 cache (1 MB here)
+RAY_CAST_BLOCK = 8192
+
+
 def ray_cast(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
              tol: float = 1e-10, candidates: np.ndarray | None = None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -63,7 +68,28 @@ def ray_cast(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
     segment is hit. ``candidates`` (n_points, K), padded with -1, restricts the
     segments tried for each point (the hyper-reduced evaluator's windows);
     ``None`` tries every segment.
+
+    The points go in blocks of about :data:`RAY_CAST_BLOCK` pairs (each point's result
+    is computed alone, so blocking changes nothing): the work arrays of all points at
+    once were O(points x segments), about 3.5 MB each at Hertz level 0, and a forked worker's
+    first solve spent 0.12 s in them instead of 0.027 s (page faults).
     """
+    nx = x.shape[0]
+    width = a.shape[0] if candidates is None else max(candidates.shape[1], 1)
+    step = max(1, RAY_CAST_BLOCK // max(width, 1))
+    if nx <= step:
+        return _ray_cast_block(x, n, a, b, tol, candidates)
+    seg, s, t = np.empty(nx, dtype=np.int64), np.empty(nx), np.empty(nx)
+    for i in range(0, nx, step):
+        rows = slice(i, i + step)
+        seg[rows], s[rows], t[rows] = _ray_cast_block(
+            x[rows], n[rows], a, b, tol, None if candidates is None else candidates[rows])
+    return seg, s, t
+
+
+def _ray_cast_block(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray, tol: float,
+                    candidates: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`ray_cast` on one block of points."""
     nx = x.shape[0]
     if candidates is None:
         idx = np.broadcast_to(np.arange(a.shape[0]), (nx, a.shape[0]))
