@@ -119,7 +119,9 @@ def _reference_tree(tmp: Path) -> str:
 def test_frictionless_operators_bitwise_as_before(tmp_path):
     """B, G, W, Un, gap, A and the Dirichlet values of both shipped scenes (default mesh,
     mu at the default and the upper bound, each installed backend) and the fingerprints
-    are bitwise those of the commit before the friction operators."""
+    are bitwise those of the commit before the friction operators; except the values of
+    the scikit-fem half-disk stiffness, which is now combined from reference Lame terms
+    (``SkfemBackend._elastic_operator``): those to 1e-12 of the largest, same pattern."""
     backends = ["skfem"]
     try:
         import ngsolve  # noqa: F401
@@ -134,6 +136,9 @@ def test_frictionless_operators_bitwise_as_before(tmp_path):
     assert ref.keys() == now.keys()
     for k in ref:
         assert ref[k].dtype == now[k].dtype and ref[k].shape == now[k].shape, k
+        if k.startswith("hertz_halfdisks/skfem/") and k.endswith("/A/data"):
+            assert np.abs(ref[k] - now[k]).max() <= 1e-12 * np.abs(ref[k]).max(), k
+            continue
         assert np.array_equal(ref[k], now[k]), k
 
 
