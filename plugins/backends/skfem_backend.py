@@ -224,8 +224,15 @@ class SkfemBackend(common.HalfDiskContact, Backend):
                 data.append(d)
             indptr = np.searchsorted(union // n, np.arange(n + 1))
             cuts = indptr[[body.offset for body in self._bodies()] + [n]]
-            parts = [(data[0][a:b], data[1][a:b]) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
-            self._k_ref = ((union % n, indptr), parts)
+            parts = [(data[0][a:b], data[1][a:b])
+                     for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+            # scipy's index type, so that no mu converts them; shared by every matrix of
+            # _elastic_operator, hence read-only (an in-place change raises)
+            index = np.int32 if union.size < 2**31 else np.int64
+            pattern = ((union % n).astype(index), indptr.astype(index))
+            for a in pattern:
+                a.flags.writeable = False
+            self._k_ref = (pattern, parts)
         return self._k_ref
 
     def discretize(self, mu, needs: frozenset[str] = frozenset()) -> Discretization:
