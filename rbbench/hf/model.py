@@ -230,7 +230,8 @@ class HFModel:
         return sol
 
     def _solve(self, mu: np.ndarray, progress: Callable[[str], None]) -> HFSolution:
-        """Mesh (first call), discretise, formulate, solve, metrics, flag."""
+        """Mesh and build the mu-independent operators (first call, ``Backend.warm_up``),
+        discretise, formulate, solve, metrics, flag."""
         scene, names = self.scene, self.names
         t0 = time.perf_counter()
         if self.components is None:
@@ -238,6 +239,9 @@ class HFModel:
             self.components = make_components(scene, names["backend"], names["formulation"],
                                               names["solver"], self.registry,
                                               self.solver_options)
+            warm_up = getattr(self.components[0], "warm_up", None)
+            if callable(warm_up):  # the mu-independent operators: setup, not discretisation
+                warm_up()
         b, f, s = self.components
         t1 = time.perf_counter()
         progress("assembling operators")
