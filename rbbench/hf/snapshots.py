@@ -252,7 +252,7 @@ def _components(scene: Any, names: tuple[str, str, str], solver_options: dict | 
 
     Warm-up: the backend's ``warm_up()`` (:meth:`rbbench.interfaces.Backend.warm_up`:
     the mu-independent operators, built at the first discretisation otherwise, e.g. the
-    inner product and the reference stiffness terms: 0.9 s of Hertz level 0), so that no
+    inner product and the reference stiffness terms: 0.28 s at Hertz level 0), so that no
     snapshot's stored ``time_s`` holds that one-off work.
     """
     if _COMPONENTS.get("key") != key or _COMPONENTS.get("registry") is not registry:
