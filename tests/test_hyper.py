@@ -100,6 +100,24 @@ def test_windowed_ray_cast_equals_brute_force_on_the_window(data):
     np.testing.assert_allclose(np.abs(t1[hit]), np.abs(t0[hit]), rtol=1e-9, atol=1e-12)
 
 
+def test_gc_paused_restores_the_collector_state():
+    import gc
+
+    from rbbench.studies.scaling import gc_paused
+
+    assert gc.isenabled()
+    with gc_paused():
+        assert not gc.isenabled()
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        with gc_paused():
+            pass
+        assert not gc.isenabled()  # a caller's own pause is kept
+    finally:
+        gc.enable()
+
+
 @settings(max_examples=100, deadline=None)
 @given(chains(), st.integers(1, 50))
 def test_ray_cast_in_blocks_equals_one_block(data, block):
