@@ -210,7 +210,7 @@ class SkfemBackend(common.HalfDiskContact, Backend):
         CSR pattern and the data of the two Lame terms of each body on it, assembled once on
         the reference meshes (``linear_elasticity(1, 0)`` and ``(0, 1)``: the same element
         loops, so the same pattern before scipy sums the duplicates; 0.16 s at level 0)."""
-        if getattr(self, "_k_ref", None) is None:
+        if self._k_ref is None:
             rows, cols, data = [], [], ([], [])
             for body in self._bodies():
                 for lame, out in zip(((1.0, 0.0), (0.0, 1.0)), data, strict=True):

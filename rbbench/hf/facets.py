@@ -75,10 +75,8 @@ def ray_cast(x: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray,
     first solve spent 0.12 s in them instead of 0.027 s (page faults).
     """
     nx = x.shape[0]
-    width = a.shape[0] if candidates is None else max(candidates.shape[1], 1)
-    step = max(1, RAY_CAST_BLOCK // max(width, 1))
-    if nx <= step:
-        return _ray_cast_block(x, n, a, b, tol, candidates)
+    width = max(a.shape[0] if candidates is None else candidates.shape[1], 1)
+    step = max(1, RAY_CAST_BLOCK // width)
     seg, s, t = np.empty(nx, dtype=np.int64), np.empty(nx), np.empty(nx)
     for i in range(0, nx, step):
         rows = slice(i, i + step)

@@ -149,6 +149,15 @@ def friction_at(scene: Scene, mu: Any) -> FrictionLaw | None:
     return FrictionLaw("coulomb", coefficient=float(friction_value(scene, "coefficient", mu)))
 
 
+def warm_up(backend: Any) -> None:
+    """Build the backend's mu-independent operators now (:meth:`Backend.warm_up`; a backend
+    outside that base class: its ``inner_product()``, if any), so that no timed
+    discretisation holds that one-off work."""
+    build = getattr(backend, "warm_up", None) or getattr(backend, "inner_product", None)
+    if callable(build):
+        build()
+
+
 def discretize_for(backend: Any, formulation: Any, mu: Any) -> Discretization:
     """``backend.discretize(mu)`` with the optional operators the formulation declares
     (``Formulation.needs``, e.g. ``{"stress"}`` for Nitsche; none for mixed)."""
@@ -239,9 +248,7 @@ class HFModel:
             self.components = make_components(scene, names["backend"], names["formulation"],
                                               names["solver"], self.registry,
                                               self.solver_options)
-            warm_up = getattr(self.components[0], "warm_up", None)
-            if callable(warm_up):  # the mu-independent operators: setup, not discretisation
-                warm_up()
+            warm_up(self.components[0])  # mu-independent operators: setup, not discretisation
         b, f, s = self.components
         t1 = time.perf_counter()
         progress("assembling operators")

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.model import make_components, solve_hf
+from rbbench.hf.model import make_components, solve_hf, warm_up
 from rbbench.hf.snapshot_key import key_payload, payload_key, snapshot_key
 from rbbench.hf.threads import limit_blas_threads
 from rbbench.registry import default_registry
@@ -250,7 +250,7 @@ def _components(scene: Any, names: tuple[str, str, str], solver_options: dict | 
     """The components of ``key`` (:func:`snapshot_key`), meshed and warmed up once per
     process: the last set is kept and reused for the same key and registry.
 
-    Warm-up: the backend's ``warm_up()`` (:meth:`rbbench.interfaces.Backend.warm_up`:
+    Warm-up: :func:`rbbench.hf.model.warm_up` (:meth:`rbbench.interfaces.Backend.warm_up`:
     the mu-independent operators, built at the first discretisation otherwise, e.g. the
     inner product and the reference stiffness terms: 0.28 s at Hertz level 0), so that no
     snapshot's stored ``time_s`` holds that one-off work.
@@ -259,9 +259,7 @@ def _components(scene: Any, names: tuple[str, str, str], solver_options: dict | 
         _COMPONENTS.clear()
         comps = make_components(scene, *names, solver_options=solver_options,
                                 component_options=component_options, registry=registry)
-        warm_up = getattr(comps[0], "warm_up", None) or getattr(comps[0], "inner_product", None)
-        if callable(warm_up):
-            warm_up()
+        warm_up(comps[0])
         _COMPONENTS.update(key=key, registry=registry, components=comps)
     return _COMPONENTS["components"]
 
