@@ -6,13 +6,19 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
+import subprocess
+import sys
+import threading
 import time
 
 import numpy as np
 import pytest
 
 from rbbench.hf import snapshots
+from rbbench.hf import worker_pool as worker_pool_module
 from rbbench.hf.snapshots import compute_snapshots
+from rbbench.hf.worker_pool import keep_workers, kept_pool_alive, release_free_heap
 from rbbench.scene.loading import load_scene
 from rbbench.scene.sampling import parameter_set
 
@@ -135,3 +141,156 @@ def test_a_dying_worker_gives_error_rows_not_a_crash(scene, tmp_path, monkeypatc
     assert all(r == "converged" or "died" in out.errors[j]
                for j, r in enumerate(out.stop_reasons))
     assert np.isnan(out.U[:, 0]).all() and np.isfinite(out.U[:, solved]).all()
+
+
+# ---------------------------------------------------------------- a pool kept in a block
+def _pids(path, mus):
+    """The pids that solved ``mus`` (from the log)."""
+    wanted = {str(m.tolist()) for m in mus}
+    return {pid for pid, mu in _lines(path, "solve") if mu in wanted}
+
+
+def _gone(pid: int) -> bool:
+    """``pid`` has exited (a zombie counts: it runs no more)."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except FileNotFoundError:
+        return True
+
+
+@fork_only
+def test_a_block_keeps_the_workers_for_the_next_call(scene, tmp_path, log):
+    """Inside ``keep_workers`` the second call with the same key is solved by the first
+    call's workers (and equals the serial snapshots); outside, each call forks anew; the
+    block's end shuts the pool down and its workers exit."""
+    path, _ = log
+    mus = parameter_set(scene, "train", n=9)  # a 3 x 3 grid
+    assert len(mus) == 9
+    kw = dict(n_jobs=2, progress=False, mp_context="fork")
+    compute_snapshots(scene, mus[:2], cache_dir=tmp_path / "a", **kw)
+    compute_snapshots(scene, mus[2:4], cache_dir=tmp_path / "a", **kw)
+    assert not _pids(path, mus[:2]) & _pids(path, mus[2:4])  # no block: fresh workers
+    with keep_workers():
+        compute_snapshots(scene, mus[4:6], cache_dir=tmp_path / "b", **kw)
+        assert kept_pool_alive()
+        second = compute_snapshots(scene, mus[6:], cache_dir=tmp_path / "b", **kw)
+        workers = _pids(path, mus[4:])
+    assert not kept_pool_alive()
+    assert len(workers) == 2 and str(os.getpid()) not in workers
+    assert _pids(path, mus[6:]) <= _pids(path, mus[4:6])
+    assert all(_wait_gone(int(p)) for p in workers)
+    serial = compute_snapshots(scene, mus[6:], cache_dir=tmp_path / "s", n_jobs=1,
+                               progress=False)
+    np.testing.assert_allclose(second.U, serial.U, rtol=0, atol=1e-12 * np.abs(serial.U).max())
+
+
+def _wait_gone(pid: int, timeout: float = 10.0) -> bool:
+    end = time.monotonic() + timeout
+    while not _gone(pid):
+        if time.monotonic() > end:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+@fork_only
+def test_a_block_starts_a_new_pool_for_another_key_or_a_dead_worker(scene, tmp_path, log):
+    """Another key (a solver option) gets new workers and the old ones exit; a worker
+    killed just before a call costs no row: noticed, the call gets a new pool; unnoticed
+    yet, the tasks it loses are solved again in a new pool."""
+    path, _ = log
+    mus = parameter_set(scene, "train", n=9)
+    assert len(mus) == 9
+    kw = dict(n_jobs=2, progress=False, mp_context="fork")
+    with keep_workers():
+        compute_snapshots(scene, mus[:2], cache_dir=tmp_path, **kw)
+        first = _pids(path, mus[:2])
+        compute_snapshots(scene, mus[2:4], cache_dir=tmp_path, solver_options={"tol": 1e-11},
+                          **kw)
+        assert not first & _pids(path, mus[2:4])
+        assert all(_wait_gone(int(p)) for p in first)
+        victim = int(next(iter(_pids(path, mus[2:4]))))
+        os.kill(victim, signal.SIGKILL)  # and the next call at once: dead or dying
+        out = compute_snapshots(scene, mus[4:], cache_dir=tmp_path,
+                                solver_options={"tol": 1e-11}, **kw)
+    assert out.stop_reasons == ["converged"] * 5
+    assert str(victim) not in _pids(path, mus[4:])
+
+
+@fork_only
+def test_a_reused_pool_that_loses_a_worker_solves_its_tasks_again(scene, tmp_path,
+                                                                   monkeypatch):
+    """A worker of a reused pool dies in the middle of a call (once: a marker file): the
+    parameters it lost are solved in a new pool, every row converged."""
+    parent, real = os.getpid(), snapshots.solve_hf
+    mus = parameter_set(scene, "train", n=4)
+    marker = tmp_path / "died"
+
+    def dies_once(scene, mu, **kw):
+        if (os.getpid() != parent and np.array_equal(np.atleast_1d(mu), mus[2])
+                and not marker.exists()):
+            marker.touch()
+            os._exit(3)
+        return real(scene, mu, **kw)
+
+    monkeypatch.setattr(snapshots, "solve_hf", dies_once)
+    snapshots._COMPONENTS.clear()
+    kw = dict(cache_dir=tmp_path / "c", n_jobs=2, progress=False, mp_context="fork")
+    with keep_workers():
+        compute_snapshots(scene, mus[:2], **kw)
+        out = compute_snapshots(scene, mus[2:], **kw)
+    snapshots._COMPONENTS.clear()
+    assert marker.exists()
+    assert out.stop_reasons == ["converged", "converged"]
+
+
+@fork_only
+def test_kept_workers_die_with_their_parent(tmp_path):
+    """A process that ends with ``os._exit`` inside a block (as the runner's snapshot
+    child does) leaves no worker behind: each asked the kernel for SIGKILL."""
+    script = tmp_path / "child.py"
+    script.write_text(
+        "import multiprocessing, os, sys\n"
+        "from rbbench.hf.snapshots import compute_snapshots\n"
+        "from rbbench.hf.worker_pool import keep_workers\n"
+        "from rbbench.scene.loading import load_scene\n"
+        "from rbbench.scene.sampling import parameter_set\n"
+        "sc = load_scene('membrane_obstacle')\n"
+        "with keep_workers():\n"
+        "    compute_snapshots(sc, parameter_set(sc, 'train', n=4), cache_dir=sys.argv[1],\n"
+        "                      n_jobs=2, progress=False, mp_context='fork')\n"
+        "    print(*[p.pid for p in multiprocessing.active_children()], flush=True)\n"
+        "    os._exit(0)\n")
+    out = subprocess.run([sys.executable, str(script), str(tmp_path / "c")],
+                         capture_output=True, text=True, timeout=120, check=True)
+    pids = [int(p) for p in out.stdout.split()]
+    assert len(pids) == 2
+    assert all(_wait_gone(p) for p in pids)
+
+
+@fork_only
+def test_a_kept_pool_serves_only_its_process_and_main_thread(scene, tmp_path, log):
+    """A process forked inside a block does not see the parent's pool; a call from
+    another thread gets a pool of its own, shut down when the call ends."""
+    mus = parameter_set(scene, "train", n=4)
+    kw = dict(n_jobs=2, progress=False, mp_context="fork")
+    with keep_workers():
+        compute_snapshots(scene, mus[:2], cache_dir=tmp_path, **kw)
+        assert kept_pool_alive()
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover - the child's status is asserted below
+            os._exit(0 if not kept_pool_alive() else 1)
+        assert os.waitpid(pid, 0)[1] == 0
+        kept = worker_pool_module._KEPT["pool"]
+        thread = threading.Thread(target=compute_snapshots, args=(scene, mus[2:]),
+                                  kwargs=dict(cache_dir=tmp_path, **kw))
+        thread.start()
+        thread.join(120)
+        assert worker_pool_module._KEPT["pool"] is kept  # untouched by the thread's call
+    assert compute_snapshots(scene, mus, cache_dir=tmp_path, n_jobs=1, progress=False
+                             ).n_computed == 0  # the thread's call solved mus[2:]
+
+
+def test_release_free_heap_runs_on_linux():
+    assert release_free_heap() is sys.platform.startswith("linux")

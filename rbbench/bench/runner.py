@@ -44,6 +44,7 @@ from rbbench.bench.execution import (  # noqa: F401 - one case's row: re-exporte
 from rbbench.bench.guard import RunLock, Watchdog
 from rbbench.bench.matrix import Case, Matrix
 from rbbench.hf.snapshots import atomic_write
+from rbbench.hf.worker_pool import die_with_parent
 from rbbench.provenance import _jsonable
 from rbbench.registry import Registry, default_registry
 
@@ -141,22 +142,12 @@ def _prepare_group(c: Case, cache_dir: str, jobs: int | None, registry: Any = No
 
 def _prepare_child(c: Case, cache_dir: str, jobs: int | None, registry: Any) -> None:
     os.setsid()  # its own process group: a time-out kills its snapshot workers too
-    _die_with_parent()  # and the run's watchdog kills the group if the run is killed
+    die_with_parent()  # and the run's watchdog kills the group if the run is killed
     try:
         _prepare_group(c, cache_dir, jobs, registry)
     except Exception:  # noqa: BLE001 - the cases meet (and record) the same failure
         os._exit(1)
     os._exit(0)
-
-
-def _die_with_parent() -> None:
-    """Linux: SIGKILL when the parent dies (``PR_SET_PDEATHSIG``)."""
-    import ctypes
-    import sys
-
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(OSError):
-            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)
 
 
 def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,

@@ -39,6 +39,7 @@ import numpy as np
 from rbbench.hf.model import make_components, solve_hf, warm_up
 from rbbench.hf.snapshot_key import key_payload, payload_key, snapshot_key
 from rbbench.hf.threads import limit_blas_threads
+from rbbench.hf.worker_pool import die_with_parent, release_free_heap, worker_pool
 from rbbench.registry import default_registry
 from rbbench.scene.friction import friction_of
 
@@ -269,6 +270,7 @@ def _init_worker(scene: Any, names: tuple[str, str, str], solver_options: dict |
                  registry: Any = None, key: str = "") -> None:
     """Worker start-up: cap the BLAS threads, take the components inherited from the
     parent (fork) or build them now, once (spawn, forkserver)."""
+    die_with_parent()  # a kept pool's idle workers must not outlive their parent
     _WORKER.clear()
     _WORKER.update(scene=scene, names=names, components=None, error="")
     if threads:
@@ -439,40 +441,60 @@ class _Run:
                  mp_context: str | None, threads: int) -> None:
         """Solve in ``n_jobs`` worker processes, one task per parameter (an idle worker
         takes the next one: balanced), results in their places. The components are built
-        once: here before a ``fork`` pool (the workers inherit them), else once per worker
-        at its start-up."""
-        bar = None
+        once: here before a ``fork`` pool (the workers inherit them; the free heap is
+        released first, :func:`~rbbench.hf.worker_pool.release_free_heap`), else once per
+        worker at its start-up. Inside :func:`~rbbench.hf.worker_pool.keep_workers` the
+        pool serves the next call with the same key too; if such a reused pool loses a
+        worker, the parameters it lost are solved once more in a new pool, so that a kept
+        pool never fails a call that a new one would not."""
+        ctx = multiprocessing.get_context(mp_context)
+        ident = (self.key, n_jobs, threads, ctx.get_start_method())
+        bar: list = []
         try:
-            ctx = multiprocessing.get_context(mp_context)
-            if ctx.get_start_method() == "fork":
-                try:
-                    self.components()
-                except Exception:  # noqa: BLE001 - the workers retry and report it per mu
-                    _COMPONENTS.clear()
-            with ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
-                                     initargs=(self.scene, self.names, self.solver_options,
-                                               threads, self.component_options,
-                                               self.registry, self.key)) as pool:
-                futures = {pool.submit(_worker_task, self.mus[i], self.paths[i]): i
-                           for i in todo}
-                # the bar only after the workers started: no fork with extra threads alive
-                bar = _progress_bar(self.progress, self.scene.name, len(self.mus), len(todo))
-                try:
-                    for fut in as_completed(futures):
-                        i = futures[fut]
-                        try:
-                            snaps[i] = fut.result()
-                        except BrokenProcessPool as exc:  # a worker died (e.g. killed)
-                            snaps[i] = _error_snapshot(self.mus[i],
-                                                       f"worker process died: {exc}")
-                        if bar is not None:
-                            bar.update()
-                except BaseException:
-                    pool.shutdown(wait=True, cancel_futures=True)
-                    raise
+            died, reused = self._in_pool(snaps, todo, ident, ctx, threads, bar, fresh=False)
+            if died and reused:
+                self._in_pool(snaps, died, ident, ctx, threads, bar, fresh=True)
         finally:
-            if bar is not None:
-                bar.close()
+            if bar and bar[0] is not None:
+                bar[0].close()
+
+    def _in_pool(self, snaps: list[Snapshot | None], todo: list[int], ident: tuple,
+                 ctx: Any, threads: int, bar: list, fresh: bool) -> tuple[list[int], bool]:
+        """Solve ``todo`` in a pool (:func:`~rbbench.hf.worker_pool.worker_pool`); returns
+        the indices whose worker died (error rows now) and whether the pool was reused."""
+        n_jobs = ident[1]
+        died = []
+        with worker_pool(ident, self.registry, lambda: self._pool(ctx, n_jobs, threads),
+                         fresh=fresh) as (pool, reused):
+            futures = {pool.submit(_worker_task, self.mus[i], self.paths[i]): i
+                       for i in todo}
+            if not bar:  # the bar only after the workers started: no fork with a thread
+                bar.append(_progress_bar(self.progress, self.scene.name, len(self.mus),
+                                         len(todo)))
+            for fut in as_completed(futures):
+                i = futures[fut]
+                try:
+                    snaps[i] = fut.result()
+                except BrokenProcessPool as exc:  # a worker died (e.g. killed)
+                    snaps[i] = _error_snapshot(self.mus[i], f"worker process died: {exc}")
+                    died.append(i)
+                    continue
+                if bar[0] is not None:
+                    bar[0].update()
+        return died, reused
+
+    def _pool(self, ctx: Any, n_jobs: int, threads: int) -> ProcessPoolExecutor:
+        """A new pool; with ``fork``, this process's components first (inherited)."""
+        if ctx.get_start_method() == "fork":
+            try:
+                self.components()
+            except Exception:  # noqa: BLE001 - the workers retry and report it per mu
+                _COMPONENTS.clear()
+            release_free_heap()
+        return ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
+                                   initargs=(self.scene, self.names, self.solver_options,
+                                             threads, self.component_options,
+                                             self.registry, self.key))
 
 
 def n_cpus() -> int:

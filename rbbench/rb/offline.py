@@ -24,6 +24,7 @@ import numpy as np
 
 from rbbench.hf.model import ProblemCache, discretize_for, friction_at, make_components
 from rbbench.hf.snapshots import SnapshotSet, compute_snapshots
+from rbbench.hf.worker_pool import keep_workers
 from rbbench.rb.hyper_reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.rb.mixed_model import ONLINE_METHODS
 from rbbench.rb.validation import ReducedStage, ReduceResult, validate
@@ -336,6 +337,7 @@ def training_snapshots(scene: Scene, config: ReduceConfig, formulation: str, sol
     n_valid = len(mus_valid) if validation else 0
     progress(f"HF snapshots ({formulation}): {len(mus_train)} training, {n_valid} "
              "validation")
-    train = compute_snapshots(scene, mus_train, **snap_kw)
-    valid = compute_snapshots(scene, mus_valid, **snap_kw) if validation else None
+    with keep_workers():  # the validation call reuses the training call's workers
+        train = compute_snapshots(scene, mus_train, **snap_kw)
+        valid = compute_snapshots(scene, mus_valid, **snap_kw) if validation else None
     return mus_train, train, mus_valid, valid
