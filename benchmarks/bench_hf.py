@@ -239,3 +239,26 @@ class SnapshotWorkers:
         with tempfile.TemporaryDirectory() as d:
             compute_snapshots(self.scene, self.mus, cache_dir=d, n_jobs=n_jobs,
                               progress=False)
+
+
+class SnapshotWorkersKept(SnapshotWorkers):
+    """As :class:`SnapshotWorkers`, but the timed call is the second of a
+    :func:`rbbench.hf.worker_pool.keep_workers` block (``setup`` makes the first, which
+    starts the pool): ``rbbench reduce``'s validation snapshots after its training ones.
+    With 2 workers the timed call finds workers that already solved (no first-solve page
+    faults); with 1 it is the same serial call as :class:`SnapshotWorkers`."""
+
+    def setup(self, n_jobs):
+        from rbbench.hf.worker_pool import keep_workers
+
+        super().setup(n_jobs)
+        self.block = keep_workers()
+        self.block.__enter__()
+        self.time_snapshots(n_jobs)  # the block's first call
+
+    def teardown(self, n_jobs):
+        self.block.__exit__(None, None, None)
+
+    def time_snapshots(self, n_jobs):
+        """Wall time (s) of 8 HF snapshots, the second call of a kept pool."""
+        super().time_snapshots(n_jobs)

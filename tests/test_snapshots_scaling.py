@@ -4,6 +4,7 @@ results in parameter order and equal to the serial ones."""
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 import os
 import signal
@@ -294,3 +295,30 @@ def test_a_kept_pool_serves_only_its_process_and_main_thread(scene, tmp_path, lo
 
 def test_release_free_heap_runs_on_linux():
     assert release_free_heap() is sys.platform.startswith("linux")
+
+
+def test_snapshot_workers_study_reports_every_case(tmp_path):
+    """``rbbench studies snapshot-workers``: one row per case, the serial median is the
+    reference of the speed-ups, the parameters as asked."""
+    from rbbench.cli import main
+    from rbbench.studies.snapshot_workers import CASES
+
+    out = tmp_path / "s.json"
+    assert main(["studies", "snapshot-workers", "membrane_obstacle", "-P", "3",
+                 "--rounds", "1", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert (data["P"], data["jobs"], data["rounds"]) == (3, 2, 1)
+    assert list(data["cases"]) == list(CASES)
+    assert data["cases"]["serial"]["speedup"] == 1.0
+    for row in data["cases"].values():
+        assert row["median_s"] > 0 and row["iqr_s"] == 0.0  # one round: no spread
+        assert row["speedup"] == pytest.approx(
+            data["cases"]["serial"]["median_s"] / row["median_s"], rel=1e-12)
+
+
+@pytest.mark.parametrize("flag", ["-P", "--jobs", "--rounds"])
+def test_snapshot_workers_study_refuses_counts_below_one(flag, capsys):
+    from rbbench.cli import main
+
+    assert main(["studies", "snapshot-workers", "membrane_obstacle", flag, "0"]) == 2
+    assert f"{flag} 0: must be an integer >= 1" in capsys.readouterr().err

@@ -4,7 +4,8 @@ One module per study: :mod:`~rbbench.studies.hertz` (the 2D Hertz table),
 :mod:`~rbbench.studies.nitsche_eac` (the seed's e_AC^n table of the Nitsche solve),
 :mod:`~rbbench.studies.nitsche_compare` (Nitsche against mixed),
 :mod:`~rbbench.studies.scaling` (online time against the HF size) and
-:mod:`~rbbench.studies.beta_dec` (the beta_dec stability study); Markdown helpers in
+:mod:`~rbbench.studies.beta_dec` (the beta_dec stability study),
+:mod:`~rbbench.studies.snapshot_workers` (HF snapshots, 1 against n worker processes); Markdown helpers in
 :mod:`~rbbench.studies.formatting`. The studies' public names are importable from here
 too (loaded on first use).
 """
@@ -23,6 +24,7 @@ _NAMES = {
     "online_scaling": "scaling", "scaling_markdown": "scaling",
     "formulation_comparison": "nitsche_compare", "comparison_markdown": "nitsche_compare",
     "beta_dec_study": "beta_dec", "BetaDecStudy": "beta_dec",
+    "snapshot_workers": "snapshot_workers",
 }
 #: former names (the flat ``rbbench/studies.py``) -> (module, name)
 _ALIASES = {"markdown": ("hertz", "hertz_markdown")}

@@ -1,0 +1,115 @@
+"""``rbbench studies snapshot-workers``: HF snapshots with 1 and with n worker processes,
+interleaved in one process (issue 17: 2 workers >= 1.85x of 1 on 8 parameters).
+
+Every round times, in this order and each into a fresh cache directory (so every solve
+runs), the same ``P`` parameters:
+
+``serial``
+    ``n_jobs = 1``, in this process;
+``fresh``
+    ``n_jobs = n``, a pool started for the call and shut down after it (what a single
+    :func:`~rbbench.hf.snapshots.compute_snapshots` call costs);
+``kept_1st``, ``kept_2nd``
+    two calls inside one :func:`~rbbench.hf.worker_pool.keep_workers` block: the second
+    finds workers that already solved (``rbbench reduce``'s validation call after its
+    training call).
+
+This process's components are built once before the first round (one snapshot), as
+the asv benchmarks ``SnapshotWorkers`` and ``SnapshotWorkersKept`` do. Reported: the
+median wall time of each case over the rounds, its interquartile range, and the speed-up
+``median(serial) / median(case)``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["CASES", "add_parser", "run", "snapshot_workers"]
+
+CASES = ("serial", "fresh", "kept_1st", "kept_2nd")
+
+
+def snapshot_workers(scene: Any, mus: np.ndarray, n_jobs: int = 2, rounds: int = 15
+                     ) -> dict[str, dict[str, float]]:
+    """``{case: {"median_s", "iqr_s", "speedup"}}`` over ``rounds`` interleaved rounds
+    (cases: :data:`CASES`; ``speedup`` = median serial time / median time of the case)."""
+    from rbbench.hf.snapshots import compute_snapshots
+    from rbbench.hf.worker_pool import keep_workers
+
+    def call(jobs: int) -> float:
+        with tempfile.TemporaryDirectory() as d:
+            t0 = time.perf_counter()
+            compute_snapshots(scene, mus, cache_dir=d, n_jobs=jobs, progress=False)
+            return time.perf_counter() - t0
+
+    with tempfile.TemporaryDirectory() as d:  # this process's components, built once
+        compute_snapshots(scene, mus[:1], cache_dir=d, n_jobs=1, progress=False)
+    times: dict[str, list[float]] = {c: [] for c in CASES}
+    for _ in range(rounds):
+        times["serial"].append(call(1))
+        times["fresh"].append(call(n_jobs))
+        with keep_workers():
+            times["kept_1st"].append(call(n_jobs))
+            times["kept_2nd"].append(call(n_jobs))
+    serial = float(np.median(times["serial"]))
+    out = {}
+    for case, t in times.items():
+        q1, med, q3 = np.percentile(t, [25, 50, 75])
+        out[case] = {"median_s": float(med), "iqr_s": float(q3 - q1),
+                     "speedup": serial / float(med)}
+    return out
+
+
+def markdown(rows: dict[str, dict[str, float]], n_jobs: int) -> str:
+    """The result of :func:`snapshot_workers` as a Markdown table."""
+    lines = ["| case | workers | median wall (s) | IQR (s) | speed-up vs serial |",
+             "|---|---|---|---|---|"]
+    for case, r in rows.items():
+        jobs = 1 if case == "serial" else n_jobs
+        lines.append(f"| {case} | {jobs} | {r['median_s']:.3f} | {r['iqr_s']:.3f} | "
+                     f"{r['speedup']:.2f}x |")
+    return "\n".join(lines)
+
+
+def add_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies snapshot-workers`` (``sub``: argparse subparsers)."""
+    p = sub.add_parser("snapshot-workers", help="HF snapshots with 1 and n worker "
+                       "processes, interleaved: a fresh pool and a kept one")
+    p.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    p.add_argument("--set", dest="overrides", action="append", default=[],
+                   metavar="KEY=VALUE", help="scene override (repeatable)")
+    p.add_argument("-P", type=int, default=8, help="parameters per call (default 8, "
+                   "a Latin hypercube of the domain)")
+    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--rounds", type=int, default=15, help="interleaved rounds (default 15)")
+    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the study and print its table."""
+    from rbbench.scene.loading import SceneError, load_scene
+    from rbbench.scene.sampling import parameter_set
+
+    for flag, name in (("-P", "P"), ("--jobs", "jobs"), ("--rounds", "rounds")):
+        if getattr(args, name) < 1:
+            raise SceneError(f"studies snapshot-workers {flag} {getattr(args, name)}: "
+                             "must be an integer >= 1")
+    scene = load_scene(args.scene, args.overrides)
+    mus = parameter_set(scene, "valid", n=args.P, kind="lhs")
+    rows = snapshot_workers(scene, mus, args.jobs, args.rounds)
+    print(f"scene {scene.name}, {len(mus)} parameters per call, {args.rounds} interleaved "
+          f"rounds, medians of wall time per call:")
+    print(markdown(rows, args.jobs))
+    if args.json:
+        Path(args.json).write_text(json.dumps({"scene": scene.name, "P": len(mus),
+                                               "jobs": args.jobs, "rounds": args.rounds,
+                                               "cases": rows}, indent=1))
+    return 0
