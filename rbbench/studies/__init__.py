@@ -24,7 +24,6 @@ _NAMES = {
     "online_scaling": "scaling", "scaling_markdown": "scaling",
     "formulation_comparison": "nitsche_compare", "comparison_markdown": "nitsche_compare",
     "beta_dec_study": "beta_dec", "BetaDecStudy": "beta_dec",
-    "snapshot_workers": "snapshot_workers",
 }
 #: former names (the flat ``rbbench/studies.py``) -> (module, name)
 _ALIASES = {"markdown": ("hertz", "hertz_markdown")}
