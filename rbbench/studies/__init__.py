@@ -5,9 +5,9 @@ One module per study: :mod:`~rbbench.studies.hertz` (the 2D Hertz table),
 :mod:`~rbbench.studies.nitsche_compare` (Nitsche against mixed),
 :mod:`~rbbench.studies.scaling` (online time against the HF size) and
 :mod:`~rbbench.studies.beta_dec` (the beta_dec stability study),
-:mod:`~rbbench.studies.snapshot_workers` (HF snapshots, 1 against n worker processes); Markdown helpers in
-:mod:`~rbbench.studies.formatting`. The studies' public names are importable from here
-too (loaded on first use).
+:mod:`~rbbench.studies.snapshot_workers` (HF snapshots, 1 against n worker processes);
+Markdown helpers in :mod:`~rbbench.studies.formatting`. The studies' public names are
+importable from here too (loaded on first use).
 """
 
 from __future__ import annotations
