@@ -160,6 +160,16 @@ def _gone(pid: int) -> bool:
         return True
 
 
+def _wait_gone(pid: int, timeout: float = 10.0) -> bool:
+    """Wait up to ``timeout`` s for :func:`_gone`."""
+    end = time.monotonic() + timeout
+    while not _gone(pid):
+        if time.monotonic() > end:
+            return False
+        time.sleep(0.05)
+    return True
+
+
 @fork_only
 def test_a_block_keeps_the_workers_for_the_next_call(scene, tmp_path, log):
     """Inside ``keep_workers`` the second call with the same key is solved by the first
@@ -184,15 +194,6 @@ def test_a_block_keeps_the_workers_for_the_next_call(scene, tmp_path, log):
     serial = compute_snapshots(scene, mus[6:], cache_dir=tmp_path / "s", n_jobs=1,
                                progress=False)
     np.testing.assert_allclose(second.U, serial.U, rtol=0, atol=1e-12 * np.abs(serial.U).max())
-
-
-def _wait_gone(pid: int, timeout: float = 10.0) -> bool:
-    end = time.monotonic() + timeout
-    while not _gone(pid):
-        if time.monotonic() > end:
-            return False
-        time.sleep(0.05)
-    return True
 
 
 @fork_only
