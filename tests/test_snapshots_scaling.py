@@ -185,11 +185,11 @@ def test_a_block_keeps_the_workers_for_the_next_call(scene, tmp_path, log):
     with keep_workers():
         compute_snapshots(scene, mus[4:6], cache_dir=tmp_path / "b", **kw)
         assert kept_pool_alive()
+        workers = {str(p.pid) for p in multiprocessing.active_children()}
         second = compute_snapshots(scene, mus[6:], cache_dir=tmp_path / "b", **kw)
-        workers = _pids(path, mus[4:])
     assert not kept_pool_alive()
     assert len(workers) == 2 and str(os.getpid()) not in workers
-    assert _pids(path, mus[6:]) <= _pids(path, mus[4:6])
+    assert _pids(path, mus[4:]) <= workers  # both calls: the same two processes
     assert all(_wait_gone(int(p)) for p in workers)
     serial = compute_snapshots(scene, mus[6:], cache_dir=tmp_path / "s", n_jobs=1,
                                progress=False)
@@ -197,27 +197,70 @@ def test_a_block_keeps_the_workers_for_the_next_call(scene, tmp_path, log):
 
 
 @fork_only
-def test_a_block_starts_a_new_pool_for_another_key_or_a_dead_worker(scene, tmp_path, log):
-    """Another key (a solver option) gets new workers and the old ones exit; a worker
-    killed just before a call costs no row: noticed, the call gets a new pool; unnoticed
-    yet, the tasks it loses are solved again in a new pool."""
+def test_a_block_starts_a_new_pool_for_another_key(scene, tmp_path, log):
+    """Another key (a solver option) gets new workers, and the old ones exit."""
     path, _ = log
+    mus = parameter_set(scene, "train", n=4)
+    kw = dict(n_jobs=2, progress=False, mp_context="fork")
+    with keep_workers():
+        compute_snapshots(scene, mus[:2], cache_dir=tmp_path, **kw)
+        first = {p.pid for p in multiprocessing.active_children()}
+        compute_snapshots(scene, mus[2:], cache_dir=tmp_path, solver_options={"tol": 1e-11},
+                          **kw)
+        assert not {str(p) for p in first} & _pids(path, mus[2:])
+        assert all(_wait_gone(p) for p in first)
+
+
+def _kill_a_kept_worker(wait_until_noticed: bool) -> int:
+    """SIGKILL one worker of the kept pool; optionally wait until ``concurrent.futures``
+    has marked the pool broken. Returns the victim's pid."""
+    pool = worker_pool_module._KEPT["pool"]
+    victim = next(iter(pool._processes))
+    os.kill(victim, signal.SIGKILL)
+    end = time.monotonic() + 30
+    while wait_until_noticed and not pool._broken:
+        assert time.monotonic() < end, "the pool was never marked broken"
+        time.sleep(0.01)
+    return victim
+
+
+@fork_only
+@pytest.mark.parametrize("case", ["noticed", "at-once", "submit-fails"])
+def test_a_killed_kept_worker_costs_no_row(scene, tmp_path, log, monkeypatch, case):
+    """A worker of the kept pool killed between two calls: once noticed, the next call
+    starts a new pool (none of the old workers solves); killed just before the call,
+    whichever path it takes, every row converges. ``submit-fails`` forces one path: the
+    reuse check misses the death, so ``submit`` raises, and the parameters not submitted
+    are solved in a new pool."""
+    path, _ = log
+    noticed = case != "at-once"
+    if case == "submit-fails":
+        monkeypatch.setattr(worker_pool_module, "_broken", lambda pool: pool is None)
     mus = parameter_set(scene, "train", n=9)
     assert len(mus) == 9
     kw = dict(n_jobs=2, progress=False, mp_context="fork")
     with keep_workers():
         compute_snapshots(scene, mus[:2], cache_dir=tmp_path, **kw)
-        first = _pids(path, mus[:2])
-        compute_snapshots(scene, mus[2:4], cache_dir=tmp_path, solver_options={"tol": 1e-11},
-                          **kw)
-        assert not first & _pids(path, mus[2:4])
-        assert all(_wait_gone(int(p)) for p in first)
-        victim = int(next(iter(_pids(path, mus[2:4]))))
-        os.kill(victim, signal.SIGKILL)  # and the next call at once: dead or dying
-        out = compute_snapshots(scene, mus[4:], cache_dir=tmp_path,
-                                solver_options={"tol": 1e-11}, **kw)
-    assert out.stop_reasons == ["converged"] * 5
-    assert str(victim) not in _pids(path, mus[4:])
+        old = {str(p.pid) for p in multiprocessing.active_children()}
+        victim = _kill_a_kept_worker(noticed)
+        out = compute_snapshots(scene, mus[2:], cache_dir=tmp_path, **kw)
+    assert out.stop_reasons == ["converged"] * 7
+    assert str(victim) not in _pids(path, mus[2:])
+    if noticed:
+        assert not old & _pids(path, mus[2:])
+    if case == "submit-fails":
+        assert worker_pool_module._KEPT["pool"] is None  # and the block shut down the new one
+
+
+def test_process_pool_executor_has_the_attributes_worker_pool_reads():
+    """``worker_pool._broken`` reads ``ProcessPoolExecutor._broken`` and ``._processes``
+    (private): a Python that renames them must fail here, not silently reuse dead pools."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(1) as pool:
+        assert pool.submit(abs, -1).result() == 1
+        assert pool._broken is False and isinstance(pool._processes, dict)
+        assert all(p.is_alive() for p in pool._processes.values())
 
 
 @fork_only
@@ -264,34 +307,58 @@ def test_kept_workers_die_with_their_parent(tmp_path):
         "                      n_jobs=2, progress=False, mp_context='fork')\n"
         "    print(*[p.pid for p in multiprocessing.active_children()], flush=True)\n"
         "    os._exit(0)\n")
-    out = subprocess.run([sys.executable, str(script), str(tmp_path / "c")],
-                         capture_output=True, text=True, timeout=120, check=True)
-    pids = [int(p) for p in out.stdout.split()]
-    assert len(pids) == 2
-    assert all(_wait_gone(p) for p in pids)
+    pids_file = tmp_path / "pids.txt"
+    pids: list[int] = []
+    try:
+        with open(pids_file, "w") as out:  # not a pipe: orphans would hold it open
+            subprocess.run([sys.executable, str(script), str(tmp_path / "c")], stdout=out,
+                           timeout=60, check=True)
+        pids = [int(p) for p in pids_file.read_text().split()]
+        assert len(pids) == 2
+        assert all(_wait_gone(p) for p in pids)
+    finally:
+        for p in pids:  # if the test failed: no orphan outlives it
+            if not _gone(p):
+                os.kill(p, signal.SIGKILL)
 
 
 @fork_only
 def test_a_kept_pool_serves_only_its_process_and_main_thread(scene, tmp_path, log):
-    """A process forked inside a block does not see the parent's pool; a call from
-    another thread gets a pool of its own, shut down when the call ends."""
-    mus = parameter_set(scene, "train", n=4)
+    """A process forked inside a block does not use the parent's pool (whose manager
+    thread it lacks: it would hang) but starts its own; a call from another thread, with
+    another key, gets a pool of its own and leaves the kept one alone; a block entered in
+    another thread does nothing."""
+    path, _ = log
+    mus = parameter_set(scene, "train", n=9)
     kw = dict(n_jobs=2, progress=False, mp_context="fork")
     with keep_workers():
         compute_snapshots(scene, mus[:2], cache_dir=tmp_path, **kw)
-        assert kept_pool_alive()
+        kept = worker_pool_module._KEPT["pool"]
         pid = os.fork()
         if pid == 0:  # pragma: no cover - the child's status is asserted below
-            os._exit(0 if not kept_pool_alive() else 1)
+            signal.alarm(60)
+            out = compute_snapshots(scene, mus[2:4], cache_dir=tmp_path, **kw)
+            os._exit(0 if out.stop_reasons == ["converged"] * 2 else 1)
         assert os.waitpid(pid, 0)[1] == 0
-        kept = worker_pool_module._KEPT["pool"]
-        thread = threading.Thread(target=compute_snapshots, args=(scene, mus[2:]),
-                                  kwargs=dict(cache_dir=tmp_path, **kw))
+
+        depth_in_thread = []
+
+        def other_thread():
+            with keep_workers():
+                depth_in_thread.append(worker_pool_module._KEPT["depth"])
+                compute_snapshots(scene, mus[4:6], cache_dir=tmp_path,
+                                  solver_options={"tol": 1e-11}, **kw)
+
+        thread = threading.Thread(target=other_thread)
         thread.start()
         thread.join(120)
-        assert worker_pool_module._KEPT["pool"] is kept  # untouched by the thread's call
-    assert compute_snapshots(scene, mus, cache_dir=tmp_path, n_jobs=1, progress=False
-                             ).n_computed == 0  # the thread's call solved mus[2:]
+        assert not thread.is_alive() and depth_in_thread == [1]
+        assert worker_pool_module._KEPT["pool"] is kept and kept_pool_alive()
+        assert worker_pool_module._KEPT["depth"] == 1
+        compute_snapshots(scene, mus[6:], cache_dir=tmp_path, **kw)
+        assert _pids(path, mus[6:]) <= {str(p) for p in kept._processes}
+    assert compute_snapshots(scene, mus[4:6], cache_dir=tmp_path, n_jobs=1, progress=False,
+                             solver_options={"tol": 1e-11}).n_computed == 0
 
 
 def test_release_free_heap_runs_on_linux():

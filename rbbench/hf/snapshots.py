@@ -267,10 +267,14 @@ def _components(scene: Any, names: tuple[str, str, str], solver_options: dict | 
 
 def _init_worker(scene: Any, names: tuple[str, str, str], solver_options: dict | None,
                  threads: int | None, component_options: dict | None = None,
-                 registry: Any = None, key: str = "") -> None:
-    """Worker start-up: cap the BLAS threads, take the components inherited from the
-    parent (fork) or build them now, once (spawn, forkserver)."""
+                 registry: Any = None, key: str = "", parent: int | None = None) -> None:
+    """Worker start-up: die with the parent, cap the BLAS threads, take the components
+    inherited from the parent (fork) or build them now, once (spawn, forkserver).
+    ``parent``: the pid that started the pool (``None`` with forkserver, whose server is
+    the parent); if it has already gone, this worker exits at once."""
     die_with_parent()  # a kept pool's idle workers must not outlive their parent
+    if parent is not None and os.getppid() != parent:  # it died before the prctl call
+        os._exit(1)
     _WORKER.clear()
     _WORKER.update(scene=scene, names=names, components=None, error="")
     if threads:
@@ -350,6 +354,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     snaps: list[Snapshot | None] = [_try_load(p, mu, need_t)
                                     for p, mu in zip(paths, mus, strict=True)]
     todo = [i for i, s in enumerate(snaps) if s is None]
+    asked = (n_jobs, blas_threads)  # what a kept pool is matched on (not the capped count)
     n_jobs = n_cpus() if n_jobs is None else int(n_jobs)
     n_jobs = max(1, min(n_jobs, len(todo)))
     if todo:  # unknown component names fail here, not once per parameter in the workers
@@ -362,7 +367,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     elif todo:
         threads = max(1, n_cpus() // n_jobs) if blas_threads is None \
             else int(blas_threads)
-        run.parallel(snaps, todo, n_jobs, mp_context, threads)
+        run.parallel(snaps, todo, n_jobs, mp_context, threads, asked)
 
     out = _assemble(mus, snaps, key, root, n_computed=len(todo))
     if strict:
@@ -438,7 +443,7 @@ class _Run:
                 bar.close()
 
     def parallel(self, snaps: list[Snapshot | None], todo: list[int], n_jobs: int,
-                 mp_context: str | None, threads: int) -> None:
+                 mp_context: str | None, threads: int, asked: tuple = ()) -> None:
         """Solve in ``n_jobs`` worker processes, one task per parameter (an idle worker
         takes the next one: balanced), results in their places. The components are built
         once: here before a ``fork`` pool (the workers inherit them; the free heap is
@@ -446,28 +451,40 @@ class _Run:
         worker at its start-up. Inside :func:`~rbbench.hf.worker_pool.keep_workers` the
         pool serves the next call with the same key too; if such a reused pool loses a
         worker, the parameters it lost are solved once more in a new pool, so that a kept
-        pool never fails a call that a new one would not."""
+        pool never fails a call that a new one would not. A kept pool is matched on the
+        ``asked`` workers and threads, not on ``n_jobs`` (capped at the parameters to
+        solve), so it keeps the size of the call that started it."""
         ctx = multiprocessing.get_context(mp_context)
-        ident = (self.key, n_jobs, threads, ctx.get_start_method())
+        ident = (self.key, asked or (n_jobs, threads), ctx.get_start_method())
         bar: list = []
         try:
-            died, reused = self._in_pool(snaps, todo, ident, ctx, threads, bar, fresh=False)
+            died, reused = self._in_pool(snaps, todo, ident, ctx, (n_jobs, threads), bar,
+                                         fresh=False)
             if died and reused:
-                self._in_pool(snaps, died, ident, ctx, threads, bar, fresh=True)
+                self._in_pool(snaps, died, ident, ctx, (n_jobs, threads), bar, fresh=True)
         finally:
             if bar and bar[0] is not None:
                 bar[0].close()
 
     def _in_pool(self, snaps: list[Snapshot | None], todo: list[int], ident: tuple,
-                 ctx: Any, threads: int, bar: list, fresh: bool) -> tuple[list[int], bool]:
-        """Solve ``todo`` in a pool (:func:`~rbbench.hf.worker_pool.worker_pool`); returns
-        the indices whose worker died (error rows now) and whether the pool was reused."""
-        n_jobs = ident[1]
-        died = []
-        with worker_pool(ident, self.registry, lambda: self._pool(ctx, n_jobs, threads),
+                 ctx: Any, size: tuple[int, int], bar: list, fresh: bool
+                 ) -> tuple[list[int], bool]:
+        """Solve ``todo`` in a pool (:func:`~rbbench.hf.worker_pool.worker_pool`; a new one
+        has ``size = (workers, BLAS threads)``); returns the indices whose worker died
+        (error rows now: also those not submitted because the pool broke meanwhile) and
+        whether the pool was reused."""
+        died: list[int] = []
+        with worker_pool(ident, self.registry, lambda: self._pool(ctx, *size),
                          fresh=fresh) as (pool, reused):
-            futures = {pool.submit(_worker_task, self.mus[i], self.paths[i]): i
-                       for i in todo}
+            futures = {}
+            for k, i in enumerate(todo):
+                try:
+                    futures[pool.submit(_worker_task, self.mus[i], self.paths[i])] = i
+                except BrokenProcessPool as exc:  # a worker died before all were submitted
+                    for j in todo[k:]:
+                        snaps[j] = _error_snapshot(self.mus[j], f"worker process died: {exc}")
+                    died.extend(todo[k:])
+                    break
             if not bar:  # the bar only after the workers started: no fork with a thread
                 bar.append(_progress_bar(self.progress, self.scene.name, len(self.mus),
                                          len(todo)))
@@ -491,10 +508,11 @@ class _Run:
             except Exception:  # noqa: BLE001 - the workers retry and report it per mu
                 _COMPONENTS.clear()
             release_free_heap()
+        parent = None if ctx.get_start_method() == "forkserver" else os.getpid()
         return ProcessPoolExecutor(n_jobs, mp_context=ctx, initializer=_init_worker,
                                    initargs=(self.scene, self.names, self.solver_options,
                                              threads, self.component_options,
-                                             self.registry, self.key))
+                                             self.registry, self.key, parent))
 
 
 def n_cpus() -> int:

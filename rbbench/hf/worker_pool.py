@@ -80,17 +80,24 @@ def release_free_heap() -> bool:
 def keep_workers() -> Iterator[None]:
     """Within the block, :func:`rbbench.hf.snapshots.compute_snapshots` calls that agree
     on key, registry, workers, threads and start method reuse one pool; the outermost
-    block shuts it down at its end (also on error). Nested blocks share it."""
-    if _KEPT["owner"] != os.getpid():  # state inherited through fork: not ours
+    block shuts it down at its end (also on error). Nested blocks share it. Outside the
+    main thread the block does nothing (each call has its own pool): the blocks of other
+    threads must not shut down a pool that the main thread is using."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    me = os.getpid()
+    if _KEPT["owner"] != me:  # state inherited through fork: not ours
         _forget()
-        _KEPT["owner"] = os.getpid()
+        _KEPT["owner"] = me
     _KEPT["depth"] += 1
     try:
         yield
     finally:
-        _KEPT["depth"] -= 1
-        if _KEPT["depth"] == 0:
-            shutdown_kept()
+        if _KEPT["owner"] == me == os.getpid():  # not a forked child leaving our block
+            _KEPT["depth"] -= 1
+            if _KEPT["depth"] == 0:
+                shutdown_kept()
 
 
 def kept_pool_alive() -> bool:
