@@ -355,8 +355,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
                                     for p, mu in zip(paths, mus, strict=True)]
     todo = [i for i, s in enumerate(snaps) if s is None]
     asked = (n_jobs, blas_threads)  # what a kept pool is matched on (not the capped count)
-    n_jobs = n_cpus() if n_jobs is None else int(n_jobs)
-    n_jobs = max(1, min(n_jobs, len(todo)))
+    n_jobs = max(1, min(n_cpus() if n_jobs is None else int(n_jobs), len(todo)))
     if todo:  # unknown component names fail here, not once per parameter in the workers
         _check_names(registry, names)
 
