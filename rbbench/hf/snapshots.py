@@ -442,7 +442,7 @@ class _Run:
                 bar.close()
 
     def parallel(self, snaps: list[Snapshot | None], todo: list[int], n_jobs: int,
-                 mp_context: str | None, threads: int, asked: tuple = ()) -> None:
+                 mp_context: str | None, threads: int, asked: tuple) -> None:
         """Solve in ``n_jobs`` worker processes, one task per parameter (an idle worker
         takes the next one: balanced), results in their places. The components are built
         once: here before a ``fork`` pool (the workers inherit them; the free heap is
@@ -454,7 +454,7 @@ class _Run:
         ``asked`` workers and threads, not on ``n_jobs`` (capped at the parameters to
         solve), so it keeps the size of the call that started it."""
         ctx = multiprocessing.get_context(mp_context)
-        ident = (self.key, asked or (n_jobs, threads), ctx.get_start_method())
+        ident = (self.key, asked, ctx.get_start_method())
         bar: list = []
         try:
             died, reused = self._in_pool(snaps, todo, ident, ctx, (n_jobs, threads), bar,
@@ -481,7 +481,7 @@ class _Run:
                     futures[pool.submit(_worker_task, self.mus[i], self.paths[i])] = i
                 except BrokenProcessPool as exc:  # a worker died before all were submitted
                     for j in todo[k:]:
-                        snaps[j] = _error_snapshot(self.mus[j], f"worker process died: {exc}")
+                        snaps[j] = self._died(j, exc)
                     died.extend(todo[k:])
                     break
             if not bar:  # the bar only after the workers started: no fork with a thread
@@ -492,12 +492,16 @@ class _Run:
                 try:
                     snaps[i] = fut.result()
                 except BrokenProcessPool as exc:  # a worker died (e.g. killed)
-                    snaps[i] = _error_snapshot(self.mus[i], f"worker process died: {exc}")
+                    snaps[i] = self._died(i, exc)
                     died.append(i)
                     continue
                 if bar[0] is not None:
                     bar[0].update()
         return died, reused
+
+    def _died(self, i: int, exc: BaseException) -> Snapshot:
+        """The error row of parameter ``i``, lost with a worker process."""
+        return _error_snapshot(self.mus[i], f"worker process died: {exc}")
 
     def _pool(self, ctx: Any, n_jobs: int, threads: int) -> ProcessPoolExecutor:
         """A new pool; with ``fork``, this process's components first (inherited)."""
