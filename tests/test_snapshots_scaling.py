@@ -361,6 +361,38 @@ def test_a_kept_pool_serves_only_its_process_and_main_thread(scene, tmp_path, lo
                              solver_options={"tol": 1e-11}).n_computed == 0
 
 
+def _worker_threads() -> tuple[int, list[int]]:
+    """In a worker: its threads (Linux) and the threads of its BLAS pools."""
+    from threadpoolctl import threadpool_info
+
+    return (len(os.listdir("/proc/self/task")),
+            [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"])
+
+
+@fork_only
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="counts /proc/self/task")
+@pytest.mark.parametrize("cap", [1, 0])
+def test_fork_workers_inherit_the_blas_cap_and_start_no_blas_threads(scene, tmp_path, cap):
+    """A fork pool started with this process capped (``blas_cap``, as compute_snapshots
+    starts one) has workers at one BLAS thread that never called ``set_num_threads`` on
+    OpenBLAS: one thread in all. Without the cap (``0``) the worker's own limit re-creates
+    OpenBLAS's threads (the spinning ones), which shows the check can fail."""
+    from threadpoolctl import threadpool_limits
+
+    run = snapshots._Run(scene, np.zeros((0, 1)), [], ("skfem", "mixed", "ssn"), None, None,
+                         None, False, "k")
+    ctx = multiprocessing.get_context("fork")
+    with threadpool_limits(limits=2):
+        with worker_pool_module.worker_pool(("k",), None, lambda: run._pool(ctx, 1, 1),
+                                            blas_cap=cap) as (pool, _):
+            n_threads, pools = pool.submit(_worker_threads).result()
+    assert pools and all(n == 1 for n in pools)
+    if cap:
+        assert n_threads == 1
+    else:
+        assert n_threads > 1
+
+
 def test_release_free_heap_runs_on_linux():
     assert release_free_heap() is sys.platform.startswith("linux")
 
@@ -373,9 +405,9 @@ def test_snapshot_workers_study_reports_every_case(tmp_path):
 
     out = tmp_path / "s.json"
     assert main(["studies", "snapshot-workers", "membrane_obstacle", "-P", "3",
-                 "--rounds", "1", "--json", str(out)]) == 0
+                 "--rounds", "1", "--pause", "0", "--json", str(out)]) == 0
     data = json.loads(out.read_text())
-    assert (data["P"], data["jobs"], data["rounds"]) == (3, 2, 1)
+    assert (data["P"], data["jobs"], data["rounds"], data["pause_s"]) == (3, 2, 1, 0.0)
     assert list(data["cases"]) == list(CASES)
     assert data["cases"]["serial"]["speedup"] == 1.0
     for row in data["cases"].values():
@@ -390,3 +422,10 @@ def test_snapshot_workers_study_refuses_counts_below_one(flag, capsys):
 
     assert main(["studies", "snapshot-workers", "membrane_obstacle", flag, "0"]) == 2
     assert f"{flag} 0: must be an integer >= 1" in capsys.readouterr().err
+
+
+def test_snapshot_workers_study_refuses_a_negative_pause(capsys):
+    from rbbench.cli import main
+
+    assert main(["studies", "snapshot-workers", "membrane_obstacle", "--pause", "-1"]) == 2
+    assert "--pause -1.0: must be >= 0" in capsys.readouterr().err

@@ -55,7 +55,9 @@ def test_process_cap_makes_it_free(two_threads, monkeypatch):
 
 def test_hf_solve_runs_with_one_thread(two_threads):
     sc = load_scene("membrane_obstacle")
-    comps = make_components(sc)
+    comps = make_components(sc)  # may load another pool (MKL): its own count
+    outside = _blas_threads()
+    assert 2 in outside
     seen, real = [], comps[2].solve
 
     def spy(problem, *a, **kw):
@@ -67,7 +69,7 @@ def test_hf_solve_runs_with_one_thread(two_threads):
     assert seen and all(n == 1 for n in seen[0])
     assert sol.metrics["blas_threads"]["limit"] == 1
     assert "floor_s" not in sol.metrics
-    assert _blas_threads() == two_threads
+    assert _blas_threads() == outside
 
 
 class _Stage(ReducedStage):
@@ -167,3 +169,38 @@ def test_floor_uses_the_solves_linear_solver():
     np.testing.assert_allclose(x, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
     sol_lu = solve_hf(sc, solver_options={"condensation": "schur", "linear_solver": "superlu"})
     assert sol_lu.metrics["floor"]["solver"].startswith("SuperLU")
+
+
+def test_only_the_pools_off_the_limit_are_set(two_threads, monkeypatch):
+    """``_limit_changed`` calls ``set_num_threads`` on the pools not at the limit only (a
+    call after a fork re-creates OpenBLAS's spinning threads), and restores just those."""
+    from threadpoolctl import ThreadpoolController
+
+    controller = ThreadpoolController()
+    libs = controller.lib_controllers
+    if len(libs) < 2:
+        pytest.skip("needs two thread pools")
+    called = []
+    for lc in libs:
+        real = lc.set_num_threads
+        monkeypatch.setattr(lc, "set_num_threads",
+                            lambda n, lc=lc, real=real: called.append(lc.filepath) or real(n))
+    libs[0].set_num_threads(1)  # this pool is at the limit already
+    called.clear()
+    limiter = threads._limit_changed(controller, 1)
+    assert called == [lc.filepath for lc in libs[1:]]
+    assert [lc.num_threads for lc in libs] == [1] * len(libs)
+    limiter.restore_original_limits()
+    assert [lc.num_threads for lc in libs] == [1] + [2] * (len(libs) - 1)
+    libs[0].set_num_threads(2)
+    assert threads._limit_changed(controller, 2) is None  # all at 2: nothing to do
+
+
+def test_capped_for_fork_caps_and_restores(two_threads):
+    with threads.capped_for_fork(1) as how:
+        assert how == "threadpoolctl"
+        assert _blas_threads() == [1] * len(two_threads)
+        with threads.capped_for_fork(1) as inner:
+            assert inner == "inherited"  # nothing left to cap
+        assert _blas_threads() == [1] * len(two_threads)
+    assert _blas_threads() == two_threads

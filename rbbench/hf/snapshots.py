@@ -446,8 +446,10 @@ class _Run:
         """Solve in ``n_jobs`` worker processes, one task per parameter (an idle worker
         takes the next one: balanced), results in their places. The components are built
         once: here before a ``fork`` pool (the workers inherit them; the free heap is
-        released first, :func:`~rbbench.hf.worker_pool.release_free_heap`), else once per
-        worker at its start-up. Inside :func:`~rbbench.hf.worker_pool.keep_workers` the
+        released first, :func:`~rbbench.hf.worker_pool.release_free_heap`, and this
+        process's BLAS pools are capped at the workers' threads while the pool lives, so
+        the workers inherit that too, :func:`~rbbench.hf.threads.capped_for_fork`), else
+        once per worker at its start-up. Inside :func:`~rbbench.hf.worker_pool.keep_workers` the
         pool serves the next call with the same key too; if such a reused pool loses a
         worker, the parameters it lost are solved once more in a new pool, so that a kept
         pool never fails a call that a new one would not. A kept pool is matched on the
@@ -473,8 +475,9 @@ class _Run:
         (error rows now: also those not submitted because the pool broke meanwhile) and
         whether the pool was reused."""
         died: list[int] = []
+        cap = size[1] if ctx.get_start_method() == "fork" else 0  # inherited by the workers
         with worker_pool(ident, self.registry, lambda: self._pool(ctx, *size),
-                         fresh=fresh) as (pool, reused):
+                         fresh=fresh, blas_cap=cap) as (pool, reused):
             futures = {}
             for k, i in enumerate(todo):
                 try:

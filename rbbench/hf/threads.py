@@ -4,7 +4,12 @@ Issue 17, item 3: on a loaded 2-core machine two BLAS threads made ``A^-1 B^T`` 
 slower (30.8 s against 2.49 s, Hertz level 0); on a quiet one they gain nothing. Every
 HF solve (:meth:`rbbench.hf.model.HFModel.solve`) and every timed online loop
 (:func:`rbbench.rb.validation.validate`) therefore runs inside :func:`one_blas_thread`.
-Both helpers act through ``threadpoolctl`` on every pool it finds (BLAS and OpenMP).
+Both helpers act through ``threadpoolctl`` on every pool it finds (BLAS and OpenMP), and
+only on the pools not at the limit already (:func:`_limit_changed`): after a ``fork``,
+OpenBLAS re-creates its worker threads on *any* ``set_num_threads`` call, and each new
+thread spins about 0.1 s (2^28 cycles) before it sleeps. A forked snapshot worker that set
+its cap anew spent 0.04-0.10 s of CPU in those threads during its first solve, on a core
+the other worker needed; :func:`capped_for_fork` lets the workers inherit the cap instead.
 """
 
 from __future__ import annotations
@@ -15,7 +20,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-__all__ = ["BLAS_THREADS_DEFINITION", "blas_pools", "limit_blas_threads", "one_blas_thread"]
+__all__ = ["BLAS_THREADS_DEFINITION", "blas_pools", "capped_for_fork", "limit_blas_threads",
+           "one_blas_thread"]
 
 _THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                "BLIS_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
@@ -40,10 +46,12 @@ def limit_blas_threads(n: int) -> str:
     Several worker processes each running a multithreaded BLAS oversubscribe the
     cores (measured on 2 cores, Hertz scene, 2 workers: 34 s against 2.5 s with one
     thread each). Sets the thread variables for libraries loaded later and caps the
-    pools already loaded (numpy's and scipy's BLAS) with ``threadpoolctl``. Returns
-    what it did (``"threadpoolctl"``).
+    pools already loaded (numpy's and scipy's BLAS) with ``threadpoolctl``, those not at
+    ``n`` already (a ``fork`` child of :func:`capped_for_fork` inherits them at ``n``: no
+    call, no OpenBLAS threads). Returns what it did: ``"threadpoolctl"``, or
+    ``"inherited"`` when every pool was at ``n``.
     """
-    from threadpoolctl import threadpool_limits
+    from threadpoolctl import ThreadpoolController
 
     for var in _THREAD_ENV:  # for libraries loaded later
         os.environ[var] = str(n)
@@ -51,9 +59,45 @@ def limit_blas_threads(n: int) -> str:
     import scipy.sparse.linalg  # noqa: F401
 
     with _LOCK:
-        _STATE["process_limiter"] = threadpool_limits(limits=n)
+        _STATE["process_limiter"] = _limit_changed(ThreadpoolController(), n)
         _STATE["process_limit"] = int(n)
-    return "threadpoolctl"
+    return "inherited" if _STATE["process_limiter"] is None else "threadpoolctl"
+
+
+def _limit_changed(controller: Any, n: int) -> Any:
+    """Limit the pools of ``controller`` (a ``threadpoolctl.ThreadpoolController``) that
+    are not at ``n`` threads to ``n``; returns the limiter (its ``restore_original_limits``
+    restores those), or ``None`` when every pool was at ``n``.
+
+    A pool at ``n`` is left alone because a ``set_num_threads`` call is not free: in a
+    ``fork`` child, OpenBLAS (whose fork handler shut its threads down) re-creates its
+    threads on any such call, even to the count it has, and they spin ~0.1 s each."""
+    paths = [lc.filepath for lc in controller.lib_controllers if lc.num_threads != n]
+    return controller.select(filepath=paths).limit(limits=n) if paths else None
+
+
+@contextmanager
+def capped_for_fork(n: int) -> Iterator[str]:
+    """Cap this process's BLAS / OpenMP pools at ``n`` threads while it forks children that
+    run capped at ``n`` (snapshot workers), restored at the end of the block.
+
+    The children inherit the cap, so their :func:`limit_blas_threads` finds the pools at
+    ``n`` and calls nothing: no OpenBLAS threads are re-created in them (module docstring).
+    Measured (Hertz level 0, 8 parameters, 2 fork workers, 1 BLAS thread each; issue 17's
+    closing note): every worker had 2 extra OpenBLAS threads with 0.02-0.10 s of CPU after
+    its first solve without the block, and 1 thread in all with it. This process pays the
+    re-creation instead, once, when its pools are restored after the block (if any pool
+    had more than ``n`` threads). Yields ``"threadpoolctl"`` or ``"inherited"`` (nothing
+    to cap)."""
+    import scipy.linalg  # noqa: F401  (scipy's BLAS loaded, hence capped)
+    from threadpoolctl import ThreadpoolController
+
+    limiter = _limit_changed(ThreadpoolController(), n)
+    try:
+        yield "inherited" if limiter is None else "threadpoolctl"
+    finally:
+        if limiter is not None:
+            limiter.restore_original_limits()
 
 
 def blas_pools() -> list[dict[str, Any]]:
@@ -74,7 +118,7 @@ def _apply() -> dict[str, Any]:
 
     controller = ThreadpoolController()  # one scan of the loaded libraries (~0.1-2 ms)
     outside = {os.path.basename(p["filepath"]): p["num_threads"] for p in controller.info()}
-    _STATE["limiter"] = controller.limit(limits=1)
+    _STATE["limiter"] = _limit_changed(controller, 1)  # None: every pool at 1 already
     return {"limit": 1, "how": "threadpoolctl", "outside": outside}
 
 

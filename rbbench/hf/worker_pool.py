@@ -22,6 +22,11 @@ Safety of a kept pool:
   calls unnoticed, the parameters it loses are solved again in a new pool;
 * the pool forks the code and the components of its first call: do not patch the solver
   between calls of one block (tests that patch use no block).
+
+A ``fork`` pool is started with this process's BLAS pools capped at the workers' thread
+count (``blas_cap``, :func:`rbbench.hf.threads.capped_for_fork`), so that the workers
+inherit the cap instead of setting it (which re-creates OpenBLAS's spinning threads in
+them); the cap is lifted when the pool is shut down.
 """
 
 from __future__ import annotations
@@ -34,15 +39,19 @@ import sys
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import ExitStack
 from typing import Any
+
+from rbbench.hf.threads import capped_for_fork
 
 __all__ = ["die_with_parent", "keep_workers", "kept_pool_alive", "release_free_heap",
            "shutdown_kept", "worker_pool"]
 
 #: the kept pool: ``owner`` (pid) and ``depth`` of the :func:`keep_workers` blocks,
-#: ``ident`` of the calls it serves, ``registry`` (held, so its ``id`` stays unique)
+#: ``ident`` of the calls it serves, ``registry`` (held, so its ``id`` stays unique),
+#: ``release`` (what to undo after its shutdown: the BLAS cap of :func:`_start`)
 _KEPT: dict[str, Any] = {"owner": None, "depth": 0, "ident": None, "pool": None,
-                         "registry": None}
+                         "registry": None, "release": None}
 
 
 def die_with_parent(sig: int = signal.SIGKILL) -> bool:
@@ -107,15 +116,41 @@ def kept_pool_alive() -> bool:
 
 def shutdown_kept() -> None:
     """Shut the kept pool down (its workers finish their task and exit)."""
-    pool = _KEPT["pool"] if _KEPT["owner"] == os.getpid() else None
-    _KEPT.update(ident=None, pool=None, registry=None)
+    pool, release = ((_KEPT["pool"], _KEPT["release"]) if _KEPT["owner"] == os.getpid()
+                     else (None, None))
+    _KEPT.update(ident=None, pool=None, registry=None, release=None)
     if pool is not None:
+        _stop(pool, release)
+
+
+def _stop(pool: ProcessPoolExecutor, release: ExitStack | None) -> None:
+    """Shut ``pool`` down (its workers finish their task and exit), then undo ``release``."""
+    try:
         pool.shutdown(wait=True, cancel_futures=True)
+    finally:
+        if release is not None:
+            release.close()
+
+
+def _start(make: Callable[[], ProcessPoolExecutor], blas_cap: int
+           ) -> tuple[ProcessPoolExecutor, ExitStack]:
+    """``make()`` with this process's BLAS pools capped at ``blas_cap`` threads (``0``: not
+    capped) until the returned stack is closed: a ``fork`` pool forks its workers at its
+    first task, and they inherit the cap (:func:`rbbench.hf.threads.capped_for_fork`)."""
+    release = ExitStack()
+    if blas_cap > 0:
+        release.enter_context(capped_for_fork(blas_cap))
+    try:
+        return make(), release
+    except BaseException:
+        release.close()
+        raise
 
 
 def _forget() -> None:
-    """Drop a pool inherited through fork (its manager thread is not in this process)."""
-    _KEPT.update(owner=None, depth=0, ident=None, pool=None, registry=None)
+    """Drop a pool inherited through fork (its manager thread is not in this process; the
+    BLAS cap it holds is the parent's to lift)."""
+    _KEPT.update(owner=None, depth=0, ident=None, pool=None, registry=None, release=None)
 
 
 def _keeping() -> bool:
@@ -125,22 +160,25 @@ def _keeping() -> bool:
 
 @contextlib.contextmanager
 def worker_pool(ident: tuple, registry: Any, make: Callable[[], ProcessPoolExecutor],
-                fresh: bool = False) -> Iterator[tuple[ProcessPoolExecutor, bool]]:
+                fresh: bool = False, blas_cap: int = 0
+                ) -> Iterator[tuple[ProcessPoolExecutor, bool]]:
     """``(pool, reused)`` for one call: the kept pool when inside :func:`keep_workers`, its
     ``ident`` and ``registry`` match, no worker of it died and ``fresh`` is false; else
-    ``make()``. A pool not kept is shut down when the call ends; a kept one too if the call
-    raised or a worker died."""
+    ``make()``, with this process's BLAS pools capped at ``blas_cap`` threads while the pool
+    lives (``0``: not capped; see the module docstring). A pool not kept is shut down when
+    the call ends; a kept one too if the call raised or a worker died."""
     keeping = _keeping()
     reused = (keeping and not fresh and _KEPT["ident"] == ident
               and _KEPT["registry"] is registry and not _broken(_KEPT["pool"]))
+    release = None
     if reused:
         pool = _KEPT["pool"]
     else:
         if keeping:
             shutdown_kept()
-        pool = make()
+        pool, release = _start(make, blas_cap)
         if keeping:
-            _KEPT.update(ident=ident, pool=pool, registry=registry)
+            _KEPT.update(ident=ident, pool=pool, registry=registry, release=release)
     ok = False
     try:
         yield pool, reused
@@ -148,8 +186,9 @@ def worker_pool(ident: tuple, registry: Any, make: Callable[[], ProcessPoolExecu
     finally:
         if not (keeping and ok):
             if _KEPT["pool"] is pool:
-                _KEPT.update(ident=None, pool=None, registry=None)
-            pool.shutdown(wait=True, cancel_futures=True)
+                release = _KEPT["release"]
+                _KEPT.update(ident=None, pool=None, registry=None, release=None)
+            _stop(pool, release)
 
 
 def _broken(pool: ProcessPoolExecutor | None) -> bool:

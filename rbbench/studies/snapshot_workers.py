@@ -15,7 +15,11 @@ runs), the same ``P`` parameters:
     training call).
 
 This process's components are built once before the first round (one snapshot), as
-the asv benchmarks ``SnapshotWorkers`` and ``SnapshotWorkersKept`` do. Reported: the
+the asv benchmarks ``SnapshotWorkers`` and ``SnapshotWorkersKept`` do. After every call
+the study waits ``pause`` seconds (default 0.5), outside the timing: when a pool's
+workers have exited, this process's BLAS pools are restored
+(:func:`~rbbench.hf.threads.capped_for_fork`) and OpenBLAS re-creates its threads, which
+spin about 0.1 s; back to back, they would run into the next case's timing. Reported: the
 median wall time of each case over the rounds, its interquartile range, and the speed-up
 ``median(serial) / median(case)``.
 """
@@ -36,10 +40,11 @@ __all__ = ["CASES", "add_parser", "run", "snapshot_workers"]
 CASES = ("serial", "fresh", "kept_1st", "kept_2nd")
 
 
-def snapshot_workers(scene: Any, mus: np.ndarray, n_jobs: int = 2, rounds: int = 15
-                     ) -> dict[str, dict[str, float]]:
+def snapshot_workers(scene: Any, mus: np.ndarray, n_jobs: int = 2, rounds: int = 15,
+                     pause: float = 0.5) -> dict[str, dict[str, float]]:
     """``{case: {"median_s", "iqr_s", "speedup"}}`` over ``rounds`` interleaved rounds
-    (cases: :data:`CASES`; ``speedup`` = median serial time / median time of the case)."""
+    (cases: :data:`CASES`; ``speedup`` = median serial time / median time of the case;
+    ``pause``: seconds waited after every call, untimed)."""
     from rbbench.hf.snapshots import compute_snapshots
     from rbbench.hf.worker_pool import keep_workers
 
@@ -47,7 +52,9 @@ def snapshot_workers(scene: Any, mus: np.ndarray, n_jobs: int = 2, rounds: int =
         with tempfile.TemporaryDirectory() as d:
             t0 = time.perf_counter()
             compute_snapshots(scene, mus, cache_dir=d, n_jobs=jobs, progress=False)
-            return time.perf_counter() - t0
+            elapsed = time.perf_counter() - t0
+        time.sleep(pause)
+        return elapsed
 
     with tempfile.TemporaryDirectory() as d:  # this process's components, built once
         compute_snapshots(scene, mus[:1], cache_dir=d, n_jobs=1, progress=False)
@@ -89,6 +96,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    "a Latin hypercube of the domain)")
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     p.add_argument("--rounds", type=int, default=15, help="interleaved rounds (default 15)")
+    p.add_argument("--pause", type=float, default=0.5, help="seconds waited after every "
+                   "call, untimed (default 0.5: the threads a call leaves spinning stop)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     return p
 
@@ -104,12 +113,16 @@ def run(args: argparse.Namespace) -> int:
                              "must be an integer >= 1")
     scene = load_scene(args.scene, args.overrides)
     mus = parameter_set(scene, "valid", n=args.P, kind="lhs")
-    rows = snapshot_workers(scene, mus, args.jobs, args.rounds)
+    if args.pause < 0:
+        raise SceneError(f"studies snapshot-workers --pause {args.pause}: must be >= 0")
+    rows = snapshot_workers(scene, mus, args.jobs, args.rounds, args.pause)
     print(f"scene {scene.name}, {len(mus)} parameters per call, {args.rounds} interleaved "
-          f"rounds, medians of wall time per call:")
+          f"rounds, {args.pause} s untimed pause after each call, medians of wall time per "
+          "call:")
     print(markdown(rows, args.jobs))
     if args.json:
         Path(args.json).write_text(json.dumps({"scene": scene.name, "P": len(mus),
                                                "jobs": args.jobs, "rounds": args.rounds,
+                                               "pause_s": args.pause,
                                                "cases": rows}, indent=1))
     return 0
