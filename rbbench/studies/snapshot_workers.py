@@ -1,8 +1,10 @@
 """``rbbench studies snapshot-workers``: HF snapshots with 1 and with n worker processes,
 interleaved in one process (issue 17: 2 workers >= 1.85x of 1 on 8 parameters).
 
-Every round times, in this order and each into a fresh cache directory (so every solve
-runs), the same ``P`` parameters:
+Every round times, each into a fresh cache directory (so every solve runs), the same
+``P`` parameters in three units, ``serial``, ``fresh`` and the ``kept`` block, whose order
+turns by one each round (round ``r`` starts with unit ``r mod 3``), so that no case always
+follows the same one:
 
 ``serial``
     ``n_jobs = 1``, in this process;
@@ -16,8 +18,8 @@ runs), the same ``P`` parameters:
 
 This process's components are built once before the first round (one snapshot), as
 the asv benchmarks ``SnapshotWorkers`` and ``SnapshotWorkersKept`` do. After every call
-the study waits ``pause`` seconds (default 0.5), outside the timing: when a pool's
-workers have exited, this process's BLAS pools are restored
+and after the block's end the study waits ``pause`` seconds (default 0.5), outside the
+timing: when a pool's workers have exited, this process's BLAS pools are restored
 (:func:`~rbbench.hf.threads.capped_for_fork`) and OpenBLAS re-creates its threads, which
 spin about 0.1 s; back to back, they would run into the next case's timing. Reported: the
 median wall time of each case over the rounds, its interquartile range, and the speed-up
@@ -59,12 +61,18 @@ def snapshot_workers(scene: Any, mus: np.ndarray, n_jobs: int = 2, rounds: int =
     with tempfile.TemporaryDirectory() as d:  # this process's components, built once
         compute_snapshots(scene, mus[:1], cache_dir=d, n_jobs=1, progress=False)
     times: dict[str, list[float]] = {c: [] for c in CASES}
-    for _ in range(rounds):
-        times["serial"].append(call(1))
-        times["fresh"].append(call(n_jobs))
+
+    def kept() -> None:
         with keep_workers():
             times["kept_1st"].append(call(n_jobs))
             times["kept_2nd"].append(call(n_jobs))
+        time.sleep(pause)  # the block's end shut the pool down: its threads spin now
+
+    units = [lambda: times["serial"].append(call(1)),
+             lambda: times["fresh"].append(call(n_jobs)), kept]
+    for r in range(rounds):
+        for unit in units[r % 3:] + units[:r % 3]:
+            unit()
     serial = float(np.median(times["serial"]))
     out = {}
     for case, t in times.items():
