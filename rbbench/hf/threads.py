@@ -8,7 +8,7 @@ Both helpers act through ``threadpoolctl`` on every pool it finds (BLAS and Open
 only on the pools not at the limit already (:func:`_limit_changed`): after a ``fork``,
 OpenBLAS re-creates its worker threads on *any* ``set_num_threads`` call, and each new
 thread spins about 0.1 s (2^28 cycles) before it sleeps. A forked snapshot worker that set
-its cap anew spent 0.04-0.10 s of CPU in those threads during its first solve, on a core
+its cap anew spent 0.02-0.10 s of CPU in those threads during its first solve, on a core
 the other worker needed; :func:`capped_for_fork` lets the workers inherit the cap instead.
 """
 

@@ -7,10 +7,11 @@ ends. ``rbbench reduce`` computes its training and then its validation snapshots
 block, so its second call finds workers whose memory is already their own.
 
 Why keep them (issue 17, measured on Hertz level 0, 8 parameters, 2 workers against 1):
-a freshly forked worker's first solve writes ~50 MB of heap that it shares copy-on-write
-with the parent, about 14k minor page faults at 2-10 us each on this virtual machine,
-which made it 0.25 s against 0.15 s for its later solves. :func:`release_free_heap` before
-the fork halves those faults (the pages become fresh zero pages); a kept pool has none.
+a freshly forked worker's first solve is slower than its later ones. The larger part was
+OpenBLAS threads re-created in the worker and spinning ~0.1 s (now avoided: ``blas_cap``
+below); what is left is ~9k first-touch page faults (copy-on-write of the parent's heap
+and fresh zero pages, 2-5 us each on this virtual machine), 0.18-0.21 s against 0.155 s.
+:func:`release_free_heap` before the fork halves those faults; a kept pool has none.
 
 Safety of a kept pool:
 
