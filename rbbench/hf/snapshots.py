@@ -447,8 +447,9 @@ class _Run:
         takes the next one: balanced), results in their places. The components are built
         once: here before a ``fork`` pool (the workers inherit them; the free heap is
         released first, :func:`~rbbench.hf.worker_pool.release_free_heap`, and this
-        process's BLAS pools are capped at the workers' threads while the pool lives, so
-        the workers inherit that too, :func:`~rbbench.hf.threads.capped_for_fork`), else
+        process's BLAS pools are capped at the workers' threads during the call that
+        starts the pool, so the workers inherit that too,
+        :func:`~rbbench.hf.threads.capped_for_fork`), else
         once per worker at its start-up. Inside :func:`~rbbench.hf.worker_pool.keep_workers` the
         pool serves the next call with the same key too; if such a reused pool loses a
         worker, the parameters it lost are solved once more in a new pool, so that a kept

@@ -27,7 +27,7 @@ Safety of a kept pool:
 A ``fork`` pool is started with this process's BLAS pools capped at the workers' thread
 count (``blas_cap``, :func:`rbbench.hf.threads.capped_for_fork`), so that the workers
 inherit the cap instead of setting it (which re-creates OpenBLAS's spinning threads in
-them); the cap is lifted when the pool is shut down.
+them); the cap is lifted at the end of that call (after the shutdown of a pool not kept).
 """
 
 from __future__ import annotations
@@ -49,10 +49,9 @@ __all__ = ["die_with_parent", "keep_workers", "kept_pool_alive", "release_free_h
            "shutdown_kept", "worker_pool"]
 
 #: the kept pool: ``owner`` (pid) and ``depth`` of the :func:`keep_workers` blocks,
-#: ``ident`` of the calls it serves, ``registry`` (held, so its ``id`` stays unique),
-#: ``release`` (what to undo after its shutdown: the BLAS cap of :func:`_start`)
+#: ``ident`` of the calls it serves, ``registry`` (held, so its ``id`` stays unique)
 _KEPT: dict[str, Any] = {"owner": None, "depth": 0, "ident": None, "pool": None,
-                         "registry": None, "release": None}
+                         "registry": None}
 
 
 def die_with_parent(sig: int = signal.SIGKILL) -> bool:
@@ -117,11 +116,10 @@ def kept_pool_alive() -> bool:
 
 def shutdown_kept() -> None:
     """Shut the kept pool down (its workers finish their task and exit)."""
-    pool, release = ((_KEPT["pool"], _KEPT["release"]) if _KEPT["owner"] == os.getpid()
-                     else (None, None))
-    _KEPT.update(ident=None, pool=None, registry=None, release=None)
+    pool = _KEPT["pool"] if _KEPT["owner"] == os.getpid() else None
+    _KEPT.update(ident=None, pool=None, registry=None)
     if pool is not None:
-        _stop(pool, release)
+        _stop(pool, None)
 
 
 def _stop(pool: ProcessPoolExecutor, release: ExitStack | None) -> None:
@@ -137,7 +135,14 @@ def _start(make: Callable[[], ProcessPoolExecutor], blas_cap: int
            ) -> tuple[ProcessPoolExecutor, ExitStack]:
     """``make()`` with this process's BLAS pools capped at ``blas_cap`` threads (``0``: not
     capped) until the returned stack is closed: a ``fork`` pool forks its workers at its
-    first task, and they inherit the cap (:func:`rbbench.hf.threads.capped_for_fork`)."""
+    first task, and they inherit the cap (:func:`rbbench.hf.threads.capped_for_fork`).
+
+    The cap is held for the call that starts the pool only (:func:`worker_pool` lifts it
+    at the call's end, also for a kept pool): held across a :func:`keep_workers` block, a
+    process forked by another thread between two calls of the block got a pending Python
+    exception in its ``threading`` fork hook (``SystemError`` in ``RLock()``) and hung at
+    exit in ``threading._shutdown`` (``tests/test_snapshots_scaling.py``, run after the
+    other ``tests/test_s*.py``; the cause inside the libraries was not found)."""
     release = ExitStack()
     if blas_cap > 0:
         release.enter_context(capped_for_fork(blas_cap))
@@ -149,9 +154,8 @@ def _start(make: Callable[[], ProcessPoolExecutor], blas_cap: int
 
 
 def _forget() -> None:
-    """Drop a pool inherited through fork (its manager thread is not in this process; the
-    BLAS cap it holds is the parent's to lift)."""
-    _KEPT.update(owner=None, depth=0, ident=None, pool=None, registry=None, release=None)
+    """Drop a pool inherited through fork (its manager thread is not in this process)."""
+    _KEPT.update(owner=None, depth=0, ident=None, pool=None, registry=None)
 
 
 def _keeping() -> bool:
@@ -179,7 +183,7 @@ def worker_pool(ident: tuple, registry: Any, make: Callable[[], ProcessPoolExecu
             shutdown_kept()
         pool, release = _start(make, blas_cap)
         if keeping:
-            _KEPT.update(ident=ident, pool=pool, registry=registry, release=release)
+            _KEPT.update(ident=ident, pool=pool, registry=registry)
     ok = False
     try:
         yield pool, reused
@@ -187,9 +191,10 @@ def worker_pool(ident: tuple, registry: Any, make: Callable[[], ProcessPoolExecu
     finally:
         if not (keeping and ok):
             if _KEPT["pool"] is pool:
-                release = _KEPT["release"]
-                _KEPT.update(ident=None, pool=None, registry=None, release=None)
+                _KEPT.update(ident=None, pool=None, registry=None)
             _stop(pool, release)
+        elif release is not None:  # a kept pool: its workers have forked, lift the cap now
+            release.close()
 
 
 def _broken(pool: ProcessPoolExecutor | None) -> bool:

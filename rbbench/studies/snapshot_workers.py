@@ -19,9 +19,10 @@ follows the same one:
 This process's components are built once before the first round (one snapshot), as
 the asv benchmarks ``SnapshotWorkers`` and ``SnapshotWorkersKept`` do. After every call
 and after the block's end the study waits ``pause`` seconds (default 0.5), outside the
-timing: when a pool's workers have exited, this process's BLAS pools are restored
+timing: at the end of a call that started a pool, this process's BLAS pools are restored
 (:func:`~rbbench.hf.threads.capped_for_fork`) and OpenBLAS re-creates its threads, which
-spin about 0.1 s; back to back, they would run into the next case's timing. Reported: the
+spin about 0.1 s; back to back, they would run into the next case's timing (within a block
+they do: ``kept_2nd`` follows ``kept_1st`` at once, as in ``rbbench reduce``). Reported: the
 median wall time of each case over the rounds, its interquartile range, and the speed-up
 ``median(serial) / median(case)``.
 """
