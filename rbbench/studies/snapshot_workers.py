@@ -21,8 +21,9 @@ the asv benchmarks ``SnapshotWorkers`` and ``SnapshotWorkersKept`` do. After eve
 and after the block's end the study waits ``pause`` seconds (default 0.5), outside the
 timing: at the end of a call that started a pool, this process's BLAS pools are restored
 (:func:`~rbbench.hf.threads.capped_for_fork`) and OpenBLAS re-creates its threads, which
-spin about 0.1 s; back to back, they would run into the next case's timing (within a block
-they do: ``kept_2nd`` follows ``kept_1st`` at once, as in ``rbbench reduce``). Reported: the
+spin about 0.1 s; back to back, they would run into the next case's timing (the pause
+spares ``kept_2nd`` the threads of ``kept_1st``'s end, which ``rbbench reduce``'s
+validation call, following its training call at once, meets). Reported: the
 median wall time of each case over the rounds, its interquartile range, and the speed-up
 ``median(serial) / median(case)``.
 """
