@@ -17,13 +17,13 @@ follows the same one:
     training call).
 
 This process's components are built once before the first round (one snapshot), as
-the asv benchmarks ``SnapshotWorkers`` and ``SnapshotWorkersKept`` do. After every call
-and after the block's end the study waits ``pause`` seconds (default 0.5), outside the
-timing: at the end of a call that started a pool, this process's BLAS pools are restored
-(:func:`~rbbench.hf.threads.capped_for_fork`) and OpenBLAS re-creates its threads, which
-spin about 0.1 s; back to back, they would run into the next case's timing (the pause
-spares ``kept_2nd`` the threads of ``kept_1st``'s end, which ``rbbench reduce``'s
-validation call, following its training call at once, meets). Reported: the
+the asv benchmarks ``SnapshotWorkers`` and ``SnapshotWorkersKept`` do. After the serial
+call, the fresh call and the block the study waits ``pause`` seconds (default 0.5),
+outside the timing: at the end of a call that started a pool, this process's BLAS pools
+are restored (:func:`~rbbench.hf.threads.capped_for_fork`) and OpenBLAS re-creates its
+threads, which spin about 0.1 s; back to back, they would run into the next unit's
+timing. The block's two calls run back to back, as ``rbbench reduce``'s do: ``kept_2nd``
+meets the threads of ``kept_1st``'s end. Reported: the
 median wall time of each case over the rounds, its interquartile range, and the speed-up
 ``median(serial) / median(case)``.
 """
@@ -52,12 +52,12 @@ def snapshot_workers(scene: Any, mus: np.ndarray, n_jobs: int = 2, rounds: int =
     from rbbench.hf.snapshots import compute_snapshots
     from rbbench.hf.worker_pool import keep_workers
 
-    def call(jobs: int) -> float:
+    def call(jobs: int, wait: float = pause) -> float:
         with tempfile.TemporaryDirectory() as d:
             t0 = time.perf_counter()
             compute_snapshots(scene, mus, cache_dir=d, n_jobs=jobs, progress=False)
             elapsed = time.perf_counter() - t0
-        time.sleep(pause)
+        time.sleep(wait)
         return elapsed
 
     with tempfile.TemporaryDirectory() as d:  # this process's components, built once
@@ -65,10 +65,10 @@ def snapshot_workers(scene: Any, mus: np.ndarray, n_jobs: int = 2, rounds: int =
     times: dict[str, list[float]] = {c: [] for c in CASES}
 
     def kept() -> None:
-        with keep_workers():
-            times["kept_1st"].append(call(n_jobs))
-            times["kept_2nd"].append(call(n_jobs))
-        time.sleep(pause)  # the block's end shut the pool down: its threads spin now
+        with keep_workers():  # back to back, as rbbench reduce's two calls
+            times["kept_1st"].append(call(n_jobs, wait=0.0))
+            times["kept_2nd"].append(call(n_jobs, wait=0.0))
+        time.sleep(pause)
 
     units = [lambda: times["serial"].append(call(1)),
              lambda: times["fresh"].append(call(n_jobs)), kept]
