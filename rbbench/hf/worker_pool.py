@@ -169,9 +169,9 @@ def worker_pool(ident: tuple, registry: Any, make: Callable[[], ProcessPoolExecu
                 ) -> Iterator[tuple[ProcessPoolExecutor, bool]]:
     """``(pool, reused)`` for one call: the kept pool when inside :func:`keep_workers`, its
     ``ident`` and ``registry`` match, no worker of it died and ``fresh`` is false; else
-    ``make()``, with this process's BLAS pools capped at ``blas_cap`` threads while the pool
-    lives (``0``: not capped; see the module docstring). A pool not kept is shut down when
-    the call ends; a kept one too if the call raised or a worker died."""
+    ``make()``, with this process's BLAS pools capped at ``blas_cap`` threads until the end
+    of this call (``0``: not capped; see the module docstring). A pool not kept is shut down
+    when the call ends; a kept one too if the call raised or a worker died."""
     keeping = _keeping()
     reused = (keeping and not fresh and _KEPT["ident"] == ident
               and _KEPT["registry"] is registry and not _broken(_KEPT["pool"]))
