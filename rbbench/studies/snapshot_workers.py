@@ -127,8 +127,8 @@ def run(args: argparse.Namespace) -> int:
         raise SceneError(f"studies snapshot-workers --pause {args.pause}: must be >= 0")
     rows = snapshot_workers(scene, mus, args.jobs, args.rounds, args.pause)
     print(f"scene {scene.name}, {len(mus)} parameters per call, {args.rounds} interleaved "
-          f"rounds, {args.pause} s untimed pause after each call, medians of wall time per "
-          "call:")
+          f"rounds, {args.pause} s untimed pause after the serial call, the fresh call and "
+          "the kept block (whose two calls run back to back), medians of wall time per call:")
     print(markdown(rows, args.jobs))
     if args.json:
         Path(args.json).write_text(json.dumps({"scene": scene.name, "P": len(mus),
