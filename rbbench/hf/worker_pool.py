@@ -27,7 +27,12 @@ Safety of a kept pool:
 A ``fork`` pool is started with this process's BLAS pools capped at the workers' thread
 count (``blas_cap``, :func:`rbbench.hf.threads.capped_for_fork`), so that the workers
 inherit the cap instead of setting it (which re-creates OpenBLAS's spinning threads in
-them); the cap is lifted at the end of that call (after the shutdown of a pool not kept).
+them); the cap is lifted at the end of that call (after the shutdown of a pool not kept),
+also when the pool is kept. Held across a :func:`keep_workers` block, a process forked by
+another thread between two calls of the block got a pending Python exception in its
+``threading`` fork hook (``SystemError`` in ``RLock()``) and hung at exit in
+``threading._shutdown`` (``tests/test_snapshots_scaling.py``, run after the other
+``tests/test_s*.py``; the cause inside the libraries was not found).
 """
 
 from __future__ import annotations
@@ -40,7 +45,6 @@ import sys
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
-from contextlib import ExitStack
 from typing import Any
 
 from rbbench.hf.threads import capped_for_fork
@@ -119,38 +123,7 @@ def shutdown_kept() -> None:
     pool = _KEPT["pool"] if _KEPT["owner"] == os.getpid() else None
     _KEPT.update(ident=None, pool=None, registry=None)
     if pool is not None:
-        _stop(pool, None)
-
-
-def _stop(pool: ProcessPoolExecutor, release: ExitStack | None) -> None:
-    """Shut ``pool`` down (its workers finish their task and exit), then undo ``release``."""
-    try:
         pool.shutdown(wait=True, cancel_futures=True)
-    finally:
-        if release is not None:
-            release.close()
-
-
-def _start(make: Callable[[], ProcessPoolExecutor], blas_cap: int
-           ) -> tuple[ProcessPoolExecutor, ExitStack]:
-    """``make()`` with this process's BLAS pools capped at ``blas_cap`` threads (``0``: not
-    capped) until the returned stack is closed: a ``fork`` pool forks its workers at its
-    first task, and they inherit the cap (:func:`rbbench.hf.threads.capped_for_fork`).
-
-    The cap is held for the call that starts the pool only (:func:`worker_pool` lifts it
-    at the call's end, also for a kept pool): held across a :func:`keep_workers` block, a
-    process forked by another thread between two calls of the block got a pending Python
-    exception in its ``threading`` fork hook (``SystemError`` in ``RLock()``) and hung at
-    exit in ``threading._shutdown`` (``tests/test_snapshots_scaling.py``, run after the
-    other ``tests/test_s*.py``; the cause inside the libraries was not found)."""
-    release = ExitStack()
-    if blas_cap > 0:
-        release.enter_context(capped_for_fork(blas_cap))
-    try:
-        return make(), release
-    except BaseException:
-        release.close()
-        raise
 
 
 def _forget() -> None:
@@ -175,26 +148,26 @@ def worker_pool(ident: tuple, registry: Any, make: Callable[[], ProcessPoolExecu
     keeping = _keeping()
     reused = (keeping and not fresh and _KEPT["ident"] == ident
               and _KEPT["registry"] is registry and not _broken(_KEPT["pool"]))
-    release = None
     if reused:
         pool = _KEPT["pool"]
-    else:
-        if keeping:
-            shutdown_kept()
-        pool, release = _start(make, blas_cap)
-        if keeping:
-            _KEPT.update(ident=ident, pool=pool, registry=registry)
-    ok = False
-    try:
-        yield pool, reused
-        ok = not _broken(pool)
-    finally:
-        if not (keeping and ok):
-            if _KEPT["pool"] is pool:
-                _KEPT.update(ident=None, pool=None, registry=None)
-            _stop(pool, release)
-        elif release is not None:  # a kept pool: its workers have forked, lift the cap now
-            release.close()
+    elif keeping:
+        shutdown_kept()
+    # a new pool forks its workers at its first task, inside the cap: they inherit it
+    new_cap = blas_cap > 0 and not reused
+    with capped_for_fork(blas_cap) if new_cap else contextlib.nullcontext():
+        if not reused:
+            pool = make()
+            if keeping:
+                _KEPT.update(ident=ident, pool=pool, registry=registry)
+        ok = False
+        try:
+            yield pool, reused
+            ok = not _broken(pool)
+        finally:
+            if not (keeping and ok):
+                if _KEPT["pool"] is pool:
+                    _KEPT.update(ident=None, pool=None, registry=None)
+                pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _broken(pool: ProcessPoolExecutor | None) -> bool:

@@ -48,7 +48,8 @@ def snapshot_workers(scene: Any, mus: np.ndarray, n_jobs: int = 2, rounds: int =
                      pause: float = 0.5) -> dict[str, dict[str, float]]:
     """``{case: {"median_s", "iqr_s", "speedup"}}`` over ``rounds`` interleaved rounds
     (cases: :data:`CASES`; ``speedup`` = median serial time / median time of the case;
-    ``pause``: seconds waited after every call, untimed)."""
+    ``pause``: seconds waited, untimed, after the serial call, the fresh call and the kept
+    block, whose two calls run back to back)."""
     from rbbench.hf.snapshots import compute_snapshots
     from rbbench.hf.worker_pool import keep_workers
 
@@ -106,8 +107,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
                    "a Latin hypercube of the domain)")
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     p.add_argument("--rounds", type=int, default=15, help="interleaved rounds (default 15)")
-    p.add_argument("--pause", type=float, default=0.5, help="seconds waited after every "
-                   "call, untimed (default 0.5: the threads a call leaves spinning stop)")
+    p.add_argument("--pause", type=float, default=0.5, help="seconds waited, untimed, "
+                   "after the serial call, the fresh call and the kept block (default 0.5: "
+                   "the threads a call leaves spinning stop)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     return p
 
