@@ -7,8 +7,10 @@ and ``threadpoolctl`` is called only on the pools off the limit
 (:func:`rbbench.hf.threads._limit_changed`). ``before`` switches both parts back (no cap
 for the fork, every pool set); ``after`` is the code as it is. Each round times, in a fresh
 cache directory and in alternating order, the serial call and the 2-worker call of each
-mode, with an untimed pause after every call; the speed-up of a mode is its serial median
-over its 2-worker median::
+mode, with an untimed pause after every call and an untimed one-parameter serial call
+before each serial call (as ``rbbench studies snapshot-workers``: it pays the page faults
+the previous fork left in this process); the speed-up of a mode is its serial median over
+its 2-worker median::
 
     python -m benchmarks.ab_snapshot_blas_cap --rounds 15 --pause 0.5
 
@@ -45,22 +47,23 @@ def ab(rounds: int, pause: float, P: int = 8, n_jobs: int = 2) -> dict[str, floa
         threads._limit_changed = (lambda c, n: c.limit(limits=n)) if before else changed
         snapshots.worker_pool = uncapped_pool if before else pool
 
-    def call(jobs: int) -> float:
+    def call(jobs: int, which: np.ndarray = mus, wait: float = pause) -> float:
         with tempfile.TemporaryDirectory() as d:
             t0 = time.perf_counter()
-            snapshots.compute_snapshots(scene, mus, cache_dir=d, n_jobs=jobs, progress=False)
+            snapshots.compute_snapshots(scene, which, cache_dir=d, n_jobs=jobs,
+                                        progress=False)
             elapsed = time.perf_counter() - t0
-        time.sleep(pause)
+        time.sleep(wait)
         return elapsed
 
-    with tempfile.TemporaryDirectory() as d:  # this process's components, built once
-        snapshots.compute_snapshots(scene, mus[:1], cache_dir=d, n_jobs=1, progress=False)
+    call(1, mus[:1], 0.0)  # this process's components, built once
     times: dict[str, list[float]] = {f"{k}_{m}": [] for k in ("serial", "pool")
                                      for m in ("before", "after")}
     try:
         for r in range(rounds):
             for m in (("before", "after") if r % 2 else ("after", "before")):
                 mode(m == "before")
+                call(1, mus[:1], 0.0)  # settle: the faults the last fork left here
                 times[f"serial_{m}"].append(call(1))
                 times[f"pool_{m}"].append(call(n_jobs))
     finally:

@@ -408,12 +408,36 @@ def test_snapshot_workers_study_reports_every_case(tmp_path):
                  "--rounds", "1", "--pause", "0", "--json", str(out)]) == 0
     data = json.loads(out.read_text())
     assert (data["P"], data["jobs"], data["rounds"], data["pause_s"]) == (3, 2, 1, 0.0)
+    assert data["serial_settled"] is True and data["settle_faults"] >= 0
     assert list(data["cases"]) == list(CASES)
     assert data["cases"]["serial"]["speedup"] == 1.0
     for row in data["cases"].values():
         assert row["median_s"] > 0 and row["iqr_s"] == 0.0  # one round: no spread
         assert row["speedup"] == pytest.approx(
             data["cases"]["serial"]["median_s"] / row["median_s"], rel=1e-12)
+
+
+def test_snapshot_workers_study_settles_this_process_before_each_serial_call(monkeypatch):
+    """Every timed serial call comes right after an untimed one-parameter serial call (the
+    faults a previous fork left are paid there), and only serial calls get one."""
+    from rbbench.hf import snapshots
+    from rbbench.scene.loading import load_scene
+    from rbbench.studies.snapshot_workers import snapshot_workers
+
+    calls: list[tuple[int, int]] = []
+
+    def record(scene, mus, cache_dir=None, n_jobs=None, progress=True):
+        calls.append((len(mus), n_jobs))
+
+    monkeypatch.setattr(snapshots, "compute_snapshots", record)
+    out = snapshot_workers(load_scene("membrane_obstacle", []), np.zeros((3, 2)), n_jobs=2,
+                           rounds=3, pause=0.0)  # the recorder reads only len(mus)
+    timed_serial = [k for k, c in enumerate(calls) if c == (3, 1)]
+    assert len(timed_serial) == 3
+    assert all(calls[k - 1] == (1, 1) for k in timed_serial)
+    assert calls.count((1, 1)) == 3 + 1  # one per serial call, and the components first
+    assert out["settle_faults"] >= 0 and set(out["cases"]) == {"serial", "fresh", "kept_1st",
+                                                               "kept_2nd"}
 
 
 @pytest.mark.parametrize("flag", ["-P", "--jobs", "--rounds"])
