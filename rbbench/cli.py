@@ -17,6 +17,7 @@ import json
 import sys
 from pathlib import Path
 
+from rbbench import _openblas_env  # noqa: F401  (first: before numpy loads OpenBLAS)
 from rbbench.bench.errors import ResultsError
 from rbbench.console import _print_reduce_summary, _Progress, print_summary
 from rbbench.optim.cli_optimize import add_parser as _add_optimize_parser

@@ -204,3 +204,39 @@ def test_capped_for_fork_caps_and_restores(two_threads):
             assert inner == "inherited"  # nothing left to cap
         assert _blas_threads() == [1] * len(two_threads)
     assert _blas_threads() == two_threads
+
+
+_ENV_AT_NUMPY = """
+import os, sys
+seen = {}
+class Spy:
+    def find_spec(self, name, path=None, target=None):
+        if name == "numpy" and "v" not in seen:
+            seen["v"] = os.environ.get("OPENBLAS_THREAD_TIMEOUT")
+        return None
+sys.meta_path.insert(0, Spy())
+import rbbench.cli
+import numpy
+print(seen.get("v"))
+"""
+
+
+@pytest.mark.parametrize("given, expected", [(None, "20"), ("28", "28")])
+def test_the_command_sets_the_openblas_thread_timeout_before_numpy_loads(given, expected):
+    """``rbbench.cli`` sets ``OPENBLAS_THREAD_TIMEOUT`` (unless the user did) before the
+    first import of numpy, which loads OpenBLAS and reads it once; ``import rbbench``
+    alone sets nothing."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+    if given is not None:
+        env["OPENBLAS_THREAD_TIMEOUT"] = given
+    out = subprocess.run([sys.executable, "-c", _ENV_AT_NUMPY], env=env, check=True,
+                         capture_output=True, text=True).stdout.split()
+    assert out == [expected]
+    lib = subprocess.run([sys.executable, "-c", "import os, rbbench, numpy; "
+                          "print(os.environ.get('OPENBLAS_THREAD_TIMEOUT'))"], env=env,
+                         check=True, capture_output=True, text=True).stdout.split()
+    assert lib == [str(given)]
