@@ -28,9 +28,11 @@ whatever this process does after a pool call. After the serial
 call, the fresh call and the block the study waits ``pause`` seconds (default 0.5),
 outside the timing: at the end of a call that started a pool, this process's BLAS pools
 are restored (:func:`~rbbench.hf.threads.capped_for_fork`) and OpenBLAS re-creates its
-threads, which spin about 0.1 s; back to back, they would run into the next unit's
-timing. The block's two calls run back to back, as ``rbbench reduce``'s do: ``kept_2nd``
-meets the threads of ``kept_1st``'s end. Reported: the
+threads, which spin 2^N cycles idle (``OPENBLAS_THREAD_TIMEOUT``: 2^20, ~0.4 ms, under the
+``rbbench`` command, :mod:`rbbench._openblas_env`; OpenBLAS's default 2^28, ~0.1 s, when
+this function is called from Python without it); back to back, they would run into the
+next unit's timing. The block's two calls run back to back, as ``rbbench reduce``'s do:
+``kept_2nd`` meets the threads of ``kept_1st``'s end. Reported: the
 median wall time of each case over the rounds, its interquartile range, and the speed-up
 ``median(serial) / median(case)``.
 """
