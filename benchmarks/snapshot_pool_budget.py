@@ -19,6 +19,7 @@ system-wide monotonic clock on Linux) and the anonymous memory their first task 
 
     python -m benchmarks.snapshot_pool_budget --rounds 10
 
+OpenBLAS's idle spin is set as under the ``rbbench`` command (:mod:`rbbench._openblas_env`).
 Not an asv benchmark (it patches the worker task and reads ``/proc``: Linux).
 """
 
@@ -30,6 +31,9 @@ import os
 import tempfile
 import time
 
+from rbbench import _openblas_env  # noqa: F401  (first, as the command: before numpy)
+
+# isort: split
 import numpy as np
 
 from rbbench.hf import snapshots
