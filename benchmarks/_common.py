@@ -17,6 +17,7 @@ This module holds no benchmark (no ``time_`` / ``track_`` / ``peakmem_`` names).
 
 from __future__ import annotations
 
+import argparse
 import math
 
 from rbbench.scene.loading import Scene, load_scene
@@ -86,3 +87,12 @@ def finite(value, what: str) -> float:
     if value is None or not math.isfinite(float(value)):
         raise ValueError(f"{what} is {value!r}: not a finite number")
     return float(value)
+
+
+def rounds_and_pause(doc: str, rounds: int) -> argparse.Namespace:
+    """``--rounds`` (default ``rounds``) and ``--pause`` (default 0.5 s) of the side-by-side
+    scripts of this folder; ``doc``: the script's docstring (its first line describes it)."""
+    p = argparse.ArgumentParser(description=doc.split("\n")[0])
+    p.add_argument("--rounds", type=int, default=rounds)
+    p.add_argument("--pause", type=float, default=0.5)
+    return p.parse_args()

@@ -20,7 +20,6 @@ Not an asv benchmark (it patches the code it compares); asv times the code as it
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import tempfile
 import time
@@ -75,10 +74,9 @@ def ab(rounds: int, pause: float, P: int = 8, n_jobs: int = 2) -> dict[str, floa
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--rounds", type=int, default=15)
-    p.add_argument("--pause", type=float, default=0.5)
-    args = p.parse_args()
+    from benchmarks._common import rounds_and_pause
+
+    args = rounds_and_pause(__doc__, 15)
     out = ab(args.rounds, args.pause)
     for k, v in out.items():
         print(f"{k:16s} {v:.3f}")

@@ -25,7 +25,6 @@ Not an asv benchmark (it patches the worker task and reads ``/proc``: Linux).
 
 from __future__ import annotations
 
-import argparse
 import mmap
 import os
 import tempfile
@@ -132,10 +131,9 @@ def budget(rounds: int, pause: float, P: int = 8, n_jobs: int = 2) -> dict[str, 
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--rounds", type=int, default=10)
-    p.add_argument("--pause", type=float, default=0.5)
-    args = p.parse_args()
+    from benchmarks._common import rounds_and_pause
+
+    args = rounds_and_pause(__doc__, 10)
     m = budget(args.rounds, args.pause)
     print(f"serial call {m['serial']:.3f} s, the HF time of one solve in it "
           f"{m['serial_solve']:.3f} s")
