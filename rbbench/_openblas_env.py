@@ -11,7 +11,8 @@ each new thread then spins 2^28 cycles on a core that the other process needs. M
 (issue 17, Hertz level 0, 8 parameters, a kept pool of 2 workers, 6 blocks per value): the
 first tasks of the call right after the one that started the pool (this process restored
 its BLAS threads at that call's end) took 0.196-0.258 s with 2^28 cycles and 0.154-0.186 s
-with 2^20, against 0.15-0.16 s for later tasks. 2^20 cycles (~0.4 ms) still keeps threads
+with 2^20, against 0.15-0.16 s for later tasks
+(``python -m benchmarks.kept_pool_first_tasks``). 2^20 cycles (~0.4 ms) still keeps threads
 awake between close BLAS calls of a multithreaded phase.
 """
 
