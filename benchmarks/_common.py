@@ -18,7 +18,14 @@ This module holds no benchmark (no ``time_`` / ``track_`` / ``peakmem_`` names).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import os
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
 
 from rbbench.scene.loading import Scene, load_scene
 from rbbench.testing import HERTZ_COARSE
@@ -96,3 +103,53 @@ def rounds_and_pause(doc: str, rounds: int) -> argparse.Namespace:
     p.add_argument("--rounds", type=int, default=rounds)
     p.add_argument("--pause", type=float, default=0.5)
     return p.parse_args()
+
+
+#: the file, in a call's cache root, where :func:`logged_worker_tasks` logs its tasks
+TASK_LOG = "tasks.log"
+
+
+def _anon_kb() -> int:
+    with open("/proc/self/smaps_rollup") as fh:
+        return next(int(line.split()[1]) for line in fh if line.startswith("Anonymous:"))
+
+
+@contextlib.contextmanager
+def logged_worker_tasks(memory: bool = False) -> Iterator[None]:
+    """Within the block, every snapshot worker task appends ``pid start end`` (and, with
+    ``memory``, the anonymous kB it added: ``/proc``, Linux) to :data:`TASK_LOG` in its
+    call's cache root (found from the task's path, so a kept worker logs each call in its
+    own place). ``start`` and ``end`` are ``time.perf_counter``: the system-wide monotonic
+    clock on Linux, comparable with this process's. For ``fork`` workers (they inherit the
+    patch) in the side-by-side scripts of this folder; read it with :func:`task_log`."""
+    from rbbench.hf import snapshots
+
+    task = snapshots._worker_task
+
+    def logged(mu, path):
+        a0 = _anon_kb() if memory else 0
+        t0 = time.perf_counter()
+        snap = task(mu, path)
+        t1 = time.perf_counter()
+        extra = f" {_anon_kb() - a0}" if memory else ""
+        with open(Path(path).parent.parent / TASK_LOG, "a") as fh:  # cache root / key / file
+            fh.write(f"{os.getpid()} {t0} {t1}{extra}\n")
+        return snap
+
+    # pickled by reference to the patched name, which the forked workers share
+    logged.__module__, logged.__qualname__ = snapshots.__name__, "_worker_task"
+    snapshots._worker_task = logged
+    try:
+        yield
+    finally:
+        snapshots._worker_task = task
+
+
+def task_log(cache_dir: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of :data:`TASK_LOG` in ``cache_dir`` by start time, and a mask of each
+    worker's first task among them."""
+    rows = np.loadtxt(Path(cache_dir) / TASK_LOG, ndmin=2)
+    rows = rows[np.argsort(rows[:, 1])]
+    first = np.zeros(len(rows), dtype=bool)
+    first[np.unique(rows[:, 0], return_index=True)[1]] = True
+    return rows, first

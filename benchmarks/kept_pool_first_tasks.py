@@ -28,44 +28,27 @@ def _child(blocks: int) -> None:
     import tempfile
     import time
 
-    import numpy as np
-
+    from benchmarks._common import logged_worker_tasks, task_log
     from rbbench.hf import snapshots
     from rbbench.hf.worker_pool import keep_workers
     from rbbench.scene.loading import load_scene
     from rbbench.scene.sampling import parameter_set
 
-    task = snapshots._worker_task
-
-    def logged(mu, path):
-        t0 = time.perf_counter()
-        snap = task(mu, path)
-        with open(os.path.join(os.path.dirname(os.path.dirname(path)), "tasks.log"),
-                  "a") as fh:  # in the call's cache root (a kept worker knows no new path)
-            fh.write(f"{os.getpid()} {t0} {time.perf_counter()}\n")
-        return snap
-
-    logged.__module__, logged.__qualname__ = snapshots.__name__, "_worker_task"
-    snapshots._worker_task = logged
     scene = load_scene("hertz_halfdisks", [])
     mus = parameter_set(scene, "valid", n=8, kind="lhs")
     out: dict[str, list[float]] = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        snapshots.compute_snapshots(scene, mus[:1], cache_dir=tmp + "/c", n_jobs=1,
-                                    progress=False)
+    with tempfile.TemporaryDirectory() as tmp, logged_worker_tasks():
+        snapshots.compute_snapshots(scene, mus[:1], cache_dir=tmp, n_jobs=1, progress=False)
         for _ in range(blocks):
             with keep_workers():
                 for c in range(4):
                     with tempfile.TemporaryDirectory() as d:
                         snapshots.compute_snapshots(scene, mus, cache_dir=d, n_jobs=2,
                                                     progress=False)
-                        rows = np.loadtxt(os.path.join(d, "tasks.log"), ndmin=2)
-                    rows = rows[np.argsort(rows[:, 1])]
-                    seen: set[float] = set()
-                    for pid, t0, t1 in rows:
-                        key = f"call{c}_first" if pid not in seen else "later"
-                        out.setdefault(key, []).append(float(t1 - t0))
-                        seen.add(pid)
+                        rows, first = task_log(d)
+                    took = rows[:, 2] - rows[:, 1]
+                    out.setdefault(f"call{c}_first", []).extend(took[first].tolist())
+                    out.setdefault("later", []).extend(took[~first].tolist())
             time.sleep(0.5)
     print(json.dumps(out))
 

@@ -26,7 +26,6 @@ Not an asv benchmark (it patches the worker task and reads ``/proc``: Linux).
 from __future__ import annotations
 
 import mmap
-import os
 import tempfile
 import time
 
@@ -35,29 +34,8 @@ from rbbench import _openblas_env  # noqa: F401  (first, as the command: before 
 # isort: split
 import numpy as np
 
+from benchmarks._common import logged_worker_tasks, task_log
 from rbbench.hf import snapshots
-
-#: the file the workers of the current call log to (set before the fork: inherited)
-_LOG: dict[str, str] = {"path": ""}
-_task = snapshots._worker_task
-
-
-def _anon_kb() -> int:
-    with open("/proc/self/smaps_rollup") as fh:
-        return next(int(line.split()[1]) for line in fh if line.startswith("Anonymous:"))
-
-
-def logged_task(mu: np.ndarray, path: os.PathLike) -> snapshots.Snapshot:
-    """The worker task, logging ``pid start end anon_kb_added``."""
-    a0, t0 = _anon_kb(), time.perf_counter()
-    snap = _task(mu, path)
-    t1 = time.perf_counter()
-    with open(_LOG["path"], "a") as fh:
-        fh.write(f"{os.getpid()} {t0} {t1} {_anon_kb() - a0}\n")
-    return snap
-
-
-logged_task.__name__ = logged_task.__qualname__ = "logged_task"
 
 
 def first_touch_us_per_page(nbytes: int = 64 << 20) -> float:
@@ -72,18 +50,12 @@ def first_touch_us_per_page(nbytes: int = 64 << 20) -> float:
     return elapsed * 1e6 / (nbytes // 4096)
 
 
-def _fresh_parts(log: str, t0: float, t1: float) -> dict[str, list[float]]:
-    rows = np.loadtxt(log, ndmin=2)
-    out: dict[str, list[float]] = {"pre": [float(rows[:, 1].min() - t0)],
-                                   "post": [float(t1 - rows[:, 2].max())],
-                                   "first": [], "later": [], "first_mb": []}
-    for pid in np.unique(rows[:, 0]):
-        mine = rows[rows[:, 0] == pid]
-        mine = mine[np.argsort(mine[:, 1])]
-        out["first"].append(float(mine[0, 2] - mine[0, 1]))
-        out["first_mb"].append(float(mine[0, 3]) / 1024)
-        out["later"] += [float(e - s) for s, e in mine[1:, 1:3]]
-    return out
+def _fresh_parts(cache_dir: str, t0: float, t1: float) -> dict[str, list[float]]:
+    rows, first = task_log(cache_dir)
+    return {"pre": [float(rows[:, 1].min() - t0)], "post": [float(t1 - rows[:, 2].max())],
+            "first": list(rows[first, 2] - rows[first, 1]),
+            "first_mb": list(rows[first, 3] / 1024),
+            "later": list(rows[~first, 2] - rows[~first, 1])}
 
 
 def budget(rounds: int, pause: float, P: int = 8, n_jobs: int = 2) -> dict[str, float]:
@@ -93,34 +65,27 @@ def budget(rounds: int, pause: float, P: int = 8, n_jobs: int = 2) -> dict[str, 
 
     scene = load_scene("hertz_halfdisks", [])
     mus = parameter_set(scene, "valid", n=P, kind="lhs")
-    snapshots._worker_task = logged_task
     parts: dict[str, list[float]] = {"serial": [], "fresh": []}
     solves: list[float] = []
-    try:
-        with tempfile.TemporaryDirectory() as tmp:
-            for r in range(rounds + 1):  # round 0: this process's components, untimed
+    with logged_worker_tasks(memory=True):
+        for r in range(rounds + 1):  # round 0: this process's components, untimed
+            with tempfile.TemporaryDirectory() as d:
+                snapshots.compute_snapshots(scene, mus[:1], cache_dir=d, n_jobs=1,
+                                            progress=False)
+            for jobs in ((1, n_jobs) if r % 2 else (n_jobs, 1)):
                 with tempfile.TemporaryDirectory() as d:
-                    snapshots.compute_snapshots(scene, mus[:1], cache_dir=d, n_jobs=1,
-                                                progress=False)
-                for jobs in ((1, n_jobs) if r % 2 else (n_jobs, 1)):
-                    _LOG["path"] = os.path.join(tmp, f"log{r}_{jobs}")
-                    with tempfile.TemporaryDirectory() as d:
-                        t0 = time.perf_counter()
-                        out = snapshots.compute_snapshots(scene, mus, cache_dir=d,
-                                                          n_jobs=jobs, progress=False)
-                        t1 = time.perf_counter()
-                    time.sleep(pause)
-                    if r == 0:
-                        continue
-                    if jobs == 1:
+                    t0 = time.perf_counter()
+                    out = snapshots.compute_snapshots(scene, mus, cache_dir=d, n_jobs=jobs,
+                                                      progress=False)
+                    t1 = time.perf_counter()
+                    if r and jobs == 1:
                         parts["serial"].append(t1 - t0)
                         solves += [float(t) for t in out.times]
-                    else:
+                    elif r:
                         parts["fresh"].append(t1 - t0)
-                        for k, v in _fresh_parts(_LOG["path"], t0, t1).items():
+                        for k, v in _fresh_parts(d, t0, t1).items():
                             parts.setdefault(k, []).extend(v)
-    finally:
-        snapshots._worker_task = _task
+                time.sleep(pause)
     med = {k: float(np.median(v)) for k, v in parts.items()}
     med["serial_solve"] = float(np.median(solves))
     med["first_touch_us"] = first_touch_us_per_page()

@@ -449,9 +449,9 @@ class _Run:
         released first, :func:`~rbbench.hf.worker_pool.release_free_heap`, and this
         process's BLAS pools are capped at the workers' threads during the call that
         starts the pool, so the workers inherit that too,
-        :func:`~rbbench.hf.threads.capped_for_fork`), else
-        once per worker at its start-up. Inside :func:`~rbbench.hf.worker_pool.keep_workers` the
-        pool serves the next call with the same key too; if such a reused pool loses a
+        :func:`~rbbench.hf.threads.capped_for_fork`), else once per worker at its
+        start-up. Inside :func:`~rbbench.hf.worker_pool.keep_workers` the pool serves the
+        next call with the same key too; if such a reused pool loses a
         worker, the parameters it lost are solved once more in a new pool, so that a kept
         pool never fails a call that a new one would not. A kept pool is matched on the
         ``asked`` workers and threads, not on ``n_jobs`` (capped at the parameters to
