@@ -116,24 +116,32 @@ def _anon_kb() -> int:
 
 @contextlib.contextmanager
 def logged_worker_tasks(memory: bool = False) -> Iterator[None]:
-    """Within the block, every snapshot worker task appends ``pid start end`` (and, with
-    ``memory``, the anonymous kB it added: ``/proc``, Linux) to :data:`TASK_LOG` in its
-    call's cache root (found from the task's path, so a kept worker logs each call in its
-    own place). ``start`` and ``end`` are ``time.perf_counter``: the system-wide monotonic
-    clock on Linux, comparable with this process's. For ``fork`` workers (they inherit the
-    patch) in the side-by-side scripts of this folder; read it with :func:`task_log`."""
+    """Within the block, every snapshot worker task appends ``pid start end kB r0 r1`` to
+    :data:`TASK_LOG` in its call's cache root (found from the task's path, so a kept worker
+    logs each call in its own place). ``start`` and ``end`` are ``time.perf_counter``: the
+    system-wide monotonic clock on Linux, comparable with this process's. With ``memory``,
+    a worker's first task in the block also records the anonymous kB it added (``/proc``,
+    Linux): ``kB``, read from ``r0`` (before ``start``) to ``r1`` (after ``end``), each read
+    ~3-4 ms here, so only once per worker; elsewhere ``kB`` is NaN and ``r0, r1`` are
+    ``start, end``. For ``fork`` workers (they inherit the patch) in the side-by-side
+    scripts of this folder; read it with :func:`task_log`."""
     from rbbench.hf import snapshots
 
     task = snapshots._worker_task
+    measured: set[int] = set()  # the pids whose first task was measured (one per process)
 
     def logged(mu, path):
-        a0 = _anon_kb() if memory else 0
+        first = memory and os.getpid() not in measured
+        measured.add(os.getpid())
+        r0 = time.perf_counter()
+        a0 = _anon_kb() if first else 0
         t0 = time.perf_counter()
         snap = task(mu, path)
         t1 = time.perf_counter()
-        extra = f" {_anon_kb() - a0}" if memory else ""
+        kb = _anon_kb() - a0 if first else math.nan
+        r1 = time.perf_counter() if first else t1
         with open(Path(path).parent.parent / TASK_LOG, "a") as fh:  # cache root / key / file
-            fh.write(f"{os.getpid()} {t0} {t1}{extra}\n")
+            fh.write(f"{os.getpid()} {t0} {t1} {kb} {r0 if first else t0} {r1}\n")
         return snap
 
     # pickled by reference to the patched name, which the forked workers share
@@ -146,8 +154,9 @@ def logged_worker_tasks(memory: bool = False) -> Iterator[None]:
 
 
 def task_log(cache_dir: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """The rows of :data:`TASK_LOG` in ``cache_dir`` by start time, and a mask of each
-    worker's first task among them."""
+    """The rows of :data:`TASK_LOG` in ``cache_dir`` by start time (``pid, start, end, kB,
+    r0, r1``: :func:`logged_worker_tasks`), and a mask of each worker's first task among
+    them."""
     rows = np.loadtxt(Path(cache_dir) / TASK_LOG, ndmin=2)
     rows = rows[np.argsort(rows[:, 1])]
     first = np.zeros(len(rows), dtype=bool)

@@ -10,12 +10,15 @@ system-wide monotonic clock on Linux) and the anonymous memory their first task 
 
 * ``serial``: the call, and one solve in it;
 * ``fresh``: the call; ``pre`` (call start to the first task's start: the fork, the
-  worker start-up), ``first task`` and ``later tasks`` of a worker, ``post`` (the last
-  task's end to the call's end: results, shutdown and join of the workers);
+  worker start-up), ``first task`` and ``later tasks`` of a worker, the time between two
+  tasks of a worker (result out, next task in), ``post`` (the last task's end to the
+  call's end: results, shutdown and join of the workers). The memory of a worker's first
+  task is read around it (``/proc``, ~3-4 ms a read): that time is in the fresh call
+  (printed) but in none of the parts;
 * the fresh memory a worker's first task writes and this machine's rate of first touches
-  (64 MB of fresh anonymous memory written once);
-* ``balanced bound``: the serial call over ``pre + first + (P / n - 1) later + post``, the
-  speed-up of a perfectly balanced call with these parts::
+  (a forked child writing 64 MB of fresh private memory once);
+* ``balanced bound``: the serial call over ``pre + first + (P / n - 1) (later + between)
+  + post``, the speed-up of a perfectly balanced call with these parts::
 
     python -m benchmarks.snapshot_pool_budget --rounds 10
 
@@ -25,7 +28,7 @@ Not an asv benchmark (it patches the worker task and reads ``/proc``: Linux).
 
 from __future__ import annotations
 
-import mmap
+import itertools
 import tempfile
 import time
 
@@ -35,27 +38,25 @@ from rbbench import _openblas_env  # noqa: F401  (first, as the command: before 
 import numpy as np
 
 from benchmarks._common import logged_worker_tasks, task_log
+from benchmarks.first_touch_fork import in_child
 from rbbench.hf import snapshots
 
 
 def first_touch_us_per_page(nbytes: int = 64 << 20) -> float:
-    """Microseconds per 4 kB page to write fresh anonymous memory once."""
-    buf = mmap.mmap(-1, nbytes)
-    view = np.frombuffer(buf, dtype=np.uint8)
-    t0 = time.perf_counter()
-    view[::4096] = 1
-    elapsed = time.perf_counter() - t0
-    del view
-    buf.close()
-    return elapsed * 1e6 / (nbytes // 4096)
+    """Microseconds per 4 kB page for a forked child to write ``nbytes`` of fresh private
+    memory once (4 kB pages: :func:`benchmarks.first_touch_fork.in_child`)."""
+    return in_child(nbytes, huge=False)[0] * 1e6 / (nbytes // 4096)
 
 
 def _fresh_parts(cache_dir: str, t0: float, t1: float) -> dict[str, list[float]]:
     rows, first = task_log(cache_dir)
-    return {"pre": [float(rows[:, 1].min() - t0)], "post": [float(t1 - rows[:, 2].max())],
-            "first": list(rows[first, 2] - rows[first, 1]),
-            "first_mb": list(rows[first, 3] / 1024),
-            "later": list(rows[~first, 2] - rows[~first, 1])}
+    pid, start, end, kb, r0, r1 = rows.T
+    gaps = [float(start[k] - r1[j]) for w in np.unique(pid)
+            for j, k in itertools.pairwise(np.flatnonzero(pid == w))]
+    return {"pre": [float(r0.min() - t0)], "post": [float(t1 - r1.max())],
+            "first": list(end[first] - start[first]), "first_mb": list(kb[first] / 1024),
+            "later": list(end[~first] - start[~first]), "gap": gaps,
+            "reads": list((start - r0 + r1 - end)[first])}
 
 
 def budget(rounds: int, pause: float, P: int = 8, n_jobs: int = 2) -> dict[str, float]:
@@ -89,7 +90,8 @@ def budget(rounds: int, pause: float, P: int = 8, n_jobs: int = 2) -> dict[str, 
     med = {k: float(np.median(v)) for k, v in parts.items()}
     med["serial_solve"] = float(np.median(solves))
     med["first_touch_us"] = first_touch_us_per_page()
-    med["bound"] = med["serial"] / (med["pre"] + med["first"] + (P / n_jobs - 1) * med["later"]
+    med["bound"] = med["serial"] / (med["pre"] + med["first"]
+                                    + (P / n_jobs - 1) * (med["later"] + med["gap"])
                                     + med["post"])
     med["speedup"] = med["serial"] / med["fresh"]
     return med
@@ -104,7 +106,9 @@ def main() -> None:
           f"{m['serial_solve']:.3f} s")
     print(f"fresh call {m['fresh']:.3f} s ({m['speedup']:.2f}x): pre {1e3 * m['pre']:.1f} ms, "
           f"first task {m['first']:.3f} s, later tasks {m['later']:.3f} s, "
-          f"post {1e3 * m['post']:.1f} ms")
+          f"between a worker's tasks {1e3 * m['gap']:.1f} ms, post {1e3 * m['post']:.1f} ms")
+    print(f"(this script's memory reads around a worker's first task: {1e3 * m['reads']:.1f} ms "
+          "in the fresh call, not in the parts)")
     print(f"a worker's first task writes {m['first_mb']:.1f} MB of fresh memory; first "
           f"touch here {m['first_touch_us']:.2f} us per 4 kB page "
           f"({m['first_mb'] * 256 * m['first_touch_us'] / 1e3:.1f} ms for that memory)")
