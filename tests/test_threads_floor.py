@@ -206,6 +206,39 @@ def test_capped_for_fork_caps_and_restores(two_threads):
     assert _blas_threads() == two_threads
 
 
+def test_a_fork_child_of_capped_for_fork_inherits_the_openblas_cap(two_threads):
+    """In a ``fork`` child of :func:`capped_for_fork`, every OpenBLAS pool is at the cap
+    already, so the child's :func:`limit_blas_threads` calls nothing on OpenBLAS (a call
+    would re-create its spinning threads); it sets again only pools whose runtime resets
+    at fork (Intel's OpenMP, loaded with MKL, comes back at its default count)."""
+    import json
+    import os
+
+    with threads.capped_for_fork(1):
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover - the child reports through the pipe
+            code = 1
+            try:
+                before = [(p["internal_api"], p["num_threads"]) for p in threadpool_info()]
+                how = threads.limit_blas_threads(1)
+                after = [p["num_threads"] for p in threadpool_info()]
+                os.write(w, json.dumps([before, how, after]).encode())
+                code = 0
+            finally:
+                os._exit(code)
+        os.close(w)
+        with os.fdopen(r) as fh:
+            before, how, after = json.loads(fh.read())
+        assert os.waitpid(pid, 0)[1] == 0
+    openblas = [n for api, n in before if api == "openblas"]
+    assert openblas and openblas == [1] * len(openblas)  # inherited, not set again
+    reset = [api for api, n in before if n != 1]
+    assert "openblas" not in reset
+    assert how == ("threadpoolctl" if reset else "inherited")
+    assert after == [1] * len(after)
+
+
 _ENV_AT_NUMPY = """
 import os, sys
 seen = {}

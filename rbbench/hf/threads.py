@@ -47,9 +47,13 @@ def limit_blas_threads(n: int) -> str:
     cores (measured on 2 cores, Hertz scene, 2 workers: 34 s against 2.5 s with one
     thread each). Sets the thread variables for libraries loaded later and caps the
     pools already loaded (numpy's and scipy's BLAS) with ``threadpoolctl``, those not at
-    ``n`` already (a ``fork`` child of :func:`capped_for_fork` inherits them at ``n``: no
-    call, no OpenBLAS threads). Returns what it did: ``"threadpoolctl"``, or
-    ``"inherited"`` when every pool was at ``n``.
+    ``n`` already (a ``fork`` child of :func:`capped_for_fork` inherits the OpenBLAS pools
+    at ``n``: no call on them, no OpenBLAS threads). Returns what it did:
+    ``"threadpoolctl"``, or ``"inherited"`` when every pool was at ``n``. In a snapshot
+    worker it is ``"threadpoolctl"`` when MKL is loaded: Intel's OpenMP runtime
+    (``libiomp5``) comes back at its default count after a fork (2 here, the parent
+    capped at 1), so that pool is set again (measured: 2-4 ms with the scan of the
+    loaded libraries; ``tests/test_threads_floor.py``).
     """
     from threadpoolctl import ThreadpoolController
 
@@ -81,8 +85,9 @@ def capped_for_fork(n: int) -> Iterator[str]:
     """Cap this process's BLAS / OpenMP pools at ``n`` threads while it forks children that
     run capped at ``n`` (snapshot workers), restored at the end of the block.
 
-    The children inherit the cap, so their :func:`limit_blas_threads` finds the pools at
-    ``n`` and calls nothing: no OpenBLAS threads are re-created in them (module docstring).
+    The children inherit the cap, so their :func:`limit_blas_threads` finds the OpenBLAS
+    pools at ``n`` and calls nothing on them: no OpenBLAS threads are re-created in them
+    (module docstring; an OpenMP runtime that resets at fork is set again there).
     Measured (Hertz level 0, 8 parameters, 2 fork workers, 1 BLAS thread each; issue 17's
     closing note): every worker had 2 extra OpenBLAS threads with 0.02-0.10 s of CPU after
     its first solve without the block, and 1 thread in all with it. This process pays the
