@@ -9,9 +9,10 @@ block, so its second call finds workers whose memory is already their own.
 Why keep them (issue 17, measured on Hertz level 0, 8 parameters, 2 workers against 1):
 a freshly forked worker's first solve is slower than its later ones. The larger part was
 OpenBLAS threads re-created in the worker and spinning ~0.1 s (now avoided: ``blas_cap``
-below); what is left is its first touch of ~52 MB of fresh memory (the solve's
-transients, which the parent keeps in its heap: ~2.9 us per 4 kB page on this virtual
-machine, ``python -m benchmarks.snapshot_pool_budget``), 0.18-0.19 s against 0.155 s.
+below); what is left is its first touch of ~52-55 MB of fresh memory (the solve's
+transients, which the parent keeps in its heap: ~1.9-2.5 us per 4 kB page in a forked
+child on this virtual machine, ``python -m benchmarks.first_touch_fork``), 0.18-0.19 s
+against 0.155-0.16 s (``python -m benchmarks.snapshot_pool_budget``).
 :func:`release_free_heap` before the fork halves those faults; a kept pool has none.
 
 Safety of a kept pool:
