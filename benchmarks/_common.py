@@ -125,7 +125,7 @@ def logged_worker_tasks(memory: bool = False) -> Iterator[None]:
     ~3-4 ms here, so only once per worker; elsewhere ``kB`` is NaN and ``r0, r1`` are
     ``start, end``. For ``fork`` workers (they inherit the patch) in the side-by-side
     scripts of this folder; read it with :func:`task_log`."""
-    from rbbench.hf import snapshots
+    from rbbench.hf.snapshots import compute as snapshots
 
     task = snapshots._worker_task
     measured: set[int] = set()  # the pids whose first task was measured (one per process)

@@ -2,9 +2,9 @@
 
 Issue 17, item 4. OpenBLAS re-creates its threads in a ``fork`` child at the child's first
 ``set_num_threads`` call, and each new thread spins ~0.1 s; since this change a ``fork``
-pool's workers inherit the cap from this process (:func:`rbbench.hf.threads.capped_for_fork`)
+pool's workers inherit the cap from this process (:func:`rbbench.runtime.threads.capped_for_fork`)
 and ``threadpoolctl`` is called only on the pools off the limit
-(:func:`rbbench.hf.threads._limit_changed`). ``before`` switches both parts back (no cap
+(:func:`rbbench.runtime.threads._limit_changed`). ``before`` switches both parts back (no cap
 for the fork, every pool set); ``after`` is the code as it is. Each round times, in a fresh
 cache directory and in alternating order, the serial call and the 2-worker call of each
 mode, with an untimed pause after every call and an untimed one-parameter serial call
@@ -29,7 +29,8 @@ import numpy as np
 
 def ab(rounds: int, pause: float, P: int = 8, n_jobs: int = 2) -> dict[str, float]:
     """Medians (s) of ``serial_<mode>`` and ``pool_<mode>`` and the speed-up of each mode."""
-    from rbbench.hf import snapshots, threads
+    from rbbench.hf.snapshots import compute as snapshots
+    from rbbench.runtime import threads
     from rbbench.scene.loading import load_scene
     from rbbench.scene.sampling import parameter_set
 

@@ -114,7 +114,7 @@ class NitscheAlartCurnier:
 
 class ContactPairing:
     """Wall time (s) of the contact pairing at mu = 0.8 on the default Hertz mesh with
-    smooth normals (:func:`rbbench.hf.contact_geometry.pair`): the Gauss rule per slave
+    smooth normals (:func:`rbbench.hf.geometry.operators.pair`): the Gauss rule per slave
     facet, or segment-to-segment pieces (master-vertex rays, a quadratic per facet and
     master vertex)."""
 
@@ -135,7 +135,7 @@ class ContactPairing:
 
     def time_pair(self, integration):
         """Pairing at mu: points, normals, ray casts, gaps (s)."""
-        from rbbench.hf.contact_geometry import pair
+        from rbbench.hf.geometry.pairing import pair
 
         pair(self.layout, self.mu)
 
@@ -144,7 +144,7 @@ class HFFloor:
     """The HF contact solve against its floor (issue 17): ``hertz_halfdisks`` at mu = 1 on
     the default mesh refined ``level`` times (36910 / 75226 / 159k dofs at levels 0 / 1 / 2),
     per direct solver of the condensation (``linear_solver`` of ``ssn``: the Schur
-    complement of the KKT matrix by SuperLU or PARDISO, :mod:`rbbench.hf.condensation`;
+    complement of the KKT matrix by SuperLU or PARDISO, :mod:`rbbench.hf.solvers.condensation`;
     PARDISO skipped when ``pypardiso`` is not installed).
 
     ``setup_cache`` runs ``rbbench solve``'s solve once per case (:func:`solve_hf`, one
@@ -160,7 +160,7 @@ class HFFloor:
     timeout = TIMEOUT
 
     def setup_cache(self):
-        from rbbench.hf.pardiso_schur import available
+        from rbbench.hf.solvers.pardiso import available
         from rbbench.scene.loading import load_scene
 
         out = {}
@@ -202,7 +202,7 @@ class HFFloor:
 
 class SnapshotWorkers:
     """HF snapshots of 8 parameters (mu = 0.7 ... 1.3, ``hertz_halfdisks`` default mesh)
-    with 1 and 2 worker processes (:func:`rbbench.hf.snapshots.compute_snapshots`, a
+    with 1 and 2 worker processes (:func:`rbbench.hf.snapshots.compute.compute_snapshots`, a
     fresh cache directory per call, so that every solve runs).
 
     ``setup`` builds this process's components (meshing + inner product) by one snapshot
@@ -223,7 +223,7 @@ class SnapshotWorkers:
 
         import numpy as np
 
-        from rbbench.hf.snapshots import compute_snapshots
+        from rbbench.hf.snapshots.compute import compute_snapshots
 
         self.scene = scene("hertz_default")
         self.mus = np.linspace(0.7, 1.3, 8)
@@ -234,7 +234,7 @@ class SnapshotWorkers:
         """Wall time (s) of 8 HF snapshots with n_jobs worker processes."""
         import tempfile
 
-        from rbbench.hf.snapshots import compute_snapshots
+        from rbbench.hf.snapshots.compute import compute_snapshots
 
         with tempfile.TemporaryDirectory() as d:
             compute_snapshots(self.scene, self.mus, cache_dir=d, n_jobs=n_jobs,
@@ -243,13 +243,13 @@ class SnapshotWorkers:
 
 class SnapshotWorkersKept(SnapshotWorkers):
     """As :class:`SnapshotWorkers`, but the timed call is the second of a
-    :func:`rbbench.hf.worker_pool.keep_workers` block (``setup`` makes the first, which
+    :func:`rbbench.runtime.workers.keep_workers` block (``setup`` makes the first, which
     starts the pool): ``rbbench reduce``'s validation snapshots after its training ones.
     With 2 workers the timed call finds workers that already solved (no first-solve page
     faults); with 1 it is the same serial call as :class:`SnapshotWorkers`."""
 
     def setup(self, n_jobs):
-        from rbbench.hf.worker_pool import keep_workers
+        from rbbench.runtime.workers import keep_workers
 
         super().setup(n_jobs)
         self.block = keep_workers()

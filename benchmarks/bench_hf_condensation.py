@@ -4,9 +4,9 @@ Issue 17, item 2. ``hertz_halfdisks`` at mu = 1 on the default mesh refined ``le
 times; the contact problem is built once per level (assembly excluded) and each timed call
 is one ``ssn`` solve (condensation, PDAS, recovery of u) with one BLAS thread:
 
-* ``columns``: today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.lcp.condense`), SuperLU;
+* ``columns``: today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.solvers.lcp.condense`), SuperLU;
 * ``superlu`` / ``pardiso``: ``D`` as the Schur complement of the KKT matrix
-  (:func:`rbbench.hf.condensation.condense_schur`);
+  (:func:`rbbench.hf.solvers.condensation.condense_schur`);
 * the floor: one SuperLU factorisation + one solve of the same stiffness
   (:func:`rbbench.hf.model.solve_floor`).
 
@@ -48,7 +48,7 @@ def contact_problem(level: int):
 
 
 def _variants() -> list[str]:
-    from rbbench.hf.pardiso_schur import available
+    from rbbench.hf.solvers.pardiso import available
 
     return [v for v in VARIANTS if v != "pardiso" or available()]
 
@@ -56,7 +56,7 @@ def _variants() -> list[str]:
 def _timed(f):
     """``(wall s, CPU s of this thread, f())`` with one BLAS thread (the CPU time is less
     sensitive to other processes on a shared machine)."""
-    from rbbench.hf.threads import one_blas_thread
+    from rbbench.runtime.threads import one_blas_thread
 
     with one_blas_thread():
         t0, c0 = time.perf_counter(), time.thread_time()

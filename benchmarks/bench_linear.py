@@ -3,7 +3,7 @@
 Cases: ``thermal_block`` (2 x 2 blocks, 32 x 32 squares, POD with N = 10 on 30 training
 parameters) and ``heat_robin`` (32 x 32 squares, 50 implicit Euler steps, POD-greedy with
 N = 10 on 9 training parameters). ``setup_cache`` reduces both once
-(:func:`rbbench.rb.linear_offline.reduce_linear`) and keeps the reduced models (small dense
+(:func:`rbbench.rb.linear.offline.reduce_linear`) and keeps the reduced models (small dense
 arrays) and the summaries; the HF benchmark assembles and solves at the default mu.
 """
 
@@ -27,7 +27,7 @@ def _scene(case):
 
 def reduced_linear(case, cache_dir, **changes):
     """``{"model", "mu", "summary"}`` of one linear reduction of ``case``."""
-    from rbbench.rb.linear_offline import reduce_linear
+    from rbbench.rb.linear.offline import reduce_linear
     from rbbench.rb.offline import ReduceConfig
 
     sc = _scene(case)
@@ -57,7 +57,7 @@ class LinearHF:
     timeout = TIMEOUT
 
     def setup(self, cache, case):
-        from rbbench.hf.linear import LinearHF as Model
+        from rbbench.hf.linear.model import LinearHF as Model
 
         self.model = Model(_scene(case))
         self.mu = self.model.scene.default_mu

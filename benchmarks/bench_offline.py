@@ -13,12 +13,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from rbbench.hf.contact_geometry import contact_operators
+from rbbench.hf.geometry.operators import contact_operators
 from rbbench.hf.model import ProblemCache, make_components
-from rbbench.hf.snapshots import compute_snapshots
-from rbbench.rb import infsup as inf
-from rbbench.rb.contact_eim import contact_eim
-from rbbench.rb.mixed_offline import make_stabilizer, pga_delta
+from rbbench.hf.snapshots.compute import compute_snapshots
+from rbbench.rb.algorithms import infsup as inf
+from rbbench.rb.hyper.contact_eim import contact_eim
+from rbbench.rb.mixed.offline import make_stabilizer, pga_delta
 from rbbench.rb.offline import eim_training_set, primal_basis
 from rbbench.registry import default_registry
 from rbbench.scene.sampling import parameter_set
@@ -102,7 +102,7 @@ class _Stage:
 class Snapshots:
     """HF snapshots of the training set, as ``reduce()`` computes them (stage 1).
 
-    :func:`rbbench.hf.snapshots.compute_snapshots` into a fresh empty cache directory (so
+    :func:`rbbench.hf.snapshots.compute.compute_snapshots` into a fresh empty cache directory (so
     every solve runs and its file is written), in this process (``n_jobs = 1``);
     includes building the components (meshing) once. Training sets: 16 (membrane,
     4 x 4 grid) and 11 (coarse Hertz) parameters. Unit: seconds.
@@ -125,7 +125,7 @@ class Snapshots:
 class PrimalPOD(_Stage):
     """Primal POD of the training displacements in the X inner product (stage 2).
 
-    The registered ``primal`` plugin ``pod`` (:func:`rbbench.rb.pod.pod`) with the CLI
+    The registered ``primal`` plugin ``pod`` (:func:`rbbench.rb.algorithms.pod.pod`) with the CLI
     default tolerance 1e-4. Unit: seconds.
     """
 
@@ -166,8 +166,8 @@ class PGA(_Stage):
 
     Timed: the default tolerance (seed's rule, ``pga_default_delta`` over every fifth
     training mu) and the plugin's ``offline``: the supremizers ``X^-1 B(mu)^T Vg`` at
-    every training mu and the greedy :func:`rbbench.rb.pga.pga`. Not timed (setup): the HF
-    operators at the training mus, the factorisation of X, the POD and mCPG bases.
+    every training mu and the greedy :func:`rbbench.rb.algorithms.pga.pga`. Not timed (setup): the
+    HF operators at the training mus, the factorisation of X, the POD and mCPG bases.
     Unit: seconds.
     """
 
@@ -191,9 +191,9 @@ class EIM(_Stage):
     The EIM training set is the one of ``reduce()``: the training mus plus a uniform
     grid of ``4 (n_train - 1) + 1`` points of D. Two parts, timed apart:
     ``time_eim_operators``, the contact operators ``B(mu)``, ``G(mu)`` on that set
-    (:func:`rbbench.hf.contact_geometry.contact_operators`, no HF solve);
+    (:func:`rbbench.hf.geometry.operators.contact_operators`, no HF solve);
     ``time_eim_build``, the greedy EIMs and the magic-row evaluator
-    (:func:`rbbench.rb.contact_eim.contact_eim`, tolerance 1e-4). Unit: seconds.
+    (:func:`rbbench.rb.hyper.contact_eim.contact_eim`, tolerance 1e-4). Unit: seconds.
     """
 
     def setup(self, data):

@@ -4,7 +4,7 @@
 :func:`rbbench.rb.offline.reduce` once per RB case (CLI defaults: POD, mCPG, PGA, hyper
 auto, i.e. exact-affine on the membrane and EIM on coarse Hertz; training / validation
 sizes of :data:`benchmarks._common.RB_OPTIONS`) and keeps the
-:class:`~rbbench.rb.mixed_model.ReducedModel` (small dense arrays, pickled by asv) and the
+:class:`~rbbench.rb.mixed.model.ReducedModel` (small dense arrays, pickled by asv) and the
 scalar results. The online benchmarks therefore run without any HF data.
 """
 

@@ -4,14 +4,14 @@ Issue 17, item 4. OpenBLAS shuts its threads down at a fork; the child's first
 ``set_num_threads`` call re-creates them (even to the count it has), and each spins about
 0.1 s before it sleeps. For each case a child is forked after numpy's and scipy's BLAS
 ran with 2 threads, caps itself at 1 thread as a snapshot worker does
-(:func:`rbbench.hf.threads.limit_blas_threads`), then sleeps 0.3 s; printed: the child's
+(:func:`rbbench.runtime.threads.limit_blas_threads`), then sleeps 0.3 s; printed: the child's
 threads and the CPU time it used during the sleep (all of it spinning threads)::
 
     python -m benchmarks.fork_blas_threads
 
 ``set anew``: the parent had 2 threads at the fork (the child sets every pool, as before
 issue 17's fix); ``inherited``: the parent forked inside
-:func:`rbbench.hf.threads.capped_for_fork` (the child finds the pools at 1 and sets
+:func:`rbbench.runtime.threads.capped_for_fork` (the child finds the pools at 1 and sets
 nothing). Not an asv benchmark (it forks and reads ``/proc``: Linux).
 """
 
@@ -24,7 +24,7 @@ import time
 
 
 def _child(label: str, write_fd: int) -> None:
-    from rbbench.hf.threads import limit_blas_threads
+    from rbbench.runtime.threads import limit_blas_threads
 
     how = limit_blas_threads(1)
     r0 = resource.getrusage(resource.RUSAGE_SELF)
@@ -42,7 +42,7 @@ def main() -> None:
     import scipy.linalg
     from threadpoolctl import threadpool_limits
 
-    from rbbench.hf.threads import capped_for_fork
+    from rbbench.runtime.threads import capped_for_fork
 
     a = np.random.default_rng(0).random((300, 300))
     with threadpool_limits(limits=2):

@@ -1,6 +1,6 @@
 """Diagnostic: the first tasks of a kept pool's calls, by OpenBLAS's idle-thread spin.
 
-Issue 17, item 4 (:mod:`rbbench._openblas_env`). At the end of the call that starts a pool
+Issue 17, item 4 (:mod:`rbbench.runtime.openblas_env`). At the end of the call that starts a pool
 this process restores its BLAS pools and OpenBLAS re-creates its threads, which spin
 ``2^OPENBLAS_THREAD_TIMEOUT`` cycles when idle; the call right after (``rbbench reduce``'s
 validation call) meets them. For each value, alternating, a fresh Python process (the
@@ -29,8 +29,8 @@ def _child(blocks: int) -> None:
     import time
 
     from benchmarks._common import logged_worker_tasks, task_log
-    from rbbench.hf import snapshots
-    from rbbench.hf.worker_pool import keep_workers
+    from rbbench.hf.snapshots import compute as snapshots
+    from rbbench.runtime.workers import keep_workers
     from rbbench.scene.loading import load_scene
     from rbbench.scene.sampling import parameter_set
 

@@ -22,7 +22,7 @@ system-wide monotonic clock on Linux) and the anonymous memory their first task 
 
     python -m benchmarks.snapshot_pool_budget --rounds 10
 
-OpenBLAS's idle spin is set as under the ``rbbench`` command (:mod:`rbbench._openblas_env`).
+OpenBLAS's idle spin is set as under the ``rbbench`` command (:mod:`rbbench.runtime.openblas_env`).
 Not an asv benchmark (it patches the worker task and reads ``/proc``: Linux).
 """
 
@@ -32,14 +32,14 @@ import itertools
 import tempfile
 import time
 
-from rbbench import _openblas_env  # noqa: F401  (first, as the command: before numpy)
+from rbbench.runtime import openblas_env as _openblas_env  # noqa: F401  (first, as the command: before numpy)
 
 # isort: split
 import numpy as np
 
 from benchmarks._common import logged_worker_tasks, task_log
 from benchmarks.first_touch_fork import in_child
-from rbbench.hf import snapshots
+from rbbench.hf.snapshots import compute as snapshots
 
 
 def first_touch_us_per_page(nbytes: int = 64 << 20) -> float:

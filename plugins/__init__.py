@@ -51,26 +51,26 @@ def _backends(add):
     """Declare the built-in HF backends."""
     add(ComponentSpec(
         name="skfem", role="backend",
-        target="rbbench_plugins.backends.skfem_backend:SkfemBackend",
+        target="rbbench_plugins.backends.skfem.backend:SkfemBackend",
         modules=("skfem",),
         capabilities={"physics": _ALL_PHYSICS, "degree": (1, 2),
                       "multiplier": ("lac", "p0", "p1", "nodal"),
                       "friction": ("none", "tresca", "coulomb"),
                       "linear_physics": _LINEAR_PHYSICS,
-                      "linear_target": "rbbench_plugins.backends.linear_skfem:SkfemLinearBackend"},
+                      "linear_target": "rbbench_plugins.backends.skfem.linear:SkfemLinearBackend"},
         description="scikit-fem: graded triangle meshes, P1/P2, GPTS contact pairing; linear "
                     "scenes (thermal, heat): unit square, no contact",
     ))
     add(ComponentSpec(
         name="ngsolve", role="backend",
-        target="rbbench_plugins.backends.ngsolve_backend:NGSolveBackend",
+        target="rbbench_plugins.backends.ngsolve.backend:NGSolveBackend",
         extras=("ngsolve",), modules=("ngsolve",),
         capabilities={"physics": _ALL_PHYSICS, "degree": (1, 2),
                       "multiplier": ("lac", "p0", "p1", "nodal"),
                       "friction": ("none", "tresca", "coulomb"),
                       "linear_physics": _LINEAR_PHYSICS,
                       "linear_target":
-                          "rbbench_plugins.backends.linear_ngsolve:NGSolveLinearBackend"},
+                          "rbbench_plugins.backends.ngsolve.linear:NGSolveLinearBackend"},
         description="NGSolve: Netgen meshes (or arrays), P1/P2, sparse Cholesky, "
                     "GPTS contact pairing; linear scenes (P1, the scikit-fem mesh)",
     ))
@@ -144,7 +144,7 @@ def _solvers(add):
     ))
     add(ComponentSpec(
         name="petsc-vi", role="solver",
-        target="rbbench_plugins.solvers.petsc_solvers:PetscVISolver",
+        target="rbbench_plugins.solvers.petsc:PetscVISolver",
         extras=("petsc",), modules=("petsc4py",),
         capabilities={"formulations": ("mixed",), "friction": ("none", "tresca", "coulomb")},
         description="PETSc SNES VI (vinewtonrsls, reduced-space active set) on the "
@@ -153,7 +153,7 @@ def _solvers(add):
     ))
     add(ComponentSpec(
         name="petsc-tao", role="solver",
-        target="rbbench_plugins.solvers.petsc_solvers:PetscTaoSolver",
+        target="rbbench_plugins.solvers.petsc:PetscTaoSolver",
         extras=("petsc",), modules=("petsc4py",),
         capabilities={"formulations": ("mixed",), "friction": ("none", "tresca", "coulomb")},
         description="PETSc TAO bound-constrained QP (tron) on the condensed dual problem; "
@@ -211,7 +211,7 @@ def _hypers(add):
     # offline steps carry them out)
     for name, cls, forms, text in _HYPERS:
         add(ComponentSpec(
-            name=name, role="hyper", target=f"rbbench.rb.hyper_reducers:{cls}",
+            name=name, role="hyper", target=f"rbbench.rb.hyper.reducers:{cls}",
             capabilities={"formulations": forms}, description=text,
         ))
 

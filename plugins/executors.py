@@ -23,7 +23,7 @@ from typing import Any
 
 from rbbench.bench.execution import CaseTimeout, alarm, execute_case, failed_row
 from rbbench.bench.matrix import Case
-from rbbench.hf.snapshots import n_cpus
+from rbbench.hf.snapshots.compute import n_cpus
 
 OnResult = Callable[[Case, dict], None]
 OnStage = Callable[[str], None]

@@ -73,14 +73,14 @@ def solve(scene: str | Path | Scene, mu: Any = None, backend: str = "skfem",
         ``.result`` (``u``, ``lam``, ``converged``), ``.metrics`` (the numbers of
         ``summary.json``), ``.disc``, ``.problem``, ``.times``.
         A linear scene (``thermal_block``, ``heat_robin``; no contact, issue 18):
-        :func:`rbbench.hf.linear_solve.solve_linear_hf`, ``.problem`` a
-        :class:`~rbbench.hf.linear.LinearProblem`, ``.metrics`` without contact fields.
+        :func:`rbbench.hf.linear.solve.solve_linear_hf`, ``.problem`` a
+        :class:`~rbbench.hf.linear.model.LinearProblem`, ``.metrics`` without contact fields.
     """
     from rbbench.hf.model import make_components, solve_hf
 
     sc = as_scene(scene)
-    if is_linear(sc):  # no contact: one sparse solve (rbbench.hf.linear_solve)
-        from rbbench.hf.linear_solve import solve_linear_hf
+    if is_linear(sc):  # no contact: one sparse solve (rbbench.hf.linear.solve)
+        from rbbench.hf.linear.solve import solve_linear_hf
 
         if solver is not None or formulation_options:
             raise SceneError(f"{sc.path}: a linear scene has one direct solve: no solver or "
@@ -113,7 +113,7 @@ def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None 
         ``n_valid``, ``primal``, ``dual``, ``stabilizer``, ``hyper``, ``formulation``,
         ...). ``solver`` defaults to the formulation's own, as on the command line. A
         linear scene: :func:`linear_config` (formulation ``linear``, no dual, stabiliser
-        or solver) and :func:`rbbench.rb.linear_offline.reduce_linear`.
+        or solver) and :func:`rbbench.rb.linear.offline.reduce_linear`.
 
     Returns
     -------
@@ -128,8 +128,8 @@ def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None 
 
     scene = as_scene(scene)
     kwargs = {"progress": progress} if progress is not None else {}
-    if is_linear(scene):  # no contact: the linear skeleton (rbbench.rb.linear_offline)
-        from rbbench.rb.linear_offline import reduce_linear
+    if is_linear(scene):  # no contact: the linear skeleton (rbbench.rb.linear.offline)
+        from rbbench.rb.linear.offline import reduce_linear
 
         return reduce_linear(scene, linear_config(scene, **config_fields), registry=registry,
                              **kwargs)

@@ -83,7 +83,7 @@ class ContactOperators:
 
     The tangent is ``t = (-n_y, n_x)`` (``n`` rotated by +90 degrees): on the bottom of
     the upper body (``n = (0, -1)``) it is ``+x``. ``lam_t`` enters
-    ``A u + B^T lam_n + Bt^T lam_t = F`` as ``lam_n`` does (:mod:`rbbench.hf.friction_algebra`).
+    ``A u + B^T lam_n + Bt^T lam_t = F`` as ``lam_n`` does (:mod:`rbbench.hf.algebra.friction`).
     """
 
     Un: sp.csr_matrix
@@ -271,7 +271,7 @@ class FrictionProblem(_FreeDofs):
     ``A u + Bn^T lam_n + Bt^T lam_t = F``, Signorini on ``(lam_n, Gn - Bn u)`` and, with
     the slip of the step ``v = Bt u + ut_lift - ut_prev``: ``|lam_t| <= s``,
     ``|lam_t| < s => v = 0``, ``v != 0 => lam_t = +s sign(v)`` (the traction on the body
-    is ``-lam_t``, :mod:`rbbench.hf.friction_algebra`); ``s = threshold`` (Tresca) or
+    is ``-lam_t``, :mod:`rbbench.hf.algebra.friction`); ``s = threshold`` (Tresca) or
     ``s = nu_F lam_n`` (Coulomb). ``ut_prev`` is the tangential jump at the end of the
     previous step (0 before the first).
 
@@ -324,7 +324,7 @@ class NitscheProblem(_FreeDofs):
 
     (``theta = 1``: the seed's symmetric variant, the optimality condition of the
     Nitsche energy; ``0``: skew-less; ``-1``: skew-symmetric). Integrals are the
-    slave-side quadrature of the contact operators. Algebra: :mod:`rbbench.hf.nitsche_algebra`.
+    slave-side quadrature of the contact operators. Algebra: :mod:`rbbench.hf.algebra.nitsche`.
 
     Attributes
     ----------
@@ -407,7 +407,7 @@ class NitscheFrictionProblem(NitscheProblem):
     ``int 1/gamma [P_t(u)]_S P_theta,t(v) - theta int 1/gamma sigma_nt(u) sigma_nt(v)``
     with ``P_t(u) = sigma_nt(u) - gamma (u_t - ut_prev)`` (the slip of the load step) and
     ``[x]_S`` the projection on ``[-S, S]``, ``S = threshold`` (Tresca) or
-    ``S = -F min(P_gamma(u), 0)`` (Coulomb). Algebra: :mod:`rbbench.hf.nitsche_friction`.
+    ``S = -F min(P_gamma(u), 0)`` (Coulomb). Algebra: :mod:`rbbench.hf.algebra.nitsche_friction`.
 
     The inherited fields ``F``, ``gap``, ``snn_lift``, ``u_lift`` and the fields
     ``snt_lift``, ``ut_lift``, ``ut_prev`` are those of the current load step (the last

@@ -16,15 +16,13 @@ pytest.importorskip("ngsolve",
                     reason='NGSolve backend not installed: pip install "rbbench[ngsolve]"')
 
 import ngsolve as ngs  # noqa: E402
-from rbbench_plugins.backends.meshes import graded_half_disk, unit_square  # noqa: E402
-from rbbench_plugins.backends.ngsolve_backend import (  # noqa: E402
-    NGSolveBackend,
-    sparse_cholesky,
-)
+from rbbench_plugins.backends.ngsolve.backend import NGSolveBackend
+from rbbench_plugins.backends.ngsolve.fe import sparse_cholesky
+from rbbench_plugins.backends.skfem.meshes import graded_half_disk, unit_square  # noqa: E402
 
 from rbbench.cli import main  # noqa: E402
-from rbbench.hf import lcp  # noqa: E402
 from rbbench.hf.model import solve_hf  # noqa: E402
+from rbbench.hf.solvers import lcp  # noqa: E402
 from rbbench.registry import default_registry  # noqa: E402
 from rbbench.scene.loading import load_scene  # noqa: E402
 from rbbench.testing import HERTZ_COARSE  # noqa: E402

@@ -1,4 +1,4 @@
-"""The compiled online path (rbbench.rb.compiled_online, numba) against the Python reference.
+"""The compiled online path (rbbench.rb.mixed.compiled, numba) against the Python reference.
 
 Raw values (the magic entries of ``C(mu) = B(mu) Z``, the magic rows of ``G(mu)``, the EIM
 coefficients and the scaled QP data handed to daqp) agree to 1e-12 relative, before any
@@ -18,10 +18,11 @@ import scipy.linalg as sla
 pytest.importorskip("numba")
 
 from rbbench.hf.model import make_components  # noqa: E402
-from rbbench.rb import _kernels, compiled_online  # noqa: E402
-from rbbench.rb.affine import AffineOperator, LinearInMu  # noqa: E402
-from rbbench.rb.contact_eim import HyperReductionError, contact_eim  # noqa: E402
-from rbbench.rb.mixed_model import ReducedModel  # noqa: E402
+from rbbench.rb.algorithms.affine import AffineOperator, LinearInMu  # noqa: E402
+from rbbench.rb.hyper.contact_eim import HyperReductionError, contact_eim  # noqa: E402
+from rbbench.rb.mixed import compiled as compiled_online
+from rbbench.rb.mixed import kernels as _kernels  # noqa: E402
+from rbbench.rb.mixed.model import ReducedModel  # noqa: E402
 from rbbench.scene.loading import load_scene  # noqa: E402
 from rbbench.scene.parameters import SceneError  # noqa: E402
 from rbbench.testing import HERTZ_COARSE  # noqa: E402
@@ -62,7 +63,7 @@ def model(request) -> ReducedModel:
 
 
 def _python_qp(model: ReducedModel, mu: float) -> np.ndarray:
-    """The scaled QP data of :func:`rbbench.rb.mixed_model._solve_daqp`, as the kernel lays
+    """The scaled QP data of :func:`rbbench.rb.mixed.model._solve_daqp`, as the kernel lays
     them out (``[H, f, A, b_upper, rows, |F|]``), from the Python path."""
     A, F, B, G = model.arrays(np.array([mu]))
     rows = np.linalg.norm(B, axis=1)
@@ -200,7 +201,7 @@ def test_pickle_drops_the_compiled_state_and_rebuilds_it(model):
 def _affine_model(R: int, N: int = 6, seed: int = 11) -> ReducedModel:
     """An exact-affine reduced model (no EIM): ``B_N = B_0 + mu B_1``, ``G_N`` likewise, an
     SPD ``A_N(mu)``, a load that makes some constraints active."""
-    from rbbench.rb.mixed_model import AffineConstraint
+    from rbbench.rb.mixed.model import AffineConstraint
     from rbbench.scene.parameters import ParameterSpace
 
     rng = np.random.default_rng(seed)

@@ -14,10 +14,11 @@ import pytest
 
 from rbbench.cli import main
 from rbbench.rb import compressors as comp
-from rbbench.rb import infsup as inf
-from rbbench.rb.cones import DUAL_COMPRESSORS, pod_dual
-from rbbench.rb.pga import pga, supremizers, x_orthonormalize
-from rbbench.rb.pod import pod, weak_greedy
+from rbbench.rb.algorithms import infsup as inf
+from rbbench.rb.algorithms.cones import DUAL_COMPRESSORS
+from rbbench.rb.algorithms.cones.baselines import pod_dual
+from rbbench.rb.algorithms.pga import pga, supremizers, x_orthonormalize
+from rbbench.rb.algorithms.pod import pod, weak_greedy
 from rbbench.registry import ComponentSpec, Registry, default_registry
 from rbbench.testing import (
     ContractViolation,
@@ -62,7 +63,7 @@ def test_registered_targets(role):
 def test_spec_check_requires_the_role_method():
     reg = Registry()
     for role, target, method in (("primal", "rbbench.rb.compressors:PrimalBasis", "__call__"),
-                                 ("dual", "rbbench.rb.cones:WMetric", "__call__"),
+                                 ("dual", "rbbench.rb.algorithms.cones:WMetric", "__call__"),
                                  ("stabilizer", "rbbench.rb.compressors:PODPrimal", "offline")):
         reg.add(ComponentSpec(name="x", role=role, target=target, description="d"))
         with pytest.raises(ContractViolation, match=f"no {method}\\(\\) method"):

@@ -1,7 +1,7 @@
 """The Delassus operator as the Schur complement of the KKT matrix (issue 17, item 2).
 
-The new path (:func:`rbbench.hf.condensation.condense_schur`, SuperLU or PARDISO) against
-today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.lcp.condense`, ``condensation="columns"``)
+The new path (:func:`rbbench.hf.solvers.condensation.condense_schur`, SuperLU or PARDISO) against
+today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.solvers.lcp.condense`, ``condensation="columns"``)
 and against dense linear algebra written out here; on raw values (``D``, ``q``, ``u``,
 ``lam``), never after clipping.
 """
@@ -15,9 +15,9 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from rbbench.hf import condensation as cd
-from rbbench.hf import lcp
-from rbbench.hf.pardiso_schur import available as pardiso_available
+from rbbench.hf.solvers import condensation as cd
+from rbbench.hf.solvers import lcp
+from rbbench.hf.solvers.pardiso import available as pardiso_available
 from rbbench.registry import default_registry
 
 SOLVERS = ["superlu"] + (["pardiso"] if pardiso_available() else [])
@@ -193,7 +193,7 @@ def test_pardiso_solves_in_halves_around_the_schur_block():
 def test_pardiso_floor_factorisation_takes_spd_and_indefinite_matrices():
     """The floor's ``factorized``: Cholesky for an SPD stiffness, and a symmetric
     indefinite matrix (which Cholesky refuses) still solved exactly by LDL^T."""
-    from rbbench.hf.pardiso_schur import factorized
+    from rbbench.hf.solvers.pardiso import factorized
 
     A, F, _, _ = _problem(zero_row=False)
     assert _rel(factorized(A)(F), np.linalg.solve(A.toarray(), F)) < 1e-12

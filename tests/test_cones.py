@@ -1,4 +1,5 @@
-"""Dual compressors (rbbench.rb.cones): exact cone projection, greedy invariants, baselines."""
+"""Dual compressors (rbbench.rb.algorithms.cones): exact cone projection, greedy invariants,
+baselines."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import nnls
 
-from rbbench.rb import cones
+from rbbench.rb.algorithms import cones
 
 FAST = settings(max_examples=50, deadline=None, derandomize=True)
 

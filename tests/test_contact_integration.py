@@ -1,5 +1,5 @@
 """Smooth slave normals and segment-to-segment contact integration
-(:mod:`rbbench.hf.contact_geometry`; README "Nitsche", the e_AC table)."""
+(:mod:`rbbench.hf.geometry.operators`; README "Nitsche", the e_AC table)."""
 
 from __future__ import annotations
 
@@ -8,17 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rbbench.hf.contact_geometry import (
-    AffineMap,
-    ContactLayout,
-    FacetChain,
-    facet_shape,
-    gauss_legendre_01,
-    master_vertex_hits,
-    pair,
-    segmented_rule,
-    with_vertex_normals,
-)
+from rbbench.hf.geometry.chains import AffineMap, FacetChain, with_vertex_normals
+from rbbench.hf.geometry.facets import facet_shape, gauss_legendre_01
+from rbbench.hf.geometry.pairing import ContactLayout, master_vertex_hits, pair, segmented_rule
 
 IDENTITY = AffineMap(scale=np.array([1.0, 0.0]), shift=np.zeros((2, 2)))
 MU = np.array([0.0])
@@ -190,7 +182,7 @@ def test_master_vertex_hits_across_a_gap_in_the_master_chain():
 def test_key_neutral_defaults_keep_cache_keys():
     """The options at their defaults leave scene fingerprints and snapshot keys as they
     were before the options existed; other values change them."""
-    from rbbench.hf.snapshots import snapshot_key
+    from rbbench.hf.snapshots.compute import snapshot_key
     from rbbench.scene.loading import load_scene
 
     base = load_scene("hertz_halfdisks")
@@ -216,7 +208,7 @@ def test_rigid_or_obstacle_scenes_keep_fixed_points_with_segmented():
 
 
 def test_hyper_reduction_refuses_segmented_integration():
-    from rbbench.rb.contact_eim import restrict_layout
+    from rbbench.rb.hyper.contact_eim import restrict_layout
 
     lay = _flat_pair(np.linspace(0, 1, 5), np.linspace(-0.2, 1.2, 8), 0.01, "segmented", 2)
     with pytest.raises(ValueError, match="contact_integration"):

@@ -59,7 +59,7 @@ def test_builtin_roles_are_all_exercised():
 # the contract rejects broken components
 # ---------------------------------------------------------------------------
 def _reference_solver(problem: ContactProblem, warm_start=None) -> SolveResult:
-    from rbbench.hf.lcp import condense, nnls_dual
+    from rbbench.hf.solvers.lcp import condense, nnls_dual
 
     cond = condense(problem.A, problem.F, problem.B, problem.G)
     lam = nnls_dual(cond.D, cond.q) if cond.q.size else np.zeros(0)
@@ -94,7 +94,7 @@ class _NegativeMultipliers:
     """Solves the equality-constrained problem (all constraints active): lam may be < 0."""
 
     def solve(self, problem, warm_start=None):
-        from rbbench.hf.lcp import condense
+        from rbbench.hf.solvers.lcp import condense
 
         cond = condense(problem.A, problem.F, problem.B, problem.G)
         lam = np.linalg.lstsq(cond.D, -cond.q, rcond=None)[0]
@@ -144,7 +144,7 @@ def test_solver_contract_rejects_false_convergence_on_infeasible_problem():
             self.max_iter = max_iter
 
         def solve(self, problem, warm_start=None):
-            from rbbench.hf.lcp import condense, uzawa
+            from rbbench.hf.solvers.lcp import condense, uzawa
 
             cond = condense(problem.A, problem.F, problem.B, problem.G)
             lam, it, _, res, _ = uzawa(cond.D, cond.q, warm_start, tol=1e-13,
@@ -276,11 +276,11 @@ def test_formulation_contract_rejects_a_nonsymmetric_operator():
 
 def test_spec_check_rejects_bad_declarations():
     reg = Registry()
-    good = dict(name="x", role="solver", target="rbbench.hf.lcp:pdas", description="d")
+    good = dict(name="x", role="solver", target="rbbench.hf.solvers.lcp:pdas", description="d")
     bad = {
         "empty description": (dict(good, name="a", description=" "), "empty description"),
         "capabilities list": (dict(good, name="b", capabilities=["ssn"]), "must be a dict"),
-        "missing attribute": (dict(good, name="c", target="rbbench.hf.lcp:no_such_attr"),
+        "missing attribute": (dict(good, name="c", target="rbbench.hf.solvers.lcp:no_such_attr"),
                               "does not resolve"),
         "missing module": (dict(good, name="d", target="rbbench.no_such_mod:X"),
                            "does not resolve"),

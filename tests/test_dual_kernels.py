@@ -1,4 +1,4 @@
-"""The compiled NNLS of the condensed online solve (rbbench.rb._dual_kernels) on its own.
+"""The compiled NNLS of the condensed online solve (rbbench.rb.mixed.dual_kernels) on its own.
 
 Against an independent reference: on small problems every active set is enumerated and the
 unique one satisfying the KKT conditions of LCP(q, D) gives the exact solution; on larger
@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 pytest.importorskip("numba")
 
-from rbbench.rb import _dual_kernels as dk  # noqa: E402
+from rbbench.rb.mixed import dual_kernels as dk  # noqa: E402
 
 
 def _problem(seed: int, r: int, spread: float) -> tuple[np.ndarray, np.ndarray]:
@@ -97,7 +97,7 @@ def test_eigenbasis_one_term_and_commuting_terms():
     """``V^T A_k V = diag(lam[k])`` and ``V^T A(theta_ref) V = I``: one constant term
     (V = L^-T), and three terms that are polynomials of one SPD matrix (they commute, so a
     common eigenbasis exists although there are two parameters)."""
-    from rbbench.rb.compiled_online import eigenbasis
+    from rbbench.rb.mixed.compiled import eigenbasis
 
     rng = np.random.default_rng(5)
     X = rng.standard_normal((7, 7))

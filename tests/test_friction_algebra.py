@@ -1,6 +1,6 @@
 """2D collocated friction on the condensed problem: solvers against independent references.
 
-Conventions (rbbench.hf.friction_algebra): x = [lam_n; lam_t], w = q + D x, gap = w_n,
+Conventions (rbbench.hf.algebra.friction): x = [lam_n; lam_t], w = q + D x, gap = w_n,
 slip v = -w_t, slip law lam_t = +s sign(v) (the traction on the body, -lam_t, opposes v).
 """
 
@@ -15,8 +15,7 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rbbench.hf import lcp
-from rbbench.hf.friction_algebra import (
+from rbbench.hf.algebra.friction import (
     SEED001,
     CoefficientLaw,
     condense_friction,
@@ -24,7 +23,8 @@ from rbbench.hf.friction_algebra import (
     slip,
     uzawa_friction,
 )
-from rbbench.hf.friction_solvers import (
+from rbbench.hf.solvers import lcp
+from rbbench.hf.solvers.friction import (
     coulomb_direct,
     coulomb_fixed_point,
     coulomb_model_b,

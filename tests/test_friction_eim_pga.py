@@ -11,19 +11,19 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from rbbench.hf.contact_geometry import contact_operators
+from rbbench.hf.geometry.operators import contact_operators
 from rbbench.hf.model import make_components
-from rbbench.rb import infsup as inf
-from rbbench.rb.contact_eim import build_row_evaluator, tangent
-from rbbench.rb.eim import deim, eim_error, eim_error_curve
-from rbbench.rb.friction_eim import (
+from rbbench.rb.algorithms import infsup as inf
+from rbbench.rb.algorithms.eim import deim, eim_error, eim_error_curve
+from rbbench.rb.algorithms.pga import riesz_lower_bound, x_orthonormalize
+from rbbench.rb.friction.eim import (
     friction_eim,
     friction_layout,
     friction_operators,
     friction_training_operators,
     reduced_eim_errors,
 )
-from rbbench.rb.friction_infsup import (
+from rbbench.rb.friction.infsup import (
     combined_b,
     combined_generators,
     combined_pga,
@@ -34,8 +34,8 @@ from rbbench.rb.friction_infsup import (
     mixed_zero_test,
     reduced_constants,
 )
+from rbbench.rb.hyper.contact_eim import build_row_evaluator, tangent
 from rbbench.rb.offline import build_problem
-from rbbench.rb.pga import riesz_lower_bound, x_orthonormalize
 from rbbench.scene.loading import load_scene
 
 COARSE = ["discretization.degree=1", "discretization.h_contact=0.02",

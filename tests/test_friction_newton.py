@@ -1,6 +1,6 @@
 """Model B (seed 001, ``F = f(|u_t|)``) by a semismooth Newton with ``f'`` (issue 13, item 3):
-:func:`rbbench.hf.friction_solvers.model_b_newton` against the fixed point on the
-coefficient (:func:`rbbench.hf.friction_solvers.coulomb_model_b`), an independent iteration
+:func:`rbbench.hf.solvers.friction.model_b_newton` against the fixed point on the
+coefficient (:func:`rbbench.hf.solvers.friction.coulomb_model_b`), an independent iteration
 with the same solution.
 """
 
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from rbbench_plugins.solvers.friction import FrictionSSNSolver
 
-from rbbench.hf import friction_solvers as fs
-from rbbench.hf.friction_algebra import SEED001, CoefficientLaw, friction_residuals, slip
+from rbbench.hf.algebra.friction import SEED001, CoefficientLaw, friction_residuals, slip
 from rbbench.hf.model import make_components
+from rbbench.hf.solvers import friction as fs
 from rbbench.interfaces import FrictionLaw
 from rbbench.scene.loading import load_scene
 

@@ -11,16 +11,16 @@ import pickle
 import numpy as np
 import pytest
 
-from rbbench.hf import friction_solvers as fs
-from rbbench.hf.snapshots import cache_path, compute_snapshots, snapshot_key
-from rbbench.rb.friction_model import (
+from rbbench.hf.snapshots.compute import cache_path, compute_snapshots, snapshot_key
+from rbbench.hf.solvers import friction as fs
+from rbbench.rb.algorithms.gcns import gcns, tangential_violation
+from rbbench.rb.friction.collocation.model import (
     FrictionArrays,
     condense_reduced,
     project_friction,
     solve_coulomb,
 )
-from rbbench.rb.friction_wedge import project_wedge
-from rbbench.rb.gcns import gcns, tangential_violation
+from rbbench.rb.friction.wedge.model import project_wedge
 from rbbench.rb.offline import ReduceConfig, offline
 from rbbench.rb.validation import validate
 from rbbench.scene.loading import load_scene
@@ -147,7 +147,7 @@ def _offline(patience: int = 1, dual: str = "seed", **kw):
         cfg = ReduceConfig(solver=SOLVER, n_train=7, n_valid=3, n_jobs=2, online_repeats=1,
                            R=7, tol_dual=1e-12, cache_dir=str(_workdir() / ".rbbench_cache"),
                            gcns_patience=patience, **kw)
-        cfg.friction_dual = dual  # read by rbbench.rb.friction_stage.friction_dual
+        cfg.friction_dual = dual  # read by rbbench.rb.friction.collocation.stage.friction_dual
         _CACHE[key] = offline(scene, cfg)
     return _CACHE[key]
 

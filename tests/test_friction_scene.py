@@ -8,8 +8,8 @@ import re
 import numpy as np
 import pytest
 
-from rbbench.hf.friction_algebra import COEFFICIENT_LAWS
-from rbbench.hf.snapshots import snapshot_key
+from rbbench.hf.algebra.friction import COEFFICIENT_LAWS
+from rbbench.hf.snapshots.compute import snapshot_key
 from rbbench.scene.friction import (
     COEFFICIENT_LAW_NAMES,
     Friction,
@@ -96,7 +96,7 @@ def test_tresca_threshold_and_load_steps():
 
 
 def test_coefficient_law_names_match_the_hf_registry():
-    """The scene layer names the laws that :mod:`rbbench.hf.friction_algebra` defines."""
+    """The scene layer names the laws that :mod:`rbbench.hf.algebra.friction` defines."""
     assert set(COEFFICIENT_LAW_NAMES) == set(COEFFICIENT_LAWS)
 
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import rbbench.rb.friction_infsup as fi
+import rbbench.rb.friction.infsup as fi
 from rbbench.hf.model import make_components
-from rbbench.rb import infsup as inf
-from rbbench.rb.friction_profiles import lam_t_profiles, profile_parameters
+from rbbench.rb.algorithms import infsup as inf
+from rbbench.rb.friction.profiles import lam_t_profiles, profile_parameters
 from rbbench.rb.offline import build_problem
 from rbbench.scene.loading import load_scene
 

@@ -1,4 +1,4 @@
-"""The wedge dual model (rbbench.rb.friction_wedge): De Saxce's fixed point against the HF
+"""The wedge dual model (rbbench.rb.friction.wedge.model): De Saxce's fixed point against the HF
 Coulomb solvers (a different algorithm), the cone at every node on raw values, the optimality
 conditions of the reduced problem from D and q."""
 
@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rbbench.hf import friction_solvers as fs
-from rbbench.hf.friction_algebra import condense_friction
-from rbbench.rb.friction_wedge import (
+from rbbench.hf.algebra.friction import condense_friction
+from rbbench.hf.solvers import friction as fs
+from rbbench.rb.friction.wedge.model import (
     WedgeBasis,
     desaxce_coulomb,
     identity_wedge,
@@ -99,8 +99,8 @@ def test_friction_dual_choice_and_table():
     the comparison table puts summaries side by side."""
     from types import SimpleNamespace
 
-    from rbbench.rb.friction_offline import friction_dual
-    from rbbench.rb.friction_wedge_stage import comparison_table
+    from rbbench.rb.friction.offline import friction_dual
+    from rbbench.rb.friction.wedge.stage import comparison_table
     from rbbench.scene.loading import SceneError
 
     assert friction_dual(SimpleNamespace()) == "seed"

@@ -1,4 +1,4 @@
-"""The hyper-reduced wedge model (rbbench.rb.friction_wedge_eim): equal to the plain wedge model
+"""The hyper-reduced wedge model (rbbench.rb.friction.wedge.hyper): equal to the plain wedge model
 (HF operators projected at mu, another code path) to the EIM / DEIM tolerance on the training
 mu, picklable, and its online solve touches no HF-size array or HF assembly."""
 
@@ -9,8 +9,8 @@ import pickle
 import numpy as np
 import pytest
 
-from rbbench.rb.friction_wedge import WedgeReducedModel, project_wedge
-from rbbench.rb.friction_wedge_eim import WedgeHyperModel, slip_deim
+from rbbench.rb.friction.wedge.hyper import WedgeHyperModel, slip_deim
+from rbbench.rb.friction.wedge.model import WedgeReducedModel, project_wedge
 from rbbench.rb.offline import ReduceConfig, offline
 from rbbench.scene.loading import SceneError, load_scene
 
@@ -63,8 +63,8 @@ def test_hyper_wedge_equals_plain_on_training_mu(tol_eim):
 def test_hyper_wedge_pickles_and_touches_no_hf_array(monkeypatch):
     """The pickled model solves the same at a new mu with every HF entry point disabled, and
     holds no array of HF size (all dimensions far below the free dofs)."""
-    import rbbench.hf.contact_geometry as cg
-    import rbbench.rb.friction_wedge as fw
+    import rbbench.hf.geometry.operators as cg
+    import rbbench.rb.friction.wedge.model as fw
     import rbbench.rb.offline as ro
 
     off = _offline()
@@ -123,7 +123,7 @@ def _arrays(obj, seen=None):
 def test_slip_deim_interpolates_at_its_nodes_and_refuses_hyper_with_seed():
     """Slip DEIM: exact on its snapshots at full size and exact when there is no slip; hyper
     'eim' needs the wedge dual model."""
-    from rbbench.rb.friction_offline import FrictionReduction
+    from rbbench.rb.friction.offline import FrictionReduction
     from rbbench.registry import default_registry
 
     rng = np.random.default_rng(0)

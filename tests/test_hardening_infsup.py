@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy.optimize import OptimizeResult
 
-import rbbench.rb.infsup_zero as iz
+import rbbench.rb.algorithms.infsup_zero as iz
 from rbbench.hf.model import make_components
-from rbbench.rb import infsup as inf
-from rbbench.rb.mixed_offline import _labelled
+from rbbench.rb.algorithms import infsup as inf
+from rbbench.rb.mixed.offline import _labelled
 from rbbench.rb.offline import SceneProblems
 from rbbench.rb.validation import beta_summary
 from rbbench.scene.loading import load_scene

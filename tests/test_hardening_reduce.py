@@ -13,8 +13,8 @@ import scipy.sparse as sp
 
 from rbbench.cli import main
 from rbbench.hf.model import make_components
-from rbbench.hf.snapshots import cache_path, load_snapshot, snapshot_key
-from rbbench.rb import infsup as inf
+from rbbench.hf.snapshots.compute import cache_path, load_snapshot, snapshot_key
+from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.offline import ReduceConfig, SceneProblems, reduce
 from rbbench.scene.loading import load_scene
 from rbbench.scene.sampling import parameter_set
@@ -155,8 +155,8 @@ def test_n_above_numerical_rank_warns(scene, tmp_path_factory, monkeypatch, caps
     """-N within the training set but above the POD's numerical rank (its eigenvalue cut-off
     raised for the test): the basis built is smaller, and result.json and the console say
     so."""
-    import rbbench.rb.pod as pod_mod
-    from rbbench.console import _print_reduce_summary
+    import rbbench.rb.algorithms.pod as pod_mod
+    from rbbench.cli.console import _print_reduce_summary
 
     monkeypatch.setattr(pod_mod, "EIG_DROP", 1e-4)
     cache = tmp_path_factory.getbasetemp() / "cache_hardening"

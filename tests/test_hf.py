@@ -118,7 +118,8 @@ def test_dof_count_independent_of_mu():
 
 
 def _membrane_brute_force(sol):
-    """min 1/2 u^T A u - F^T u  s.t.  u >= psi, by dense BVLS (independent of rbbench.hf.lcp)."""
+    """min 1/2 u^T A u - F^T u  s.t.  u >= psi, by dense BVLS (independent of
+    rbbench.hf.solvers.lcp)."""
     p = sol.problem
     A = p.A.toarray()
     L = np.linalg.cholesky(A)

@@ -1,4 +1,4 @@
-"""Hyper-reduction of the contact rows (rbbench.rb.contact_eim) against the HF operators."""
+"""Hyper-reduction of the contact rows (rbbench.rb.hyper.contact_eim) against the HF operators."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from rbbench.hf.contact_geometry import ray_cast, ray_cast_window
+from rbbench.hf.geometry.facets import ray_cast, ray_cast_window
 from rbbench.hf.model import make_components
-from rbbench.rb.contact_eim import HyperReductionError, build_row_evaluator, contact_eim
+from rbbench.rb.hyper.contact_eim import HyperReductionError, build_row_evaluator, contact_eim
 from rbbench.rb.offline import ReduceConfig, reduce
 from rbbench.scene.loading import load_scene
 
@@ -123,7 +123,7 @@ def test_gc_paused_restores_the_collector_state():
 def test_ray_cast_in_blocks_equals_one_block(data, block):
     """The blocked brute force (``RAY_CAST_BLOCK`` pairs per block) gives exactly the
     result of all points at once, with and without candidate windows."""
-    from rbbench.hf import facets
+    from rbbench.hf.geometry import facets
 
     a, b, x, nrm, lo, hi = data
     width = int((hi - lo).max()) + 1
@@ -201,7 +201,7 @@ def test_online_scaling_study_runs_on_two_levels(tmp_path, monkeypatch):
     assert [r["level"] for r in rows] == [0, 1]
     assert rows[1]["n_hf_dofs"] > rows[0]["n_hf_dofs"]
     assert rows[0]["ratio_to_first"] == 1.0 and rows[1]["t_online_median_s"] > 0
-    from rbbench.rb.compiled_online import NUMBA_VERSION
+    from rbbench.rb.mixed.compiled import NUMBA_VERSION
 
     assert {r["online_path"] for r in rows} == {"compiled" if NUMBA_VERSION else "python"}
     assert "| 1 |" in scaling_markdown(rows)

@@ -8,7 +8,7 @@ import scipy.sparse.linalg as spla
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rbbench.rb.infsup import (
+from rbbench.rb.algorithms.infsup import (
     beta_zero_certificate,
     beta_zero_test,
     boundedness_constant,
@@ -19,7 +19,7 @@ from rbbench.rb.infsup import (
     quotient_matrices,
     supremizer_operator,
 )
-from rbbench.rb.pga import supremizers
+from rbbench.rb.algorithms.pga import supremizers
 
 PROPS = settings(derandomize=True, max_examples=40, deadline=None)
 
@@ -275,7 +275,7 @@ def test_span_generalised_eigenvalue():
 def test_cone_value_with_dependent_generators():
     """Span+{v1, v2, v3, v1 + v2} = Span+{v1, v2, v3}: same cone, same constant, although
     M is singular for the first family (cones often need dependent generators)."""
-    from rbbench.rb.infsup import infsup_cone, quotient_matrices
+    from rbbench.rb.algorithms.infsup import infsup_cone, quotient_matrices
 
     rng = np.random.default_rng(7)
     m, n = 12, 30
@@ -299,7 +299,7 @@ def test_span_value_below_round_off_is_zero():
     """A pencil whose smallest eigenvalue is round-off of the largest (ratio 3e-16, the
     membrane's beta_dec in issue 16) gives 0, not a positive 'lower bound'; a small but
     resolved one (ratio 1e-8) keeps its value."""
-    from rbbench.rb.infsup import infsup_span
+    from rbbench.rb.algorithms.infsup import infsup_span
 
     M = np.eye(3)
     assert infsup_span(np.diag([3e-16, 0.5, 1.0]), M) == 0.0

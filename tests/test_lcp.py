@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import lsq_linear
 
-from rbbench.hf import lcp
+from rbbench.hf.solvers import lcp
 
 
 def _random_lcp(seed: int, m: int):

@@ -150,7 +150,7 @@ def test_done_when_thermal_block_n10_side_by_side():
 
 @pytest.mark.slow
 def test_done_when_heat_n25_below_one_percent(tmp_path):
-    from rbbench.rb.linear_offline import reduce_linear
+    from rbbench.rb.linear.offline import reduce_linear
     from rbbench.rb.offline import ReduceConfig
     from rbbench.scene.loading import load_scene
 

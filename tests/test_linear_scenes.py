@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from rbbench.hf.linear import LinearHF, solve_linear
-from rbbench.rb.linear_offline import LinearData, pod_greedy, reduce_linear
+from rbbench.hf.linear.model import LinearHF, solve_linear
+from rbbench.rb.algorithms.pod import pod
+from rbbench.rb.linear.offline import LinearData, pod_greedy, reduce_linear
 from rbbench.rb.offline import ReduceConfig
-from rbbench.rb.pod import pod
 from rbbench.scene.loading import SceneError, load_scene
 
 pytestmark = pytest.mark.timeout(120)
@@ -177,7 +177,7 @@ def test_no_contact_operator_is_assembled(tmp_path, monkeypatch):
     called."""
     from rbbench_plugins.backends import common
 
-    import rbbench.hf.contact_geometry as cg
+    import rbbench.hf.geometry.operators as cg
     import rbbench.interfaces as itf
 
     def boom(*a, **k):

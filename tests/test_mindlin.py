@@ -1,4 +1,4 @@
-"""Cattaneo-Mindlin partial slip (rbbench.hf.references.mindlin_2d) against its own theory."""
+"""Cattaneo-Mindlin partial slip (rbbench.hf.references.hertz.mindlin_2d) against its own theory."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from rbbench.hf.references import hertz_2d, mindlin_2d, mindlin_from_hertz
+from rbbench.hf.references.hertz import hertz_2d, mindlin_2d, mindlin_from_hertz
 
 HERTZ = hertz_2d(1.0e5, 0.5, 0.5, 2.0e11, 0.3)
 F = 0.2

@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from rbbench.hf.mindlin_check import (
+from rbbench.hf.model import solve_hf
+from rbbench.hf.references.hertz import mindlin_2d
+from rbbench.hf.references.mindlin import (
     mindlin_metrics,
     odd_fraction,
     stick_zone_ends,
     traction_l2_error,
 )
-from rbbench.hf.model import solve_hf
-from rbbench.hf.references import mindlin_2d
 from rbbench.scene.loading import PROBLEMS_DIR, SceneError, key_data, load_scene
 
 #: a coarse contact mesh (33 friction nodes, a few seconds)

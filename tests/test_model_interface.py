@@ -84,8 +84,8 @@ def test_formulations_supply_their_steps_and_are_peers():
     mixed = reg.create("formulation", "mixed").reduction()
     nitsche = reg.create("formulation", "nitsche").reduction()
     assert (mixed.name, nitsche.name) == ("mixed", "nitsche")
-    import rbbench.rb.mixed_offline as mo
-    import rbbench.rb.nitsche_offline as no
+    import rbbench.rb.mixed.offline as mo
+    import rbbench.rb.nitsche.offline as no
     import rbbench.rb.offline as skeleton
 
     def imported(mod):

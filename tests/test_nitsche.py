@@ -16,8 +16,8 @@ from rbbench_plugins.solvers.newton import NewtonSolver
 
 from rbbench.cli import main
 from rbbench.hf.model import solve_hf
-from rbbench.rb.eim import deim
-from rbbench.rb.nitsche_model import (
+from rbbench.rb.algorithms.eim import deim
+from rbbench.rb.nitsche.model import (
     _plain_system,
     full_points,
     reduced_newton,
@@ -49,7 +49,7 @@ def _nitsche(sc, mu, theta=1.0, gamma0=10.0, backend=None):
 
 
 def _independent_residual(prob, u):
-    """The Nitsche equations written out from the seed's slide (not rbbench.hf.nitsche_algebra)."""
+    """The Nitsche equations written out from the seed's slide (not rbbench.hf.algebra.nitsche)."""
     s = prob.Snn @ u + prob.snn_lift
     P = s - prob.gamma * (prob.Un @ u - prob.gap)
     neg = np.minimum(P, 0.0)
@@ -104,7 +104,7 @@ def test_snn_is_exact_for_affine_fields_and_only_on_request(degree):
 @pytest.mark.parametrize("degree", [1, 2])
 def test_snn_is_the_same_on_ngsolve_and_skfem_on_one_mesh(degree):
     pytest.importorskip("ngsolve")
-    from rbbench_plugins.backends.ngsolve_backend import NGSolveBackend
+    from rbbench_plugins.backends.ngsolve.backend import NGSolveBackend
 
     sc = _scene(f"discretization.degree={degree}")
     bs = default_registry().create("backend", "skfem", scene=sc)
@@ -194,7 +194,7 @@ def test_ac_residual_converges_at_order_one_on_non_matching_meshes(mu):
 
 
 def test_nodal_ac_residual_is_zero_for_an_exact_alart_curnier_field():
-    from rbbench.hf.nitsche_algebra import ac_residual_nodal
+    from rbbench.hf.algebra.nitsche import ac_residual_nodal
 
     gamma = np.full(4, 1e12)
     s = np.array([-3.0, -1.0, 0.0, 0.0])  # active: no penetration; inactive: a gap
@@ -207,7 +207,7 @@ def test_nodal_ac_residual_is_zero_for_an_exact_alart_curnier_field():
 def test_ac_residual_variants_on_a_rigid_obstacle():
     """The three e_AC readings: ``quad`` is the solve's ``e_ac``; on a rigid flat
     obstacle (no non-matching master mesh) the nodal one decreases under refinement."""
-    from rbbench.hf.nitsche_algebra import ac_residual_variants
+    from rbbench.hf.algebra.nitsche import ac_residual_variants
 
     reg = default_registry()
     e = []

@@ -1,5 +1,5 @@
 """Nitsche friction (issue 13, step 3, last item): the shear stress operator ``Snt``, the
-Chouly-Hild-Renard tangential term (:mod:`rbbench.hf.nitsche_friction`) and the generalised
+Chouly-Hild-Renard tangential term (:mod:`rbbench.hf.algebra.nitsche_friction`) and the generalised
 Newton over the load steps, checked against the frictionless Nitsche solve, the mixed
 friction solve (``friction-ssn``), the other backend, and the algebra written out here.
 
@@ -16,7 +16,7 @@ from rbbench_plugins.solvers.newton import NewtonSolver
 from rbbench_plugins.solvers.nitsche_friction_newton import at_step
 from test_nitsche import _affine_field
 
-from rbbench.hf import nitsche_friction as nf
+from rbbench.hf.algebra import nitsche_friction as nf
 from rbbench.hf.model import HFModel, make_components
 from rbbench.interfaces import STOP_REASONS, FrictionLaw, NitscheFrictionProblem
 from rbbench.registry import default_registry

@@ -2,9 +2,9 @@
 Coulomb and model B by the seed's fixed point around them.
 
 Every PETSc solution is checked against the primal-dual active set
-(:func:`rbbench.hf.friction_solvers.pdas_tresca`, an independent algorithm) or against
+(:func:`rbbench.hf.solvers.friction.pdas_tresca`, an independent algorithm) or against
 ``friction-ssn``, and its reported residuals against the definitions in
-:func:`rbbench.hf.friction_algebra.friction_residuals` on the raw multipliers.
+:func:`rbbench.hf.algebra.friction.friction_residuals` on the raw multipliers.
 """
 
 from __future__ import annotations
@@ -19,11 +19,12 @@ from hypothesis import strategies as st
 pytest.importorskip("petsc4py", reason='petsc4py not installed: pip install "rbbench[petsc]"')
 
 from rbbench_plugins.solvers.friction import FrictionSSNSolver  # noqa: E402
-from rbbench_plugins.solvers.petsc_solvers import PetscTaoSolver, PetscVISolver  # noqa: E402
+from rbbench_plugins.solvers.petsc.tao import PetscTaoSolver  # noqa: E402
+from rbbench_plugins.solvers.petsc.vi import PetscVISolver
 
-from rbbench.hf import friction_algebra as fa  # noqa: E402
-from rbbench.hf import friction_solvers as fs  # noqa: E402
+from rbbench.hf.algebra import friction as fa  # noqa: E402
 from rbbench.hf.model import make_components  # noqa: E402
+from rbbench.hf.solvers import friction as fs  # noqa: E402
 from rbbench.interfaces import STOP_REASONS, FrictionLaw  # noqa: E402
 from rbbench.scene.loading import load_scene  # noqa: E402
 

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 pytest.importorskip("petsc4py", reason='petsc4py not installed: pip install "rbbench[petsc]"')
 
-from rbbench_plugins.solvers import petsc_solvers as ps  # noqa: E402
+from rbbench_plugins.solvers import petsc as ps  # noqa: E402
 from rbbench_plugins.solvers.condensed import SemismoothNewtonSolver  # noqa: E402
 
 from rbbench.cli import main  # noqa: E402
@@ -256,7 +256,8 @@ def test_registered_and_core_does_not_import_petsc():
     reg = default_registry()
     assert isinstance(reg.create("solver", "petsc-vi"), ps.PetscVISolver)
     assert isinstance(reg.create("solver", "petsc-tao", tao_type="gpcg"), ps.PetscTaoSolver)
-    code = ("import sys, rbbench, rbbench.hf.model, rbbench.cli, rbbench.hf.lcp, rbbench.testing; "
+    code = ("import sys, rbbench, rbbench.hf.model, rbbench.cli, rbbench.hf.solvers.lcp, "
+            "rbbench.testing; "
             "rbbench.registry.default_registry(); "
             "assert 'petsc4py' not in sys.modules, 'petsc4py imported by the core'")
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)

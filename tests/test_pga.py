@@ -6,7 +6,7 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from rbbench.rb.infsup import (
+from rbbench.rb.algorithms.infsup import (
     boundedness_constant,
     infsup_cone,
     infsup_span,
@@ -14,7 +14,7 @@ from rbbench.rb.infsup import (
     quotient_matrices,
     supremizer_operator,
 )
-from rbbench.rb.pga import (
+from rbbench.rb.algorithms.pga import (
     pga,
     projection_defect,
     riesz_lower_bound,
@@ -173,7 +173,8 @@ def test_main_result(seed):
         sig = [projection_defect(Tmu, Z, S, X) for S in prefixes]
         assert np.all(np.diff(sig) <= 1e-12)  # basic property 1: S grows -> sigma decreases
         for s, (off_cone, off_span) in zip(sig, offs, strict=True):
-            # sharper, condition-free bound (rbbench.rb.pga.riesz_lower_bound); nearly tight
+            # sharper, condition-free bound (rbbench.rb.algorithms.pga.riesz_lower_bound); nearly
+            # tight
             assert off_cone >= riesz_lower_bound(b_on, s) * (1 - 1e-9)
             assert off_span >= riesz_lower_bound(b_on_span, s) * (1 - 1e-9)
             if s < b_on_span / c:

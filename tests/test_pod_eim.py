@@ -1,4 +1,5 @@
-"""POD, the ideal / weak greedy (rbbench.rb.pod) and EIM / DEIM (rbbench.rb.eim)."""
+"""POD, the ideal / weak greedy (rbbench.rb.algorithms.pod) and EIM / DEIM
+(rbbench.rb.algorithms.eim)."""
 
 from __future__ import annotations
 
@@ -6,8 +7,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from rbbench.rb.eim import deim, eim_error, matrix_eim
-from rbbench.rb.pod import gram_schmidt_add, pod, projection_errors, weak_greedy
+from rbbench.rb.algorithms.eim import deim, eim_error, matrix_eim
+from rbbench.rb.algorithms.pod import gram_schmidt_add, pod, projection_errors, weak_greedy
 
 
 def _laplace_mass(n: int) -> sp.csr_matrix:

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from rbbench.hf.model import make_components, solve_hf
-from rbbench.rb.affine import NotAffineError, affine_decomposition
-from rbbench.rb.mixed_model import ReducedBasis, build_affine_model, projector
+from rbbench.rb.algorithms.affine import NotAffineError, affine_decomposition
+from rbbench.rb.mixed.model import ReducedBasis, build_affine_model, projector
 from rbbench.scene.loading import load_scene
 
 
 def _x_orthonormal(U, X):
-    """X-orthonormal basis of span(U) (dense, small): independent of rbbench.rb.pod."""
+    """X-orthonormal basis of span(U) (dense, small): independent of rbbench.rb.algorithms.pod."""
     G = U.T @ (X @ U)
     w, V = np.linalg.eigh(G)
     keep = w > 1e-12 * w.max()
@@ -121,7 +121,7 @@ def test_hertz_contact_operators_are_not_affine():
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from rbbench.rb.mixed_model import solve_reduced  # noqa: E402
+from rbbench.rb.mixed.model import solve_reduced  # noqa: E402
 
 
 @settings(max_examples=40, deadline=None)

@@ -133,7 +133,7 @@ DEMO_PLUGIN = '''
 """rbbench-demo-plugin: a third-party solver declared through the rbbench entry point."""
 import numpy as np
 
-from rbbench.hf import lcp
+from rbbench.hf.solvers import lcp
 from rbbench.hookspecs import hookimpl
 from rbbench.interfaces import Solver, SolveResult
 from rbbench.registry import ComponentSpec

@@ -1,5 +1,5 @@
 """Training / validation sets (rbbench.scene.sampling) and the HF snapshot cache
-(rbbench.hf.snapshots)."""
+(rbbench.hf.snapshots.compute)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import os
 import numpy as np
 import pytest
 
-import rbbench.hf.snapshots as snapshots
-from rbbench.hf.snapshots import SnapshotError, compute_snapshots, snapshot_key
+import rbbench.hf.snapshots.compute as snapshots
+from rbbench.hf.snapshots.compute import SnapshotError, compute_snapshots, snapshot_key
 from rbbench.scene.loading import load_scene
 from rbbench.scene.sampling import latin_hypercube, parameter_set, uniform_count
 
@@ -271,7 +271,7 @@ def test_out_of_domain_rejected(scene, tmp_path):
 def test_snapshots_feed_pod_and_greedy(scene, tmp_path):
     """End to end on the fast scene: X must be restricted to the free dofs of U."""
     from rbbench.hf.model import solve_hf
-    from rbbench.rb.pod import pod, projection_errors, weak_greedy
+    from rbbench.rb.algorithms.pod import pod, projection_errors, weak_greedy
 
     S = compute_snapshots(scene, parameter_set(scene, "train"), cache_dir=tmp_path, n_jobs=1,
                           progress=False)

@@ -23,10 +23,10 @@ import numpy as np
 import pytest
 
 from rbbench.hf.model import make_components
-from rbbench.hf.snapshots import compute_snapshots
-from rbbench.rb import infsup as inf
+from rbbench.hf.snapshots.compute import compute_snapshots
+from rbbench.rb.algorithms import infsup as inf
+from rbbench.rb.algorithms.pga import supremizers
 from rbbench.rb.compressors import pga_default_delta
-from rbbench.rb.pga import supremizers
 from rbbench.registry import default_registry
 from rbbench.scene.loading import load_scene
 from rbbench.scene.sampling import parameter_set

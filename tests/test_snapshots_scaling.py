@@ -16,10 +16,10 @@ import time
 import numpy as np
 import pytest
 
-from rbbench.hf import snapshots
-from rbbench.hf import worker_pool as worker_pool_module
-from rbbench.hf.snapshots import compute_snapshots
-from rbbench.hf.worker_pool import keep_workers, kept_pool_alive, release_free_heap
+from rbbench.hf.snapshots import compute as snapshots
+from rbbench.hf.snapshots.compute import compute_snapshots
+from rbbench.runtime import workers as worker_pool_module
+from rbbench.runtime.workers import keep_workers, kept_pool_alive, release_free_heap
 from rbbench.scene.loading import load_scene
 from rbbench.scene.sampling import parameter_set
 
@@ -297,8 +297,8 @@ def test_kept_workers_die_with_their_parent(tmp_path):
     script = tmp_path / "child.py"
     script.write_text(
         "import multiprocessing, os, sys\n"
-        "from rbbench.hf.snapshots import compute_snapshots\n"
-        "from rbbench.hf.worker_pool import keep_workers\n"
+        "from rbbench.hf.snapshots.compute import compute_snapshots\n"
+        "from rbbench.runtime.workers import keep_workers\n"
         "from rbbench.scene.loading import load_scene\n"
         "from rbbench.scene.sampling import parameter_set\n"
         "sc = load_scene('membrane_obstacle')\n"
@@ -420,7 +420,7 @@ def test_snapshot_workers_study_reports_every_case(tmp_path):
 def test_snapshot_workers_study_settles_this_process_before_each_serial_call(monkeypatch):
     """Every timed serial call comes right after an untimed one-parameter serial call (the
     faults a previous fork left are paid there), and only serial calls get one."""
-    from rbbench.hf import snapshots
+    from rbbench.hf.snapshots import compute as snapshots
     from rbbench.scene.loading import load_scene
     from rbbench.studies.snapshot_workers import snapshot_workers
 

@@ -241,7 +241,7 @@ def test_load_steps_give_the_dirichlet_values_of_each_step():
 @pytest.mark.parametrize("degree", [1, 2])
 def test_skfem_and_ngsolve_agree_on_the_same_mesh(degree):
     pytest.importorskip("ngsolve", reason='NGSolve backend not installed')
-    from rbbench_plugins.backends.ngsolve_backend import NGSolveBackend
+    from rbbench_plugins.backends.ngsolve.backend import NGSolveBackend
     from test_backend_ngsolve import _permutation
 
     sc = load_scene("hertz_halfdisks", COARSE + COULOMB + SHEAR

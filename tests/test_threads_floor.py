@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from rbbench.console import print_summary
-from rbbench.hf import threads
+from rbbench.cli.console import print_summary
 from rbbench.hf.model import make_components, solve_floor, solve_hf
-from rbbench.hf.threads import blas_pools, one_blas_thread
 from rbbench.rb.validation import ReducedStage, validate
+from rbbench.runtime import threads
+from rbbench.runtime.threads import blas_pools, one_blas_thread
 from rbbench.scene.loading import load_scene
 from rbbench.testing import HERTZ_COARSE
 
@@ -130,7 +130,7 @@ def test_floor_solves_the_stiffness():
     got = {}
 
     def factorize(A):
-        from rbbench.hf.lcp import factorize as lu
+        from rbbench.hf.solvers.lcp import factorize as lu
 
         solve = lu(A).solve
 
@@ -148,7 +148,7 @@ def test_floor_solves_the_stiffness():
 def test_floor_uses_the_solves_linear_solver():
     """A solve condensed on PARDISO is timed against a PARDISO floor (same solver, not
     SuperLU), named in floor.solver; the floor's x solves A x = F (dense reference)."""
-    from rbbench.hf.pardiso_schur import available, warm_up
+    from rbbench.hf.solvers.pardiso import available, warm_up
 
     if not available():
         pytest.skip("pypardiso not installed")
@@ -162,7 +162,7 @@ def test_floor_uses_the_solves_linear_solver():
     p = sol.problem
     fl = solve_floor(p, "pardiso")
     assert fl["solver"].startswith("PARDISO")
-    from rbbench.hf.pardiso_schur import factorized
+    from rbbench.hf.solvers.pardiso import factorized
 
     x = factorized(p.A)(np.asarray(p.F, float))
     ref = np.linalg.solve(p.A.toarray(), p.F)

@@ -8,7 +8,7 @@ mesh and dof numbering:
 * boundary facets of a triangle mesh given as arrays, the facets of a potential
   contact zone ordered along the arc (:func:`zone_facets`), the facets of the
   flat (Dirichlet) face (:func:`flat_facets`), and the
-  :class:`~rbbench.hf.contact_geometry.FacetChain` built from them
+  :class:`~rbbench.hf.geometry.operators.FacetChain` built from them
   (:func:`facet_chain`);
 * the contact operators at mu with the scene-level error message
   (:func:`halfdisk_contact`), the slave elements behind the normal stress
@@ -31,15 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from rbbench.hf.contact_geometry import (
-    AffineMap,
-    ContactLayout,
-    FacetChain,
-    PairingError,
-    SlaveStress,
-    contact_operators,
-    with_vertex_normals,
-)
+from rbbench.hf.geometry.chains import AffineMap, FacetChain, SlaveStress, with_vertex_normals
+from rbbench.hf.geometry.operators import contact_operators
+from rbbench.hf.geometry.pairing import ContactLayout, PairingError
 from rbbench.interfaces import ContactOperators
 from rbbench.scene.friction import friction_of, tangential_displacement
 from rbbench.scene.loading import Scene, SceneError
@@ -213,7 +207,7 @@ def facet_chain(points: np.ndarray, triangles: np.ndarray, facets: np.ndarray,
                 elements: np.ndarray, zone: tuple[float, float],
                 facet_dofs: Callable[[np.ndarray, np.ndarray], np.ndarray],
                 amap: AffineMap) -> FacetChain:
-    """The :class:`~rbbench.hf.contact_geometry.FacetChain` of the boundary facets in ``zone``.
+    """The :class:`~rbbench.hf.geometry.operators.FacetChain` of the boundary facets in ``zone``.
 
     Parameters
     ----------
@@ -264,7 +258,7 @@ def slave_stress(scene: Scene, points: np.ndarray, triangles: np.ndarray,
                  vertex_dofs: Callable[[np.ndarray], np.ndarray],
                  edge_dofs: Callable[[np.ndarray], np.ndarray] | None,
                  body: str = "upper") -> SlaveStress:
-    """The :class:`~rbbench.hf.contact_geometry.SlaveStress` of the chain facets in ``zone``.
+    """The :class:`~rbbench.hf.geometry.operators.SlaveStress` of the chain facets in ``zone``.
 
     Parameters
     ----------
@@ -294,10 +288,10 @@ def slave_stress(scene: Scene, points: np.ndarray, triangles: np.ndarray,
 def halfdisk_layout(scene: Scene, slave: FacetChain, master: FacetChain | None,
                     degree: int, n_gauss: int, n_dofs: int,
                     stress: SlaveStress | None = None) -> ContactLayout:
-    """The :class:`~rbbench.hf.contact_geometry.ContactLayout` of a ``halfdisks`` scene
+    """The :class:`~rbbench.hf.geometry.operators.ContactLayout` of a ``halfdisks`` scene
     (``[discretization] normals = "smooth"``: the slave chain gets vertex normals,
-    :func:`~rbbench.hf.contact_geometry.with_vertex_normals`; ``contact_integration``:
-    :attr:`~rbbench.hf.contact_geometry.ContactLayout.integration`)."""
+    :func:`~rbbench.hf.geometry.operators.with_vertex_normals`; ``contact_integration``:
+    :attr:`~rbbench.hf.geometry.operators.ContactLayout.integration`)."""
     disc = scene.data["discretization"]
     if disc["normals"] == "smooth":
         slave = with_vertex_normals(slave)
@@ -364,7 +358,7 @@ def check_needs(backend: str, scene: Scene, needs: frozenset[str]) -> None:
 
 def halfdisk_contact(scene: Scene, layout: ContactLayout, mu: np.ndarray,
                      tangential: bool = False, stress: bool = False) -> ContactOperators:
-    """The contact operators at mu (:func:`rbbench.hf.contact_geometry.contact_operators`:
+    """The contact operators at mu (:func:`rbbench.hf.geometry.operators.contact_operators`:
     Gauss-point-to-segment, or segment-to-segment with ``contact_integration``).
 
     A slave point missing the master zone becomes a :class:`SceneError` naming
@@ -383,7 +377,7 @@ def halfdisk_contact(scene: Scene, layout: ContactLayout, mu: np.ndarray,
 class HalfDiskContact:
     """Mixin: the contact of a backend's ``halfdisks`` scenes, whatever its dof numbering.
 
-    The mu-maps (:func:`body_maps`) and the :class:`~rbbench.hf.contact_geometry.ContactLayout`
+    The mu-maps (:func:`body_maps`) and the :class:`~rbbench.hf.geometry.operators.ContactLayout`
     (:func:`halfdisk_layout`) are built once, on first use; the operators at mu come
     from the layout (:func:`halfdisk_contact`). The backend has ``name``, ``scene``,
     ``kind``, ``degree``, ``n_gauss``, ``ndofs``, the bodies ``upper`` and ``lower``
@@ -402,7 +396,7 @@ class HalfDiskContact:
         return self._maps
 
     def contact_layout(self) -> ContactLayout:
-        """Reference contact data and the mu-maps (see :mod:`rbbench.hf.contact_geometry`)."""
+        """Reference contact data and the mu-maps (see :mod:`rbbench.hf.geometry.operators`)."""
         if self.kind != "halfdisks":
             raise NotImplementedError(f"{self.name} backend: a contact layout exists for "
                                       "two-body (halfdisks) scenes only")

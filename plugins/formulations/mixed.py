@@ -27,14 +27,14 @@ class MixedFormulation(Formulation):
             raise TypeError(f"mixed formulation: unknown options {sorted(options)}")
 
     def reduction(self, friction: str = "none"):
-        """Offline steps of the reduced model: :class:`rbbench.rb.mixed_offline.MixedReduction`,
+        """Offline steps of the reduced model: :class:`rbbench.rb.mixed.offline.MixedReduction`,
         for a friction scene (``friction``: its law)
-        :class:`rbbench.rb.friction_offline.FrictionReduction`."""
+        :class:`rbbench.rb.friction.offline.FrictionReduction`."""
         if friction != "none":
-            from rbbench.rb.friction_offline import FrictionReduction
+            from rbbench.rb.friction.offline import FrictionReduction
 
             return FrictionReduction()
-        from rbbench.rb.mixed_offline import MixedReduction
+        from rbbench.rb.mixed.offline import MixedReduction
 
         return MixedReduction()
 

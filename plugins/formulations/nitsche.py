@@ -2,12 +2,12 @@
 
 Chouly & Hild (2013), Chouly, Hild & Renard (2015): the Alart-Curnier
 equation ``sigma_nn(u) = [sigma_nn(u) - gamma (u_n - d^n)]_-`` imposed weakly
-(:mod:`rbbench.hf.nitsche_algebra`). Only the backend's contact evaluation matrices are
+(:mod:`rbbench.hf.algebra.nitsche`). Only the backend's contact evaluation matrices are
 used (``Un``, ``Snn``, weights, gap, facet lengths), so the formulation runs on
 every backend that builds ``Snn`` on request (``needs = {"stress"}``).
 
 Friction (issue 13): Chouly-Hild-Renard's tangential term
-(:mod:`rbbench.hf.nitsche_friction`) with the slave shear stress ``Snt`` and the tangential
+(:mod:`rbbench.hf.algebra.nitsche_friction`) with the slave shear stress ``Snt`` and the tangential
 jump ``Ut`` (built when a friction scene asks for the tangential operators), over the load
 steps of the scene (:func:`rbbench_plugins.formulations.friction.load_steps`).
 """
@@ -19,7 +19,7 @@ import dataclasses
 import numpy as np
 from rbbench_plugins.formulations.friction import _law_arrays, load_steps
 
-from rbbench.hf.nitsche_algebra import gamma_scaling
+from rbbench.hf.algebra.nitsche import gamma_scaling
 from rbbench.interfaces import (
     Discretization,
     Formulation,
@@ -67,13 +67,13 @@ class NitscheFormulation(Formulation):
 
     def cache_params(self) -> dict[str, float]:
         """What, besides the scene and the components, determines a solution (the HF
-        snapshot cache key, :mod:`rbbench.hf.snapshots`)."""
+        snapshot cache key, :mod:`rbbench.hf.snapshots.compute`)."""
         return {"theta": self.theta, "gamma0": self.gamma0}
 
     def reduction(self):
         """Offline steps of the reduced model
-        (:class:`rbbench.rb.nitsche_offline.NitscheReduction`)."""
-        from rbbench.rb.nitsche_offline import NitscheReduction
+        (:class:`rbbench.rb.nitsche.offline.NitscheReduction`)."""
+        from rbbench.rb.nitsche.offline import NitscheReduction
 
         return NitscheReduction()
 

@@ -2,7 +2,7 @@
 
 Both factorise the stiffness once per mu, condense on the contact nodes
 (``x = [lam_n; lam_t]``, ``D = B A^{-1} B^T``, ``B = [Bn; Bt]``;
-:mod:`rbbench.hf.friction_algebra`) and run the load steps in order: the slip of a step is
+:mod:`rbbench.hf.algebra.friction`) and run the load steps in order: the slip of a step is
 measured from the tangential jump at the end of the previous one (``ut_prev``), and each
 step is warm-started from the multipliers of the previous one. A step that does not
 converge stops the sequence (its stop reason is the result's).
@@ -36,8 +36,8 @@ from rbbench_plugins.solvers.condensed import (
     condensation_info,
 )
 
-from rbbench.hf import friction_algebra as fa
-from rbbench.hf import friction_solvers as fs
+from rbbench.hf.algebra import friction as fa
+from rbbench.hf.solvers import friction as fs
 from rbbench.interfaces import ContactProblem, FrictionProblem, Solver, SolveResult
 
 
@@ -52,7 +52,7 @@ def scaled_law(name: str, node_weights: np.ndarray) -> fa.CoefficientLaw:
 
 class _Condensed:
     """One condensation of the friction problem for all load steps
-    (:func:`rbbench.hf.friction_algebra.condense_friction` at the first step, ``solver``'s
+    (:func:`rbbench.hf.algebra.friction.condense_friction` at the first step, ``solver``'s
     ``condensation`` / ``linear_solver`` options)."""
 
     def __init__(self, problem: FrictionProblem, solver: CondensationOptions) -> None:
@@ -141,10 +141,10 @@ def solve_steps(problem: FrictionProblem, run: Callable[..., fa.FrictionResult],
 def tresca_runner(problem: FrictionProblem, tresca: Callable[..., fa.FrictionResult],
                   tol: float = 1e-10) -> Callable[..., fa.FrictionResult]:
     """The :func:`solve_steps` runner of ``problem`` around one Tresca solve
-    ``tresca(D, q, s, lam0=x0)`` (the box QP of :mod:`rbbench.hf.friction_algebra`).
+    ``tresca(D, q, s, lam0=x0)`` (the box QP of :mod:`rbbench.hf.algebra.friction`).
 
     Tresca: ``tresca`` itself; Coulomb: the seed's fixed point on Tresca
-    (:func:`~rbbench.hf.friction_solvers.coulomb_fixed_point` with ``tresca`` inside);
+    (:func:`~rbbench.hf.solvers.friction.coulomb_fixed_point` with ``tresca`` inside);
     model B: the fixed point on the coefficient around that one. The scalar ``info`` of the
     last Tresca solve is copied into the result's ``info`` under ``"inner_<key>"``.
     """
@@ -199,7 +199,7 @@ class FrictionSSNSolver(_FrictionSolver):
     ``"direct"`` on the wedge or ``"fixed_point"`` on Tresca; model B: fixed point on
     the coefficient with the direct Coulomb solve inside (``"direct"``) or the fixed point
     on Tresca inside (``"fixed_point"``), or ``"newton"``: semismooth Newton with the law's
-    derivative, the fixed point as its fallback (:func:`~rbbench.hf.friction_solvers.
+    derivative, the fixed point as its fallback (:func:`~rbbench.hf.solvers.friction.
     model_b_newton`; a constant coefficient then runs ``"direct"``, itself a semismooth
     Newton on the wedge))."""
 

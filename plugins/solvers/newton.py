@@ -2,14 +2,14 @@
 
 Seed 000, slide "HF model" of Nitsche's method: ``u_{k+1} = u_k + delta u_k`` with
 ``(A_gamma + B_gamma(u_k)) delta u_k = -R_gamma(u_k)``, the tangent built with the
-Heaviside function ``H(-P_gamma(u_k))`` (:func:`rbbench.hf.nitsche_algebra.tangent`). The
+Heaviside function ``H(-P_gamma(u_k))`` (:func:`rbbench.hf.algebra.nitsche.tangent`). The
 residual is piecewise affine in ``u``: once the active set is right, one full
 step solves the problem to rounding.
 
 Safeguard (so that a cold start ``u = 0`` converges):
 
 * ``theta = 1``: ``R`` is the gradient of the Nitsche energy ``J``
-  (:func:`rbbench.hf.nitsche_algebra.energy`); the step minimises ``J`` exactly along the
+  (:func:`rbbench.hf.algebra.nitsche.energy`); the step minimises ``J`` exactly along the
   Newton direction over ``t`` in [0, 1] (:func:`_energy_step`: ``J`` is piecewise
   quadratic in ``t``). A Newton direction that is not a descent direction means
   the tangent is not positive definite, i.e. ``gamma0`` is too small for the
@@ -32,7 +32,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from rbbench_plugins.solvers.nitsche_friction_newton import solve_friction
 
-from rbbench.hf import nitsche_algebra as nt
+from rbbench.hf.algebra import nitsche as nt
 from rbbench.interfaces import (
     FrictionProblem,
     NitscheFrictionProblem,

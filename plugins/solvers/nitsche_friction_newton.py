@@ -1,7 +1,7 @@
 """Generalised Newton for Nitsche friction over the load steps (issue 13; Renard 2013).
 
 :class:`~rbbench.interfaces.NitscheFrictionProblem`, algebra in
-:mod:`rbbench.hf.nitsche_friction`: ``K(u_k) d = -R(u_k)`` with ``K`` an element of the
+:mod:`rbbench.hf.algebra.nitsche_friction`: ``K(u_k) d = -R(u_k)`` with ``K`` an element of the
 generalised Jacobian (stick / slip / open sets of the points; non-symmetric for Coulomb,
 so SuperLU; Tresca with ``theta = 1`` is symmetric and may use the backend's solver).
 
@@ -23,7 +23,7 @@ arrays (:data:`POINT_INFO`, not in ``summary.json``): ``lam_n_points = -[P_n]_-`
 ``lam_t_points = -[P_t]_S`` (the mixed multipliers' signs), ``slip_points`` (``u_t -
 ut_prev``, m), ``states_points`` (open / stick / slip), ``ut_prev_points``, ``S_points``
 (the radius) and, for Coulomb, ``coefficient_points``; ``friction_residuals``
-(:func:`rbbench.hf.nitsche_friction.condition_residuals`: the consistency of the weak
+(:func:`rbbench.hf.algebra.nitsche_friction.condition_residuals`: the consistency of the weak
 conditions, not the algebraic convergence).
 """
 
@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from rbbench.hf import nitsche_algebra as nt
-from rbbench.hf import nitsche_friction as nf
+from rbbench.hf.algebra import nitsche as nt
+from rbbench.hf.algebra import nitsche_friction as nf
 from rbbench.interfaces import NitscheFrictionProblem, NitscheStep, SolveResult
 
 #: largest number of step halvings of the backtracking line search

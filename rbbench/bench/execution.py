@@ -39,8 +39,8 @@ _COPIED = ("n_hf_dofs", "n_contact", "n_train", "n_valid", "N", "R", "M_eim", "e
            "complementarity_max", "energy_err_max", "t_offline_s", "t_snapshots_hf_s",
            "t_offline_hf_s", "n_snapshots_cached", "t_online_median_s", "t_online_iqr_s",
            "t_hf_median_s", "speedup")
-#: Summary keys of a reduced friction model (rbbench.rb.friction_stage) copied as they are;
-#: ``S_tau`` is its ``S`` (the row's ``S`` is the stabiliser size).
+#: Summary keys of a reduced friction model (rbbench.rb.friction.collocation.stage) copied as they
+# are;  ``S_tau`` is its ``S`` (the row's ``S`` is the stabiliser size).
 _FRICTION = ("err_lam_t_max", "err_lam_t_mean", "lam_t_best_max", "friction_residual_max",
              "online_iterations_max", "S_q", "gcns_iterations", "dim_v_off", "delta_pga")
 #: Summary keys of a reduced model with an a posteriori error bound (linear scenes).
@@ -145,7 +145,7 @@ def execute_case(case: Case, run_id: str, cache_dir: str, executor: str = "seria
     missing); ``timeout`` (:class:`CaseTimeout`); ``error`` (any other exception,
     with its traceback).
     """
-    from rbbench.hf.snapshots import SnapshotError
+    from rbbench.hf.snapshots.compute import SnapshotError
     from rbbench.rb.offline import DivergedError
     from rbbench.scene.loading import load_scene
 
@@ -185,8 +185,8 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
     from rbbench.rb.offline import reduce
     from rbbench.scene.linear import is_linear
 
-    if is_linear(scene):  # no contact: the linear skeleton (rbbench.rb.linear_offline)
-        from rbbench.rb.linear_offline import reduce_linear as reduce
+    if is_linear(scene):  # no contact: the linear skeleton (rbbench.rb.linear.offline)
+        from rbbench.rb.linear.offline import reduce_linear as reduce
     res = reduce(scene, case.reduce_config(cache_dir), progress=progress or _quiet,
                  registry=registry)
     s = res.summary()
@@ -214,7 +214,7 @@ def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) ->
 
     c = case.components
     if is_linear(scene):
-        from rbbench.hf.linear import hf_row
+        from rbbench.hf.linear.model import hf_row
 
         row.update(hf_row(scene, c["backend"], int(case.params.get("hf_repeats", 3)),
                           registry))

@@ -57,7 +57,7 @@ from typing import Any
 
 from rbbench.bench import matrix_checks as checks
 from rbbench.bench.matrix_checks import MatrixError
-from rbbench.rb.hyper_reducers import BUILTIN as BUILTIN_HYPER
+from rbbench.rb.hyper.reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.registry import Registry
 from rbbench.scene import limits
 from rbbench.scene.friction import friction_of

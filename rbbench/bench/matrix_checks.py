@@ -62,12 +62,12 @@ REDUCE_FIELDS: dict[str, tuple] = {
 }
 
 
-#: the reduced friction dual models (rbbench.rb.friction_offline.friction_dual)
+#: the reduced friction dual models (rbbench.rb.friction.offline.friction_dual)
 FRICTION_DUALS = ("seed", "wedge")
 
 
 def _online_methods() -> tuple[str, ...]:
-    from rbbench.rb.mixed_model import ONLINE_METHODS
+    from rbbench.rb.mixed.model import ONLINE_METHODS
 
     return tuple(ONLINE_METHODS)
 

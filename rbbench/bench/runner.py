@@ -11,7 +11,7 @@ A case's file is written (atomically) the moment the case ends, whatever its
 status, and is the truth: on a rerun (after Ctrl-C, a kill or a crash) every
 case with a file is kept and not recomputed (``retry`` names statuses to
 recompute, e.g. ``error``, ``timeout``). HF snapshots are cached on disk
-(:mod:`rbbench.hf.snapshots`) and computed once per scene / HF components /
+(:mod:`rbbench.hf.snapshots.compute`) and computed once per scene / HF components /
 parameter set before the cases that share them start. One case becomes its row in
 :mod:`rbbench.bench.execution`, shared with the executors.
 """
@@ -43,10 +43,10 @@ from rbbench.bench.execution import (  # noqa: F401 - one case's row: re-exporte
 )
 from rbbench.bench.guard import RunLock, Watchdog
 from rbbench.bench.matrix import Case, Matrix
-from rbbench.hf.snapshots import atomic_write
-from rbbench.hf.worker_pool import die_with_parent
+from rbbench.hf.snapshots.compute import atomic_write
 from rbbench.provenance import _jsonable
 from rbbench.registry import Registry, default_registry
+from rbbench.runtime.workers import die_with_parent
 
 __all__ = ["CaseTimeout", "RunSummary", "execute_case", "load_rows", "run_matrix"]
 
@@ -125,7 +125,7 @@ def _snapshot_group(c: Case) -> tuple:
 
 def _prepare_group(c: Case, cache_dir: str, jobs: int | None, registry: Any = None) -> None:
     """The HF snapshots (training + validation) of one case's group, into the cache."""
-    from rbbench.hf.snapshots import compute_snapshots
+    from rbbench.hf.snapshots.compute import compute_snapshots
     from rbbench.scene.loading import load_scene
     from rbbench.scene.sampling import parameter_set
 

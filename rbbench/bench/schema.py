@@ -125,7 +125,7 @@ COLUMNS: tuple[Column, ...] = (
     _c("complementarity_max", "float", "accuracy", "1", "|lam_R . (G - B u_N)| / "
        "(||lam_R|| ||G||) at the HF rows, max " + _VALID),
     _c("energy_err_max", "float", "accuracy", "1", "|J(u_N) - J(u)| / |J(u)|, max " + _VALID),
-    # a posteriori error bound (linear scenes, rbbench.rb.linear_model)
+    # a posteriori error bound (linear scenes, rbbench.rb.linear.model)
     _c("err_est_max", "float", "accuracy", "1", "linear scenes: the residual-based error "
        "bound (coercivity lower bound by min-theta) divided by ||u||, in err_u's norm, max "
        + _VALID),

@@ -16,11 +16,10 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from rbbench.hf import lcp
-from rbbench.hf.contact_checks import flag, gap_checks
-from rbbench.hf.mindlin_check import MINDLIN_DEFINITION, mindlin_metrics
-from rbbench.hf.references import hertz_of_bodies
-from rbbench.hf.threads import BLAS_THREADS_DEFINITION, one_blas_thread
+from rbbench.hf.geometry.checks import flag, gap_checks
+from rbbench.hf.references.hertz import hertz_of_bodies
+from rbbench.hf.references.mindlin import MINDLIN_DEFINITION, mindlin_metrics
+from rbbench.hf.solvers import lcp
 from rbbench.interfaces import (
     ContactProblem,
     Discretization,
@@ -31,6 +30,7 @@ from rbbench.interfaces import (
     SolveResult,
 )
 from rbbench.registry import Registry, default_registry
+from rbbench.runtime.threads import BLAS_THREADS_DEFINITION, one_blas_thread
 from rbbench.scene.friction import friction_of, friction_value
 from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import Scene, SceneError
@@ -86,7 +86,7 @@ def check_names(scene: Scene, registry: Registry, backend: str, formulation: str
     A linear scene has no contact components: a :class:`SceneError` naming its solve."""
     if is_linear(scene):
         raise SceneError(f"{scene.path}: a linear scene (no contact) is solved by "
-                         "rbbench.hf.linear_solve.solve_linear_hf (rbbench solve, "
+                         "rbbench.hf.linear.solve.solve_linear_hf (rbbench solve, "
                          "rbbench.solve) and reduced by rbbench reduce / rbbench.reduce")
     check_friction_support(scene, registry.get("formulation", formulation))
     if solver is None:
@@ -224,7 +224,7 @@ class HFModel:
         """Solve at ``mu`` (default: the scene default); a
         :class:`~rbbench.scene.parameters.SceneError` names a parameter outside D.
 
-        The solve runs with one BLAS thread (:func:`rbbench.hf.threads.one_blas_thread`,
+        The solve runs with one BLAS thread (:func:`rbbench.runtime.threads.one_blas_thread`,
         recorded in ``metrics["blas_threads"]``). ``floor``: also time one factorisation +
         one solve of the same stiffness right after it (:func:`solve_floor`: ``floor_s``,
         ``solve_over_floor``).
@@ -274,20 +274,20 @@ def solve_floor(problem: Any, linear_solver: str | None = None) -> dict[str, Any
     """Time one factorisation + one solve ``A x = F`` of the problem's stiffness on the free
     dofs with the direct solver the HF solve used: PARDISO when ``linear_solver`` is
     ``"pardiso"`` (the solve's condensation ran on it), else ``problem.factorize`` (the
-    backend's), else SuperLU (:func:`rbbench.hf.lcp.factorize`): the floor of a contact
+    backend's), else SuperLU (:func:`rbbench.hf.solvers.lcp.factorize`): the floor of a contact
     solve (issue 17).
 
     Returns ``factor_s``, ``solve_s`` and their sum ``floor_s`` (s) and ``solver``.
     """
     t0 = time.perf_counter()
     if linear_solver == "pardiso":
-        from rbbench.hf.pardiso_schur import factorized
+        from rbbench.hf.solvers.pardiso import factorized
 
-        solve, name = factorized(problem.A), "PARDISO (rbbench.hf.pardiso_schur.factorized)"
+        solve, name = factorized(problem.A), "PARDISO (rbbench.hf.solvers.pardiso.factorized)"
     elif problem.factorize is not None:
         solve, name = problem.factorize(problem.A), "backend factorize"
     else:
-        solve, name = lcp.factorize(problem.A).solve, "SuperLU (rbbench.hf.lcp.factorize)"
+        solve, name = lcp.factorize(problem.A).solve, "SuperLU (rbbench.hf.solvers.lcp.factorize)"
     t1 = time.perf_counter()
     x = solve(np.asarray(problem.F, dtype=float))
     t2 = time.perf_counter()
@@ -409,7 +409,7 @@ def _hertz_block(h: Any, m: dict[str, Any]) -> dict[str, Any]:
 
 
 def _mindlin_block(sol: HFSolution, m: dict[str, Any]) -> dict[str, Any]:
-    """The ``mindlin`` block (:func:`rbbench.hf.mindlin_check.mindlin_metrics`) at the
+    """The ``mindlin`` block (:func:`rbbench.hf.references.mindlin.mindlin_metrics`) at the
     solver's own ``contact_force`` and ``tangential_force``."""
     info, c = sol.result.info, sol.disc.contact
     if isinstance(sol.problem, NitscheFrictionProblem):  # point values: Mt = identity
@@ -494,9 +494,9 @@ def _nitsche_metrics(prob: NitscheProblem, res: SolveResult, c: Any) -> dict[str
     of the Nitsche equation), their peak, and the seed's relative AC residual ``e_ac``.
 
     ``lam`` (hence ``max_pressure``, half-width, complementarity) is the L2 projection of
-    that pressure on the multiplier space (:func:`rbbench.hf.nitsche_algebra.project_pressure`).
+    that pressure on the multiplier space (:func:`rbbench.hf.algebra.nitsche.project_pressure`).
     """
-    from rbbench.hf import nitsche_algebra as nt
+    from rbbench.hf.algebra import nitsche as nt
 
     if not np.all(np.isfinite(res.u)):
         return {"contact_force": float("nan"), "e_ac": None,
@@ -531,7 +531,7 @@ DEFINITIONS = {
                               "without a contact curve along x (membrane)",
     "contact_half_width_gap_tol": "the gap tolerance of contact_half_width_gap and of the "
                                   "under-resolution check (m): 1e-3 max_q |Un u|_q "
-                                  "(rbbench.hf.contact_checks.GAP_RTOL)",
+                                  "(rbbench.hf.geometry.checks.GAP_RTOL)",
     "warnings": "what makes the result doubtful, in words: penetration beyond "
                 "contact_half_width_gap_tol at contact points that no active multiplier's "
                 "support covers (supports coarser than the contact zone; mixed "
@@ -582,7 +582,7 @@ DEFINITIONS = {
     "floor_s": "the floor of the solve (s): one factorisation + one solve A x = F of the same "
                "stiffness on the free dofs with the direct solver of the solve's condensation "
                "(PARDISO when it ran on PARDISO, else the backend's factorize, else SuperLU "
-               "as rbbench.hf.lcp.factorize; floor.solver names it), timed in the same run "
+               "as rbbench.hf.solvers.lcp.factorize; floor.solver names it), timed in the same run "
                "right after the solve, with one BLAS thread as the solve; floor.factor_s, "
                "floor.solve_s its parts. PARDISO's first call in a process (library "
                "loading, ~0.6 s) is paid at solver construction (times_s.setup_s)",

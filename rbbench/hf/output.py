@@ -159,7 +159,7 @@ def _draw_pressure(ax: Any, table: dict, m: dict) -> None:
 def _draw_friction(ax: Any, sol: HFSolution, table: dict) -> None:
     """The seed's friction figure: ``lam_t`` and ``+- F lam_n`` per friction node, stick
     nodes marked; with a ``mindlin`` block, the Cattaneo-Mindlin shear traction ``q(x)``
-    (compared as ``sign(Q) lam_t t_x``, :mod:`rbbench.hf.mindlin_check`)."""
+    (compared as ``sign(Q) lam_t t_x``, :mod:`rbbench.hf.references.mindlin`)."""
     m = sol.metrics
     order = np.argsort(table["x"])
     x, lam_t, lam_n = table["x"][order], table["lam_t"][order], table["pressure"][order]
@@ -178,7 +178,7 @@ def _draw_friction(ax: Any, sol: HFSolution, table: dict) -> None:
     ax.plot(x[stick], lam_t[stick], "go", ms=3, mfc="none", label="stick nodes")
     mind = m.get("mindlin") or {}
     if mind.get("c_theory") is not None:
-        from rbbench.hf.references import mindlin_2d
+        from rbbench.hf.references.hertz import mindlin_2d
 
         th = mindlin_2d(mind["P"], abs(mind["Q"]), mind["F"], mind["a"], mind["p0"])
         xs = np.linspace(-1.2 * th.a, 1.2 * th.a, 600)

@@ -240,7 +240,7 @@ def side_by_side(sc: ShapeScene, rb_options: RBOptions | None = None,
     solves + subgradients) of the HF and of the final reduced model at the RB optimum."""
     from statistics import median
 
-    from rbbench.hf.threads import one_blas_thread
+    from rbbench.runtime.threads import one_blas_thread
 
     poly = Polyhedron(**sc.admissible())
     out: dict = {"J0": None}

@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rbbench.hf.threads import one_blas_thread
 from rbbench.optim.shape_adjoint import evaluate
 from rbbench.optim.shape_scene import ShapeScene
 from rbbench.optim.shape_state import solve_state
+from rbbench.runtime.threads import one_blas_thread
 
 #: seed 001's reported values (model B, its own data): J(alpha_0), J(alpha_opt)
 SEED_J0, SEED_J_OPT = 2.1159e11, 2.6513e8

@@ -172,3 +172,18 @@ def validate(sc: ShapeScene, where: Path | str) -> None:
         raise SceneError(f"{where}: design.initial = {sc.initial!r} with design.initial_height "
                          f"= {sc.initial_height}: the initial design is not admissible "
                          f"({worst} violated by {bad[worst]:.3g}; all: {bad})")
+
+
+def parse_overrides(items: list[str]) -> dict[str, object]:
+    """``SECTION.KEY=VALUE`` overrides of a shape scene (``--set``), values as TOML literals
+    (else strings)."""
+    out: dict[str, object] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or "." not in key:
+            raise SceneError(f"--set {item!r}: expected SECTION.KEY=VALUE, e.g. geometry.ny=20")
+        try:
+            out[key] = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[key] = text
+    return out

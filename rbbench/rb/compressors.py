@@ -4,17 +4,18 @@ Seed 000, slide "Decorrelated model reduction": the offline stage is (1) trainin
 snapshots, (2) compression of the reduced spaces (a primal space ``V_N`` and a reduced
 cone ``W_R^+``), then, since ``beta_dec`` may vanish, (3) a stabilisation of the primal
 space (slides "Enhancement by supremizers", "Parameter-dependent context", "Projected
-Greedy Algorithm (PGA)"). The numerics live in :mod:`rbbench.rb.pod`, :mod:`rbbench.rb.cones`
-and :mod:`rbbench.rb.pga`; this module only gives each method a uniform, typed call so the
-pipeline can take it from the registry (roles ``"primal"``, ``"dual"``, ``"stabilizer"``;
-declared in ``rbbench_plugins``). Nothing here changes a result of those functions.
+Greedy Algorithm (PGA)"). The numerics live in :mod:`rbbench.rb.algorithms.pod`,
+:mod:`rbbench.rb.algorithms.cones` and :mod:`rbbench.rb.algorithms.pga`; this module only gives each
+method a uniform, typed call so the pipeline can take it from the registry (roles ``"primal"``,
+``"dual"``, ``"stabilizer"``; declared in ``rbbench_plugins``). Nothing here changes a result of
+those functions.
 
 Three protocols:
 
 * primal compressor: ``compressor(U, X, *, tol=None, n=None) -> PrimalBasis``, an
   X-orthonormal basis ``Z`` of ``V_N`` built from the displacement snapshots;
 * dual compressor: ``compressor(LAM, W, *, tol=1e-3, r_max=None) -> DualBasis``
-  (:class:`rbbench.rb.cones.DualBasis`), generators of ``W_R^+`` (or of a span, POD);
+  (:class:`rbbench.rb.algorithms.cones.DualBasis`), generators of ``W_R^+`` (or of a span, POD);
 * stabiliser: ``offline(Z, Vg, X, x_solve, B_train, delta) -> (Z_off, history)`` builds
   the parameter-independent primal basis, and ``online_basis(Z_off, Vg, X, x_solve, B)``
   the basis used at one ``mu`` (equal to ``Z_off`` unless ``online`` is True).
@@ -31,11 +32,11 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from rbbench.rb import cones
-from rbbench.rb import infsup as inf
-from rbbench.rb.cones import DualBasis
-from rbbench.rb.pga import pga, supremizers, x_orthonormalize
-from rbbench.rb.pod import pod, weak_greedy
+from rbbench.rb.algorithms import cones
+from rbbench.rb.algorithms import infsup as inf
+from rbbench.rb.algorithms.cones.greedy import DualBasis
+from rbbench.rb.algorithms.pga import pga, supremizers, x_orthonormalize
+from rbbench.rb.algorithms.pod import pod, weak_greedy
 
 __all__ = [
     "CPG",
@@ -103,8 +104,8 @@ class PrimalCompressor(Protocol):
 class PODPrimal:
     """POD of the displacement snapshots (seed 000, "Method 1: Proper Orthogonal Decomposition").
 
-    Wraps :func:`rbbench.rb.pod.pod` (method of snapshots in the X inner product). ``tol``
-    is an energy tolerance: ``N`` is the smallest size with
+    Wraps :func:`rbbench.rb.algorithms.pod.pod` (method of snapshots in the X inner product).
+    ``tol`` is an energy tolerance: ``N`` is the smallest size with
     ``sum_{k > N} s_k^2 <= tol^2 sum_k s_k^2``; without ``tol`` (and without ``n``) ``N``
     is the numerical rank (correlation eigenvalues above ``1e-12`` of the largest). The
     spaces are nested in ``N``.
@@ -126,8 +127,8 @@ class PODPrimal:
 class GreedyPrimal:
     """Greedy selection of snapshots (seed 000, "Method 2: (Ideal) Greedy algorithms").
 
-    Wraps :func:`rbbench.rb.pod.weak_greedy`. Indicator: by default (``indicator=None``) the
-    TRUE projection error ``||u(mu) - Pi_{V_{N-1}} u(mu)||_X`` of every training snapshot,
+    Wraps :func:`rbbench.rb.algorithms.pod.weak_greedy`. Indicator: by default (``indicator=None``)
+    the TRUE projection error ``||u(mu) - Pi_{V_{N-1}} u(mu)||_X`` of every training snapshot,
     i.e. the *ideal* greedy on the training set (the seed's ``sigma_N``; it needs the
     snapshots, which the pipeline has, and makes ``sigma`` non-increasing). The seed notes
     that a posteriori error estimators replace it in practice: pass such an estimator as
@@ -141,7 +142,8 @@ class GreedyPrimal:
     History: ``sigma`` (largest indicated error before each addition, ``sigma[0] =
     max_p ||u_p||_X`` for the ideal greedy), ``picks`` (snapshot columns, in order),
     ``d_pod`` and ``dpw_bound`` (the DeVore-Petrova-Wojtaszczyk check, see
-    :class:`rbbench.rb.pod.GreedyResult`), ``indicator`` (``"true error"`` or ``"custom"``).
+    :class:`rbbench.rb.algorithms.pod.GreedyResult`), ``indicator`` (``"true error"`` or
+    ``"custom"``).
     """
 
     name = "greedy"
@@ -166,8 +168,8 @@ class DualCompressor:
 
     ``LAM`` (m x Q) holds the multiplier snapshots (non-negative for the cone methods),
     ``W`` the multiplier Gram matrix (sparse, dense or diagonal weights, see
-    :func:`rbbench.rb.cones.as_metric`). ``tol`` bounds ``e_proj(R)`` (seed 000, slide "mCPG
-    algorithm (4/4)"), ``r_max`` caps ``R``. Constructor keyword options are passed on to
+    :func:`rbbench.rb.algorithms.cones.as_metric`). ``tol`` bounds ``e_proj(R)`` (seed 000, slide
+    "mCPG algorithm (4/4)"), ``r_max`` caps ``R``. Constructor keyword options are passed on to
     the wrapped function (e.g. ``sweeps`` for ENG, ``seed`` / ``max_iter`` for NNMF).
     Subclasses set :attr:`name`, the key in ``DUAL_COMPRESSORS`` (so command-line names are
     those keys).
@@ -184,7 +186,8 @@ class DualCompressor:
 
 
 class PODLam(DualCompressor):
-    """POD of the multipliers, :func:`rbbench.rb.cones.pod_dual`: a linear SPAN, not a cone.
+    """POD of the multipliers, :func:`rbbench.rb.algorithms.cones.pod_dual`: a linear SPAN, not a
+    cone.
 
     Baseline of ``science.md`` section 2 (shows why cones matter): W-orthonormal modes of
     mixed sign, ``is_cone = False``.
@@ -194,26 +197,30 @@ class PODLam(DualCompressor):
 
 
 class CPG(DualCompressor):
-    """Cone Projected Greedy, :func:`rbbench.rb.cones.cpg` (seed 000, slide "CPG algorithm")."""
+    """Cone Projected Greedy, :func:`rbbench.rb.algorithms.cones.cpg` (seed 000, slide "CPG
+    algorithm")."""
 
     name = "cpg"
 
 
 class MCPG(DualCompressor):
-    """Modified CPG, :func:`rbbench.rb.cones.mcpg` (seed 000, slide "mCPG algorithm (2/4)")."""
+    """Modified CPG, :func:`rbbench.rb.algorithms.cones.mcpg` (seed 000, slide "mCPG algorithm
+    (2/4)")."""
 
     name = "mcpg"
 
 
 class ENG(DualCompressor):
-    """Enlarged Nonnegative Greedy as designed in :func:`rbbench.rb.cones.eng` (seed: named
+    """Enlarged Nonnegative Greedy as designed in :func:`rbbench.rb.algorithms.cones.eng` (seed:
+    named
     only)."""
 
     name = "eng"
 
 
 class NNMF(DualCompressor):
-    """Non-negative matrix factorisation baseline, :func:`rbbench.rb.cones.nnmf_compressor`.
+    """Non-negative matrix factorisation baseline,
+    :func:`rbbench.rb.algorithms.cones.nnmf_compressor`.
 
     Not nested: each rank is a new fit, so ``e_proj`` need not decrease with ``R``.
     """
@@ -268,8 +275,8 @@ class NoStabilizer:
 class SupremizerStabilizer(NoStabilizer):
     """Online supremizers ``V_N + S_R(mu)`` (seed 000, slide "Parameter-dependent context").
 
-    ``S_R(mu) = span X^{-1} B(mu)^T Vg`` (:func:`rbbench.rb.pga.supremizers`) contains the
-    supremizer of every element of ``W_R^+``, so ``beta_on(mu) >= beta_HF(mu)`` for EVERY
+    ``S_R(mu) = span X^{-1} B(mu)^T Vg`` (:func:`rbbench.rb.algorithms.pga.supremizers`) contains
+    the supremizer of every element of ``W_R^+``, so ``beta_on(mu) >= beta_HF(mu)`` for EVERY
     ``mu``; the price is that the space is built online from the HF ``B(mu)`` (``R`` HF
     solves with ``X``). Offline: ``Z`` unchanged.
     """
@@ -287,11 +294,11 @@ class PGAStabilizer(NoStabilizer):
     """Projected Greedy Algorithm (seed 000, slides "Projected Greedy Algorithm (PGA)",
     "Some details"): ``V_off = V_N + S_R^red`` built offline.
 
-    :func:`rbbench.rb.pga.pga` on the supremizers ``T(mu_p)`` of the training parameters:
+    :func:`rbbench.rb.algorithms.pga.pga` on the supremizers ``T(mu_p)`` of the training parameters:
     ``S_R^red`` grows greedily until ``max_train sigma_S(mu) <= delta``, so that
     ``beta_off(mu) >= sqrt(1 - delta^2) beta_on(mu) > 0`` on the TRAINING set
-    (:func:`rbbench.rb.pga.riesz_lower_bound`; the seed's "Main result" under its condition).
-    Nothing is asserted outside the training set. ``Z_off = [Z, basis of S_R^red]``.
+    (:func:`rbbench.rb.algorithms.pga.riesz_lower_bound`; the seed's "Main result" under its
+    condition). Nothing is asserted outside the training set. ``Z_off = [Z, basis of S_R^red]``.
 
     History: ``sigma_max`` (before each addition, non-increasing), ``pga_delta``,
     ``pga_stop`` (``"tolerance"``, ``"exhausted"``, ``"max_dim"``), ``pga_picks``, ``K``.
@@ -330,10 +337,10 @@ def pga_default_delta(B_train: Iterable[Any], W_train: Iterable[Any], x_solve: X
 
     The seed's choice is ``delta_PGA = sup_train beta_HF / c_HF`` (slide "Projected Greedy
     Algorithm (PGA)", 0.072 there). Computable stand-in, as in :func:`rbbench.rb.offline.
-    reduce`: ``beta_span`` is :func:`rbbench.rb.infsup.infsup_span` over the whole HF primal
-    space and ``span(Vg)`` (a lower bound of ``beta_on``) and ``c`` the continuity constant
-    on the same spaces (:func:`rbbench.rb.infsup.boundedness_constant`); the minimum (not the
-    sup) and ``fraction = 0.5`` keep the "Main result" condition
+    reduce`: ``beta_span`` is :func:`rbbench.rb.algorithms.infsup.infsup_span` over the whole HF
+    primal space and ``span(Vg)`` (a lower bound of ``beta_on``) and ``c`` the continuity constant
+    on the same spaces (:func:`rbbench.rb.algorithms.infsup.boundedness_constant`); the minimum (not
+    the sup) and ``fraction = 0.5`` keep the "Main result" condition
     ``sigma < beta_on / c_HF`` on the parameters probed. Pass a subset of the training
     matrices to save the ``R`` solves per parameter.
     """
@@ -342,8 +349,8 @@ def pga_default_delta(B_train: Iterable[Any], W_train: Iterable[Any], x_solve: X
     Vg = np.asarray(Vg, dtype=float)
     ratios = []
     for B, W in zip(B_train, W_train, strict=True):
-        # the quotient matrices of rbbench.rb.infsup.quotient_matrices with Z = None, from R
-        # solves (the supremizers) instead of m: S = (B^T Vg)^T X^{-1} (B^T Vg)
+        # the quotient matrices of rbbench.rb.algorithms.infsup.quotient_matrices with Z = None,
+        # from R solves (the supremizers) instead of m: S = (B^T Vg)^T X^{-1} (B^T Vg)
         S = np.asarray(B.T @ Vg).T @ supremizers(B, x_solve, Vg)
         M = inf._gram(W, Vg)
         ratios.append(inf.infsup_span(S, M) / inf.boundedness_constant(S, M))

@@ -1,9 +1,9 @@
 """The offline skeleton of every reduced model (``rbbench reduce``).
 
-scene -> training / validation sets -> HF snapshots (cached, :mod:`rbbench.hf.snapshots`)
+scene -> training / validation sets -> HF snapshots (cached, :mod:`rbbench.hf.snapshots.compute`)
 -> primal space (a registered primal compressor) -> the formulation's own steps (dual
 cone, stabiliser, hyper-reduction: :meth:`rbbench.interfaces.Formulation.reduction`,
-e.g. :mod:`rbbench.rb.mixed_offline`, :mod:`rbbench.rb.nitsche_offline`) -> reduced model
+e.g. :mod:`rbbench.rb.mixed.offline`, :mod:`rbbench.rb.nitsche.offline`) -> reduced model
 (small dense arrays, picklable, ``solve(mu)`` checks mu against D) -> the shared validation
 (:mod:`rbbench.rb.validation`: errors, timings, the row).
 
@@ -23,12 +23,12 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.model import ProblemCache, discretize_for, friction_at, make_components
-from rbbench.hf.snapshots import SnapshotSet, compute_snapshots
-from rbbench.hf.worker_pool import keep_workers
-from rbbench.rb.hyper_reducers import BUILTIN as BUILTIN_HYPER
-from rbbench.rb.mixed_model import ONLINE_METHODS
+from rbbench.hf.snapshots.compute import SnapshotSet, compute_snapshots
+from rbbench.rb.hyper.reducers import BUILTIN as BUILTIN_HYPER
+from rbbench.rb.mixed.model import ONLINE_METHODS
 from rbbench.rb.validation import ReducedStage, ReduceResult, validate
 from rbbench.registry import Registry, default_registry
+from rbbench.runtime.workers import keep_workers
 from rbbench.scene.friction import friction_of
 from rbbench.scene.loading import Scene, SceneError
 from rbbench.scene.sampling import parameter_set
@@ -81,12 +81,12 @@ class ReduceConfig:
     tol_eim: float = 1e-4
     m_eim: int | None = None
     n_eim_train: int | None = None  # default: 4 (n_train - 1) + 1 grid points (+ training);
-    # Nitsche: 2 (n_train - 1) + 1 (rbbench.rb.nitsche_offline)
+    # Nitsche: 2 (n_train - 1) + 1 (rbbench.rb.nitsche.offline)
     gcns_per_iteration: int = 2  # friction: GCNS nodes added per iteration (seed: 40 / 20)
     gcns_max: int | None = None  # friction: cap on the GCNS iterations
     gcns_patience: int = 1  # friction: GCNS stops after this many increases (1: the seed)
     # friction dual model: "seed" (normal cone + POD X_S + GCNS collocation) or "wedge" (ours:
-    # cones of F lam_n +- lam_t, De Saxce's fixed point; rbbench.rb.friction_wedge)
+    # cones of F lam_n +- lam_t, De Saxce's fixed point; rbbench.rb.friction.wedge.model)
     friction_dual: str = "seed"
 
     @property
@@ -326,7 +326,7 @@ def training_snapshots(scene: Scene, config: ReduceConfig, formulation: str, sol
                        snapshot_progress: bool = False, registry: Registry | None = None,
                        validation: bool = True) -> tuple[np.ndarray, Any, np.ndarray, Any]:
     """``(mus_train, train, mus_valid, valid)``: the training / validation sets of ``config``
-    and their HF snapshots (:func:`rbbench.hf.snapshots.compute_snapshots`, cached on disk;
+    and their HF snapshots (:func:`rbbench.hf.snapshots.compute.compute_snapshots`, cached on disk;
     ``validation = False``: ``valid`` is None)."""
     mus_train = parameter_set(scene, "train", config.n_train)
     mus_valid = parameter_set(scene, "valid", config.n_valid)

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.threads import BLAS_THREADS_DEFINITION, one_blas_thread
+from rbbench.runtime.threads import BLAS_THREADS_DEFINITION, one_blas_thread
 
 
 @dataclass

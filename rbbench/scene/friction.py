@@ -20,7 +20,7 @@ one step, ``{normal = 1, tangential = 1}``. Friction is path-dependent: slip is 
 from the previous step.
 
 The scene layer imports nothing above it, so the coefficient laws are named here
-(:data:`COEFFICIENT_LAW_NAMES`) and defined in :mod:`rbbench.hf.friction_algebra`
+(:data:`COEFFICIENT_LAW_NAMES`) and defined in :mod:`rbbench.hf.algebra.friction`
 (``COEFFICIENT_LAWS``); a test keeps the two in step. A frictionless scene holds none
 of these keys in its cache key (:func:`key_neutral`).
 """
@@ -37,7 +37,7 @@ from rbbench.scene.parameters import SceneError
 
 #: the friction laws of ``[friction] law``
 LAWS = ("none", "tresca", "coulomb")
-#: slip-dependent coefficient laws ``F(|u_t|)`` (``rbbench.hf.friction_algebra.COEFFICIENT_LAWS``)
+#: slip-dependent coefficient laws ``F(|u_t|)`` (``rbbench.hf.algebra.friction.COEFFICIENT_LAWS``)
 COEFFICIENT_LAW_NAMES = ("seed001",)
 #: the keys of ``[friction]``, and the law each of the other keys belongs to
 FRICTION_KEYS = ("law", "threshold", "coefficient")

@@ -1,7 +1,7 @@
 """The parameter domain D of a scene, small and picklable: what every model checks mu against.
 
 Both the HF model (:class:`rbbench.hf.model.HFModel`) and the reduced models
-(:mod:`rbbench.rb.mixed_model`, :mod:`rbbench.rb.nitsche_model`) hold one and call
+(:mod:`rbbench.rb.mixed.model`, :mod:`rbbench.rb.nitsche.model`) hold one and call
 :meth:`ParameterSpace.check` in ``solve(mu)`` (pyMOR's ``Model.solve(mu)`` parses mu the
 same way), so a reduced model rejects what the HF solve rejects.
 """

@@ -9,17 +9,20 @@ and slides "Projected Greedy Algorithm (PGA)" / "(1/2)" / "(2/2)" build
 ``V_off = V_N + S_R^red`` offline so that ``beta_off > 0`` on the training set.
 :func:`beta_dec_study` measures both, for fixed generators (``R``) and ``N = 1, 2, ...``:
 
-* ``span``: :func:`rbbench.rb.infsup.infsup_span` over ``span(Vg)``, exact, a LOWER bound of
+* ``span``: :func:`rbbench.rb.algorithms.infsup.infsup_span` over ``span(Vg)``, exact, a LOWER bound
+of
   the cone value; it is 0 whenever ``N < R`` (``Z^T B^T Vg`` then has a null space);
-* ``cone``: :func:`rbbench.rb.infsup.infsup_cone`, exact (face enumeration) for
+* ``cone``: :func:`rbbench.rb.algorithms.infsup.infsup_cone`, exact (face enumeration) for
   ``R <= exact_max_r`` (kind ``"cone-exact"``), else a multistart UPPER estimate
   (``"cone-upper"``);
-* ``zero``: :func:`rbbench.rb.infsup.beta_zero_test`, the EXACT LP test of ``beta = 0`` on the
+* ``zero``: :func:`rbbench.rb.algorithms.infsup.beta_zero_test`, the EXACT LP test of ``beta = 0``
+on the
   cone (``exists alpha >= 0, sum 1, Z^T B^T Vg alpha = 0``), independent of the kind.
 
-The same three numbers are computed for ``V_off = [V_N, S_PGA]`` (:func:`rbbench.rb.pga.pga`
-on the supremizers of the training parameters, tolerance ``delta``), and ``beta_on`` (whole
-V against the reduced cone: the online-supremizer value) for scale.
+The same three numbers are computed for ``V_off = [V_N, S_PGA]``
+(:func:`rbbench.rb.algorithms.pga.pga` on the supremizers of the training parameters, tolerance
+``delta``), and ``beta_on`` (whole V against the reduced cone: the online-supremizer value) for
+scale.
 
 Run from the shell (prints the table)::
 
@@ -38,10 +41,10 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.model import ProblemCache, make_components
-from rbbench.hf.snapshots import compute_snapshots
-from rbbench.rb import infsup as inf
+from rbbench.hf.snapshots.compute import compute_snapshots
+from rbbench.rb.algorithms import infsup as inf
+from rbbench.rb.algorithms.pga import pga, supremizers
 from rbbench.rb.compressors import pga_default_delta
-from rbbench.rb.pga import pga, supremizers
 from rbbench.registry import default_registry
 from rbbench.scene.loading import Scene, load_scene
 from rbbench.scene.sampling import parameter_set
@@ -71,7 +74,7 @@ class BetaDecStudy:
         ``dec_zero``, ``off_span``, ``off_cone``, ``off_zero``: arrays ``(n_N, n_mu)``;
         ``on_span``, ``on_cone``, ``c``: ``(n_mu,)``), the values for every parameter;
         ``c`` is the continuity constant of ``b`` on ``V x span(Vg)``
-        (:func:`rbbench.rb.infsup.boundedness_constant`), the scale of all the constants.
+        (:func:`rbbench.rb.algorithms.infsup.boundedness_constant`), the scale of all the constants.
     pga : dict
         ``pga[(R, N)]``: ``delta``, ``stop`` reason, ``K`` and the ``sigma_max`` history.
     config : dict
@@ -136,10 +139,10 @@ def beta_dec_study(scene: Scene | str, dual: str = "mcpg", R: int | Sequence[int
         defaults (half the smallest ratio) on every fifth training parameter (the probes of
         ``rbbench reduce``, which takes the largest ratio), computed per ``R``.
     exact_max_r, n_starts : int
-        Passed to :func:`rbbench.rb.infsup.infsup_cone` (exact face enumeration up to
+        Passed to :func:`rbbench.rb.algorithms.infsup.infsup_cone` (exact face enumeration up to
         ``exact_max_r`` generators, ~0.7 s per call at R = 16).
     cache_dir, n_jobs, backend, formulation, solver
-        HF snapshot computation (:func:`rbbench.hf.snapshots.compute_snapshots`).
+        HF snapshot computation (:func:`rbbench.hf.snapshots.compute.compute_snapshots`).
     progress : callable, optional
         Receives one line per stage.
 

@@ -27,7 +27,7 @@ def heat_seed(n_cells: int = 64, N: int = 25, n_train: int | None = None,
               n_valid: int | None = None, repeats: int = 20, backend: str = "skfem",
               progress=print) -> dict[str, Any]:
     """rbbench's figures on ``heat_robin`` (``n_cells`` squares per side) with ``N``."""
-    from rbbench.rb.linear_offline import reduce_linear
+    from rbbench.rb.linear.offline import reduce_linear
     from rbbench.rb.offline import ReduceConfig
     from rbbench.scene.loading import load_scene
 

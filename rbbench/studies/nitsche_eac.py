@@ -64,12 +64,12 @@ def nitsche_table(scene: str = "hertz_halfdisks", hs=SEED_H, mus=(0.7, 1.0, 1.3)
     Each ``h`` (m) maps to scene overrides by :func:`seed_h_overrides`; the row holds the
     measured mean slave facet length at mu (physical), ``e_ac`` (fraction; the contact
     quadrature of the solve), ``e_ac_nodal`` and ``e_ac_l2`` (the other readings of the
-    seed's norm, :func:`rbbench.hf.nitsche_algebra.ac_residual_variants`), Newton iterations, stop
+    seed's norm, :func:`rbbench.hf.algebra.nitsche.ac_residual_variants`), Newton iterations, stop
     reason, time, the Nitsche contact force and, with ``mixed``, the mixed (LAC + ssn)
     force on the same mesh and their relative difference. ``gamma0``: default, the
     formulation's own.
     """
-    from rbbench.hf.nitsche_algebra import ac_residual_variants
+    from rbbench.hf.algebra.nitsche import ac_residual_variants
     from rbbench.registry import default_registry
 
     reg = default_registry()

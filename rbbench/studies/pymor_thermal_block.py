@@ -51,9 +51,9 @@ def thermal_block_scene(n_cells: int, blocks: int) -> Any:
 
 def rbbench_column(scene: Any, N: int, n_train: int, n_valid: int, repeats: int,
                    backend: str = "skfem") -> dict[str, Any]:
-    """rbbench's figures: :func:`rbbench.rb.linear_offline.reduce_linear` with a fresh
+    """rbbench's figures: :func:`rbbench.rb.linear.offline.reduce_linear` with a fresh
     snapshot cache (the training snapshots are solved, not read)."""
-    from rbbench.rb.linear_offline import reduce_linear
+    from rbbench.rb.linear.offline import reduce_linear
     from rbbench.rb.offline import ReduceConfig
 
     with tempfile.TemporaryDirectory() as cache:

@@ -7,7 +7,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from rbbench.hf.threads import one_blas_thread
+from rbbench.runtime.threads import one_blas_thread
 from rbbench.scene.loading import load_scene
 from rbbench.studies.formatting import markdown_table
 

@@ -81,8 +81,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Run the study and print its table."""
-    from rbbench.optim.cli_optimize import _overrides
+    from rbbench.optim.shape_scene import parse_overrides
 
-    res = shape_side_by_side(args.scene, _overrides(args.set), args.metric, args.max_iter,
+    res = shape_side_by_side(args.scene, parse_overrides(args.set), args.metric, args.max_iter,
                              args.max_evals, args.eps)
     return print_and_dump(shape_markdown(res), res, args.json)

@@ -10,9 +10,9 @@ follows the same one:
     ``n_jobs = 1``, in this process;
 ``fresh``
     ``n_jobs = n``, a pool started for the call and shut down after it (what a single
-    :func:`~rbbench.hf.snapshots.compute_snapshots` call costs);
+    :func:`~rbbench.hf.snapshots.compute.compute_snapshots` call costs);
 ``kept_1st``, ``kept_2nd``
-    two calls inside one :func:`~rbbench.hf.worker_pool.keep_workers` block: the second
+    two calls inside one :func:`~rbbench.runtime.workers.keep_workers` block: the second
     finds workers that already solved (``rbbench reduce``'s validation call after its
     training call).
 
@@ -27,9 +27,9 @@ faults of the settling call are reported (``settle_faults``, median): that cost 
 whatever this process does after a pool call. After the serial
 call, the fresh call and the block the study waits ``pause`` seconds (default 0.5),
 outside the timing: at the end of a call that started a pool, this process's BLAS pools
-are restored (:func:`~rbbench.hf.threads.capped_for_fork`) and OpenBLAS re-creates its
+are restored (:func:`~rbbench.runtime.threads.capped_for_fork`) and OpenBLAS re-creates its
 threads, which spin 2^N cycles idle (``OPENBLAS_THREAD_TIMEOUT``: 2^20, ~0.4 ms, under the
-``rbbench`` command, :mod:`rbbench._openblas_env`; OpenBLAS's default 2^28, ~0.1 s, when
+``rbbench`` command, :mod:`rbbench.runtime.openblas_env`; OpenBLAS's default 2^28, ~0.1 s, when
 this function is called from Python without it); back to back, they would run into the
 next unit's timing. The block's two calls run back to back, as ``rbbench reduce``'s do:
 ``kept_2nd`` meets the threads of ``kept_1st``'s end. Reported: the
@@ -60,8 +60,8 @@ def snapshot_workers(scene: Any, mus: np.ndarray, n_jobs: int = 2, rounds: int =
     median time of the case; ``pause``: seconds waited, untimed, after the serial call, the
     fresh call and the kept block, whose two calls run back to back; ``settle_faults``: the
     median minor page faults of the untimed snapshot before each serial call)."""
-    from rbbench.hf.snapshots import compute_snapshots
-    from rbbench.hf.worker_pool import keep_workers
+    from rbbench.hf.snapshots.compute import compute_snapshots
+    from rbbench.runtime.workers import keep_workers
 
     def call(jobs: int, wait: float = pause, which: np.ndarray = mus) -> float:
         with tempfile.TemporaryDirectory() as d:

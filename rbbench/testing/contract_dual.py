@@ -1,4 +1,4 @@
-"""Contract of the dual-compressor role (:class:`rbbench.rb.cones.DualBasis`)."""
+"""Contract of the dual-compressor role (:class:`rbbench.rb.algorithms.cones.DualBasis`)."""
 
 from __future__ import annotations
 
@@ -63,7 +63,7 @@ class _DualRun:
 
     def run(self, what: str, tol: float, r_max: int | None) -> Any:
         """``comp(Theta, W, tol=tol, r_max=r_max)``: a valid DualBasis, ``Theta`` unchanged."""
-        from rbbench.rb.cones import DualBasis
+        from rbbench.rb.algorithms.cones.greedy import DualBasis
 
         b = self.comp(self.Theta, self.W, tol=tol, r_max=r_max)
         where = f"{self.label}: {what}"
@@ -133,7 +133,7 @@ def check_dual(factory: Callable[..., Any], capabilities: dict | None = None,
 
     On non-negative snapshots ``Theta`` and a diagonal SPD ``W`` (:func:`dual_test_data`),
     ``compressor(Theta, W, tol=..., r_max=...)`` returns a
-    :class:`~rbbench.rb.cones.DualBasis` with:
+    :class:`~rbbench.rb.algorithms.cones.DualBasis` with:
 
     * ``1 <= R <= r_max`` finite generators of unit W-norm, shape ``(n, R)``;
     * ``is_cone == capabilities["cone"]``; a cone's generators are non-negative (the

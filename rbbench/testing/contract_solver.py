@@ -143,7 +143,7 @@ def _kkt_violations(prob: ContactProblem, res: SolveResult, tol: float = 1e-8) -
 
 def _nitsche_residual(prob: NitscheProblem, u: np.ndarray) -> tuple[float, np.ndarray]:
     """Relative residual of the Nitsche equations at ``u`` (free dofs) and the point
-    pressures ``-[P]_-``, written out here independently of :mod:`rbbench.hf.nitsche_algebra`."""
+    pressures ``-[P]_-``, written out here independently of :mod:`rbbench.hf.algebra.nitsche`."""
     s = prob.Snn @ u + prob.snn_lift
     P = s - prob.gamma * (prob.Un @ u - prob.gap)
     neg = np.minimum(P, 0.0)

@@ -158,7 +158,7 @@ def check_stabilizer(factory: Callable[..., Any], capabilities: dict | None = No
       space) on the training matrices and on a new one (seed 000, "Parameter-dependent
       context"); ``"training set"``: ``beta >= sqrt(1 - delta^2) beta_on > 0`` on the
       training matrices (seed 000 "Main result"; the sharper Riesz form of
-      :func:`rbbench.rb.pga.riesz_lower_bound`); ``"not guaranteed"``: nothing.
+      :func:`rbbench.rb.algorithms.pga.riesz_lower_bound`); ``"not guaranteed"``: nothing.
     """
     caps = dict(capabilities or {})
     label = f"stabilizer {component_label(factory, name)!r}"

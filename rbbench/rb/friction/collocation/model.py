@@ -1,0 +1,307 @@
+"""The reduced friction model: small dense arrays, the online Coulomb solve, picklable.
+
+Seed 000, slides "Plain RBM", "Preliminaries" (4: "Large collocation sets"). With a primal
+basis ``Z`` (n x N), the normal cone ``W_R^n = Span+(Vn)`` (Vn: m x R, mCPG) and the
+tangential space ``X_S = span(Vt)`` (Vt: m x S, POD of lam_t), ``u_N = Z a``,
+``lam_n = Vn c_n``, ``lam_t = Vt theta``, the reduced problem of one load step is::
+
+    A_N a + Bn_N^T c_n + Bt_N^T theta = F_N,   c_n >= 0,   Vn^T (Gn - Bn Z a) in (R_+^R)^*
+    |(Qt theta)_r| <= s_r  at the collocation nodes r in C  (Tresca, s given)
+
+``A_N = Z^T A Z``, ``Bn_N = Vn^T Bn Z``, ``Bt_N = Vt^T Bt Z``, ``Gn_N = Vn^T Gn``,
+``gt_N = -Vt^T ut_lift`` (the tangential jump of the lifting), ``Qn = Vn[C]``,
+``Qt = Vt[C]`` (the rows of the nodal bases at the selected nodes). As the HF
+condensation (:mod:`rbbench.hf.algebra.friction`), ``a = a0 - A_N^{-1} B_N^T x`` with
+``x = (c_n, theta)``, ``B_N = [Bn_N; Bt_N]``, ``D_N = B_N A_N^{-1} B_N^T``,
+``q_N = [Gn_N - Bn_N a0; gt_N - Bt_N a0]``, and Tresca is the QP
+``min 1/2 x^T D_N x + q_N^T x`` over ``c_n >= 0``, ``-s <= Qt theta <= s``, solved by daqp
+(Arnstrom et al. 2022; ``D_N`` may be singular when ``R + S > N``: daqp's proximal
+regularisation, ``u_N`` is unique, the multipliers need not be). Coulomb is the seed's
+fixed point on Tresca, ``s_r = nu_F (Qn c_n)_r`` of the previous iterate, warm-started from
+the nearest training mu.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+
+from rbbench.rb.mixed.model import condense_dense
+from rbbench.scene.parameters import ParameterSpace
+
+__all__ = ["FrictionArrays", "FrictionOnlineResult", "FrictionReducedModel",
+           "ReducedCondensed", "check_reducible", "condense_reduced", "nearest_training",
+           "nonneg_qp",
+           "project_friction", "solve_coulomb", "tresca_qp"]
+
+
+@dataclass
+class FrictionArrays:
+    """The reduced arrays of one load step at one mu (shapes: N, R normal, S tangential;
+    ``law_values``: the Coulomb coefficient or the Tresca threshold per HF node)."""
+
+    A: np.ndarray  # (N, N)
+    F: np.ndarray  # (N,)
+    Bn: np.ndarray  # (R, N)
+    Gn: np.ndarray  # (R,)
+    Bt: np.ndarray  # (S, N)
+    gt: np.ndarray  # (S,)
+    law_values: np.ndarray  # (m,)
+
+
+def project_friction(problem: Any, Z: np.ndarray, Vn: np.ndarray, Vt: np.ndarray
+                     ) -> FrictionArrays:
+    """Galerkin projection of a one-step :class:`~rbbench.interfaces.FrictionProblem` on
+    ``(Z, Vn, Vt)`` (the plain model's online assembly: its cost grows with the HF size)."""
+    step = check_reducible(problem)
+    law = problem.threshold if problem.law == "tresca" else problem.coefficient
+    return FrictionArrays(A=Z.T @ (problem.A @ Z), F=Z.T @ step.F, Bn=Vn.T @ (problem.Bn @ Z),
+                          Gn=Vn.T @ step.Gn, Bt=Vt.T @ (problem.Bt @ Z),
+                          gt=-(Vt.T @ np.asarray(step.ut_lift, float)),
+                          law_values=np.asarray(law, float))
+
+
+def check_reducible(problem: Any) -> Any:
+    """The single load step of a FrictionProblem the reduced models solve (ValueError for
+    several steps or a slip-dependent coefficient)."""
+    if len(problem.steps) != 1:
+        raise ValueError(f"reduced friction: {len(problem.steps)} load steps; the reduced "
+                         "model solves one load step (the snapshots hold the last one)")
+    if problem.coefficient_law is not None:
+        raise ValueError("reduced friction: a slip-dependent coefficient (model B) is not "
+                         "reduced; Tresca or constant-coefficient Coulomb only")
+    return problem.steps[0]
+
+
+@dataclass
+class ReducedCondensed:
+    """``a0 = A_N^{-1} F_N``, ``K = A_N^{-1} B_N^T``, ``D = B_N K``, ``q`` (module docstring)."""
+
+    a0: np.ndarray
+    K: np.ndarray
+    D: np.ndarray
+    q: np.ndarray
+    R: int
+
+
+def condense_reduced(arr: FrictionArrays) -> ReducedCondensed:
+    """Condense the reduced arrays on ``x = (c_n, theta)`` (one dense Cholesky of A_N)."""
+    a0, K, D, q = condense_dense(arr.A, arr.F, np.vstack([arr.Bn, arr.Bt]),
+                                 np.concatenate([arr.Gn, arr.gt]))
+    return ReducedCondensed(a0, K, D, q, arr.Bn.shape[0])
+
+
+def tresca_qp(D: np.ndarray, q: np.ndarray, R: int, Qt: np.ndarray, s: np.ndarray,
+              x0: np.ndarray | None = None) -> tuple[np.ndarray | None, int, int]:
+    """The reduced Tresca QP ``min 1/2 x^T D x + q^T x``, ``x[:R] >= 0``,
+    ``|Qt x[R:]| <= s``: ``(x or None, daqp iterations, daqp exit flag)``.
+
+    Nodes with ``s = 0`` (open nodes of the Coulomb fixed point: ``s <= 1e-10 s_ref``,
+    ``s_ref = max|Qt| ||q|| / ||D||_2`` the scale of ``Qt theta``) pin ``Qt theta`` to 0:
+    ``theta = N0 phi`` with ``N0`` an orthonormal basis of the null space of those rows, so
+    that daqp never sees rows with (nearly) equal bounds (two of them, on nearly parallel
+    rows, already overdetermine its working set: exit flag -6, measured on hertz_friction).
+    The rest is :func:`_daqp_qp`.
+    """
+    s = np.asarray(s, float)
+    n = q.size
+    s_ref = float(np.abs(Qt).max(initial=0.0)) * float(np.linalg.norm(q)) / max(
+        float(np.linalg.norm(D, 2)), np.finfo(float).tiny)
+    zero = s <= 1e-10 * s_ref
+    T = np.eye(n)
+    if np.any(zero):
+        _, sv, Vh = np.linalg.svd(Qt[zero], full_matrices=True)
+        rank = int(np.sum(sv > 1e-10 * sv.max(initial=0.0))) if sv.size else 0
+        T = sla.block_diag(np.eye(R), Vh[rank:].T)
+    y0 = None if x0 is None else T.T @ np.asarray(x0, float)
+    y, it, flag = _daqp_qp(T.T @ D @ T, T.T @ q, R, Qt[~zero] @ T[R:, R:], s[~zero], y0)
+    return (None if y is None else T @ y), it, flag
+
+
+def nonneg_qp(D: np.ndarray, q: np.ndarray, x0: np.ndarray | None = None
+              ) -> tuple[np.ndarray | None, int, int]:
+    """``min 1/2 x^T D x + q^T x`` over ``x >= 0`` (bounds only) by :func:`_daqp_qp`."""
+    return _daqp_qp(D, q, q.size, np.zeros((0, 0)), np.zeros(0), x0)
+
+
+def _daqp_qp(D: np.ndarray, q: np.ndarray, R: int, Qt: np.ndarray, s: np.ndarray,
+             x0: np.ndarray | None) -> tuple[np.ndarray | None, int, int]:
+    """:func:`tresca_qp` with ``s > 0`` by daqp (Arnstrom et al. 2022).
+
+    daqp's tolerances are absolute: ``x = fs diag(sc) y`` with ``sc = diag(D)^{-1/2}``
+    (unit-diagonal Hessian) and ``fs = ||sc q||`` (unit load), constraint rows scaled to
+    unit norm (rows of ``Qt`` that vanish are dropped: ``0 <= s``); ``primal_tol =
+    dual_tol = 1e-12``. ``x0``: warm start (primal), a cold start if daqp refuses it.
+    """
+    import daqp
+
+    n = q.size
+    d = np.diag(D).copy()
+    sc = 1.0 / np.sqrt(np.maximum(d, 1e-14 * max(float(d.max(initial=0.0)), 1e-300)))
+    g = sc * q
+    fs = float(np.linalg.norm(g)) or 1.0
+    rows = np.zeros((Qt.shape[0], n))
+    rows[:, R:] = Qt * sc[None, R:]
+    rn = np.linalg.norm(rows, axis=1)
+    keep = rn > 1e-14 * max(float(rn.max(initial=0.0)), 1e-300)
+    bound = s[keep] / (fs * rn[keep])
+    args = (np.ascontiguousarray(sc[:, None] * D * sc[None, :]), g / fs,
+            np.ascontiguousarray(rows[keep] / rn[keep, None]),
+            np.concatenate([np.full(R, 1e30), bound]), np.concatenate([np.zeros(R), -bound]),
+            np.zeros(R + bound.size, dtype=np.int32))
+    it, flag = 0, 0
+    starts = ([{"primal_start": np.asarray(x0, float) / (fs * sc)}] if x0 is not None
+              else []) + [{}]
+    for kw in starts:
+        y, _, flag, info = daqp.solve(*args, primal_tol=1e-12, dual_tol=1e-12, **kw)
+        it += int(info["iterations"])
+        if int(flag) == 1 and np.all(np.isfinite(y)):
+            return fs * sc * np.asarray(y, float), it, 1
+    return None, it, int(flag)
+
+
+@dataclass
+class FrictionOnlineResult:
+    """One online friction solve: ``a`` (N), ``c_n`` (R), ``theta`` (S); fixed-point
+    ``iterations``, daqp ``inner_iterations``, ``stop_reason``, ``history`` (relative
+    increments ``||x^{k+1} - x^k||_inf / ||x^{k+1}||_inf``), wall time (s)."""
+
+    a: np.ndarray
+    c_n: np.ndarray
+    theta: np.ndarray
+    iterations: int
+    inner_iterations: int
+    stop_reason: str
+    time_s: float = 0.0
+    history: list[float] = field(default_factory=list)
+
+    @property
+    def c(self) -> np.ndarray:
+        """The primal coordinates (the name of :class:`rbbench.rb.mixed.model.OnlineResult`)."""
+        return self.a
+
+    @property
+    def x(self) -> np.ndarray:
+        return np.concatenate([self.c_n, self.theta])
+
+
+def increment_stop(hist: list[float], new: np.ndarray, old: np.ndarray, tol: float,
+                   floor: float = 0.0) -> str | None:
+    """The stopping rule of the online fixed points: append the relative increment
+    ``||new - old||_inf / max(||new||_inf, floor)`` to ``hist``; ``"converged"`` when it is
+    ``<= tol``, ``"diverged"`` when it grew 1e6-fold over the smallest so far, else None."""
+    hist.append(float(np.abs(new - old).max(initial=0.0))
+                / max(float(np.abs(new).max(initial=0.0)), floor, np.finfo(float).tiny))
+    if hist[-1] <= tol:
+        return "converged"
+    return "diverged" if hist[-1] > 1e6 * min(hist) else None
+
+
+def solve_coulomb(cond: ReducedCondensed, Qn: np.ndarray, Qt: np.ndarray,
+                  values: np.ndarray, law: str = "coulomb", x0: np.ndarray | None = None,
+                  tol: float = 1e-10, max_iter: int = 200) -> FrictionOnlineResult:
+    """Tresca (one QP, ``s = values``) or Coulomb by the seed's fixed point on Tresca
+    (``s = values * (Qn c_n)`` of the previous iterate, clipped at 0) until the relative
+    increment is ``<= tol`` (relative to ``max(||x||_inf, 1e-12 ||q|| / ||D||_2)``: a
+    zero solution, all nodes open, converges too). Stops ``"converged"``,
+    ``"max_iterations"``, ``"diverged"`` (increments grew 1e6-fold) or
+    ``"qp failed (daqp flag k)"``."""
+    R, n = cond.R, cond.q.size
+    x = np.zeros(n) if x0 is None else np.asarray(x0, float).copy()
+    hist: list[float] = []
+    inner, reason, it = 0, "max_iterations", 0
+    floor = 1e-12 * float(np.linalg.norm(cond.q)) / max(float(np.linalg.norm(cond.D, 2)),
+                                                         np.finfo(float).tiny)
+    while it < (1 if law == "tresca" else max_iter):
+        it += 1
+        s = values if law == "tresca" else values * np.maximum(Qn @ x[:R], 0.0)
+        new, k, flag = tresca_qp(cond.D, cond.q, R, Qt, s, x0=x)
+        inner += k
+        if new is None:
+            reason = f"qp failed (daqp flag {flag})"
+            break
+        stop = increment_stop(hist, new, x, tol, floor)
+        x = new
+        if law == "tresca" or stop is not None:
+            reason = "converged" if law == "tresca" else stop
+            break
+    a = cond.a0 - cond.K @ x
+    return FrictionOnlineResult(a, x[:R].copy(), x[R:].copy(), it, inner, reason, 0.0, hist)
+
+
+def nearest_training(mus_train: np.ndarray, x_train: np.ndarray,
+                     mu: np.ndarray) -> np.ndarray | None:
+    """The online warm start: the training solution ``x_train[j]`` of the training mu
+    nearest to ``mu`` (Euclidean), or None without training solutions."""
+    if x_train.size == 0:
+        return None
+    d = np.linalg.norm(mus_train - np.asarray(mu, float)[None, :], axis=1)
+    return x_train[int(np.argmin(d))]
+
+
+@dataclass
+class FrictionReducedModel:
+    """The reduced friction model: small dense arrays only (picklable).
+
+    ``Qn``, ``Qt``: the rows of ``Vn``, ``Vt`` at the collocation nodes ``nodes`` (HF node
+    indices, chosen by GCNS); ``law``: ``"coulomb"`` or ``"tresca"``; ``mus_train`` and
+    ``x_train``: the reduced solutions ``(c_n, theta)`` of the training set (the warm start
+    from the nearest training mu). ``operators``: ``mu -> FrictionArrays`` when the arrays
+    are HF-size independent (hyper-reduction, stage 2); ``None`` for the plain model, whose
+    arrays are projected online from the HF problem (:func:`project_friction`, then
+    :meth:`solve_arrays`). ``parameters``: the domain D checked by :meth:`solve`.
+    """
+
+    Qn: np.ndarray
+    Qt: np.ndarray
+    nodes: np.ndarray
+    law: str
+    mus_train: np.ndarray
+    x_train: np.ndarray
+    operators: Callable[[np.ndarray], FrictionArrays] | None = None
+    parameters: ParameterSpace | None = None
+    tol: float = 1e-10
+    max_iter: int = 200
+    info: dict = field(default_factory=dict)
+
+    @property
+    def R(self) -> int:
+        return int(self.Qn.shape[1])
+
+    @property
+    def S(self) -> int:
+        return int(self.Qt.shape[1])
+
+    def warm_start(self, mu: np.ndarray) -> np.ndarray | None:
+        """``(c_n, theta)`` of the nearest training mu (:func:`nearest_training`)."""
+        return nearest_training(self.mus_train, self.x_train, mu)
+
+    def solve_arrays(self, mu: np.ndarray, arr: FrictionArrays,
+                     x0: np.ndarray | None = None) -> FrictionOnlineResult:
+        """Condense ``arr`` and solve (:func:`solve_coulomb`), warm-started at ``x0``
+        (default: :meth:`warm_start`); ``time_s`` covers condensation and solve."""
+        t0 = time.perf_counter()
+        mu = np.atleast_1d(np.asarray(mu, float))
+        x0 = self.warm_start(mu) if x0 is None else x0
+        values = np.asarray(arr.law_values, float)[self.nodes]
+        res = solve_coulomb(condense_reduced(arr), self.Qn, self.Qt, values, self.law, x0,
+                            self.tol, self.max_iter)
+        res.time_s = time.perf_counter() - t0
+        return res
+
+    def solve(self, mu: np.ndarray) -> FrictionOnlineResult:
+        """Online solve from :attr:`operators` (checks mu against D); the plain model has
+        none: project the HF problem and call :meth:`solve_arrays`."""
+        if self.operators is None:
+            raise ValueError("plain reduced friction model: its arrays are projected from "
+                             "the HF problem at mu (project_friction, then solve_arrays)")
+        t0 = time.perf_counter()
+        mu = self.parameters.check(mu) if self.parameters is not None else mu
+        res = self.solve_arrays(mu, self.operators(mu))
+        res.time_s = time.perf_counter() - t0
+        return res

@@ -1,0 +1,83 @@
+"""The mixed friction model's offline steps (issue 14, stage 1: the plain reduced model).
+
+Seed 000, slides "Plain RBM", "Preliminaries", "Greedy Collocation Node Selection (GCNS)".
+After the primal space V_N (shared skeleton, :mod:`rbbench.rb.offline`; POD of u):
+
+1. the normal cone ``W_R^n = Span+(Vn)`` of the lam_n snapshots (a registered dual
+   compressor, mCPG by default) and the tangential space ``X_S = span(Vt)``, the POD of
+   the lam_t snapshots (:func:`tangential_pod`, ``S`` modes, default ``S = R``), both in
+   the L2(Gamma_c) Gram matrix ``Wt`` of the nodal multipliers at the default mu;
+2. a stabiliser of the combined form ``b = b^n + b^tau`` (``none``; ``pga``: the registered
+   PGA on ``B = [Bn; Bt]`` against ``blockdiag(Vn, Vt)``);
+3. GCNS (:func:`rbbench.rb.algorithms.gcns.gcns`) picks the collocation nodes of the tangential
+   constraint on the training set;
+4. the plain online stage (hyper ``none``; ``eim`` with the wedge model:
+   :mod:`rbbench.rb.friction.wedge.hyper`): the HF operators at mu projected on the bases
+   (:func:`rbbench.rb.friction.collocation.model.project_friction`, its time included in the online
+   time), then the small Coulomb solve
+   (:class:`rbbench.rb.friction.collocation.model.FrictionReducedModel`).
+
+These are the seed's model (:class:`rbbench.rb.friction.collocation.stage.FrictionStage`,
+``friction_dual = "seed"``, the default). ``friction_dual = "wedge"`` selects our alternative
+(:class:`rbbench.rb.friction.wedge.stage.WedgeStage`): cones of ``F lam_n +- lam_t`` in
+place of steps 1 and 3 (the Coulomb cone at every HF node, no GCNS) and De Saxce's fixed
+point online (:mod:`rbbench.rb.friction.wedge.model`). The choice is read from the ReduceConfig
+(:func:`friction_dual`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rbbench.rb.friction.collocation.stage import (
+    DEFINITIONS,
+    FRICTION_DUALS,
+    FrictionStage,
+    TangentialBasis,
+    TangentialPOD,
+    friction_dual,
+    tangential_pod,
+)
+from rbbench.rb.friction.wedge.stage import WedgeStage
+from rbbench.rb.offline import ReduceConfig, fixed_contact_points
+from rbbench.registry import Registry
+from rbbench.scene.loading import Scene, SceneError
+
+__all__ = ["DEFINITIONS", "FRICTION_DUALS", "FrictionReduction", "FrictionStage",
+           "TangentialBasis", "TangentialPOD", "WedgeStage", "friction_dual", "tangential_pod"]
+
+
+class FrictionReduction:
+    """The mixed friction model's steps in the offline skeleton (``reduction(friction=...)``
+    of the mixed formulation)."""
+
+    name = "mixed-friction"
+    friction_laws = ("tresca", "coulomb")
+
+    def prepare(self, scene: Scene, config: ReduceConfig, registry: Registry) -> ReduceConfig:
+        """Checks before any HF work: the named components exist, the stage's choices."""
+        for role in ("primal", "dual", "stabilizer"):
+            registry.get(role, getattr(config, role))
+        wedge = friction_dual(config) == "wedge"
+        if config.hyper not in ("auto", "none") and not (wedge and config.hyper == "eim"):
+            raise SceneError(f"{scene.path}: hyper {config.hyper!r}: the reduced friction "
+                             "model takes hyper 'none' / 'auto' (plain), or 'eim' with the "
+                             "wedge dual model (friction_dual = 'wedge')")
+        if config.hyper == "eim":
+            fixed_contact_points(scene, "eim")
+        if config.stabilizer not in ("none", "pga"):
+            raise SceneError(f"{scene.path}: stabilizer {config.stabilizer!r}: the reduced "
+                             "friction model takes 'none' or 'pga'")
+        if scene.data.get("friction", {}).get("coefficient_law"):
+            raise SceneError(f"{scene.path}: a slip-dependent friction coefficient (model B) "
+                             "has no reduced model")
+        if wedge and \
+                scene.data.get("friction", {}).get("law", "coulomb") != "coulomb":
+            raise SceneError(f"{scene.path}: the wedge dual model is Coulomb's cone; Tresca "
+                             "takes the seed's model")
+        return config
+
+    def reduce(self, ctx: Any) -> FrictionStage:
+        if friction_dual(ctx.config) == "wedge":
+            return WedgeStage(ctx)
+        return FrictionStage(ctx)
