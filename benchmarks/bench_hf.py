@@ -1,6 +1,7 @@
 """asv: the HF solve of ``rbbench solve`` (:func:`rbbench.hf.model.solve_hf`), time and accuracy."""
 
-from rbbench.hf.model import make_components, solve_hf
+from rbbench.hf.components import make_components
+from rbbench.hf.model import solve_hf
 
 from ._common import CASES, TIMEOUT, finite, scene
 

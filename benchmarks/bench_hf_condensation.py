@@ -39,7 +39,7 @@ VARIANTS: dict[str, dict] = {
 
 def contact_problem(level: int):
     """The frictionless mixed contact problem of ``hertz_halfdisks`` at ``level``, mu = 1."""
-    from rbbench.hf.model import discretize_for, make_components
+    from rbbench.hf.components import discretize_for, make_components
     from rbbench.scene.loading import load_scene
 
     sc = load_scene("hertz_halfdisks", [f"discretization.level={level}"])

@@ -13,8 +13,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from rbbench.hf.components import make_components
 from rbbench.hf.geometry.operators import contact_operators
-from rbbench.hf.model import ProblemCache, make_components
+from rbbench.hf.model import ProblemCache
 from rbbench.hf.snapshots.compute import compute_snapshots
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.hyper.contact_eim import contact_eim

@@ -76,7 +76,8 @@ def solve(scene: str | Path | Scene, mu: Any = None, backend: str = "skfem",
         :func:`rbbench.hf.linear.solve.solve_linear_hf`, ``.problem`` a
         :class:`~rbbench.hf.linear.model.LinearProblem`, ``.metrics`` without contact fields.
     """
-    from rbbench.hf.model import make_components, solve_hf
+    from rbbench.hf.components import make_components
+    from rbbench.hf.model import solve_hf
 
     sc = as_scene(scene)
     if is_linear(sc):  # no contact: one sparse solve (rbbench.hf.linear.solve)
@@ -121,7 +122,7 @@ def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None 
         Errors, inf-sup constants and timings over the validation set (``.summary()``: the
         flat ``result.json``), and the reduced model (``.model``).
     """
-    from rbbench.hf.model import default_solver
+    from rbbench.hf.components import default_solver
     from rbbench.rb.offline import ReduceConfig
     from rbbench.rb.offline import reduce as reduce_offline
     from rbbench.scene.friction import friction_of

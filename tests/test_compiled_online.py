@@ -17,7 +17,7 @@ import scipy.linalg as sla
 
 pytest.importorskip("numba")
 
-from rbbench.hf.model import make_components  # noqa: E402
+from rbbench.hf.components import make_components  # noqa: E402
 from rbbench.rb.algorithms.affine import AffineOperator, LinearInMu  # noqa: E402
 from rbbench.rb.hyper.contact_eim import HyperReductionError, contact_eim  # noqa: E402
 from rbbench.rb.mixed import compiled as compiled_online

@@ -125,7 +125,7 @@ def test_options_are_checked_and_auto_keeps_a_backend_solver():
 @pytest.fixture(scope="module")
 def coarse_hertz():
     """The contract suite's coarse Hertz problem (8888 dofs, 64 multipliers) at mu = 1."""
-    from rbbench.hf.model import make_components
+    from rbbench.hf.components import make_components
     from rbbench.scene.loading import load_scene
     from rbbench.testing import HERTZ_COARSE
 
@@ -148,7 +148,7 @@ def test_ssn_on_hertz_gives_todays_solution(coarse_hertz, solver):
 
 def test_friction_ssn_over_load_steps_gives_todays_solution():
     """Sheared Coulomb scene of tests/test_friction_hf.py (two load steps): u, lam_n, lam_t."""
-    from rbbench.hf.model import friction_at, make_components
+    from rbbench.hf.components import friction_at, make_components
     from rbbench.scene.loading import load_scene
 
     sc = load_scene("hertz_halfdisks", [

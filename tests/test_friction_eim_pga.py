@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
+from rbbench.hf.components import make_components
 from rbbench.hf.geometry.operators import contact_operators
-from rbbench.hf.model import make_components
+from rbbench.hf.model import build_problem
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.eim import deim, eim_error, eim_error_curve
 from rbbench.rb.algorithms.pga import riesz_lower_bound, x_orthonormalize
@@ -35,7 +36,6 @@ from rbbench.rb.friction.infsup import (
     reduced_constants,
 )
 from rbbench.rb.hyper.contact_eim import build_row_evaluator, tangent
-from rbbench.rb.offline import build_problem
 from rbbench.scene.loading import load_scene
 
 COARSE = ["discretization.degree=1", "discretization.h_contact=0.02",

@@ -12,7 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rbbench.hf.model import DEFINITIONS, HFModel, friction_at, make_components
+from rbbench.hf.components import friction_at, make_components
+from rbbench.hf.metrics import DEFINITIONS
+from rbbench.hf.model import HFModel
 from rbbench.interfaces import ContactProblem, FrictionLaw, FrictionProblem
 from rbbench.scene.loading import load_scene
 from rbbench.scene.parameters import SceneError

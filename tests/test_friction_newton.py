@@ -11,7 +11,7 @@ import pytest
 from rbbench_plugins.solvers.friction import FrictionSSNSolver
 
 from rbbench.hf.algebra.friction import SEED001, CoefficientLaw, friction_residuals, slip
-from rbbench.hf.model import make_components
+from rbbench.hf.components import make_components
 from rbbench.hf.solvers import friction as fs
 from rbbench.interfaces import FrictionLaw
 from rbbench.scene.loading import load_scene

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import rbbench.rb.friction.infsup as fi
-from rbbench.hf.model import make_components
+from rbbench.hf.components import make_components
+from rbbench.hf.model import build_problem
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.friction.profiles import lam_t_profiles, profile_parameters
-from rbbench.rb.offline import build_problem
 from rbbench.scene.loading import load_scene
 
 #: n_free = 4090, m = 65 friction nodes (as tests/test_friction_eim_pga.py TINY)

@@ -65,7 +65,7 @@ def test_hyper_wedge_pickles_and_touches_no_hf_array(monkeypatch):
     holds no array of HF size (all dimensions far below the free dofs)."""
     import rbbench.hf.geometry.operators as cg
     import rbbench.rb.friction.wedge.model as fw
-    import rbbench.rb.offline as ro
+    import rbbench.hf.model as ro
 
     off = _offline()
     st, ctx = off.stage, off.context

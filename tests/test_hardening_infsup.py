@@ -9,10 +9,10 @@ import pytest
 from scipy.optimize import OptimizeResult
 
 import rbbench.rb.algorithms.infsup_zero as iz
-from rbbench.hf.model import make_components
+from rbbench.hf.components import make_components
+from rbbench.hf.model import ProblemCache
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.mixed.offline import _labelled
-from rbbench.rb.offline import SceneProblems
 from rbbench.rb.validation import beta_summary
 from rbbench.scene.loading import load_scene
 
@@ -93,7 +93,7 @@ def test_membrane_hf_row_decided_without_lp():
     bound; the LP, run anyway, agrees (n_cells = 8: 49 multipliers)."""
     scene = load_scene("membrane_obstacle", ["discretization.n_cells=8"])
     b, f, _ = make_components(scene)
-    problems = SceneProblems(b, f, scene)
+    problems = ProblemCache(b, f, scene)
     p = problems(scene.default_mu)
     H = inf.supremizer_operator(p.B, inf.make_solver(problems.X_free(scene.default_mu)))
     fast, lp = iz.zero_test(H.T), iz.zero_test(H.T, svd_bound=False)

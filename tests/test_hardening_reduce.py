@@ -12,10 +12,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from rbbench.cli import main
-from rbbench.hf.model import make_components
+from rbbench.hf.components import make_components
+from rbbench.hf.model import ProblemCache
 from rbbench.hf.snapshots.compute import cache_path, load_snapshot, snapshot_key
 from rbbench.rb.algorithms import infsup as inf
-from rbbench.rb.offline import ReduceConfig, SceneProblems, reduce
+from rbbench.rb.offline import ReduceConfig, reduce
 from rbbench.scene.loading import load_scene
 from rbbench.scene.sampling import parameter_set
 
@@ -62,7 +63,7 @@ def test_beta_rows_normalised_by_c_hf(scene, reduced):
     s = res.summary()
     assert set(res.beta) == {"hf", "dec", "on", "off"}
     b, f, _ = make_components(scene)  # the problem at the first validation mu
-    p = SceneProblems(b, f, scene)(res.valid_mus[0])
+    p = ProblemCache(b, f, scene)(res.valid_mus[0])
     X = p.X[p.free][:, p.free].toarray()
     B = p.B.toarray() if sp.issparse(p.B) else np.asarray(p.B)
     W = p.W.toarray() if sp.issparse(p.W) else np.asarray(p.W)

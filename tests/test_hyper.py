@@ -9,8 +9,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from rbbench.hf.components import make_components
 from rbbench.hf.geometry.facets import ray_cast, ray_cast_window
-from rbbench.hf.model import make_components
 from rbbench.rb.hyper.contact_eim import HyperReductionError, build_row_evaluator, contact_eim
 from rbbench.rb.offline import ReduceConfig, reduce
 from rbbench.scene.loading import load_scene

@@ -203,7 +203,7 @@ def test_friction_solve_writes_the_per_node_contact_table(tmp_path):
 
 def test_cli_solve_with_component_options_refuses_an_undeclared_friction_law(capsys):
     """``--backend-option`` builds the components in the CLI: the same name and friction
-    checks as :func:`rbbench.hf.model.make_components` run before any meshing."""
+    checks as :func:`rbbench.hf.components.make_components` run before any meshing."""
     from rbbench.cli import main
 
     argv = ["solve", "hertz_halfdisks", *sum((["--set", s] for s in [

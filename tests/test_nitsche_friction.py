@@ -17,7 +17,8 @@ from rbbench_plugins.solvers.nitsche_friction_newton import at_step
 from test_nitsche import _affine_field
 
 from rbbench.hf.algebra import nitsche_friction as nf
-from rbbench.hf.model import HFModel, make_components
+from rbbench.hf.components import make_components
+from rbbench.hf.model import HFModel
 from rbbench.interfaces import STOP_REASONS, FrictionLaw, NitscheFrictionProblem
 from rbbench.registry import default_registry
 from rbbench.scene.loading import load_scene

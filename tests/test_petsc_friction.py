@@ -23,7 +23,7 @@ from rbbench_plugins.solvers.petsc.tao import PetscTaoSolver  # noqa: E402
 from rbbench_plugins.solvers.petsc.vi import PetscVISolver
 
 from rbbench.hf.algebra import friction as fa  # noqa: E402
-from rbbench.hf.model import make_components  # noqa: E402
+from rbbench.hf.components import make_components  # noqa: E402
 from rbbench.hf.solvers import friction as fs  # noqa: E402
 from rbbench.interfaces import STOP_REASONS, FrictionLaw  # noqa: E402
 from rbbench.scene.loading import load_scene  # noqa: E402

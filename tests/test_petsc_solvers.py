@@ -294,7 +294,7 @@ def test_hertz_contact_force_matches_ssn(tmp_path):
 
 @pytest.fixture(scope="module")
 def hertz_coarse_problem():
-    from rbbench.hf.model import make_components
+    from rbbench.hf.components import make_components
     from rbbench.scene.loading import load_scene
 
     scene = load_scene("hertz_halfdisks", list(HERTZ_COARSE))
@@ -319,7 +319,7 @@ def test_hertz_vi_rounding_guard_saves_iterations():
     at every mu of a sweep, more than twice as many in total (which constraints round the
     wrong way depends on the last bits of A, so no single mu is a fair sample: at mu = 1
     the unguarded run once took 20+ steps, after a round-off change of A 10 against 6)."""
-    from rbbench.hf.model import make_components
+    from rbbench.hf.components import make_components
     from rbbench.scene.loading import load_scene
 
     scene = load_scene("hertz_halfdisks", list(HERTZ_COARSE))

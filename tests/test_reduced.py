@@ -7,7 +7,8 @@ import pickle
 import numpy as np
 import pytest
 
-from rbbench.hf.model import make_components, solve_hf
+from rbbench.hf.components import make_components
+from rbbench.hf.model import solve_hf
 from rbbench.rb.algorithms.affine import NotAffineError, affine_decomposition
 from rbbench.rb.mixed.model import ReducedBasis, build_affine_model, projector
 from rbbench.scene.loading import load_scene

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from rbbench.hf.model import make_components
+from rbbench.hf.components import make_components
 from rbbench.hf.snapshots.compute import compute_snapshots
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.pga import supremizers

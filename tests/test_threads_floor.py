@@ -11,7 +11,8 @@ import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from rbbench.cli.console import print_summary
-from rbbench.hf.model import make_components, solve_floor, solve_hf
+from rbbench.hf.components import make_components
+from rbbench.hf.model import solve_floor, solve_hf
 from rbbench.rb.validation import ReducedStage, validate
 from rbbench.runtime import threads
 from rbbench.runtime.threads import blas_pools, one_blas_thread

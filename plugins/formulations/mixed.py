@@ -41,7 +41,7 @@ class MixedFormulation(Formulation):
     def build(self, disc: Discretization, friction: FrictionLaw | None = None
               ) -> ContactProblem | FrictionProblem:
         """The contact problem at ``disc.mu``; with ``friction`` (the scene's law at mu,
-        :func:`rbbench.hf.model.friction_at`) the friction problem.
+        :func:`rbbench.hf.components.friction_at`) the friction problem.
 
         A discretisation with tangential operators (a friction scene) but no ``friction``
         is refused: never a silently frictionless solve of a friction scene.
@@ -53,7 +53,7 @@ class MixedFormulation(Formulation):
         if disc.dirichlet_steps is not None:
             raise ValueError("mixed formulation: this discretisation has load steps (a "
                              "friction scene) but no friction law was given: "
-                             "build(disc, friction=rbbench.hf.model.friction_at(scene, mu))")
+                             "build(disc, friction=rbbench.hf.components.friction_at(scene, mu))")
         n = disc.n_dofs
         free = np.setdiff1d(np.arange(n), disc.dirichlet_dofs)
         u_lift = np.zeros(n)

@@ -209,7 +209,8 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
 def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) -> None:
     """Mode hf: ``hf_repeats`` HF solves at the scene's default mu (components built once,
     meshing not timed); fills the sizes, force, iterations and HF time columns."""
-    from rbbench.hf.model import make_components, solve_hf
+    from rbbench.hf.components import make_components
+    from rbbench.hf.model import solve_hf
     from rbbench.scene.linear import is_linear
 
     c = case.components

@@ -48,7 +48,7 @@ def _resolve_solver(args, scene=None) -> None:
     """``--solver`` not given: the formulation's declared solver (``ssn`` for mixed,
     ``newton`` for Nitsche; for a friction ``scene``, the first declaring its law)."""
     if getattr(args, "solver", None) is None:
-        from rbbench.hf.model import default_solver
+        from rbbench.hf.components import default_solver
         from rbbench.scene.friction import friction_of
 
         law = friction_of(scene).law if scene is not None else "none"
@@ -58,7 +58,7 @@ def _resolve_solver(args, scene=None) -> None:
 def _solve_components(scene, args, options: dict, f_options: dict | None = None):
     """Backend (with ``options``), formulation (with ``f_options``) and solver for
     ``rbbench solve``."""
-    from rbbench.hf.model import check_names
+    from rbbench.hf.components import check_names
 
     reg = default_registry()
     check_names(scene, reg, args.backend, args.formulation, args.solver)  # before any meshing

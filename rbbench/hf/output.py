@@ -12,7 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.model import HFSolution, normal_operators
+from rbbench.hf.metrics import normal_operators
+from rbbench.hf.model import HFSolution
 from rbbench.interfaces import FrictionProblem
 from rbbench.provenance import _jsonable, provenance
 

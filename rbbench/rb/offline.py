@@ -22,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.model import ProblemCache, discretize_for, friction_at, make_components
+from rbbench.hf.components import make_components
+from rbbench.hf.model import ProblemCache
 from rbbench.hf.snapshots.compute import SnapshotSet, compute_snapshots
 from rbbench.rb.hyper.reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.rb.mixed.model import ONLINE_METHODS
@@ -34,7 +35,7 @@ from rbbench.scene.loading import Scene, SceneError
 from rbbench.scene.sampling import parameter_set
 
 __all__ = ["DivergedError", "HYPER", "OfflineContext", "Offline", "ReduceConfig",
-           "ReduceResult", "SceneProblems", "build_problem", "check_finite",
+           "ReduceResult", "check_finite",
            "clipped_size", "eim_grid", "eim_training_set", "fixed_contact_points",
            "offline", "primal_basis", "primal_histories", "reduce", "training_snapshots"]
 
@@ -91,7 +92,8 @@ class ReduceConfig:
 
     @property
     def component_options(self) -> dict:
-        """``{"backend": ..., "formulation": ...}`` for :func:`rbbench.hf.model.make_components`."""
+        """``{"backend": ..., "formulation": ...}`` for
+        :func:`rbbench.hf.components.make_components`."""
         return {"backend": dict(self.backend_options),
                 "formulation": dict(self.formulation_options)}
 
@@ -171,28 +173,6 @@ def reduction_steps(config: ReduceConfig, registry: Registry, law: str = "none")
     return form.reduction()
 
 
-class SceneProblems(ProblemCache):
-    """:class:`~rbbench.hf.model.ProblemCache` that builds the scene's friction problem at
-    mu (:func:`~rbbench.hf.model.friction_at`); a frictionless scene as the base class."""
-
-    def __init__(self, backend: Any, formulation: Any, scene: Scene):
-        super().__init__(backend, formulation)
-        self.scene = scene
-
-    def __call__(self, mu: Any) -> Any:
-        key = np.asarray(mu, float).tobytes()
-        if key not in self._problems:
-            self._problems[key] = build_problem(self.backend, self.formulation, self.scene, mu)
-        return self._problems[key]
-
-
-def build_problem(backend: Any, formulation: Any, scene: Scene, mu: Any) -> Any:
-    """The HF problem at ``mu``: discretise and formulate, with the scene's friction law."""
-    disc = discretize_for(backend, formulation, mu)
-    friction = friction_at(scene, mu)
-    return formulation.build(disc) if friction is None else formulation.build(disc, friction)
-
-
 def check_hyper(config: ReduceConfig, registry: Registry) -> None:
     """The hyper-reducer ``config.hyper`` is registered and declares the formulation
     (``"auto"``: the formulation's own rule)."""
@@ -224,7 +204,7 @@ def offline(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] 
     timings["snapshots_s"] = time.perf_counter() - t0
     b, f, _ = make_components(scene, config.backend, config.formulation, config.solver,
                               component_options=config.component_options, registry=reg)
-    problem_at = SceneProblems(b, f, scene)
+    problem_at = ProblemCache(b, f, scene)
     X = problem_at.X_free(scene.default_mu)
     t1 = time.perf_counter()
     primal = primal_basis(reg, config, train.U, X, progress)

@@ -40,7 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.model import ProblemCache, make_components
+from rbbench.hf.components import make_components
+from rbbench.hf.model import ProblemCache
 from rbbench.hf.snapshots.compute import compute_snapshots
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.pga import pga, supremizers

@@ -36,7 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.model import make_components, solve_hf, warm_up
+from rbbench.hf.components import make_components, warm_up
+from rbbench.hf.model import solve_hf
 from rbbench.hf.snapshots.key import key_payload, payload_key, snapshot_key
 from rbbench.registry import default_registry
 from rbbench.runtime.threads import limit_blas_threads
@@ -251,7 +252,7 @@ def _components(scene: Any, names: tuple[str, str, str], solver_options: dict | 
     """The components of ``key`` (:func:`snapshot_key`), meshed and warmed up once per
     process: the last set is kept and reused for the same key and registry.
 
-    Warm-up: :func:`rbbench.hf.model.warm_up` (:meth:`rbbench.interfaces.Backend.warm_up`:
+    Warm-up: :func:`rbbench.hf.components.warm_up` (:meth:`rbbench.interfaces.Backend.warm_up`:
     the mu-independent operators, built at the first discretisation otherwise, e.g. the
     inner product and the reference stiffness terms: 0.28 s at Hertz level 0), so that no
     snapshot's stored ``time_s`` holds that one-off work.
@@ -327,7 +328,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
         Passed to the solver; part of the cache key.
     component_options : dict, optional
         ``{"backend": {...}, "formulation": {...}}`` constructor options
-        (:func:`rbbench.hf.model.make_components`); part of the cache key when given.
+        (:func:`rbbench.hf.components.make_components`); part of the cache key when given.
     registry : Registry, optional
         Where the component names are looked up (default: the discovered plugins).
     mp_context : {"fork", "forkserver", "spawn"}, optional

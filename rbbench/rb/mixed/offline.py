@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.model import discretize_for
+from rbbench.hf.components import discretize_for
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.affine import NotAffineError
 from rbbench.rb.compressors import pga_default_delta

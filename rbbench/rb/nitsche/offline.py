@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.algebra.nitsche import pressure, state
-from rbbench.hf.model import default_solver
+from rbbench.hf.components import default_solver
 from rbbench.rb.algorithms.affine import (
     AffineOperator,
     LinearInMu,

@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from rbbench.hf.model import discretize_for
+from rbbench.hf.components import discretize_for
+from rbbench.hf.model import build_problem
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.cones.metric import span_projection
 from rbbench.rb.algorithms.gcns import gcns, tangential_violation
@@ -29,7 +30,7 @@ from rbbench.rb.friction.collocation.model import (
 from rbbench.rb.friction.infsup import validation_constants
 from rbbench.rb.friction.profiles import PROFILE_DEFINITION, lam_t_profiles
 from rbbench.rb.mixed.offline import make_stabilizer, pga_delta
-from rbbench.rb.offline import build_problem, check_finite, primal_histories
+from rbbench.rb.offline import check_finite, primal_histories
 from rbbench.rb.validation import ReducedStage, xnorm2
 from rbbench.scene.loading import SceneError
 
