@@ -18,8 +18,8 @@ from rbbench.hf.geometry.operators import contact_operators
 from rbbench.hf.model import ProblemCache
 from rbbench.hf.snapshots.compute import compute_snapshots
 from rbbench.rb.algorithms import infsup as inf
+from rbbench.rb.compressors import make_stabilizer, pga_delta
 from rbbench.rb.hyper.contact_eim import contact_eim
-from rbbench.rb.mixed.offline import make_stabilizer, pga_delta
 from rbbench.rb.offline import eim_training_set, primal_basis
 from rbbench.registry import default_registry
 from rbbench.scene.sampling import parameter_set

@@ -64,8 +64,8 @@ def test_hyper_wedge_pickles_and_touches_no_hf_array(monkeypatch):
     """The pickled model solves the same at a new mu with every HF entry point disabled, and
     holds no array of HF size (all dimensions far below the free dofs)."""
     import rbbench.hf.geometry.operators as cg
-    import rbbench.rb.friction.wedge.model as fw
     import rbbench.hf.model as ro
+    import rbbench.rb.friction.wedge.model as fw
 
     off = _offline()
     st, ctx = off.stage, off.context

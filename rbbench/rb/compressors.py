@@ -357,3 +357,24 @@ def pga_default_delta(B_train: Iterable[Any], W_train: Iterable[Any], x_solve: X
     if not ratios:
         raise ValueError("pga_default_delta: no parameters given")
     return fraction * float(min(ratios) if over == "min" else max(ratios))
+
+
+def make_stabilizer(reg: Any, config: Any) -> Any:
+    """The registered stabiliser ``config.stabilizer`` (PGA capped at ``config.k_pga_max``);
+    ``reg`` a :class:`~rbbench.registry.Registry`, ``config`` the formulation's options."""
+    opts = {"max_dim": config.k_pga_max} if config.stabilizer == "pga" else {}
+    return reg.create("stabilizer", config.stabilizer, **opts)
+
+
+def pga_delta(config: Any, problems: list, x_solve: Any,
+              Vg: np.ndarray) -> float | None:
+    """The PGA tolerance: ``config.delta_pga``, else the seed's rule (friction example:
+    ``delta_PGA = sup beta_HF / c_HF = 0.072``) with beta the span value over the reduced
+    cone (a lower bound), over every fifth training problem. ``None`` unless PGA."""
+    if config.stabilizer != "pga":
+        return None
+    if config.delta_pga is not None:
+        return config.delta_pga
+    probe = problems[:: max(1, len(problems) // 5)]
+    return pga_default_delta([p.B for p in probe], [p.W for p in probe], x_solve, Vg,
+                             fraction=1.0, over="max")

@@ -21,7 +21,7 @@ import numpy as np
 from rbbench.hf.components import discretize_for
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.affine import NotAffineError
-from rbbench.rb.compressors import pga_default_delta
+from rbbench.rb.compressors import make_stabilizer, pga_delta
 from rbbench.rb.mixed.model import build_affine_model, projector, solve_reduced
 from rbbench.rb.offline import (
     ReduceConfig,
@@ -270,26 +270,6 @@ class MixedStage(ReducedStage):
         histories["lam_best_valid"] = self.lam_floor
         if self.t_asm:
             timings["t_online_hf_assembly_s"] = float(np.median(self.t_asm))
-
-
-def make_stabilizer(reg: Registry, config: ReduceConfig) -> Any:
-    """The registered stabiliser ``config.stabilizer`` (PGA capped at ``k_pga_max``)."""
-    opts = {"max_dim": config.k_pga_max} if config.stabilizer == "pga" else {}
-    return reg.create("stabilizer", config.stabilizer, **opts)
-
-
-def pga_delta(config: ReduceConfig, problems: list, x_solve: Any,
-              Vg: np.ndarray) -> float | None:
-    """The PGA tolerance: ``config.delta_pga``, else the seed's rule (friction example:
-    ``delta_PGA = sup beta_HF / c_HF = 0.072``) with beta the span value over the reduced
-    cone (a lower bound), over every fifth training problem. ``None`` unless PGA."""
-    if config.stabilizer != "pga":
-        return None
-    if config.delta_pga is not None:
-        return config.delta_pga
-    probe = problems[:: max(1, len(problems) // 5)]
-    return pga_default_delta([p.B for p in probe], [p.W for p in probe], x_solve, Vg,
-                             fraction=1.0, over="max")
 
 
 def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_train,

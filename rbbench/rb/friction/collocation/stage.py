@@ -21,6 +21,7 @@ from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.cones.metric import span_projection
 from rbbench.rb.algorithms.gcns import gcns, tangential_violation
 from rbbench.rb.algorithms.pod import pod
+from rbbench.rb.compressors import make_stabilizer, pga_delta
 from rbbench.rb.friction.collocation.model import (
     FrictionReducedModel,
     condense_reduced,
@@ -29,7 +30,6 @@ from rbbench.rb.friction.collocation.model import (
 )
 from rbbench.rb.friction.infsup import validation_constants
 from rbbench.rb.friction.profiles import PROFILE_DEFINITION, lam_t_profiles
-from rbbench.rb.mixed.offline import make_stabilizer, pga_delta
 from rbbench.rb.offline import check_finite, primal_histories
 from rbbench.rb.validation import ReducedStage, xnorm2
 from rbbench.scene.loading import SceneError

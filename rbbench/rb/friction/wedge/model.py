@@ -39,13 +39,13 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.rb.friction.collocation.model import (
+from rbbench.rb.algorithms.saddle import condense_dense
+from rbbench.rb.friction.qp import (
     check_reducible,
     increment_stop,
     nearest_training,
     nonneg_qp,
 )
-from rbbench.rb.mixed.model import condense_dense
 from rbbench.scene.parameters import ParameterSpace
 
 __all__ = ["WedgeArrays", "WedgeBasis", "WedgeCondensed", "WedgeOnlineResult",
