@@ -163,19 +163,19 @@ def test_done_when_heat_n25_below_one_percent(tmp_path):
 def test_study_subcommands_parse_and_print(capsys, monkeypatch):
     import argparse
 
-    from rbbench.studies import heat_seed, pymor_thermal_block
+    from rbbench.cli import studies
 
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest="study")
-    for mod in (pymor_thermal_block, heat_seed):
-        mod.add_parser(sub)
+    studies._add_pymor_thermal_block_parser(sub)
+    studies._add_heat_seed_parser(sub)
     monkeypatch.setitem(sys.modules, "pymor", None)  # the not_installed row, quickly
     args = ap.parse_args(["pymor-thermal-block", "--n-cells", "8", "-N", "3", "--n-train",
                           "8", "--n-valid", "2", "--repeats", "1"])
-    assert pymor_thermal_block.run(args) == 0
+    assert studies.cmd_pymor_thermal_block(args) == 0
     out = capsys.readouterr().out
     assert "| max relative error, H1_0 seminorm |" in out and "pip install pymor" in out
     args = ap.parse_args(["heat-seed", "--n-cells", "8", "-N", "3", "--repeats", "1"])
-    assert heat_seed.run(args) == 0
+    assert studies.cmd_heat_seed(args) == 0
     out = capsys.readouterr().out
     assert "| N | 25 | 3 |" in out and "| HF nodes | 51,500 | 81 |" in out

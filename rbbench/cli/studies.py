@@ -1,16 +1,239 @@
-"""``rbbench studies STUDY``: the side-by-side studies that carry their own ``add_parser``
-and ``run`` (pymor-thermal-block, heat-seed: issue 18; shape-side-by-side: issue 15;
-snapshot-workers: issue 17)."""
+"""The study commands: ``rbbench hertz-table``, ``nitsche-table``, ``nitsche-compare`` and
+``rbbench studies STUDY`` (pymor-thermal-block, heat-seed, shape-side-by-side,
+snapshot-workers); the studies themselves live in :mod:`rbbench.studies`."""
 
 from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from rbbench.cli.console import _Progress
+from rbbench.scene.loading import SceneError
+from rbbench.studies.formatting import print_and_dump
 
 
 def add_parser(sub) -> None:
     """Register ``studies`` and one subcommand per study on the CLI's subparsers."""
-    from rbbench.studies import heat_seed, pymor_thermal_block, shape_side_by_side, snapshot_workers
-
     st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-seed, "
                         "shape-side-by-side, snapshot-workers)")
     group = st.add_subparsers(dest="study", required=True, metavar="STUDY")
-    for module in (pymor_thermal_block, heat_seed, shape_side_by_side, snapshot_workers):
-        module.add_parser(group).set_defaults(func=module.run)
+    for add, run in ((_add_pymor_thermal_block_parser, cmd_pymor_thermal_block),
+                     (_add_heat_seed_parser, cmd_heat_seed),
+                     (_add_shape_side_by_side_parser, cmd_shape_side_by_side),
+                     (_add_snapshot_workers_parser, cmd_snapshot_workers)):
+        add(group).set_defaults(func=run)
+
+
+def cmd_hertz_table(args) -> int:
+    from rbbench.studies.hertz import hertz_markdown, hertz_table
+
+    progress = _Progress(args.quiet)
+    rows = hertz_table(args.scene, tuple(args.loads), tuple(args.levels), args.mu,
+                       tuple(args.set or ()), progress=progress)
+    print(hertz_markdown(rows))
+    return 0
+
+
+def cmd_nitsche_table(args) -> int:
+    from rbbench.studies.nitsche_eac import NITSCHE_COLUMNS, nitsche_markdown, nitsche_table
+
+    overrides = [f"load.displacement={args.load!r}", f"discretization.degree={args.degree}",
+                 f"discretization.quadrature={args.quadrature}",
+                 f"discretization.normals={args.normals!r}",
+                 f"discretization.contact_integration={args.integration!r}", *(args.set or ())]
+    rows = nitsche_table(args.scene, tuple(1e-3 * h for h in args.h), tuple(args.mu),
+                         backend=args.backend, theta=args.theta, gamma0=args.gamma0,
+                         overrides=tuple(overrides), progress=_Progress(args.quiet))
+    print(nitsche_markdown(rows))
+    r = rows[0]
+    print(f"(Nitsche theta = {r['theta']:g}, gamma = gamma0 E / h with gamma0 = {r['gamma0']:g}; "
+          f"backend {args.backend}; overrides {overrides}; 'facet': mean slave facet length "
+          "at mu; F mixed: LAC multipliers + ssn on the same mesh)")
+    print(f"({NITSCHE_COLUMNS})")
+    return 0
+
+
+def cmd_nitsche_compare(args) -> int:
+    from rbbench.studies.nitsche_compare import comparison_markdown, formulation_comparison
+
+    res = formulation_comparison(args.scene, tuple(args.set or ()), n_train=args.n_train,
+                                 n_valid=args.n_valid, N=args.N, Rs=tuple(args.R),
+                                 progress=_Progress(args.quiet))
+    print(comparison_markdown(res))
+    print("(J = 1/2 a(u,u) - f(u) of the HF solutions over D_train; reduced errors: max over "
+          "the validation set, u in the X norm; mixed: lam in the W norm (mCPG + PGA); "
+          "Nitsche: the contact pressure -[P_gamma]_- in L2(Gamma_c))")
+    return 0
+
+
+def _add_study_tail(p, func) -> None:
+    """The last arguments of a study command (``--set``, ``--quiet``) and its function."""
+    p.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=func)
+
+
+def _add_hertz_table_parser(sub) -> None:
+    ht = sub.add_parser("hertz-table",
+                        help="2D Hertz errors against load and mesh level (Markdown table)")
+    ht.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    ht.add_argument("--loads", type=float, nargs="+", default=[0.05, 0.01],
+                    help="imposed displacements d (m)")
+    ht.add_argument("--levels", type=int, nargs="+", default=[0, 1, 2],
+                    help="uniform refinement levels (sizes divided by 2**level)")
+    ht.add_argument("--mu", type=float, default=1.0)
+    _add_study_tail(ht, cmd_hertz_table)
+
+
+def _add_nitsche_table_parser(sub) -> None:
+    nt = sub.add_parser("nitsche-table",
+                        help="the seed's Alart-Curnier residual e_AC^n of the Nitsche solve "
+                             "against h and mu, side by side with the seed (Markdown table)")
+    nt.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    nt.add_argument("--h", type=float, nargs="+", default=[5.0, 2.5, 1.25],
+                    help="the seed's mesh sizes (mm), mapped to discretization.h_contact by "
+                         "rbbench.studies.nitsche_eac.seed_h_overrides")
+    nt.add_argument("--mu", type=float, nargs="+", default=[0.7, 1.0, 1.3])
+    nt.add_argument("--backend", default="skfem")
+    nt.add_argument("--theta", type=float, default=1.0)
+    nt.add_argument("--gamma0", type=float, default=None, help="default: the formulation's")
+    nt.add_argument("--load", type=float, default=0.09,
+                    help="imposed displacement d (m); the seed's 0.09 by default")
+    nt.add_argument("--degree", type=int, choices=(1, 2), default=2,
+                    help="displacement degree (the seed's Hertz setting: P2)")
+    nt.add_argument("--quadrature", type=int, default=0,
+                    help="Gauss points per contact facet or piece (0: degree + 1)")
+    nt.add_argument("--normals", choices=("facet", "smooth"), default="smooth",
+                    help="slave normals: per facet, or continuous (vertex-averaged); "
+                         "README 'The e_AC table'")
+    nt.add_argument("--integration", choices=("gauss", "segmented"), default="segmented",
+                    help="contact quadrature per slave facet (GPTS) or per piece between "
+                         "master-vertex rays (segment-to-segment)")
+    _add_study_tail(nt, cmd_nitsche_table)
+
+
+def _add_nitsche_compare_parser(sub) -> None:
+    nc = sub.add_parser("nitsche-compare",
+                        help="Nitsche against mixed: HF energies over D_train and reduced "
+                             "errors for several R (Markdown tables)")
+    nc.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    nc.add_argument("-N", type=int, default=20)
+    nc.add_argument("-R", type=int, nargs="+", default=[10, 30, 40])
+    nc.add_argument("--n-train", type=int, default=61, help="|D_train| (the seed: 61)")
+    nc.add_argument("--n-valid", type=int, default=10)
+    _add_study_tail(nc, cmd_nitsche_compare)
+
+
+def _add_pymor_thermal_block_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies pymor-thermal-block`` (``sub``: argparse subparsers)."""
+    p = sub.add_parser("pymor-thermal-block", help="rbbench and pyMOR side by side on the "
+                       "thermal block (pyMOR: optional, pip install pymor)")
+    p.add_argument("--n-cells", type=int, default=64, help="squares per side (default 64)")
+    p.add_argument("--blocks", type=int, default=2, choices=(2, 3), help="b x b blocks")
+    p.add_argument("-N", type=int, default=10, help="reduced basis size (default 10)")
+    p.add_argument("--n-train", type=int, default=100)
+    p.add_argument("--n-valid", type=int, default=20)
+    p.add_argument("--repeats", type=int, default=20, help="online repeats per mu")
+    p.add_argument("--backend", default="skfem", help="rbbench backend (skfem, ngsolve)")
+    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    return p
+
+def cmd_pymor_thermal_block(args: argparse.Namespace) -> int:
+    """Run the study and print its table (exit 0; pyMOR missing is a row, not an error)."""
+    from rbbench.studies.pymor_thermal_block import side_by_side, side_by_side_markdown
+
+    res = side_by_side(args.n_cells, args.blocks, args.N, args.n_train, args.n_valid,
+                       args.repeats, args.backend)
+    return print_and_dump(side_by_side_markdown(res), res, args.json)
+
+def _add_heat_seed_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies heat-seed`` (``sub``: argparse subparsers)."""
+    p = sub.add_parser("heat-seed", help="the seed's heat equation (N = 25) beside its "
+                       "valve figure: HF / RB times, L2(0, T; H1) error")
+    p.add_argument("--n-cells", type=int, default=64, help="squares per side (default 64)")
+    p.add_argument("-N", type=int, default=25)
+    p.add_argument("--repeats", type=int, default=20, help="online repeats per mu")
+    p.add_argument("--backend", default="skfem")
+    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    return p
+
+def cmd_heat_seed(args: argparse.Namespace) -> int:
+    """Run the study and print its table."""
+    from rbbench.studies.heat_seed import heat_seed, heat_seed_markdown
+
+    res = heat_seed(args.n_cells, args.N, repeats=args.repeats, backend=args.backend)
+    return print_and_dump(heat_seed_markdown(res), res, args.json)
+
+def _add_shape_side_by_side_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies shape-side-by-side`` (``sub``: argparse subparsers)."""
+    p = sub.add_parser("shape-side-by-side", help="seed 001's shape optimisation, HF- and "
+                       "RB-driven in one process: J, HF solves, wall time")
+    p.add_argument("--scene", default="shape_coulomb")
+    p.add_argument("--metric", choices=("identity", "bfgs"), default="identity")
+    p.add_argument("--max-iter", type=int, default=100)
+    p.add_argument("--max-evals", type=int, default=300)
+    p.add_argument("--eps", type=float, default=1e-6)
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override a scene field, e.g. --set design.initial_height=0.005")
+    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    return p
+
+def cmd_shape_side_by_side(args: argparse.Namespace) -> int:
+    """Run the study and print its table."""
+    from rbbench.optim.shape_scene import parse_overrides
+    from rbbench.studies.shape_side_by_side import shape_markdown, shape_side_by_side
+
+    res = shape_side_by_side(args.scene, parse_overrides(args.set), args.metric, args.max_iter,
+                             args.max_evals, args.eps)
+    return print_and_dump(shape_markdown(res), res, args.json)
+
+def _add_snapshot_workers_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies snapshot-workers`` (``sub``: argparse subparsers)."""
+    p = sub.add_parser("snapshot-workers", help="HF snapshots with 1 and n worker "
+                       "processes, interleaved: a fresh pool and a kept one")
+    p.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    p.add_argument("--set", dest="overrides", action="append", default=[],
+                   metavar="KEY=VALUE", help="scene override (repeatable)")
+    p.add_argument("-P", type=int, default=8, help="parameters per call (default 8, "
+                   "a Latin hypercube of the domain)")
+    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--rounds", type=int, default=15, help="interleaved rounds (default 15)")
+    p.add_argument("--pause", type=float, default=0.5, help="seconds waited, untimed, "
+                   "after the serial call, the fresh call and the kept block (default 0.5: "
+                   "the threads a call leaves spinning stop)")
+    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    return p
+
+def cmd_snapshot_workers(args: argparse.Namespace) -> int:
+    """Run the study and print its table."""
+    from rbbench.scene.loading import load_scene
+    from rbbench.scene.sampling import parameter_set
+    from rbbench.studies.snapshot_workers import markdown, snapshot_workers
+
+    for flag, name in (("-P", "P"), ("--jobs", "jobs"), ("--rounds", "rounds")):
+        if getattr(args, name) < 1:
+            raise SceneError(f"studies snapshot-workers {flag} {getattr(args, name)}: "
+                             "must be an integer >= 1")
+    scene = load_scene(args.scene, args.overrides)
+    mus = parameter_set(scene, "valid", n=args.P, kind="lhs")
+    if args.pause < 0:
+        raise SceneError(f"studies snapshot-workers --pause {args.pause}: must be >= 0")
+    out = snapshot_workers(scene, mus, args.jobs, args.rounds, args.pause)
+    rows = out["cases"]
+    print(f"scene {scene.name}, {len(mus)} parameters per call, {args.rounds} interleaved "
+          f"rounds, {args.pause} s untimed pause after the serial call, the fresh call and "
+          "the kept block (whose two calls run back to back), one untimed snapshot before "
+          "each serial call, medians of wall time per call:")
+    print(markdown(rows, args.jobs))
+    print(f"untimed snapshot before each serial call: {out['settle_faults']:.0f} minor page "
+          "faults (median): the pages a pool call's fork left write-protected here")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"scene": scene.name, "P": len(mus),
+                                               "jobs": args.jobs, "rounds": args.rounds,
+                                               "pause_s": args.pause,
+                                               "serial_settled": True,
+                                               "settle_faults": out["settle_faults"],
+                                               "cases": rows}, indent=1))
+    return 0

@@ -10,13 +10,12 @@ scene's validation set (a fresh snapshot cache: the HF solves are timed, not rea
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 from typing import Any
 
-from rbbench.studies.formatting import markdown_table, print_and_dump
+from rbbench.studies.formatting import markdown_table
 
-__all__ = ["SEED", "add_parser", "heat_seed", "heat_seed_markdown", "run"]
+__all__ = ["SEED", "heat_seed", "heat_seed_markdown"]
 
 #: The seed's figures (seed 000, the valve; a nonlinear problem on another geometry).
 SEED = {"n_hf_dofs": 51500, "steps": 50, "t_hf_s": 140.0, "N": 25, "t_online_s": 0.1,
@@ -62,21 +61,3 @@ def heat_seed_markdown(res: dict[str, Any]) -> str:
             f"heat_robin ({res['backend']}, {res['n_train']} training / {res['n_valid']} "
             "validation mus)\n\n"
             + markdown_table(("quantity", "seed 000 (valve)", "rbbench heat_robin"), rows))
-
-
-def add_parser(sub: Any) -> argparse.ArgumentParser:
-    """``rbbench studies heat-seed`` (``sub``: argparse subparsers)."""
-    p = sub.add_parser("heat-seed", help="the seed's heat equation (N = 25) beside its "
-                       "valve figure: HF / RB times, L2(0, T; H1) error")
-    p.add_argument("--n-cells", type=int, default=64, help="squares per side (default 64)")
-    p.add_argument("-N", type=int, default=25)
-    p.add_argument("--repeats", type=int, default=20, help="online repeats per mu")
-    p.add_argument("--backend", default="skfem")
-    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
-    return p
-
-
-def run(args: argparse.Namespace) -> int:
-    """Run the study and print its table."""
-    res = heat_seed(args.n_cells, args.N, repeats=args.repeats, backend=args.backend)
-    return print_and_dump(heat_seed_markdown(res), res, args.json)

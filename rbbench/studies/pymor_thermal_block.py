@@ -23,7 +23,6 @@ solve median. pyMOR is an optional extra (``pip install pymor``): without it its
 
 from __future__ import annotations
 
-import argparse
 import math
 import tempfile
 import time
@@ -31,9 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.studies.formatting import markdown_table, print_and_dump
+from rbbench.studies.formatting import markdown_table
 
-__all__ = ["INSTALL_HINT", "add_parser", "pymor_column", "rbbench_column", "run",
+__all__ = ["INSTALL_HINT", "pymor_column", "rbbench_column",
            "side_by_side", "side_by_side_markdown"]
 
 INSTALL_HINT = "pyMOR is not installed: pip install pymor (the optional extra 'pymor')"
@@ -194,25 +193,3 @@ def side_by_side_markdown(res: dict[str, Any]) -> str:
             f"{su['n_cells']} squares, N = {su['N']}, {su['n_train']} training / "
             f"{su['n_valid']} validation parameters, {su['repeats']} online repeats\n\n"
             + text)
-
-
-def add_parser(sub: Any) -> argparse.ArgumentParser:
-    """``rbbench studies pymor-thermal-block`` (``sub``: argparse subparsers)."""
-    p = sub.add_parser("pymor-thermal-block", help="rbbench and pyMOR side by side on the "
-                       "thermal block (pyMOR: optional, pip install pymor)")
-    p.add_argument("--n-cells", type=int, default=64, help="squares per side (default 64)")
-    p.add_argument("--blocks", type=int, default=2, choices=(2, 3), help="b x b blocks")
-    p.add_argument("-N", type=int, default=10, help="reduced basis size (default 10)")
-    p.add_argument("--n-train", type=int, default=100)
-    p.add_argument("--n-valid", type=int, default=20)
-    p.add_argument("--repeats", type=int, default=20, help="online repeats per mu")
-    p.add_argument("--backend", default="skfem", help="rbbench backend (skfem, ngsolve)")
-    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
-    return p
-
-
-def run(args: argparse.Namespace) -> int:
-    """Run the study and print its table (exit 0; pyMOR missing is a row, not an error)."""
-    res = side_by_side(args.n_cells, args.blocks, args.N, args.n_train, args.n_valid,
-                       args.repeats, args.backend)
-    return print_and_dump(side_by_side_markdown(res), res, args.json)

@@ -11,12 +11,11 @@ time, stop reasons and the largest constraint residual (raw, > 0 violated).
 
 from __future__ import annotations
 
-import argparse
 from typing import Any
 
-from rbbench.studies.formatting import markdown_table, print_and_dump
+from rbbench.studies.formatting import markdown_table
 
-__all__ = ["add_parser", "run", "shape_markdown", "shape_side_by_side"]
+__all__ = ["shape_markdown", "shape_side_by_side"]
 
 
 def shape_side_by_side(scene: str = "shape_coulomb", overrides: dict | None = None,
@@ -62,27 +61,3 @@ def shape_markdown(r: dict[str, Any]) -> str:
             + markdown_table(("", "HF-driven", "RB-driven"), rows)
             + f"\n\nwall HF / RB {r['wall_ratio']:.2f}, (J_RB - J_HF) / J_HF "
               f"{r['J_rel_diff']:.2e}, one evaluation HF / RB {r['eval_speedup']:.2f}")
-
-
-def add_parser(sub: Any) -> argparse.ArgumentParser:
-    """``rbbench studies shape-side-by-side`` (``sub``: argparse subparsers)."""
-    p = sub.add_parser("shape-side-by-side", help="seed 001's shape optimisation, HF- and "
-                       "RB-driven in one process: J, HF solves, wall time")
-    p.add_argument("--scene", default="shape_coulomb")
-    p.add_argument("--metric", choices=("identity", "bfgs"), default="identity")
-    p.add_argument("--max-iter", type=int, default=100)
-    p.add_argument("--max-evals", type=int, default=300)
-    p.add_argument("--eps", type=float, default=1e-6)
-    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                   help="override a scene field, e.g. --set design.initial_height=0.005")
-    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
-    return p
-
-
-def run(args: argparse.Namespace) -> int:
-    """Run the study and print its table."""
-    from rbbench.optim.shape_scene import parse_overrides
-
-    res = shape_side_by_side(args.scene, parse_overrides(args.set), args.metric, args.max_iter,
-                             args.max_evals, args.eps)
-    return print_and_dump(shape_markdown(res), res, args.json)

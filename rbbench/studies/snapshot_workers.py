@@ -39,16 +39,13 @@ median wall time of each case over the rounds, its interquartile range, and the 
 
 from __future__ import annotations
 
-import argparse
-import json
 import tempfile
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["CASES", "add_parser", "run", "snapshot_workers"]
+__all__ = ["CASES", "snapshot_workers"]
 
 CASES = ("serial", "fresh", "kept_1st", "kept_2nd")
 
@@ -118,53 +115,3 @@ def markdown(rows: dict[str, dict[str, float]], n_jobs: int) -> str:
         lines.append(f"| {case} | {jobs} | {r['median_s']:.3f} | {r['iqr_s']:.3f} | "
                      f"{r['speedup']:.2f}x |")
     return "\n".join(lines)
-
-
-def add_parser(sub: Any) -> argparse.ArgumentParser:
-    """``rbbench studies snapshot-workers`` (``sub``: argparse subparsers)."""
-    p = sub.add_parser("snapshot-workers", help="HF snapshots with 1 and n worker "
-                       "processes, interleaved: a fresh pool and a kept one")
-    p.add_argument("scene", nargs="?", default="hertz_halfdisks")
-    p.add_argument("--set", dest="overrides", action="append", default=[],
-                   metavar="KEY=VALUE", help="scene override (repeatable)")
-    p.add_argument("-P", type=int, default=8, help="parameters per call (default 8, "
-                   "a Latin hypercube of the domain)")
-    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
-    p.add_argument("--rounds", type=int, default=15, help="interleaved rounds (default 15)")
-    p.add_argument("--pause", type=float, default=0.5, help="seconds waited, untimed, "
-                   "after the serial call, the fresh call and the kept block (default 0.5: "
-                   "the threads a call leaves spinning stop)")
-    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
-    return p
-
-
-def run(args: argparse.Namespace) -> int:
-    """Run the study and print its table."""
-    from rbbench.scene.loading import SceneError, load_scene
-    from rbbench.scene.sampling import parameter_set
-
-    for flag, name in (("-P", "P"), ("--jobs", "jobs"), ("--rounds", "rounds")):
-        if getattr(args, name) < 1:
-            raise SceneError(f"studies snapshot-workers {flag} {getattr(args, name)}: "
-                             "must be an integer >= 1")
-    scene = load_scene(args.scene, args.overrides)
-    mus = parameter_set(scene, "valid", n=args.P, kind="lhs")
-    if args.pause < 0:
-        raise SceneError(f"studies snapshot-workers --pause {args.pause}: must be >= 0")
-    out = snapshot_workers(scene, mus, args.jobs, args.rounds, args.pause)
-    rows = out["cases"]
-    print(f"scene {scene.name}, {len(mus)} parameters per call, {args.rounds} interleaved "
-          f"rounds, {args.pause} s untimed pause after the serial call, the fresh call and "
-          "the kept block (whose two calls run back to back), one untimed snapshot before "
-          "each serial call, medians of wall time per call:")
-    print(markdown(rows, args.jobs))
-    print(f"untimed snapshot before each serial call: {out['settle_faults']:.0f} minor page "
-          "faults (median): the pages a pool call's fork left write-protected here")
-    if args.json:
-        Path(args.json).write_text(json.dumps({"scene": scene.name, "P": len(mus),
-                                               "jobs": args.jobs, "rounds": args.rounds,
-                                               "pause_s": args.pause,
-                                               "serial_settled": True,
-                                               "settle_faults": out["settle_faults"],
-                                               "cases": rows}, indent=1))
-    return 0
