@@ -32,13 +32,10 @@ from typing import Any
 import numpy as np
 
 from rbbench.bench import schema
-from rbbench.bench.execution import (  # noqa: F401 - one case's row: re-exported, old home
+from rbbench.bench.execution import (
     CaseTimeout,
-    alarm,
-    base_row,
     decided_row,
     execute_case,
-    failed_row,
     run_provenance,
 )
 from rbbench.bench.guard import RunLock, Watchdog

@@ -30,7 +30,7 @@ dof numbering are NGSolve's:
 
 The meshes live in :mod:`rbbench_plugins.backends.ngsolve.meshes`, the change of basis,
 the solver hook, one body and the weak forms in :mod:`rbbench_plugins.backends.ngsolve.fe`;
-this module holds the backend (and re-exports their public names).
+this module holds the backend.
 """
 
 from __future__ import annotations
@@ -44,9 +44,7 @@ import scipy.sparse as sp
 from rbbench_plugins.backends import common
 from rbbench_plugins.backends.ngsolve.fe import (
     Body,
-    edge_bubble_scale,
     elasticity_form,
-    lagrange_p2_transform,
     laplace_form,
     mass_form,
     sparse_cholesky,
@@ -55,7 +53,6 @@ from rbbench_plugins.backends.ngsolve.fe import (
 from rbbench_plugins.backends.ngsolve.meshes import (
     netgen_half_disk,
     netgen_unit_square,
-    ngsolve_mesh,
     skfem_mesh_arrays,
     validated_arrays,
 )
@@ -74,9 +71,7 @@ MESH_SOURCES = ("netgen", "skfem")
 #: Valid values of the ``direct_solver`` option.
 DIRECT_SOLVERS = ("sparsecholesky", "scipy")
 
-__all__ = ["DIRECT_SOLVERS", "MESH_SOURCES", "NGSolveBackend", "edge_bubble_scale",
-           "lagrange_p2_transform", "netgen_half_disk", "netgen_unit_square", "ngsolve_mesh",
-           "sparse_cholesky"]
+__all__ = ["DIRECT_SOLVERS", "MESH_SOURCES", "NGSolveBackend"]
 
 
 # ---------------------------------------------------------------------------

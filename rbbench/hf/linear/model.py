@@ -32,7 +32,8 @@ from rbbench.hf.snapshots.compute import (
     snapshot_key,
 )
 from rbbench.hf.solvers import lcp
-from rbbench.interfaces import Discretization, Factorize, SolveResult, _FreeDofs
+from rbbench.interfaces import Discretization, Factorize, SolveResult
+from rbbench.interfaces.problems import _FreeDofs
 from rbbench.registry import Registry, default_registry
 from rbbench.runtime.threads import one_blas_thread
 from rbbench.scene.linear import check_physics
