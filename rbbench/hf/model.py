@@ -28,10 +28,11 @@ from rbbench.interfaces import (
     ContactProblem,
     Discretization,
     FrictionProblem,
+    HFVectors,
     NitscheProblem,
     SolveResult,
 )
-from rbbench.registry import Registry
+from rbbench.registry import Registry, default_registry
 from rbbench.runtime.threads import one_blas_thread
 from rbbench.scene.friction import friction_of
 from rbbench.scene.loading import Scene
@@ -39,6 +40,14 @@ from rbbench.scene.loading import Scene
 
 @dataclass
 class HFSolution:
+    """One HF solve: the scene, the components by name, the operators, the algebraic problem,
+    the solver's result, the times (s) and the labelled numbers of ``summary.json``.
+
+    Its common fields (:class:`rbbench.interfaces.Solution`: ``mu``, ``u``, ``lam``,
+    ``iterations``, ``stop_reason``, ``time_s``) are the result's: ``u`` on all dofs,
+    ``time_s`` the solve's total (``times["total_s"]``).
+    """
+
     scene: Scene
     mu: np.ndarray
     components: dict[str, str]
@@ -47,6 +56,42 @@ class HFSolution:
     result: SolveResult
     times: dict[str, float]
     metrics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def u(self) -> np.ndarray:
+        return self.result.u
+
+    @property
+    def lam(self) -> np.ndarray:
+        return self.result.lam
+
+    @property
+    def iterations(self) -> int:
+        return int(self.result.iterations)
+
+    @property
+    def stop_reason(self) -> str:
+        return self.result.stop_reason
+
+    @property
+    def time_s(self) -> float:
+        return float(self.times["total_s"])
+
+    @property
+    def converged(self) -> bool:
+        return self.result.converged
+
+
+def hf_vectors(sol: HFSolution) -> HFVectors:
+    """The HF vectors of a solve in the snapshot space: ``u`` on the free dofs (a trajectory
+    flattened as solved), the multipliers, and ``lam_t`` for a friction solve."""
+    res, prob = sol.result, sol.problem
+    u = np.asarray(res.u, dtype=float)
+    if not res.info.get("parabolic", False):
+        u = u[prob.free]
+    lam_t = res.info.get("lam_t")
+    return HFVectors(u=u, lam=np.asarray(res.lam, dtype=float),
+                     lam_t=None if lam_t is None else np.asarray(lam_t, dtype=float))
 
 
 def _noop(stage: str) -> None:
@@ -89,6 +134,39 @@ class ProblemCache:
         return p.X[p.free][:, p.free].tocsr()
 
 
+class ProblemSource:
+    """``mu -> HF problem``, assembled afresh at each call (no cache): the online stage of a
+    reduced model without hyper-reduction.
+
+    Picklable as a recipe: the scene, the component names and options; the built backend and
+    formulation (``components``, e.g. the offline stage's, so that nothing is meshed again)
+    are dropped when pickled and built again at the next call.
+    """
+
+    def __init__(self, scene: Scene, backend: str = "skfem", formulation: str = "mixed",
+                 component_options: dict | None = None, registry: Registry | None = None,
+                 components: tuple[Any, Any] | None = None) -> None:
+        self.scene, self.backend, self.formulation = scene, backend, formulation
+        self.component_options = component_options or {}
+        self.registry, self.components = registry, components
+
+    def __call__(self, mu: Any) -> Any:
+        if self.components is None:
+            b, f, _ = make_components(self.scene, self.backend, self.formulation,
+                                      registry=self.registry,
+                                      component_options=self.component_options)
+            warm_up(b)
+            self.components = (b, f)
+        return build_problem(*self.components, self.scene, mu)
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["components"] = None
+        if state["registry"] is default_registry():
+            state["registry"] = None  # the receiving process discovers its own
+        return state
+
+
 class HFModel:
     """The HF model of a scene and a choice of components (the model interface it shares
     with the reduced models, as pyMOR's ``Model.solve(mu)``).
@@ -109,6 +187,17 @@ class HFModel:
                       if solver is None else solver}
         self.registry, self.solver_options = registry, solver_options
         self.components = components
+
+    def reconstruct(self, solution: HFSolution) -> HFVectors:
+        """The solution's vectors in the snapshot space (:func:`hf_vectors`)."""
+        return hf_vectors(solution)
+
+    def __getstate__(self) -> dict:
+        """Pickle the recipe (scene, names, options), not the built components: they are
+        built again at the next solve."""
+        state = dict(self.__dict__)
+        state["components"] = None
+        return state
 
     def solve(self, mu: Any = None, progress: Callable[[str], None] = _noop,
               floor: bool = False) -> HFSolution:

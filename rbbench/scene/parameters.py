@@ -1,9 +1,9 @@
 """The parameter domain D of a scene, small and picklable: what every model checks mu against.
 
-Both the HF model (:class:`rbbench.hf.model.HFModel`) and the reduced models
-(:mod:`rbbench.rb.mixed.model`, :mod:`rbbench.rb.nitsche.model`) hold one and call
-:meth:`ParameterSpace.check` in ``solve(mu)`` (pyMOR's ``Model.solve(mu)`` parses mu the
-same way), so a reduced model rejects what the HF solve rejects.
+Every model (:class:`rbbench.interfaces.Model`: the HF model and each reduced model) holds one
+as ``parameters`` and calls :meth:`ParameterSpace.check` in ``solve(mu)`` (pyMOR's
+``Model.solve(mu)`` parses mu the same way), so a reduced model rejects what the HF solve
+rejects.
 """
 
 from __future__ import annotations
@@ -43,8 +43,21 @@ class ParameterSpace:
 
     def check(self, mu: Any) -> np.ndarray:
         """``mu`` as a float array of length :attr:`dim`, or :class:`SceneError` naming the
-        parameter and its domain (wrong count, non-finite, or outside D)."""
-        arr = np.atleast_1d(np.asarray(mu, dtype=float)).ravel()
+        parameter and its domain (wrong count, non-finite, or outside D).
+
+        A 1-D float64 array inside D is returned as it is (no copy): the check costs well
+        under a microsecond, so the online solves of the reduced models keep it.
+        """
+        if type(mu) is np.ndarray and mu.dtype == np.float64 and mu.ndim == 1:
+            arr = mu
+        else:
+            arr = np.atleast_1d(np.asarray(mu, dtype=float)).ravel()
+        if arr.size == len(self.low):
+            for x, lo, hi in zip(arr.tolist(), self.low, self.high, strict=True):
+                if not lo <= x <= hi:  # NaN fails too: the messages below name it
+                    break
+            else:
+                return arr
         if arr.size != self.dim:
             domains = ", ".join(f"{n} in [{lo:g}, {hi:g}]"
                                 for n, lo, hi in zip(self.names, self.low, self.high, strict=True))

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from rbbench.hf.model import HFSolution, hf_vectors
 from rbbench.hf.snapshots.compute import (
     Snapshot,
     SnapshotSet,
@@ -32,7 +33,7 @@ from rbbench.hf.snapshots.compute import (
     snapshot_key,
 )
 from rbbench.hf.solvers import lcp
-from rbbench.interfaces import Discretization, Factorize, SolveResult
+from rbbench.interfaces import Discretization, Factorize, HFVectors, SolveResult
 from rbbench.interfaces.problems import _FreeDofs
 from rbbench.registry import Registry, default_registry
 from rbbench.runtime.threads import one_blas_thread
@@ -145,43 +146,51 @@ def linear_backend(scene: Scene, name: str, registry: Registry | None = None,
 
 
 class LinearHF:
-    """The HF model of a linear scene (``solve(mu)``: a :class:`SolveResult`, ``u`` the
-    global field or the flattened free trajectory; times in ``result.times``)."""
+    """The HF model of a linear scene (:class:`rbbench.interfaces.Model`): ``solve(mu)`` an
+    :class:`~rbbench.hf.model.HFSolution` whose ``problem`` is a :class:`LinearProblem`,
+    ``u`` the global field or the flattened free trajectory, ``lam`` empty."""
 
     def __init__(self, scene: Scene, backend: str = "skfem", registry: Registry | None = None,
                  backend_options: dict | None = None) -> None:
         self.scene = scene
         self.parameters = scene.parameter_space
         self.backend = linear_backend(scene, backend, registry, **(backend_options or {}))
+        self.names = {"backend": backend, "formulation": "linear", "solver": "direct"}
 
     def problem(self, mu: Any) -> LinearProblem:
         """The :class:`LinearProblem` at mu (checked against D)."""
         return build_linear(self.backend.discretize(self.parameters.check(mu)))
 
-    def solve(self, mu: Any = None) -> SolveResult:
-        """Assemble and solve at mu with one BLAS thread (default: the scene default)."""
-        mu = self.scene.default_mu if mu is None else mu
+    def solve(self, mu: Any = None) -> HFSolution:
+        """Assemble and solve at mu with one BLAS thread (default: the scene default; checked
+        against D); ``times``: ``discretize_s``, ``solve_s``, ``total_s`` (s)."""
+        mu = self.scene.default_mu if mu is None else self.parameters.check(mu)
         with one_blas_thread():
             t0 = time.perf_counter()
-            prob = self.problem(mu)
+            disc = self.backend.discretize(mu)
+            prob = build_linear(disc)
             t1 = time.perf_counter()
             u = solve_linear(prob)
             t2 = time.perf_counter()
-        u_out = u.ravel() if prob.parabolic else prob.expand(u)
-        return SolveResult(u=u_out, lam=np.empty(0), iterations=1, stop_reason="converged",
-                           times={"discretize_s": t1 - t0, "solve_s": t2 - t1,
-                                  "total_s": t2 - t0},
-                           info={"free": prob.free, "n_dofs": int(prob.u_lift.size),
-                                 "parabolic": prob.parabolic})
+        times = {"discretize_s": t1 - t0, "solve_s": t2 - t1, "total_s": t2 - t0}
+        result = SolveResult(u=u.ravel() if prob.parabolic else prob.expand(u), lam=np.empty(0),
+                             iterations=1, stop_reason="converged", times=times,
+                             info={"free": prob.free, "n_dofs": int(prob.u_lift.size),
+                                   "parabolic": prob.parabolic})
+        return HFSolution(self.scene, np.asarray(mu, float), dict(self.names), disc, prob,
+                          result, times)
+
+    def reconstruct(self, solution: HFSolution) -> HFVectors:
+        """The free values (a trajectory flattened step by step), as the snapshots store them."""
+        return hf_vectors(solution)
 
 
 def _snapshot(hf: LinearHF, mu: np.ndarray) -> Snapshot:
-    res = hf.solve(mu)
-    free = np.asarray(res.info["free"], dtype=np.int64)
-    u = res.u if res.info["parabolic"] else res.u[free]
-    return Snapshot(mu=np.asarray(mu, float), u=np.asarray(u, float), lam=np.empty(0),
-                    iterations=1, stop_reason=res.stop_reason, time_s=res.times["total_s"],
-                    free=free, n_dofs=int(res.info["n_dofs"]))
+    sol = hf.solve(mu)
+    return Snapshot(mu=np.asarray(mu, float), u=hf.reconstruct(sol).u, lam=np.empty(0),
+                    iterations=1, stop_reason=sol.stop_reason, time_s=sol.time_s,
+                    free=np.asarray(sol.problem.free, dtype=np.int64),
+                    n_dofs=int(sol.problem.u_lift.size))
 
 
 def linear_snapshots(scene: Scene, mus: np.ndarray, hf: LinearHF, backend: str,
@@ -216,9 +225,9 @@ def hf_row(scene: Scene, backend: str, repeats: int, registry: Registry | None =
     """The columns of an HF matrix row (``mode = "hf"``) of a linear scene: ``repeats``
     solves at the default mu (assembly included, meshing not), their median time."""
     hf = LinearHF(scene, backend, registry)
-    times, res = [], None
+    times, sol = [], None
     for _ in range(max(1, repeats)):
-        res = hf.solve()
-        times.append(res.times["total_s"])
-    return {"n_hf_dofs": int(res.info["n_dofs"]), "hf_iterations": 1,
+        sol = hf.solve()
+        times.append(sol.time_s)
+    return {"n_hf_dofs": int(sol.result.info["n_dofs"]), "hf_iterations": 1,
             "t_hf_median_s": float(np.median(times)), "status": "ok", "reason": NO_CONTACT}

@@ -16,10 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.linear.model import NO_CONTACT, LinearHF, build_linear, solve_linear
+from rbbench.hf.linear.model import NO_CONTACT, LinearHF
 from rbbench.hf.model import HFSolution
 from rbbench.hf.output import write_summary
-from rbbench.interfaces import SolveResult
 from rbbench.registry import Registry
 from rbbench.runtime.threads import BLAS_THREADS_DEFINITION, one_blas_thread
 from rbbench.scene.loading import Scene, SceneError
@@ -86,24 +85,14 @@ def solve_linear_hf(scene: Scene, mu: Any = None, backend: str = "skfem",
     progress("meshing and assembling the parameter-independent terms")
     hf = LinearHF(scene, backend, registry, backend_options)
     mu = scene.default_mu if mu is None else hf.parameters.check(mu)
+    t1 = time.perf_counter()
+    progress("solving (no contact)")
     with one_blas_thread() as threads:
-        t1 = time.perf_counter()
-        disc = hf.backend.discretize(mu)
-        prob = build_linear(disc)
-        t2 = time.perf_counter()
-        progress(f"solving ({disc.n_dofs} dofs, no contact)")
-        u = solve_linear(prob)
-        t3 = time.perf_counter()
-    times = {"setup_s": t1 - t0, "discretize_s": t2 - t1, "solve_s": t3 - t2,
-             "total_s": t3 - t0}
-    u_out = u.ravel() if prob.parabolic else prob.expand(u)
-    result = SolveResult(u=u_out, lam=np.empty(0), iterations=1, stop_reason="converged",
-                         times=times, info={"free": prob.free, "n_dofs": disc.n_dofs,
-                                            "parabolic": prob.parabolic})
-    sol = HFSolution(scene, np.asarray(mu, float), {"backend": backend, "formulation": "linear",
-                                                    "solver": "direct"},
-                     disc, prob, result, times)
-    sol.metrics = {**linear_metrics(disc, prob, u, times), "blas_threads": threads}
+        sol = hf.solve(mu)
+    sol.times.update(setup_s=t1 - t0, total_s=sol.times["total_s"] + t1 - t0)
+    prob = sol.problem
+    u = sol.result.u.reshape(prob.steps, -1) if prob.parabolic else sol.result.u[prob.free]
+    sol.metrics = {**linear_metrics(sol.disc, prob, u, sol.times), "blas_threads": threads}
     return sol
 
 

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.components import make_components, warm_up
-from rbbench.hf.model import solve_hf
+from rbbench.hf.model import hf_vectors, solve_hf
 from rbbench.hf.snapshots.key import key_payload, payload_key, snapshot_key
 from rbbench.registry import default_registry
 from rbbench.runtime.threads import limit_blas_threads
@@ -227,13 +227,12 @@ def _solve_one(scene: Any, mu: np.ndarray, names: tuple[str, str, str], componen
                        components=components, floor=False)
     except Exception as exc:  # one failing mu must not lose the others
         return _error_snapshot(mu, f"{type(exc).__name__}: {exc}", time.perf_counter() - t0)
-    res, prob = sol.result, sol.problem
-    snap = Snapshot(mu=np.asarray(mu, dtype=float),
-                    u=np.asarray(res.u, dtype=float)[prob.free].copy(),
-                    lam=np.asarray(res.lam, dtype=float).copy(), iterations=int(res.iterations),
-                    stop_reason=str(res.stop_reason), time_s=float(sol.times["total_s"]),
-                    free=np.asarray(prob.free, dtype=np.int64), n_dofs=int(sol.disc.n_dofs),
-                    lam_t=np.asarray(res.info.get("lam_t", []), dtype=float).copy())
+    v = hf_vectors(sol)
+    snap = Snapshot(mu=np.asarray(mu, dtype=float), u=v.u.copy(), lam=v.lam.copy(),
+                    iterations=sol.iterations, stop_reason=str(sol.stop_reason),
+                    time_s=sol.time_s, free=np.asarray(sol.problem.free, dtype=np.int64),
+                    n_dofs=int(sol.disc.n_dofs),
+                    lam_t=np.zeros(0) if v.lam_t is None else v.lam_t.copy())
     save_snapshot(path, snap)  # non-converged solves are deterministic: cached too
     return snap
 
