@@ -39,6 +39,7 @@ With ``V`` = every interior unit vector the model is the HF model (tested).
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -47,10 +48,12 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from rbbench.interfaces import HFVectors, ReducedSolution
 from rbbench.optim.shape_adjoint import Evaluation, objective_gradient_lam, partition
 from rbbench.optim.shape_mesh import _GAUSS, _shape_gradients, element_dofs, top_load
-from rbbench.optim.shape_scene import ShapeScene
+from rbbench.optim.shape_scene import ShapeScene, design_space
 from rbbench.optim.shape_state import ShapeState, dof_sets, objective, solve_condensed
+from rbbench.scene.parameters import ParameterSpace
 
 #: coefficient functions ``theta_k(d, s)`` and their partial derivatives (d, s)
 _THETA = (lambda d, s: d, lambda d, s: s, lambda d, s: np.ones_like(d),
@@ -207,6 +210,7 @@ class ReducedModel:
     def __init__(self, sc: ShapeScene) -> None:
         self.sc, self.tpl = sc, column_templates(sc)
         free, self.contact_dofs = dof_sets(sc)
+        self.free = free
         n = 2 * sc.grid.n_nodes
         self.m = len(self.contact_dofs)
         mask = np.zeros(n, dtype=bool)
@@ -340,7 +344,29 @@ class ReducedModel:
         u[self.contact_dofs] = x[:self.m]
         return u
 
-    def solve(self, alpha: np.ndarray, tol: float = 1e-11, max_iter: int = 100,
+    @property
+    def parameters(self) -> ParameterSpace:
+        """The design box ``lb <= alpha <= ub`` (:func:`rbbench.optim.shape_scene.design_space`;
+        the linear constraints of the admissible set are the optimiser's)."""
+        return design_space(self.sc)
+
+    def solve(self, mu: np.ndarray) -> ReducedSolution:
+        """The model interface: the reduced state at the design ``mu`` (checked against the
+        design box), ``u`` its reduced coordinates ``(u_c, a)``, ``lam`` the nodal normal
+        forces, ``detail`` the :class:`~rbbench.optim.shape_state.ShapeState` (a
+        :class:`~rbbench.optim.shape_state.StateSolveError` when Newton fails)."""
+        t0 = time.perf_counter()
+        alpha = self.parameters.check(mu)
+        st = self.state(alpha)
+        return ReducedSolution(mu=alpha, u=self.coordinates(st), lam=st.lam,
+                               iterations=int(st.iterations), stop_reason="converged",
+                               time_s=time.perf_counter() - t0, detail=st)
+
+    def reconstruct(self, solution: ReducedSolution) -> HFVectors:
+        """The displacement ``W x`` on the free dofs and the nodal normal forces."""
+        return HFVectors(u=self.full(solution.u)[self.free], lam=np.asarray(solution.lam))
+
+    def state(self, alpha: np.ndarray, tol: float = 1e-11, max_iter: int = 100,
               y0: np.ndarray | None = None) -> ShapeState:
         """Reduced state: the semismooth Newton of ``shape_state`` on ``(S_N, f_N)``.
 
@@ -371,7 +397,7 @@ class ReducedModel:
     def evaluate(self, alpha: np.ndarray, y0: np.ndarray | None = None,
                  tol: float = 1e-11) -> Evaluation:
         """Reduced ``Theta_N(alpha)``, its subgradient and the reduced state."""
-        st = self.solve(alpha, tol=tol, y0=y0)
+        st = self.state(alpha, tol=tol, y0=y0)
         return Evaluation(np.asarray(alpha, float).copy(), objective(self.sc, st.lam),
                           self.subgradient(st), st, partition(self.sc, st))
 

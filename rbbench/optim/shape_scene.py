@@ -18,7 +18,7 @@ import numpy as np
 
 from rbbench.optim.shape_mesh import Grid, area, area_weights, elasticity_matrix
 from rbbench.scene.loading import PROBLEMS_DIR, tomllib
-from rbbench.scene.parameters import SceneError
+from rbbench.scene.parameters import ParameterSpace, SceneError
 
 SHAPE_DIR = PROBLEMS_DIR / "optimize"
 
@@ -187,3 +187,13 @@ def parse_overrides(items: list[str]) -> dict[str, object]:
         except tomllib.TOMLDecodeError:
             out[key] = text
     return out
+
+
+def design_space(sc: ShapeScene) -> ParameterSpace:
+    """The design box ``lb <= alpha <= ub`` of the admissible set as a parameter domain
+    (``alpha_0 .. alpha_{I-1}``, the heights of the contact nodes, m)."""
+    box = sc.admissible()
+    n = len(box["lb"])
+    return ParameterSpace(tuple(f"alpha_{i}" for i in range(n)),
+                          tuple(float(x) for x in box["lb"]), tuple(float(x) for x in box["ub"]),
+                          ("m",) * n, where=sc.source, scene=sc.name)

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.components import make_components
-from rbbench.hf.model import ProblemCache
+from rbbench.hf.model import ProblemCache, ProblemSource
 from rbbench.hf.snapshots.compute import SnapshotSet, compute_snapshots
 from rbbench.rb.hyper.reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.rb.mixed.model import ONLINE_METHODS
@@ -144,6 +144,13 @@ class OfflineContext:
     @property
     def Z(self) -> np.ndarray:
         return self.primal.Z
+
+    def problem_source(self) -> ProblemSource:
+        """``mu -> HF problem`` assembled afresh, on this context's components (picklable:
+        the online stage of a model without hyper-reduction)."""
+        return ProblemSource(self.scene, self.config.backend, self.config.formulation,
+                             self.config.component_options, self.registry,
+                             (self.backend, self.formulation))
 
     def warn(self, message: str) -> None:
         """A warning of this reduction: ``result.json`` ``warnings`` and the console."""

@@ -14,7 +14,7 @@ import numpy as np
 
 from rbbench.interfaces import HFVectors
 
-__all__ = ["PlainArrays", "ReducedBasis"]
+__all__ = ["PlainArrays", "ReducedBasis", "require_basis"]
 
 
 @dataclass
@@ -39,6 +39,15 @@ class ReducedBasis:
         lam = self.V @ alpha if self.V is not None and alpha is not None else np.zeros(0)
         lam_t = self.Vt @ theta if self.Vt is not None and theta is not None else None
         return HFVectors(u=u, lam=lam, lam_t=lam_t)
+
+
+def require_basis(model: Any) -> ReducedBasis:
+    """``model.basis``, or a ValueError saying that the model keeps none."""
+    basis = getattr(model, "basis", None)
+    if basis is None:
+        raise ValueError(f"{type(model).__name__}: no reconstruction basis (basis = None: "
+                         "built without one, or dropped to ship the model light)")
+    return basis
 
 
 class PlainArrays:

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from rbbench.interfaces import HFVectors
 from rbbench.runtime.threads import BLAS_THREADS_DEFINITION, one_blas_thread
 
 
@@ -153,14 +154,15 @@ class ReducedStage(ABC):
 
     Attributes
     ----------
-    model : picklable reduced model with ``solve(mu)``, or None (plain online: the HF
-        operators at mu are projected online).
+    model : a :class:`rbbench.interfaces.Model`
+        The reduced model, picklable; :func:`validate` calls only its ``solve(mu)`` and
+        ``reconstruct(solution)``.
     hyper : str
         The hyper-reducer actually used.
     N, R, K : int
         Primal, dual and stabiliser sizes; ``n_contact`` the HF contact unknowns.
     config : dict
-        The configuration as run (``dataclasses.asdict`` of the ReduceConfig, amended).
+        The configuration as run (the ReduceConfig and the formulation's options, amended).
     histories : dict
         Offline histories (singular values, greedy errors, EIM errors, ...).
     definitions : dict
@@ -179,16 +181,17 @@ class ReducedStage(ABC):
     beta: dict
 
     @abstractmethod
-    def online(self, mu: np.ndarray, problem: Any) -> tuple[Any, np.ndarray, list[float]]:
-        """Timed online solves at mu: ``(last result, u_N on the free dofs, times in s)``;
-        the result has ``stop_reason``."""
-
-    @abstractmethod
     def metrics(self, mu: np.ndarray, problem: Any, u: np.ndarray, lam: np.ndarray,
-                result: Any, u_n: np.ndarray) -> dict[str, float]:
-        """The formulation's per-mu numbers: ``err_lam``, ``penetration`` and
-        ``complementarity`` (when defined); any other key becomes a per-mu list of the
-        result (``per_mu_extra``, summarised as ``<key>_max`` / ``<key>_mean``)."""
+                solution: Any, hf: HFVectors) -> dict[str, float]:
+        """The formulation's per-mu numbers from the HF snapshot ``(u, lam)``, the HF problem
+        at mu, the model's last ``solution`` and its HF vectors ``hf``: ``err_lam``,
+        ``penetration`` and ``complementarity`` (when defined); any other key becomes a
+        per-mu list of the result (``per_mu_extra``, summarised as ``<key>_max`` /
+        ``<key>_mean``)."""
+
+    def record_online(self, mu: np.ndarray, solutions: list) -> None:  # noqa: B027
+        """The timed solutions at one validation mu (optional hook: e.g. the split of the
+        online time into assembly and solve)."""
 
     def finish(self, histories: dict, timings: dict) -> None:  # noqa: B027 - optional hook
         """Add the stage's validation histories and timings (after the last mu)."""
@@ -198,11 +201,19 @@ class ReducedStage(ABC):
         return {}
 
 
+def online_solutions(model: Any, mu: np.ndarray, repeats: int) -> list:
+    """``repeats`` (at least one) timed solves of ``model`` at mu, through the model interface."""
+    return [model.solve(mu) for _ in range(max(1, int(repeats)))]
+
+
 def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
-    """Validate ``stage`` on ``ctx.valid`` (the shared step of :func:`rbbench.rb.offline.reduce`).
+    """Validate ``stage.model`` on ``ctx.valid`` (the shared step of
+    :func:`rbbench.rb.offline.reduce`) through the model interface only: ``solve(mu)``
+    (``config.online_repeats`` timed repetitions) and ``reconstruct`` of the last one.
 
     ``ctx`` is the :class:`rbbench.rb.offline.OfflineContext` the stage was built from.
     """
+    model = stage.model
     n_valid = len(ctx.valid.mus)
     ctx.progress(f"online validation ({n_valid} mus: online solves, errors, inf-sup constants)")
     per_mu: dict[str, list[float]] = {"err_lam": [], "penetration": [], "complementarity": []}
@@ -210,20 +221,24 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
     err_u, e_en, t_on = [], [], []
     stops: dict[str, int] = {}
     X = ctx.X
-    with one_blas_thread() as threads:  # every stage's timed online solves: one BLAS thread
+    with one_blas_thread() as threads:  # every timed online solve: one BLAS thread
         for j, mu in enumerate(ctx.valid.mus):
             p = ctx.problem_at(mu)
             u, lam = ctx.valid.U[:, j], ctx.valid.LAM[:, j]
-            res, u_n, times = stage.online(mu, p)
-            t_on.extend(times)
+            sols = online_solutions(model, mu, ctx.config.online_repeats)
+            res = sols[-1]
+            t_on.extend(s.time_s for s in sols)
+            stage.record_online(mu, sols)
             stops[res.stop_reason] = stops.get(res.stop_reason, 0) + 1
-            err_u.append(float(np.sqrt(xnorm2(X, u - u_n) / xnorm2(X, u))))
-            for key, value in stage.metrics(mu, p, u, lam, res, u_n).items():
+            hf = model.reconstruct(res)
+            err_u.append(float(np.sqrt(xnorm2(X, u - hf.u) / xnorm2(X, u))))
+            for key, value in stage.metrics(mu, p, u, lam, res, hf).items():
                 (per_mu if key in per_mu else extra).setdefault(key, []).append(value)
             J = energy(p, u)
-            e_en.append(float(abs(energy(p, u_n) - J) / abs(J)) if J != 0 else float("nan"))
+            e_en.append(float(abs(energy(p, hf.u) - J) / abs(J)) if J != 0 else float("nan"))
             ctx.progress(f"online validation {j + 1}/{n_valid}: err_u {err_u[-1]:.3g}, "
-                         f"online {np.median(times):.3g} s, {res.stop_reason}")
+                         f"online {np.median([s.time_s for s in sols]):.3g} s, "
+                         f"{res.stop_reason}")
     histories = dict(stage.histories)
     histories["online_stops"] = stops
     timings = ctx.timings

@@ -23,6 +23,7 @@ positive semi-definite terms ``A_q`` (thermal block: ``min_i mu_i`` for ``mu_ref
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -31,7 +32,9 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
+from rbbench.interfaces import HFVectors, ReducedSolution
 from rbbench.rb.algorithms.affine import LinearInMu, affine_decomposition
+from rbbench.rb.online import ReducedBasis, require_basis
 
 __all__ = ["ReducedLinear", "build_reduced", "coercivity_reference"]
 
@@ -43,7 +46,8 @@ class ReducedLinear:
     ``A`` (Q, N, N), ``F`` (Q, N) on ``theta = [1, mu]``; parabolic: ``M`` (N, N), ``u0``
     (N,), ``dt``, ``steps``. Estimator: ``G`` (Gram of the residual pieces), ``alpha_ref``,
     ``theta_ref`` and ``active`` (the terms of the min-theta bound), ``e0_m`` (the
-    M-norm of the initial projection error).
+    M-norm of the initial projection error). ``basis``: ``Z`` (HF size), for
+    :meth:`reconstruct` only.
     """
 
     A: np.ndarray
@@ -58,6 +62,7 @@ class ReducedLinear:
     steps: int = 0
     e0_m: float = 0.0
     parameters: Any = None
+    basis: ReducedBasis | None = None
 
     @property
     def N(self) -> int:
@@ -67,7 +72,21 @@ class ReducedLinear:
         mu = self.parameters.check(mu) if self.parameters is not None else mu
         return LinearInMu(self.A.shape[0] - 1)(mu)
 
-    def solve(self, mu: Any) -> np.ndarray:
+    def solve(self, mu: Any) -> ReducedSolution:
+        """Online solve (mu checked against D): ``u`` the coefficients of
+        :meth:`coefficients`, ``time_s`` their wall time (the estimator is not included:
+        :meth:`estimate`)."""
+        t0 = time.perf_counter()
+        mu = self.parameters.check(mu) if self.parameters is not None else mu
+        c = self.coefficients(mu)
+        return ReducedSolution(mu=mu, u=c, lam=np.zeros(0), iterations=0,
+                               stop_reason="converged", time_s=time.perf_counter() - t0)
+
+    def reconstruct(self, solution: Any) -> HFVectors:
+        """``Z c`` on the free dofs (a trajectory: ``Z c^k`` step by step, flattened)."""
+        return require_basis(self).vectors(solution.u)
+
+    def coefficients(self, mu: Any) -> np.ndarray:
         """Reduced coefficients: ``(N,)``, or ``(K, N)`` for the trajectory (one LU of
         ``M / dt + A``, then ``u^k = T u^{k-1} + g``)."""
         th = self.theta(mu)

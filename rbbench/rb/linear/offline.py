@@ -39,6 +39,7 @@ from rbbench.rb.offline import (
     primal_histories,
     reduction_steps,
 )
+from rbbench.rb.online import ReducedBasis
 from rbbench.rb.validation import ReducedStage, ReduceResult, validate, xnorm2
 from rbbench.registry import Registry, default_registry
 from rbbench.runtime.threads import one_blas_thread
@@ -111,22 +112,12 @@ class LinearStage(ReducedStage):
         self.t_estimate: list[float] = []
         self.effectivity: list[float] = []
 
-    def online(self, mu: np.ndarray, problem: Any) -> tuple[Any, np.ndarray, list[float]]:
-        times, coef = [], None
-        for _ in range(max(1, int(self.ctx.config.online_repeats))):
-            t0 = time.perf_counter()
-            coef = self.model.solve(mu)
-            times.append(time.perf_counter() - t0)
-        self._coef = coef
-        u_n = (coef @ self.Z.T).ravel() if coef.ndim == 2 else self.Z @ coef
-        return SimpleNamespace(stop_reason="converged"), u_n, times
-
     def metrics(self, mu: np.ndarray, problem: Any, u: np.ndarray, lam: np.ndarray,
-                result: Any, u_n: np.ndarray) -> dict[str, float]:
+                result: Any, hf: Any) -> dict[str, float]:
         t0 = time.perf_counter()
-        bound = self.model.estimate(mu, self._coef)
+        bound = self.model.estimate(mu, result.u)
         self.t_estimate.append(time.perf_counter() - t0)
-        err = np.sqrt(xnorm2(self.ctx.X, u - u_n))
+        err = np.sqrt(xnorm2(self.ctx.X, u - hf.u))
         norm = np.sqrt(xnorm2(self.ctx.X, u))
         self.effectivity.append(bound / err if err > 0 else np.nan)
         return {"err_est": bound / norm, "effectivity": self.effectivity[-1],
@@ -164,6 +155,7 @@ class LinearData:
     def build(self, Z: np.ndarray) -> ReducedLinear:
         model = build_reduced(self, Z, self.bounds, self.x_solve, self.mu_ref, self.alpha_ref)
         model.parameters = self.scene.parameter_space
+        model.basis = ReducedBasis(Z)
         return model
 
 
@@ -183,7 +175,7 @@ def pod_greedy(lin: LinearData, U: np.ndarray, mus: np.ndarray, n_max: int,
             model = lin.build(Z)
             est = []
             for mu in mus:
-                c = model.solve(mu)
+                c = model.coefficients(mu)
                 est.append(model.estimate(mu, c) / max(np.linalg.norm(c), 1e-300))
             j = int(np.argmax(est))
             sigma.append(float(est[j]))

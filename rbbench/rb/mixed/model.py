@@ -27,6 +27,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from rbbench.hf.solvers import lcp
+from rbbench.interfaces import HFVectors
 from rbbench.rb.algorithms.affine import (
     AffineOperator,
     LinearInMu,
@@ -34,12 +35,14 @@ from rbbench.rb.algorithms.affine import (
     affine_decomposition,
 )
 from rbbench.rb.algorithms.saddle import condense_dense
+from rbbench.rb.online import ReducedBasis, require_basis
 from rbbench.scene.parameters import ParameterSpace
 
 
 @dataclass
 class OnlineResult:
-    """One online solve: reduced coordinates, stop reason, time (s)."""
+    """One online solve (a :class:`rbbench.interfaces.Solution`: ``u`` the primal
+    coordinates ``c``, ``lam`` the cone coefficients ``alpha``), its stop reason and time."""
 
     c: np.ndarray  # primal coordinates (N,)
     alpha: np.ndarray  # cone coefficients (R,) >= 0
@@ -54,6 +57,23 @@ class OnlineResult:
     path: str = "python"
     #: the online method that ran (``auto`` resolved: :meth:`ReducedModel.resolve_method`)
     method: str = ""
+    #: the parameter of the solve (as checked against D)
+    mu: np.ndarray | None = None
+    #: a model without hyper-reduction: the time of the HF assembly and projection at mu
+    #: (s), included in ``time_s``
+    assembly_s: float = 0.0
+
+    @property
+    def u(self) -> np.ndarray:
+        return self.c
+
+    @property
+    def lam(self) -> np.ndarray:
+        return self.alpha
+
+    @property
+    def converged(self) -> bool:
+        return self.stop_reason.startswith("converged")
 
 
 #: Online paths of :meth:`ReducedModel.solve`: "auto" (compiled where available)
@@ -198,6 +218,10 @@ class ReducedModel:
         Sizes and provenance (compressor names, tolerances).
     parameters : ParameterSpace or None
         The domain D that :meth:`solve` checks mu against (set by the offline skeleton).
+    online_method : str
+        The online method :meth:`solve` uses by default (:data:`ONLINE_METHODS`).
+    basis : ReducedBasis or None
+        ``Z`` and the cone generators ``V`` (HF size), for :meth:`reconstruct` only.
     """
 
     A: AffineOperator
@@ -207,6 +231,8 @@ class ReducedModel:
     is_cone: bool = True
     info: dict = field(default_factory=dict)
     parameters: ParameterSpace | None = None
+    online_method: str = "auto"
+    basis: ReducedBasis | None = None
 
     def __post_init__(self) -> None:
         # A_N independent of mu (e.g. a dilation, which leaves 2D stiffness invariant):
@@ -230,17 +256,21 @@ class ReducedModel:
         return self.A(th), self.F(th), B, G
 
     def solve(self, mu: np.ndarray, warm_start: np.ndarray | None = None,
-              max_iter: int = 100, method: str = "auto", path: str = "auto") -> OnlineResult:
+              max_iter: int = 100, method: str | None = None, path: str = "auto"
+              ) -> OnlineResult:
         """Online solve: check mu against D (:attr:`parameters`, a
         :class:`~rbbench.scene.parameters.SceneError` outside it, as the HF solve), assemble
-        the reduced arrays, then :func:`solve_reduced`.
+        the reduced arrays, then :func:`solve_reduced` with ``method`` (default:
+        :attr:`online_method`).
 
         ``path``: ``"python"`` (the reference), ``"compiled"`` (:mod:`rbbench.rb.mixed.compiled`,
         a RuntimeError saying why when it is unavailable) or ``"auto"`` (compiled where
         available: :meth:`online_path`). The compiled kernels are prepared on the first
-        call, outside the timed solve (``compiled_online.COMPILE`` has that time).
+        call, outside the timed solve (``compiled.COMPILE`` has that time); they test mu
+        against D themselves and leave a parameter outside it to the Python path's error.
         """
-        requested, method = method, self.resolve_method(method, path)
+        requested = self.online_method if method is None else method
+        method = self.resolve_method(requested, path)
         fast = self._compiled(method, path)
         t0 = time.perf_counter()
         if fast is not None:
@@ -252,14 +282,18 @@ class ReducedModel:
                 method, reason = "daqp", "converged (daqp fallback)"
             if out is not None:
                 return OnlineResult(out[0], out[1], out[2], reason,
-                                    time.perf_counter() - t0, out[3], "compiled", method)
+                                    time.perf_counter() - t0, out[3], "compiled", method, mu)
         if self.parameters is not None:
             mu = self.parameters.check(mu)
         res = solve_reduced(*self.arrays(mu), warm_start=warm_start, max_iter=max_iter,
                             cho=self._cho, method=method)
         res.time_s = time.perf_counter() - t0
-        res.method = method
+        res.method, res.mu = method, mu
         return res
+
+    def reconstruct(self, solution: OnlineResult) -> HFVectors:
+        """``Z c`` on the free dofs and ``V alpha`` in the HF multiplier space."""
+        return require_basis(self).vectors(solution.c, solution.alpha)
 
     def resolve_method(self, method: str = "auto", path: str = "auto") -> str:
         """``auto``: ``nnls`` where its compiled path is available, otherwise ``daqp`` (the
@@ -305,18 +339,6 @@ class ReducedModel:
         state = dict(self.__dict__)
         state.pop("_online_state", None)
         return state
-
-
-@dataclass
-class ReducedBasis:
-    """The bases, kept apart from the model: only needed to reconstruct full fields."""
-
-    Z: np.ndarray  # (n_free, N)
-    Vg: np.ndarray  # (m, R)
-
-    def reconstruct(self, result: OnlineResult) -> tuple[np.ndarray, np.ndarray]:
-        """Full free-dof displacement ``Z c`` and multiplier ``Vg alpha``."""
-        return self.Z @ result.c, self.Vg @ result.alpha
 
 
 def build_affine_model(reduced_operators: Callable[[np.ndarray], tuple], bounds: np.ndarray,

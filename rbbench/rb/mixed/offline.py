@@ -18,11 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.components import discretize_for
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.affine import NotAffineError
 from rbbench.rb.compressors import make_stabilizer, pga_delta
-from rbbench.rb.mixed.model import build_affine_model, projector, solve_reduced
+from rbbench.rb.mixed.model import build_affine_model, projector
+from rbbench.rb.mixed.plain import PlainProjection, PlainReducedModel
 from rbbench.rb.offline import (
     ReduceConfig,
     check_finite,
@@ -30,9 +30,9 @@ from rbbench.rb.offline import (
     fixed_contact_points,
     primal_histories,
 )
+from rbbench.rb.online import PlainArrays, ReducedBasis
 from rbbench.rb.validation import ReducedStage, xnorm2
 from rbbench.registry import Registry
-from rbbench.runtime.threads import one_blas_thread
 from rbbench.scene.loading import Scene
 
 DEFINITIONS = {
@@ -194,38 +194,24 @@ class MixedStage(ReducedStage):
                                            is_cone=self.dual.is_cone, constraint=constraint)
         elif hyper == "auto":
             hyper = "none"
+        if model is None:  # plain: the HF operators at mu projected online
+            stab = self.stabilizer if self.stabilizer.online else None
+            model = PlainReducedModel(PlainArrays(ctx.problem_source(), PlainProjection(
+                self.Z_off, self.Vg, stab, ctx.X, self.x_solve)))
+        model.online_method = config.online_method
+        model.basis = ReducedBasis(self.Z_off, self.Vg)
         self.hyper, self.model = hyper, model
         ctx.timings["hyper_s"] = time.perf_counter() - t1
 
     # -- validation --------------------------------------------------------------------
-    @one_blas_thread()  # nested in validate(): a counter, no threadpoolctl scan
-    def online(self, mu: np.ndarray, problem: Any) -> tuple[Any, np.ndarray, list[float]]:
-        ctx, config = self.ctx, self.ctx.config
-        runs: list[float] = []
-        if self.model is not None:
-            Zu = self.Z_off
-            for _ in range(config.online_repeats):
-                res = self.model.solve(mu, method=config.online_method)
-                runs.append(res.time_s)
-        else:
-            # the plain model's online step starts from the HF operators at mu: time a
-            # fresh assembly (the cached problem serves the error evaluation)
-            ta = time.perf_counter()
-            p_fresh = ctx.formulation.build(discretize_for(ctx.backend, ctx.formulation, mu))
-            Zu = self.Z_off
-            if self.stabilizer.online:
-                Zu = self.stabilizer.online_basis(self.Z_off, self.Vg, ctx.X, self.x_solve,
-                                                  p_fresh.B)
-            arrays = projector(lambda _mu, p=p_fresh: p, Zu, self.Vg)(mu)
-            self.t_asm.append(time.perf_counter() - ta)
-            for _ in range(config.online_repeats):
-                res = solve_reduced(*arrays, method=config.online_method)
-                runs.append(res.time_s + self.t_asm[-1])
-        return res, Zu @ res.c, runs
+    def record_online(self, mu: np.ndarray, solutions: list) -> None:
+        """The plain model: its HF assembly and projection at mu (``t_online_hf_assembly_s``)."""
+        if solutions[-1].assembly_s:
+            self.t_asm.append(solutions[-1].assembly_s)
 
     def metrics(self, mu: np.ndarray, p: Any, u: np.ndarray, lam: np.ndarray, res: Any,
-                u_n: np.ndarray) -> dict[str, float]:
-        lam_r = self.Vg @ res.alpha
+                hf: Any) -> dict[str, float]:
+        lam_r, u_n = hf.lam, hf.u
         lam_w2 = xnorm2(p.W, lam)
         err_lam = float(np.sqrt(xnorm2(p.W, lam - lam_r) / lam_w2))
         # the floor: best approximation of lam in the reduced cone (W-projection)

@@ -73,8 +73,10 @@ from rbbench.hf.algebra.nitsche import gamma_scaling
 from rbbench.hf.geometry.chains import normal_stress_terms
 from rbbench.hf.geometry.operators import contact_operators
 from rbbench.hf.geometry.pairing import ContactLayout
+from rbbench.interfaces import HFVectors
 from rbbench.rb.algorithms.affine import AffineOperator, LinearInMu
 from rbbench.rb.hyper.contact_eim import pair_in_windows, restrict_layout
+from rbbench.rb.online import ReducedBasis, require_basis
 from rbbench.scene.parameters import ParameterSpace
 
 __all__ = ["NitscheOnlineResult", "NitscheReducedModel", "PointEvaluator", "ReducedPoints",
@@ -224,7 +226,8 @@ def build_point_evaluator(layout: ContactLayout, points: np.ndarray, mus: np.nda
 # ---------------------------------------------------------------------------
 @dataclass
 class NitscheOnlineResult:
-    """One reduced solve: coordinates ``c`` (N,), iterates, stop reason, time (s)."""
+    """One reduced solve (a :class:`rbbench.interfaces.Solution`: ``u`` the coordinates
+    ``c`` (N,), ``lam`` empty: no multiplier space), iterates, stop reason, time (s)."""
 
     c: np.ndarray
     iterations: int
@@ -233,6 +236,15 @@ class NitscheOnlineResult:
     residuals: list[float] = field(default_factory=list)
     iterates: list[np.ndarray] = field(default_factory=list)
     reason: str = ""
+    mu: np.ndarray | None = None
+
+    @property
+    def u(self) -> np.ndarray:
+        return self.c
+
+    @property
+    def lam(self) -> np.ndarray:
+        return np.zeros(0)
 
 
 def reduced_newton(system: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, float]],
@@ -389,6 +401,8 @@ class NitscheReducedModel:
     info : dict
     parameters : ParameterSpace or None
         The domain D that :meth:`solve` checks mu against (set by the offline skeleton).
+    basis : ReducedBasis or None
+        The primal basis on the free dofs (HF size), for :meth:`reconstruct` only.
     """
 
     A: AffineOperator
@@ -408,6 +422,7 @@ class NitscheReducedModel:
     TQinv: np.ndarray | None = None
     info: dict = field(default_factory=dict)
     parameters: ParameterSpace | None = None
+    basis: ReducedBasis | None = None
 
     @property
     def N(self) -> int:
@@ -454,4 +469,9 @@ class NitscheReducedModel:
         res = reduced_newton(system, self.initial_guess(mu) if c0 is None else c0,
                              max_iter=max_iter, tol=tol, keep_iterates=keep_iterates)
         res.time_s = time.perf_counter() - t0
+        res.mu = mu
         return res
+
+    def reconstruct(self, solution: NitscheOnlineResult) -> HFVectors:
+        """``Z c`` on the free dofs; no multipliers (the contact pressure follows from u)."""
+        return require_basis(self).vectors(solution.c)

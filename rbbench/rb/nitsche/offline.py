@@ -42,9 +42,9 @@ from rbbench.rb.offline import (
     fixed_contact_points,
     primal_histories,
 )
+from rbbench.rb.online import ReducedBasis
 from rbbench.rb.validation import ReducedStage, xnorm2
 from rbbench.registry import Registry
-from rbbench.runtime.threads import one_blas_thread
 from rbbench.scene.loading import Scene
 
 DEFINITIONS = {
@@ -230,25 +230,20 @@ class NitscheStage(ReducedStage):
             mode=hyper, start_mus=np.asarray(ctx.mus_train, dtype=float),
             start_c=plain_c.copy(),
             info={"N": self.N, "hyper": hyper, "theta": self.theta, "gamma0": self.gamma0},
-            **extra)
+            basis=ReducedBasis(self.Z), **extra)
         ctx.timings["hyper_s"] = time.perf_counter() - t1
 
     # -- validation --------------------------------------------------------------------
-    @one_blas_thread()  # nested in validate(): a counter, no threadpoolctl scan
-    def online(self, mu: np.ndarray, problem: Any) -> tuple[Any, np.ndarray, list[float]]:
-        runs = []
-        for _ in range(max(1, self.ctx.config.online_repeats)):
-            res = self.model.solve(mu)
-            runs.append(res.time_s)
+    def record_online(self, mu: np.ndarray, solutions: list) -> None:
+        res = solutions[-1]
         self.iters.append(res.iterations)
         if not np.all(np.isfinite(res.c)):
             raise DivergedError(f"online Nitsche solve at mu = {mu.tolist()}: non-finite "
                                 f"({res.stop_reason})")
-        return res, self.Z @ res.c, runs
 
     def metrics(self, mu: np.ndarray, p: Any, u: np.ndarray, lam: np.ndarray, res: Any,
-                u_n: np.ndarray) -> dict[str, float]:
-        w = p.weights
+                hf: Any) -> dict[str, float]:
+        w, u_n = p.weights, hf.u
         pu, pN = pressure(p, u), pressure(p, u_n)
         su, sN = state(p, u).s, state(p, u_n).s
         self.err_s.append(_l2rel(w, su - sN, su))

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from rbbench.interfaces import HFVectors
 from rbbench.rb.algorithms.saddle import condense_dense
 from rbbench.rb.friction.qp import (
     check_reducible,
@@ -37,6 +38,7 @@ from rbbench.rb.friction.qp import (
     nearest_training,
     tresca_qp,
 )
+from rbbench.rb.online import ReducedBasis, require_basis
 from rbbench.scene.parameters import ParameterSpace
 
 __all__ = ["FrictionArrays", "FrictionOnlineResult", "FrictionReducedModel",
@@ -91,7 +93,8 @@ def condense_reduced(arr: FrictionArrays) -> ReducedCondensed:
 class FrictionOnlineResult:
     """One online friction solve: ``a`` (N), ``c_n`` (R), ``theta`` (S); fixed-point
     ``iterations``, daqp ``inner_iterations``, ``stop_reason``, ``history`` (relative
-    increments ``||x^{k+1} - x^k||_inf / ||x^{k+1}||_inf``), wall time (s)."""
+    increments ``||x^{k+1} - x^k||_inf / ||x^{k+1}||_inf``), wall time (s). A
+    :class:`rbbench.interfaces.Solution`: ``u = a``, ``lam = (c_n, theta)``."""
 
     a: np.ndarray
     c_n: np.ndarray
@@ -101,11 +104,25 @@ class FrictionOnlineResult:
     stop_reason: str
     time_s: float = 0.0
     history: list[float] = field(default_factory=list)
+    #: the parameter of the solve
+    mu: np.ndarray | None = None
+    #: the time of the reduced arrays at mu (s): the HF assembly and projection of the plain
+    #: model, included in ``time_s``
+    assembly_s: float = 0.0
 
     @property
     def c(self) -> np.ndarray:
         """The primal coordinates (the name of :class:`rbbench.rb.mixed.model.OnlineResult`)."""
         return self.a
+
+    @property
+    def u(self) -> np.ndarray:
+        return self.a
+
+    @property
+    def lam(self) -> np.ndarray:
+        """The dual coordinates ``(c_n, theta)`` (:class:`rbbench.interfaces.Solution`)."""
+        return self.x
 
     @property
     def x(self) -> np.ndarray:
@@ -146,15 +163,17 @@ def solve_coulomb(cond: ReducedCondensed, Qn: np.ndarray, Qt: np.ndarray,
 
 @dataclass
 class FrictionReducedModel:
-    """The reduced friction model: small dense arrays only (picklable).
+    """The reduced friction model with collocated Coulomb (or Tresca) constraints: small dense
+    arrays, picklable.
 
     ``Qn``, ``Qt``: the rows of ``Vn``, ``Vt`` at the collocation nodes ``nodes`` (HF node
     indices, chosen by GCNS); ``law``: ``"coulomb"`` or ``"tresca"``; ``mus_train`` and
     ``x_train``: the reduced solutions ``(c_n, theta)`` of the training set (the warm start
-    from the nearest training mu). ``operators``: ``mu -> FrictionArrays`` when the arrays
-    are HF-size independent (hyper-reduction, stage 2); ``None`` for the plain model, whose
-    arrays are projected online from the HF problem (:func:`project_friction`, then
-    :meth:`solve_arrays`). ``parameters``: the domain D checked by :meth:`solve`.
+    from the nearest training mu). ``arrays_at``: ``mu -> (FrictionArrays, seconds)``, the
+    reduced arrays at mu and the time they took; without hyper-reduction a
+    :class:`rbbench.rb.online.PlainArrays` (the HF problem at mu projected by
+    :func:`project_friction`). ``parameters``: the domain D checked by :meth:`solve`;
+    ``basis``: ``Z``, ``Vn``, ``Vt`` (HF size) for :meth:`reconstruct`.
     """
 
     Qn: np.ndarray
@@ -163,11 +182,12 @@ class FrictionReducedModel:
     law: str
     mus_train: np.ndarray
     x_train: np.ndarray
-    operators: Callable[[np.ndarray], FrictionArrays] | None = None
+    arrays_at: Callable[[np.ndarray], tuple[FrictionArrays, float]] | None = None
     parameters: ParameterSpace | None = None
     tol: float = 1e-10
     max_iter: int = 200
     info: dict = field(default_factory=dict)
+    basis: ReducedBasis | None = None
 
     @property
     def R(self) -> int:
@@ -195,13 +215,18 @@ class FrictionReducedModel:
         return res
 
     def solve(self, mu: np.ndarray) -> FrictionOnlineResult:
-        """Online solve from :attr:`operators` (checks mu against D); the plain model has
-        none: project the HF problem and call :meth:`solve_arrays`."""
-        if self.operators is None:
-            raise ValueError("plain reduced friction model: its arrays are projected from "
-                             "the HF problem at mu (project_friction, then solve_arrays)")
-        t0 = time.perf_counter()
+        """Online solve: mu checked against D, the arrays at mu (:attr:`arrays_at`), then
+        :meth:`solve_arrays`; ``time_s`` = the arrays' time + condensation and solve."""
+        if self.arrays_at is None:
+            raise ValueError("reduced friction model without arrays_at: give the reduced "
+                             "arrays (solve_arrays) or a PlainArrays of the HF problem")
         mu = self.parameters.check(mu) if self.parameters is not None else mu
-        res = self.solve_arrays(mu, self.operators(mu))
-        res.time_s = time.perf_counter() - t0
+        arr, t_arrays = self.arrays_at(mu)
+        res = self.solve_arrays(mu, arr)
+        res.time_s += t_arrays
+        res.assembly_s, res.mu = t_arrays, mu
         return res
+
+    def reconstruct(self, solution: FrictionOnlineResult) -> HFVectors:
+        """``Z a`` on the free dofs, ``Vn c_n`` and ``Vt theta`` at the friction nodes."""
+        return require_basis(self).vectors(solution.a, solution.c_n, solution.theta)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from types import SimpleNamespace
 from typing import Any
 
@@ -16,7 +17,6 @@ import numpy as np
 import scipy.linalg as sla
 
 from rbbench.hf.components import discretize_for
-from rbbench.hf.model import build_problem
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.cones.metric import span_projection
 from rbbench.rb.algorithms.gcns import gcns, tangential_violation
@@ -31,6 +31,7 @@ from rbbench.rb.friction.collocation.model import (
 from rbbench.rb.friction.infsup import validation_constants
 from rbbench.rb.friction.profiles import PROFILE_DEFINITION, lam_t_profiles
 from rbbench.rb.offline import check_finite, primal_histories
+from rbbench.rb.online import PlainArrays, ReducedBasis
 from rbbench.rb.validation import ReducedStage, xnorm2
 from rbbench.scene.loading import SceneError
 
@@ -154,7 +155,7 @@ class FrictionStage(ReducedStage):
         self._spaces(ctx)
         self._stabilizer(ctx)
         self._gcns(ctx)
-        self.model = None  # plain: the online stage needs the HF problem at mu
+        self.model = self.reduced  # plain: the HF problem at mu projected online
         self.floors: dict[str, list[float]] = {"lam_best_valid": []}
         self.t_asm: list[float] = []
         self.t_solve: list[float] = []
@@ -226,7 +227,10 @@ class FrictionStage(ReducedStage):
             Qn=self.Vn[res.nodes], Qt=self.Vt[res.nodes], nodes=res.nodes, law=self.law,
             mus_train=np.asarray(ctx.mus_train, float), x_train=x_train,
             parameters=ctx.scene.parameter_space,
-            info={"N": self.Z_off.shape[1], "R": self.R, "S": self.S, "S_q": res.S_q})
+            info={"N": self.Z_off.shape[1], "R": self.R, "S": self.S, "S_q": res.S_q},
+            arrays_at=PlainArrays(ctx.problem_source(), partial(
+                project_friction, Z=self.Z_off, Vn=self.Vn, Vt=self.Vt)),
+            basis=ReducedBasis(self.Z_off, self.Vn, self.Vt))
         self.histories["gcns_history"] = res.history
         ctx.timings["gcns_s"] = time.perf_counter() - t1
 
@@ -253,14 +257,6 @@ class FrictionStage(ReducedStage):
         """The tangential bound at every HF node: ``nu_F Vn c_n`` (Coulomb) or ``s``."""
         return values if self.law == "tresca" else values * (self.Vn @ c_n)
 
-    def _project(self, problem: Any) -> Any:
-        """The reduced arrays of the HF problem at mu (the plain online assembly)."""
-        return project_friction(problem, self.Z_off, self.Vn, self.Vt)
-
-    def _multipliers(self, res: Any) -> tuple[np.ndarray, np.ndarray]:
-        """The reconstructed nodal ``(lam_n, lam_t)`` of an online result."""
-        return self.Vn @ res.c_n, self.Vt @ res.theta
-
     def _floors(self, lam: np.ndarray, lam_t: np.ndarray, W: Any) -> dict[str, float]:
         """Best approximations (relative W errors): lam_n in the normal cone, lam_t in X_S."""
         self.floors["lam_best_valid"].append(
@@ -270,26 +266,17 @@ class FrictionStage(ReducedStage):
                 if t2 > 0 else 0.0}
 
     # -- validation --------------------------------------------------------------------
-    def online(self, mu: np.ndarray, problem: Any) -> tuple[Any, np.ndarray, list[float]]:
-        """Plain online stage: a fresh HF assembly at mu and its projection (timed), then
-        ``online_repeats`` reduced solves."""
-        ctx = self.ctx
-        ta = time.perf_counter()
-        p_fresh = build_problem(ctx.backend, ctx.formulation, ctx.scene, mu)
-        arrays = self._project(p_fresh)
-        self.t_asm.append(time.perf_counter() - ta)
-        runs = []
-        for _ in range(ctx.config.online_repeats):
-            res = self.reduced.solve_arrays(mu, arrays)
-            self.t_solve.append(res.time_s)
-            runs.append(res.time_s + self.t_asm[-1])
-        return res, self.Z_off @ res.a, runs
+    def record_online(self, mu: np.ndarray, solutions: list) -> None:
+        """The online time split: the reduced arrays at mu (the plain model: its HF assembly
+        and projection, once per mu) and the reduced solves."""
+        self.t_asm.append(solutions[-1].assembly_s)
+        self.t_solve.extend(s.time_s - s.assembly_s for s in solutions)
 
     def metrics(self, mu: np.ndarray, p: Any, u: np.ndarray, lam: np.ndarray, res: Any,
-                u_n: np.ndarray) -> dict[str, float]:
+                hf: Any) -> dict[str, float]:
         j = int(np.argmin(np.linalg.norm(self.ctx.valid.mus - np.asarray(mu)[None, :], axis=1)))
         lam_t = self.ctx.valid.LAM_T[:, j]
-        ln, lt = self._multipliers(res)
+        ln, lt, u_n = hf.lam, hf.lam_t, hf.u
         W = p.W
         n2, t2 = xnorm2(W, lam), xnorm2(W, lam_t)
         floors = {**self._floors(lam, lam_t, W), "u_best": self._u_floor(u)}
@@ -331,9 +318,8 @@ class FrictionStage(ReducedStage):
         ctx = self.ctx
 
         def solve(mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            res = self.model.solve(mu) if self.model is not None else \
-                self.reduced.solve_arrays(mu, self._project(ctx.problem_at(mu)))
-            return self._multipliers(res)
+            hf = self.model.reconstruct(self.model.solve(mu))
+            return hf.lam, hf.lam_t
 
         return lam_t_profiles(
             ctx.mus_train, ctx.scene.bounds, ctx.train.LAM, ctx.train.LAM_T, solve,

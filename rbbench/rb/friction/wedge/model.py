@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from rbbench.interfaces import HFVectors
 from rbbench.rb.algorithms.saddle import condense_dense
 from rbbench.rb.friction.qp import (
     check_reducible,
@@ -46,6 +47,7 @@ from rbbench.rb.friction.qp import (
     nearest_training,
     nonneg_qp,
 )
+from rbbench.rb.online import ReducedBasis, require_basis
 from rbbench.scene.parameters import ParameterSpace
 
 __all__ = ["WedgeArrays", "WedgeBasis", "WedgeCondensed", "WedgeOnlineResult",
@@ -202,9 +204,23 @@ class WedgeOnlineResult:
     stop_reason: str
     time_s: float = 0.0
     history: list[float] = field(default_factory=list)
+    #: the parameter of the solve
+    mu: np.ndarray | None = None
+    #: the time of the reduced arrays at mu (s): the HF assembly and projection of the plain
+    #: model, the EIM evaluation of the hyper-reduced one; included in ``time_s``
+    assembly_s: float = 0.0
 
     @property
     def x(self) -> np.ndarray:
+        return self.c
+
+    @property
+    def u(self) -> np.ndarray:
+        return self.a
+
+    @property
+    def lam(self) -> np.ndarray:
+        """The wedge coefficients ``c`` (:class:`rbbench.interfaces.Solution`)."""
         return self.c
 
     @property
@@ -251,8 +267,10 @@ def desaxce_coulomb(cond: WedgeCondensed, x0: np.ndarray | None = None, tol: flo
 @dataclass
 class WedgeReducedModel:
     """The reduced wedge model: ``P`` (R x m), the training solutions for the warm start
-    (nearest training mu), ``parameters`` (domain D). Plain online stage: the arrays are
-    projected from the HF problem at mu (:func:`project_wedge`, then :meth:`solve_arrays`)."""
+    (nearest training mu), ``parameters`` (domain D), ``arrays_at``: ``mu -> (WedgeArrays,
+    seconds)`` (without hyper-reduction a :class:`rbbench.rb.online.PlainArrays`: the HF
+    problem at mu projected by :func:`project_wedge`), ``basis``: ``Z``, ``Ln``, ``Lt`` (HF
+    size) for :meth:`reconstruct`."""
 
     P: np.ndarray
     mus_train: np.ndarray
@@ -261,6 +279,8 @@ class WedgeReducedModel:
     tol: float = 1e-10
     max_iter: int = 500
     info: dict = field(default_factory=dict)
+    arrays_at: Callable[[np.ndarray], tuple[WedgeArrays, float]] | None = None
+    basis: ReducedBasis | None = None
 
     @property
     def R(self) -> int:
@@ -278,3 +298,24 @@ class WedgeReducedModel:
         res = desaxce_coulomb(condense_wedge(arr, self.P), x0, self.tol, self.max_iter)
         res.time_s = time.perf_counter() - t0
         return res
+
+    def timed_arrays(self, mu: np.ndarray) -> tuple[WedgeArrays, float]:
+        """The reduced arrays at mu and the time they took (:attr:`arrays_at`)."""
+        if self.arrays_at is None:
+            raise ValueError("wedge model without arrays_at: give the reduced arrays "
+                             "(solve_arrays) or a PlainArrays of the HF problem")
+        return self.arrays_at(mu)
+
+    def solve(self, mu: np.ndarray, x0: np.ndarray | None = None) -> WedgeOnlineResult:
+        """Online solve: mu checked against D, the arrays at mu (:meth:`timed_arrays`), then
+        De Saxce's fixed point; ``time_s`` = the arrays' time + condensation and solve."""
+        mu = self.parameters.check(mu) if self.parameters is not None else mu
+        arr, t_arrays = self.timed_arrays(mu)
+        res = self.solve_arrays(mu, arr, x0)
+        res.time_s += t_arrays
+        res.assembly_s, res.mu = t_arrays, mu
+        return res
+
+    def reconstruct(self, solution: WedgeOnlineResult) -> HFVectors:
+        """``Z a`` on the free dofs, ``Ln c`` and ``Lt c`` at the friction nodes."""
+        return require_basis(self).vectors(solution.a, solution.c, solution.c)

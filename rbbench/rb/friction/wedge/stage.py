@@ -34,6 +34,7 @@ wedge 20+20 with PGA, ``rbbench reduce``: err_u 2.6e-4 (plain 2.4e-4), err_lam_t
 from __future__ import annotations
 
 import time
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -48,6 +49,7 @@ from rbbench.rb.friction.wedge.model import (
     wedge_basis,
 )
 from rbbench.rb.offline import check_finite, primal_histories
+from rbbench.rb.online import PlainArrays, ReducedBasis
 from rbbench.rb.validation import xnorm2
 
 __all__ = ["TABLE_ROWS", "WEDGE_DEFINITIONS", "WedgeStage", "comparison_table", "reduce_friction"]
@@ -149,34 +151,24 @@ class WedgeStage(FrictionStage):
             P=P, mus_train=np.asarray(ctx.mus_train, float), x_train=np.array([r.c for r in runs]),
             parameters=ctx.scene.parameter_space,
             info={"N": self.Z_off.shape[1], "R+": int(self.wedge.Vp.shape[1]),
-                  "R-": self.S})
+                  "R-": self.S},
+            arrays_at=PlainArrays(ctx.problem_source(), partial(
+                project_wedge, Z=self.Z_off, basis=self.wedge)),
+            basis=ReducedBasis(self.Z_off, self.wedge.Ln, self.wedge.Lt))
         ctx.timings["gcns_s"] = time.perf_counter() - t1
 
-    def _project(self, problem: Any) -> Any:
-        return project_wedge(problem, self.Z_off, self.wedge)
-
-    def online(self, mu: np.ndarray, problem: Any) -> tuple[Any, np.ndarray, list[float]]:
-        """hyper 'eim': ``online_repeats`` solves of the model alone (no HF work; EIM
-        evaluation and fixed point timed apart); else the plain stage."""
-        if self.model is None:
-            return super().online(mu, problem)
-        runs = []
-        for _ in range(self.ctx.config.online_repeats):
-            t0 = time.perf_counter()
-            arrays = self.model.arrays(mu)
-            self.t_asm.append(time.perf_counter() - t0)
-            res = self.model.solve_arrays(mu, arrays)
-            self.t_solve.append(res.time_s)
-            runs.append(time.perf_counter() - t0)
-        return res, self.Z_off @ res.a, runs
+    def record_online(self, mu: np.ndarray, solutions: list) -> None:
+        """hyper 'eim': the EIM evaluation of every solve and the fixed points, timed apart;
+        the plain model as the base class."""
+        if self.model is self.reduced:
+            return super().record_online(mu, solutions)
+        self.t_asm.extend(s.assembly_s for s in solutions)
+        self.t_solve.extend(s.time_s - s.assembly_s for s in solutions)
 
     def finish(self, histories: dict, timings: dict) -> None:
         super().finish(histories, timings)
-        if self.model is not None and self.t_asm:
+        if self.model is not self.reduced and self.t_asm:
             timings["t_online_eim_s"] = timings.pop("t_online_hf_assembly_s")
-
-    def _multipliers(self, res: Any) -> tuple[np.ndarray, np.ndarray]:
-        return self.wedge.Ln @ res.c, self.wedge.Lt @ res.c
 
     def _floors(self, lam: np.ndarray, lam_t: np.ndarray, W: Any) -> dict[str, float]:
         """Best approximations: lam_n in Span+(Ln); lam_t in span(Lt) and Span+(Lt)."""
