@@ -4,6 +4,7 @@ mu, picklable, and its online solve touches no HF-size array or HF assembly."""
 
 from __future__ import annotations
 
+import dataclasses
 import pickle
 
 import numpy as np
@@ -61,8 +62,10 @@ def test_hyper_wedge_equals_plain_on_training_mu(tol_eim):
 
 
 def test_hyper_wedge_pickles_and_touches_no_hf_array(monkeypatch):
-    """The pickled model solves the same at a new mu with every HF entry point disabled, and
-    holds no array of HF size (all dimensions far below the free dofs)."""
+    """The pickled model solves the same at a new mu with every HF entry point disabled and
+    without its reconstruction basis; apart from that basis (HF size, used by
+    ``reconstruct`` only) it holds no array of HF size (all dimensions far below the free
+    dofs)."""
     import rbbench.hf.geometry.operators as cg
     import rbbench.hf.model as ro
     import rbbench.rb.friction.wedge.model as fw
@@ -81,12 +84,14 @@ def test_hyper_wedge_pickles_and_touches_no_hf_array(monkeypatch):
                       (fw, "project_wedge")):
         monkeypatch.setattr(mod, name, refuse)
     monkeypatch.setattr(type(ctx.problem_at), "__call__", refuse)
-    res = model.solve(mu)
+    light = dataclasses.replace(model, basis=None)
+    res = light.solve(mu)
     assert res.stop_reason == "converged" and np.array_equal(res.c, ref.c)
     n_free = ctx.X.shape[0]
-    dims = [d for a in _arrays(model) for d in a.shape]
+    dims = [d for a in _arrays(light) for d in a.shape]
     assert max(dims) < n_free / 10, (max(dims), n_free)
-    assert len(blob) < 400_000
+    assert len(pickle.dumps(light)) < 400_000
+    np.testing.assert_array_equal(model.reconstruct(res).u, st.Z_off @ res.a)
 
 
 def test_hyper_wedge_stage_validates_without_hf_assembly():

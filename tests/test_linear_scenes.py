@@ -114,7 +114,7 @@ def test_thermal_bound_equals_the_dense_residual_bound_and_is_rigorous(tmp_path)
     Z = pod(U, lin.X, n=4).Z
     for mu in np.random.default_rng(2).uniform(0.1, 1.0, (4, 4)):
         p = lin(mu)
-        c = rom.solve(mu)
+        c = rom.solve(mu).u
         r = p.F - p.A @ (Z @ c)
         alpha_true = sla.eigh(p.A.toarray(), lin.X.toarray(), eigvals_only=True)[0]
         assert rom.alpha_lb(mu) == pytest.approx(min(mu), rel=1e-8)
@@ -137,7 +137,7 @@ def test_heat_bound_equals_the_dense_residual_bound_and_is_rigorous(tmp_path, u0
     Z = basis.Z
     for mu in ([0.07], [0.6]):
         p = lin(mu)
-        C = rom.solve(mu)
+        C = rom.solve(mu).u
         W = C @ Z.T  # (K, n)
         prev = np.vstack([Z @ rom.u0, W[:-1]])
         res = [p.F - p.M @ (w - v) / p.dt - p.A @ w for w, v in zip(W, prev, strict=True)]
