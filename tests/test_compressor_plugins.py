@@ -1,7 +1,7 @@
 """Primal / dual compressors and stabilisers as registered plugins (rbbench.rb.compressors).
 
 The wrappers reproduce the library functions exactly, the registry lists them, and the
-role contracts of :mod:`rbbench.testing.contract` reject deliberately broken components.
+role contracts of :mod:`rbbench.testing` reject deliberately broken components.
 (Every registered component passing its contract is ``tests/test_contract.py``.)
 """
 

@@ -5,8 +5,8 @@ scene, pickling."""
 
 from __future__ import annotations
 
-import json
 import dataclasses
+import json
 import pickle
 
 import numpy as np

@@ -279,7 +279,7 @@ def test_core_does_not_import_a_backend():
     code = textwrap.dedent("""
         import sys
         import rbbench, rbbench.registry, rbbench.scene.loading, rbbench.hf.model, rbbench.cli
-        import rbbench.testing, rbbench.testing.contract
+        import rbbench.testing, rbbench.testing.contract_model
         reg = rbbench.registry.default_registry()
         assert reg.names("backend"), "no backend declared"
         reg.availability(reg.get("backend", "skfem"))

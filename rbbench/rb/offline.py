@@ -221,8 +221,7 @@ def offline(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] 
     if config.N is not None and primal.Z.shape[1] < config.N:
         ctx.warn(clipped_size("-N", config.N, int(primal.Z.shape[1]), len(mus_train)))
     stage = steps.reduce(ctx)
-    if stage.model is not None:
-        stage.model.parameters = scene.parameter_space
+    stage.model.parameters = scene.parameter_space
     timings["offline_s"] = time.perf_counter() - t0
     return Offline(ctx, stage)
 

@@ -46,7 +46,7 @@ class ReduceResult:
     timings: dict[str, float]
     histories: dict[str, Any] = field(default_factory=dict)
     definitions: dict[str, str] = field(default_factory=dict)
-    model: Any = field(default=None, repr=False)  # the reduced model (None: plain online)
+    model: Any = field(default=None, repr=False)  # the reduced model (rbbench.interfaces.Model)
     valid_mus: Any = field(default=None, repr=False)
     per_mu_extra: dict[str, list[float]] = field(default_factory=dict)  # a stage's own
     extra: dict[str, Any] = field(default_factory=dict)  # a stage's own summary entries

@@ -35,7 +35,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
         sc = load_scene(scene, [*overrides, f"discretization.level={level}"])
         progress(f"level {level}: offline")
         res = reduce(sc, config)
-        if res.model is None:
+        if res.hyper == "none":
             raise ValueError(f"hyper {res.hyper!r} builds no HF-independent model; use 'eim' "
                              "or 'affine'")
         results.append(res)
@@ -46,7 +46,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
         for _ in range(repeats):
             for k, res in enumerate(results):
                 for mu in res.valid_mus:
-                    out = res.model.solve(mu, method=config.online_method)
+                    out = res.model.solve(mu)  # the model's online method: config's
                     times[k].append(out.time_s)
                     paths[k].add(str(getattr(out, "path", "python")))
                     methods[k].add(str(getattr(out, "method", config.online_method)))

@@ -1,4 +1,4 @@
-"""Shared vocabulary of the plugin contract suite (:mod:`rbbench.testing.contract`).
+"""Shared vocabulary of the plugin contract suite (:mod:`rbbench.testing`).
 
 :class:`ContractViolation` and :func:`require`, linear-algebra checks independent of
 the code under test (symmetry, definiteness, shapes, index sets), the reference scenes,
