@@ -64,12 +64,12 @@ def reduce_config(case: str, cache_dir: str | None = None, **changes):
     computed) and in this process (``n_jobs = 1``: no process pool inside a benchmark);
     ``changes`` override any field (the tests use tiny sets).
     """
-    from rbbench.rb.offline import ReduceConfig
+    from rbbench.rb.config import make_config
 
     opts = {"n_jobs": 1, "online_repeats": 3, **RB_OPTIONS[case]}
     if cache_dir is not None:
         opts["cache_dir"] = str(cache_dir)
-    return ReduceConfig(**{**opts, **changes})
+    return make_config(**{**opts, **changes})
 
 
 def reduced_case(case: str, cache_dir: str, **changes) -> dict:

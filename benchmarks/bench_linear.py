@@ -27,12 +27,12 @@ def _scene(case):
 
 def reduced_linear(case, cache_dir, **changes):
     """``{"model", "mu", "summary"}`` of one linear reduction of ``case``."""
+    from rbbench.rb.config import make_config
     from rbbench.rb.linear.offline import reduce_linear
-    from rbbench.rb.offline import ReduceConfig
 
     sc = _scene(case)
     fields = {**LINEAR_CASES[case][1], **changes}
-    cfg = ReduceConfig(formulation="linear", primal="pod", dual="", stabilizer="",
+    cfg = make_config(formulation="linear", primal="pod", dual="", stabilizer="",
                        cache_dir=cache_dir, online_repeats=3, **fields)
     res = reduce_linear(sc, cfg)
     s = res.summary()

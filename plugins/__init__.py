@@ -99,7 +99,8 @@ def _formulations(add):
         name="nitsche", role="formulation",
         target="rbbench_plugins.formulations.nitsche:NitscheFormulation",
         capabilities={"physics": ("elasticity",), "solvers": ("newton",),
-                      "needs": ("stress",), "friction": ("none", "tresca", "coulomb")},
+                      "needs": ("stress",), "friction": ("none", "tresca", "coulomb"),
+                      "roles": ("backend", "solver", "primal", "hyper")},
         description="Nitsche (Alart-Curnier, theta = 1 / 0 / -1, gamma = gamma0 E / h): "
                     "unconstrained, from the contact evaluation matrices Un, Snn; friction: "
                     "Chouly-Hild-Renard [sigma_nt - gamma u_t]_S with Ut, Snt",

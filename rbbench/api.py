@@ -30,7 +30,8 @@ if TYPE_CHECKING:
     from rbbench.bench.matrix import Matrix
     from rbbench.bench.runner import RunSummary
     from rbbench.hf.model import HFSolution
-    from rbbench.rb.offline import ReduceConfig, ReduceResult
+    from rbbench.rb.config import ReduceConfig
+    from rbbench.rb.offline import ReduceResult
     from rbbench.registry import Registry
 
 __all__ = ["linear_config", "load_results", "load_scene", "reduce", "run", "solve"]
@@ -98,7 +99,8 @@ def solve(scene: str | Path | Scene, mu: Any = None, backend: str = "skfem",
 
 
 def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None = None,
-           registry: Registry | None = None, **config_fields: Any) -> ReduceResult:
+           snapshot_progress: bool = False, registry: Registry | None = None,
+           **fields: Any) -> ReduceResult:
     """Build a reduced model offline and validate it (``rbbench reduce``).
 
     Parameters
@@ -107,65 +109,53 @@ def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None 
         A shipped scene's name, a scene file, or a loaded scene.
     progress : callable, optional
         Receives one line per stage (default: silent).
+    snapshot_progress : bool
+        Show a progress bar of the HF snapshots (stderr).
     registry : Registry, optional
         The components (default: the discovered plugins).
-    **config_fields
-        Fields of :class:`rbbench.rb.offline.ReduceConfig` (``N``, ``R``, ``n_train``,
-        ``n_valid``, ``primal``, ``dual``, ``stabilizer``, ``hyper``, ``formulation``,
-        ...). ``solver`` defaults to the formulation's own, as on the command line. A
-        linear scene: :func:`linear_config` (formulation ``linear``, no dual, stabiliser
-        or solver) and :func:`rbbench.rb.linear.offline.reduce_linear`.
+    **fields
+        The fields every formulation shares (:class:`rbbench.rb.config.ReduceConfig`:
+        ``formulation``, ``backend``, ``solver``, ``primal``, ``hyper``, ``N``, ``n_train``,
+        ``n_valid``, ``online_repeats``, ...) and the formulation's own options (mixed:
+        ``dual``, ``R``, ``stabilizer``, ... :class:`rbbench.rb.mixed.offline.MixedOptions`;
+        on a friction scene :class:`rbbench.rb.friction.options.FrictionOptions`; Nitsche:
+        :class:`rbbench.rb.nitsche.offline.NitscheOptions`; a linear scene takes none).
+        ``formulation`` defaults to ``linear`` on a linear scene, ``mixed`` otherwise;
+        ``solver`` to the formulation's own for the scene's friction law.
 
     Returns
     -------
     ReduceResult
         Errors, inf-sup constants and timings over the validation set (``.summary()``: the
-        flat ``result.json``), and the reduced model (``.model``).
-    """
-    from rbbench.hf.components import default_solver
-    from rbbench.rb.offline import ReduceConfig
-    from rbbench.rb.offline import reduce as reduce_offline
-    from rbbench.scene.friction import friction_of
-
-    scene = as_scene(scene)
-    kwargs = {"progress": progress} if progress is not None else {}
-    if is_linear(scene):  # no contact: the linear skeleton (rbbench.rb.linear.offline)
-        from rbbench.rb.linear.offline import reduce_linear
-
-        return reduce_linear(scene, linear_config(scene, **config_fields), registry=registry,
-                             **kwargs)
-    if "solver" not in config_fields:
-        config_fields["solver"] = default_solver(config_fields.get("formulation", "mixed"),
-                                                 registry, friction_of(scene).law)
-    config = ReduceConfig(**config_fields)
-    return reduce_offline(scene, config, registry=registry, **kwargs)
-
-
-#: The fields of a linear scene's reduction that have one value (no dual space, no
-#: stabiliser, no contact solver).
-LINEAR_FIXED = {"formulation": "linear", "dual": "", "stabilizer": ""}
-
-
-def linear_config(scene: Scene, **config_fields: Any) -> ReduceConfig:
-    """The :class:`~rbbench.rb.offline.ReduceConfig` of a linear scene (issue 18):
-    :data:`LINEAR_FIXED`, the other fields as given (``N``, ``n_train``, ``primal``, ...).
+        flat ``result.json``), and the reduced model (``.model``, a
+        :class:`rbbench.interfaces.Model`).
 
     Raises
     ------
-    SceneError
-        A field of :data:`LINEAR_FIXED` or ``R``, ``S``, ``solver`` given otherwise; ``N``,
-        ``n_train`` or ``n_valid`` below 1.
+    ValueError
+        Before any HF work, for an option the formulation does not take
+        (:class:`~rbbench.rb.config.OptionError`, naming the option and the formulations
+        that take it) or a value outside its range (:class:`~rbbench.scene.loading.SceneError`).
     """
-    from rbbench.rb.offline import ReduceConfig
+    from rbbench.rb.config import make_config
+    from rbbench.rb.offline import reduce as reduce_offline
 
-    for key, value in config_fields.items():
-        if key in ("N", "n_train", "n_valid") and value is not None and value < 1:
-            raise SceneError(f"{key} = {value}: must be an integer >= 1")
-        if (key in LINEAR_FIXED and value != LINEAR_FIXED[key]) or \
-                (key in ("R", "S", "solver") and value is not None):
-            raise SceneError(f"{scene.path}: a linear scene (no contact) is reduced with "
-                             f"{LINEAR_FIXED} and no R, S or solver; got {key} = {value!r}")
-    return ReduceConfig(**{**config_fields, **LINEAR_FIXED})
+    kwargs = {"progress": progress} if progress is not None else {}
+    return reduce_offline(as_scene(scene), make_config(**fields), registry=registry,
+                          snapshot_progress=snapshot_progress, **kwargs)
+
+
+def linear_config(scene: Scene, **fields: Any) -> ReduceConfig:
+    """Deprecated (goes in rbbench 0.3): :func:`rbbench.rb.config.make_config` with
+    ``formulation = "linear"``; :func:`reduce` needs neither."""
+    import warnings
+
+    from rbbench.rb.config import make_config
+
+    warnings.warn("rbbench.api.linear_config is deprecated: rbbench.reduce(scene, ...) takes "
+                  "the fields directly (rbbench.rb.config.make_config builds a ReduceConfig)",
+                  DeprecationWarning, stacklevel=2)
+    return make_config(**{**fields, "formulation": "linear"})
 
 
 def run(matrix: str | Path | Matrix, out: str | Path | None = None,

@@ -332,13 +332,14 @@ def test_rb_pipeline_runs_unchanged_on_ngsolve(tmp_path):
     """The offline / online pipeline sees only sparse operators: same code, other backend."""
     import pickle
 
-    from rbbench.rb.offline import ReduceConfig, reduce
+    from rbbench.rb.config import make_config
+    from rbbench.rb.offline import reduce
 
     sc = load_scene("membrane_obstacle", ["discretization.n_cells=8"])
     kw = dict(dual="mcpg", stabilizer="pga", N=6, R=6, n_train=9, n_valid=4, n_jobs=1,
               online_repeats=2, exact_max_r=4, cache_dir=str(tmp_path))
-    s_ng = reduce(sc, ReduceConfig(backend="ngsolve", **kw))
-    s_sk = reduce(sc, ReduceConfig(backend="skfem", **kw))
+    s_ng = reduce(sc, make_config(backend="ngsolve", **kw))
+    s_sk = reduce(sc, make_config(backend="skfem", **kw))
     a, b = s_ng.summary(), s_sk.summary()
     assert a["hyper"] == b["hyper"] == "affine"  # the membrane is affine on both backends
     assert a["err_u_max"] < 0.1 and a["beta_off_min"] > 0

@@ -223,16 +223,17 @@ SEGMENTED = ["discretization.h_contact=0.02", "discretization.h_max=0.2",
 
 
 def test_reduce_with_segmented_points_falls_back_to_plain_or_refuses(tmp_path):
-    from rbbench.rb.offline import ReduceConfig, reduce
+    from rbbench.rb.config import make_config
+    from rbbench.rb.offline import reduce
     from rbbench.scene.loading import SceneError, load_scene
 
     sc = load_scene("hertz_halfdisks", SEGMENTED)
     common = dict(dual="mcpg", stabilizer="none", N=4, R=4, n_train=4, n_valid=2, n_jobs=1,
                   cache_dir=str(tmp_path), online_repeats=1)
-    for config in (ReduceConfig(hyper="eim", **common),
-                   ReduceConfig(formulation="nitsche", solver="newton", hyper="auto",
+    for config in (make_config(hyper="eim", **common),
+                   make_config(formulation="nitsche", solver="newton", hyper="auto",
                                 **common)):
         with pytest.raises(SceneError, match="contact_integration = 'segmented'"):
             reduce(sc, config)
-    r = reduce(sc, ReduceConfig(hyper="auto", **common))  # B(mu) not affine, no EIM: plain
+    r = reduce(sc, make_config(hyper="auto", **common))  # B(mu) not affine, no EIM: plain
     assert r.hyper == "none" and np.all(np.isfinite(r.err_u)) and max(r.err_u) < 0.1

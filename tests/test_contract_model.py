@@ -9,7 +9,8 @@ import pytest
 
 from rbbench.hf.linear.model import LinearHF
 from rbbench.hf.model import HFModel
-from rbbench.rb.offline import ReduceConfig, offline
+from rbbench.rb.config import make_config
+from rbbench.rb.offline import offline
 from rbbench.scene.loading import load_scene
 from rbbench.testing import HERTZ_COARSE, ContractViolation, check_reduced_model
 
@@ -21,7 +22,7 @@ FRICTION = ["discretization.degree=1", "discretization.h_contact=0.02",
 def _reduced(tmp, scene, overrides, **fields):
     sc = load_scene(scene, overrides)
     base = dict(n_train=5, n_valid=2, online_repeats=1, cache_dir=str(tmp), n_jobs=1)
-    cfg = ReduceConfig(**{**base, **fields})
+    cfg = make_config(**{**base, **fields})
     return offline(sc, cfg, validation_snapshots=False).model, sc
 
 

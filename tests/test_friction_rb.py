@@ -15,6 +15,7 @@ import pytest
 from rbbench.hf.snapshots.compute import cache_path, compute_snapshots, snapshot_key
 from rbbench.hf.solvers import friction as fs
 from rbbench.rb.algorithms.gcns import gcns, tangential_violation
+from rbbench.rb.config import make_config
 from rbbench.rb.friction.collocation.model import (
     FrictionArrays,
     condense_reduced,
@@ -22,7 +23,7 @@ from rbbench.rb.friction.collocation.model import (
     solve_coulomb,
 )
 from rbbench.rb.friction.wedge.model import project_wedge
-from rbbench.rb.offline import ReduceConfig, offline
+from rbbench.rb.offline import offline
 from rbbench.rb.validation import validate
 from rbbench.scene.loading import load_scene
 
@@ -141,14 +142,13 @@ def test_gcns_violation_is_zero_at_the_selected_nodes():
 _CACHE: dict = {}
 
 
-def _offline(patience: int = 1, dual: str = "seed", **kw):
+def _offline(patience: int = 1, dual: str = "collocation", **kw):
     key = (patience, dual, tuple(sorted(kw.items())))
     if key not in _CACHE:
         scene = load_scene("hertz_friction", overrides=COARSE)
-        cfg = ReduceConfig(solver=SOLVER, n_train=7, n_valid=3, n_jobs=2, online_repeats=1,
+        cfg = make_config(solver=SOLVER, n_train=7, n_valid=3, n_jobs=2, online_repeats=1,
                            R=7, tol_dual=1e-12, cache_dir=str(_workdir() / ".rbbench_cache"),
-                           gcns_patience=patience, **kw)
-        cfg.friction_dual = dual  # read by rbbench.rb.friction.collocation.stage.friction_dual
+                          gcns_patience=patience, friction_dual=dual, **kw)
         _CACHE[key] = offline(scene, cfg)
     return _CACHE[key]
 

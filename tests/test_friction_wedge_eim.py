@@ -10,9 +10,10 @@ import pickle
 import numpy as np
 import pytest
 
+from rbbench.rb.config import make_config
 from rbbench.rb.friction.wedge.hyper import WedgeHyperModel, slip_deim
 from rbbench.rb.friction.wedge.model import WedgeReducedModel, project_wedge
-from rbbench.rb.offline import ReduceConfig, offline
+from rbbench.rb.offline import offline
 from rbbench.scene.loading import SceneError, load_scene
 
 COARSE = ["discretization.degree=1", "discretization.h_contact=0.02",
@@ -26,11 +27,10 @@ def _offline(tol_eim: float = 1e-10):
         import tempfile
 
         scene = load_scene("hertz_friction", overrides=COARSE)
-        cfg = ReduceConfig(solver="friction-ssn", n_train=5, n_valid=2, n_jobs=2, N=8, R=4,
+        cfg = make_config(solver="friction-ssn", n_train=5, n_valid=2, n_jobs=2, N=8, R=4,
                            S=4, stabilizer="pga", k_pga_max=6, hyper="eim", tol_eim=tol_eim,
-                           online_repeats=1,
-                           cache_dir=_CACHE.setdefault("dir", tempfile.mkdtemp()))
-        cfg.friction_dual = "wedge"
+                          online_repeats=1, friction_dual="wedge",
+                          cache_dir=_CACHE.setdefault("dir", tempfile.mkdtemp()))
         _CACHE[tol_eim] = offline(scene, cfg)
     return _CACHE[tol_eim]
 
@@ -139,7 +139,7 @@ def test_slip_deim_interpolates_at_its_nodes_and_refuses_hyper_with_seed():
     zero = slip_deim(np.zeros((12, 3)), P)
     assert zero.info["M_s"] == 0 and not zero.PQ.any()
     scene = load_scene("hertz_friction", overrides=COARSE)
-    cfg = ReduceConfig(solver="friction-ssn", hyper="eim")
+    cfg = make_config(solver="friction-ssn", hyper="eim")
     with pytest.raises(SceneError, match="wedge"):
         FrictionReduction().prepare(scene, cfg, default_registry())
     assert WedgeReducedModel.__dataclass_fields__.keys() <= \

@@ -16,7 +16,8 @@ from rbbench.hf.components import make_components
 from rbbench.hf.model import ProblemCache
 from rbbench.hf.snapshots.compute import cache_path, load_snapshot, snapshot_key
 from rbbench.rb.algorithms import infsup as inf
-from rbbench.rb.offline import ReduceConfig, reduce
+from rbbench.rb.config import make_config
+from rbbench.rb.offline import reduce
 from rbbench.scene.loading import load_scene
 from rbbench.scene.sampling import parameter_set
 
@@ -33,7 +34,7 @@ def reduced(scene, tmp_path_factory):
     """mCPG + PGA (rows hf, dec, on, off), 3 validation mus; the progress lines kept."""
     cache = tmp_path_factory.getbasetemp() / "cache_hardening"
     lines: list[str] = []
-    cfg = ReduceConfig(dual="mcpg", stabilizer="pga", n_jobs=1, n_train=9, n_valid=3,
+    cfg = make_config(dual="mcpg", stabilizer="pga", n_jobs=1, n_train=9, n_valid=3,
                        cache_dir=str(cache), online_repeats=1)
     res = reduce(scene, cfg, progress=lines.append)
     return res, lines
@@ -123,7 +124,7 @@ def test_snapshot_hf_time_from_the_cache(scene, reduced, tmp_path_factory):
     assert s["timings"]["snapshots_s"] >= s["t_snapshots_hf_s"]  # serial: wall >= sum
     assert s["t_offline_hf_s"] == pytest.approx(
         s["t_offline_s"] - s["timings"]["snapshots_s"] + s["t_snapshots_hf_s"])
-    again = reduce(scene, ReduceConfig(dual="cpg", stabilizer="none", n_jobs=1, n_train=9,
+    again = reduce(scene, make_config(dual="cpg", stabilizer="none", n_jobs=1, n_train=9,
                                        n_valid=3, cache_dir=str(cache), online_repeats=1))
     s2 = again.summary()
     assert s2["n_snapshots_cached"] == mus + 3
@@ -162,7 +163,7 @@ def test_n_above_numerical_rank_warns(scene, tmp_path_factory, monkeypatch, caps
     monkeypatch.setattr(pod_mod, "EIG_DROP", 1e-4)
     cache = tmp_path_factory.getbasetemp() / "cache_hardening"
     lines: list[str] = []
-    res = reduce(scene, ReduceConfig(dual="cpg", stabilizer="none", n_jobs=1, n_train=9,
+    res = reduce(scene, make_config(dual="cpg", stabilizer="none", n_jobs=1, n_train=9,
                                      n_valid=3, N=9, cache_dir=str(cache), online_repeats=1),
                  progress=lines.append)
     s = res.summary()

@@ -11,8 +11,9 @@ from hypothesis import strategies as st
 
 from rbbench.hf.components import make_components
 from rbbench.hf.geometry.facets import ray_cast, ray_cast_window
+from rbbench.rb.config import make_config
 from rbbench.rb.hyper.contact_eim import HyperReductionError, build_row_evaluator, contact_eim
-from rbbench.rb.offline import ReduceConfig, reduce
+from rbbench.rb.offline import reduce
 from rbbench.scene.loading import load_scene
 
 COARSE = ["discretization.h_contact=0.02", "discretization.h_max=0.2"]
@@ -176,8 +177,8 @@ def test_pipeline_with_eim_matches_the_plain_reduced_model(tmp_path):
     sc = load_scene("hertz_halfdisks", COARSE + ['sampling.valid="uniform"'])
     common = dict(dual="mcpg", stabilizer="none", N=6, R=5, n_train=7, n_valid=7, n_jobs=1,
                   cache_dir=str(tmp_path), online_repeats=2)
-    r_eim = reduce(sc, ReduceConfig(hyper="eim", tol_eim=0.0, **common))
-    r_none = reduce(sc, ReduceConfig(hyper="none", **common))
+    r_eim = reduce(sc, make_config(hyper="eim", tol_eim=0.0, **common))
+    r_none = reduce(sc, make_config(hyper="none", **common))
     assert r_eim.hyper == "eim" and r_none.hyper == "none"
     np.testing.assert_allclose(r_eim.err_u, r_none.err_u, rtol=1e-6)
     np.testing.assert_allclose(r_eim.err_lam, r_none.err_lam, rtol=1e-6)
@@ -186,7 +187,7 @@ def test_pipeline_with_eim_matches_the_plain_reduced_model(tmp_path):
     assert h["eim_error"] and all(e >= 0 for e in h["eim_error"])
     assert "eim_entrywise" in h
     # auto picks eim on Hertz (B(mu) is not affine) when the backend has a layout
-    r_auto = reduce(sc, ReduceConfig(hyper="auto", tol_eim=1e-6, **common))
+    r_auto = reduce(sc, make_config(hyper="auto", tol_eim=1e-6, **common))
     assert r_auto.hyper == "eim" and "affine_refused" in r_auto.histories
 
 
@@ -194,7 +195,7 @@ def test_online_scaling_study_runs_on_two_levels(tmp_path, monkeypatch):
     from rbbench.studies.scaling import online_scaling, scaling_markdown
 
     monkeypatch.chdir(tmp_path)
-    cfg = ReduceConfig(dual="mcpg", stabilizer="none", hyper="eim", N=4, R=4, n_train=5,
+    cfg = make_config(dual="mcpg", stabilizer="none", hyper="eim", N=4, R=4, n_train=5,
                        n_valid=2, n_jobs=1, cache_dir=str(tmp_path), online_repeats=1)
     rows = online_scaling("hertz_halfdisks", cfg, levels=(0, 1), overrides=COARSE, repeats=2,
                           progress=lambda _m: None)

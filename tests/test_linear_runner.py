@@ -150,11 +150,11 @@ def test_done_when_thermal_block_n10_side_by_side():
 
 @pytest.mark.slow
 def test_done_when_heat_n25_below_one_percent(tmp_path):
+    from rbbench.rb.config import make_config
     from rbbench.rb.linear.offline import reduce_linear
-    from rbbench.rb.offline import ReduceConfig
     from rbbench.scene.loading import load_scene
 
-    cfg = ReduceConfig(formulation="linear", primal="pod", dual="", stabilizer="", N=25,
+    cfg = make_config(formulation="linear", primal="pod", dual="", stabilizer="", N=25,
                        cache_dir=str(tmp_path), online_repeats=5)
     s = reduce_linear(load_scene("heat_robin"), cfg).summary()
     assert s["N"] == 25 and s["err_u_max"] < 1e-2 and s["effectivity_min"] >= 1

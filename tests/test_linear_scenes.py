@@ -13,8 +13,8 @@ import scipy.linalg as sla
 
 from rbbench.hf.linear.model import LinearHF, solve_linear
 from rbbench.rb.algorithms.pod import pod
+from rbbench.rb.config import make_config
 from rbbench.rb.linear.offline import LinearData, pod_greedy, reduce_linear
-from rbbench.rb.offline import ReduceConfig
 from rbbench.scene.loading import SceneError, load_scene
 
 pytestmark = pytest.mark.timeout(120)
@@ -25,7 +25,7 @@ SMALL = ["discretization.n_cells=8"]
 def _config(tmp_path, **kw):
     base = dict(formulation="linear", primal="pod", dual="", stabilizer="",
                 cache_dir=str(tmp_path / "cache"), online_repeats=2)
-    return ReduceConfig(**{**base, **kw})
+    return make_config(**{**base, **kw})
 
 
 def test_scenes_load_and_refuse_bad_data():

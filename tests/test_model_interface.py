@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from rbbench.hf.model import HFModel
-from rbbench.rb.offline import ReduceConfig, offline, reduce
+from rbbench.rb.config import make_config
+from rbbench.rb.offline import offline, reduce
 from rbbench.registry import default_registry
 from rbbench.scene.loading import load_scene
 from rbbench.scene.parameters import ParameterSpace, SceneError
@@ -29,7 +30,7 @@ def cache(tmp_path_factory):
 def _config(cache, **kw):
     base = dict(n_train=5, n_valid=3, N=4, R=4, dual="cpg", stabilizer="none",
                 online_repeats=1, cache_dir=cache, n_jobs=1)
-    return ReduceConfig(**{**base, **kw})
+    return make_config(**{**base, **kw})
 
 
 @pytest.mark.parametrize("bad, match", [

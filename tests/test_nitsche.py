@@ -17,13 +17,14 @@ from rbbench_plugins.solvers.newton import NewtonSolver
 from rbbench.cli import main
 from rbbench.hf.model import solve_hf
 from rbbench.rb.algorithms.eim import deim
+from rbbench.rb.config import make_config
 from rbbench.rb.nitsche.model import (
     _plain_system,
     full_points,
     reduced_newton,
     sparse_nnls,
 )
-from rbbench.rb.offline import ReduceConfig, reduce
+from rbbench.rb.offline import reduce
 from rbbench.registry import default_registry
 from rbbench.scene.loading import load_scene
 from rbbench.testing import HERTZ_COARSE
@@ -321,9 +322,9 @@ def nitsche_reductions(tmp_path_factory):
     sc = _scene()
     out = {}
     for N in (2, 4, 8):
-        out[N] = reduce(sc, ReduceConfig(formulation="nitsche", N=N, n_train=9, n_valid=5,
+        out[N] = reduce(sc, make_config(formulation="nitsche", N=N, n_train=9, n_valid=5,
                                          online_repeats=2, cache_dir=cache, n_jobs=1))
-    out["deim"] = reduce(sc, ReduceConfig(formulation="nitsche", N=4, hyper="eim", n_train=9,
+    out["deim"] = reduce(sc, make_config(formulation="nitsche", N=4, hyper="eim", n_train=9,
                                           n_valid=5, online_repeats=1, cache_dir=cache,
                                           n_jobs=1))
     return sc, out

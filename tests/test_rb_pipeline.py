@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from rbbench.cli import main
-from rbbench.rb.offline import ReduceConfig, reduce
+from rbbench.rb.config import make_config
+from rbbench.rb.offline import reduce
 from rbbench.scene.loading import load_scene
 
 FAST = ["discretization.n_cells=8"]
@@ -22,7 +23,7 @@ def scene():
 @pytest.mark.parametrize("dual,stab", [("mcpg", "pga"), ("cpg", "none"), ("eng", "supremizer")])
 def test_pipeline_runs_and_is_accurate(scene, tmp_path_factory, dual, stab):
     cache = tmp_path_factory.getbasetemp() / "cache"
-    r = reduce(scene, ReduceConfig(dual=dual, stabilizer=stab, n_jobs=1, n_valid=6,
+    r = reduce(scene, make_config(dual=dual, stabilizer=stab, n_jobs=1, n_valid=6,
                                    cache_dir=str(cache), online_repeats=3))
     s = r.summary()
     assert s["n_valid"] == 6 and len(r.err_u) == 6
@@ -46,8 +47,8 @@ def test_cones_beat_pod_of_multipliers(scene, tmp_path_factory):
     """Plain POD of lam (not a cone) loses positivity: larger errors than mCPG."""
     cache = tmp_path_factory.getbasetemp() / "cache"
     kw = dict(stabilizer="none", n_jobs=1, n_valid=6, cache_dir=str(cache), online_repeats=1)
-    e_pod = reduce(scene, ReduceConfig(dual="pod", **kw)).summary()["err_u_max"]
-    e_cone = reduce(scene, ReduceConfig(dual="mcpg", **kw)).summary()["err_u_max"]
+    e_pod = reduce(scene, make_config(dual="pod", **kw)).summary()["err_u_max"]
+    e_cone = reduce(scene, make_config(dual="mcpg", **kw)).summary()["err_u_max"]
     assert e_cone < e_pod
 
 

@@ -106,7 +106,7 @@ def _fill(row: dict, s: dict) -> None:
         row[col] = s["timings"].get(key)
     row["t_online_hf_assembly_s"] = s["timings"].get("t_online_hf_assembly_s")
     row["hyper_used"] = s["hyper"]
-    row["S"] = s["K_pga"] if s["config"]["stabilizer"] != "supremizer" else s["R"]
+    row["S"] = s["K_pga"] if s["config"].get("stabilizer") != "supremizer" else s["R"]
     for b in ("hf", "dec", "on", "off"):
         row[f"beta_{b}_min"] = s.get(f"beta_{b}_min")
         row[f"beta_{b}_kind"] = (s.get("beta_kind") or {}).get(b)
@@ -183,10 +183,7 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
     """Mode rb: the reduction and its online validation; fills the row's columns and
     status and returns the case's details (per-mu values, histories, validation mus)."""
     from rbbench.rb.offline import reduce
-    from rbbench.scene.linear import is_linear
 
-    if is_linear(scene):  # no contact: the linear skeleton (rbbench.rb.linear.offline)
-        from rbbench.rb.linear.offline import reduce_linear as reduce
     res = reduce(scene, case.reduce_config(cache_dir), progress=progress or _quiet,
                  registry=registry)
     s = res.summary()

@@ -51,7 +51,7 @@ import fnmatch
 import hashlib
 import itertools
 import json
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -139,11 +139,13 @@ class Case:
                 + (f" rep {self.repetition}" if self.repetition else ""))
 
     def reduce_config(self, cache_dir: str) -> Any:
-        """The :class:`~rbbench.rb.offline.ReduceConfig` of this case."""
-        from rbbench.rb.offline import ReduceConfig
+        """The :class:`~rbbench.rb.config.ReduceConfig` of this case (components that do
+        not apply to its formulation, ``""``, are left out)."""
+        from rbbench.rb.config import make_config
 
-        return ReduceConfig(**self.components, N=self.N, R=self.R, cache_dir=cache_dir,
-                            n_jobs=1, **self.params)
+        comp = {k: v for k, v in self.components.items() if v}
+        return make_config(**comp, N=self.N, R=self.R, cache_dir=cache_dir, n_jobs=1,
+                           **self.params)
 
 
 @dataclass
@@ -156,10 +158,16 @@ class Matrix:
     cases: list[Case]
 
 
-def _reduce_fields() -> dict[str, Any]:
-    from rbbench.rb.offline import ReduceConfig
+def _reduce_fields(registry: Registry | None = None) -> set[str]:
+    """The fields a matrix may name: the shared ones and every registered formulation's
+    options (a case whose formulation does not take one is a skip row)."""
+    from rbbench.rb.config import SHARED_FIELDS, formulation_options
+    from rbbench.registry import default_registry
 
-    return {f.name: f for f in fields(ReduceConfig)}
+    names = set(SHARED_FIELDS)
+    for opts in formulation_options(registry or default_registry()).values():
+        names.update(opts)
+    return names
 
 
 def _as_list(v: Any, where: str) -> list:
@@ -235,7 +243,7 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
     plan = _matrix_table(data["matrix"], path.stem, where)
     plan.axes, plan.hf_repeats = _component_axes(data, plan.mode, registry, where)
     plan.pairs = _size_pairs(data.get("sizes", {}), where)
-    rfields = _reduce_fields()
+    rfields = _reduce_fields(registry)
     plan.base = _base_params(data.get("reduce", {}), sets, rfields, where)
     for axis in set(MODEL_AXES) & set(plan.axes) & set(plan.base):
         raise MatrixError(f"{where}: {axis} is swept in [components] and set in [reduce] / "
@@ -360,7 +368,7 @@ def _size_pairs(sizes: dict, where: str) -> list[tuple[int | None, int | None]]:
     return list(itertools.product(Ns, Rs))
 
 
-def _base_params(reduce: dict, sets: list[str] | tuple[str, ...], rfields: dict,
+def _base_params(reduce: dict, sets: list[str] | tuple[str, ...], rfields: set[str],
                  where: str) -> dict[str, Any]:
     """The ``[reduce]`` fields of every case, updated by ``--set FIELD=VALUE``."""
     base = dict(reduce)
@@ -374,7 +382,7 @@ def _base_params(reduce: dict, sets: list[str] | tuple[str, ...], rfields: dict,
     return base
 
 
-def _param_grids(params: dict, axes: dict[str, list[str]], rfields: dict,
+def _param_grids(params: dict, axes: dict[str, list[str]], rfields: set[str],
                  where: str) -> dict[tuple[str, str], list[dict]]:
     """``{(role, name): [option dict, ...]}``: the product of each ``[params.role.name]``."""
     _check_keys(params, {*COMPONENT_ROLES, *MODEL_AXES}, f"{where}: [params]")
@@ -443,10 +451,15 @@ def _scene_cases(plan: _Plan, sname: str, sel: dict[str, list[str]],
         for N, R in plan.pairs:  # mode hf: no [sizes], the one pair (None, None)
             if not (_selected(N, sel.get("N")) and _selected(R, sel.get("R"))):
                 continue
+            if not comp["dual"]:  # no dual space (linear, Nitsche): R does not apply
+                R = None
+                if (used_key := (tuple(comp.items()), tuple(model.items()), N)) in seen:
+                    continue
+                seen.add(used_key)
             for opts in itertools.product(*option_sets):
                 p = {**_case_params(plan, opts), **model}
                 st, why = (status, reason) if status != "run" or plan.mode != "rb" else \
-                    reduced_model_check(scene, comp, p, registry)
+                    reduced_model_check(scene, comp, p, registry, R)
                 cases += [Case(sname, ov, comp, N, R, p, rep, scene_seed, plan.timeout_s,
                                fingerprint, plan.mode, st, why)
                           for rep in range(plan.repetitions)]
@@ -483,7 +496,7 @@ def _size(v: Any, where: str, what: str) -> int | None:
     return int(v)
 
 
-def _check_params(d: dict, rfields: dict, where: str) -> None:
+def _check_params(d: dict, rfields: set[str], where: str) -> None:
     for k in d:
         if k in _RESERVED or k not in rfields:
             valid = sorted(set(rfields) - _RESERVED)
@@ -553,30 +566,22 @@ def compatibility(scene: Scene, comp: dict[str, str],
 
 
 def reduced_model_check(scene: Scene, comp: dict[str, str], params: dict[str, Any],
-                        registry: Registry | None) -> tuple[str, str]:
-    """``("run", "")``, or ``("skip", reason)`` when the formulation's reduced friction model
-    refuses the case before any HF work (friction scenes only).
-
-    The refusal is the model's own: the friction laws its offline steps declare and their
-    early checks (``prepare``, e.g. the seed's dual model takes no ``hyper = "eim"``), run
-    on the case's ReduceConfig; the reason is their message. Without a registry, or on a
-    frictionless scene, nothing is checked here (the case records any failure itself).
-    """
-    from rbbench.rb.offline import ReduceConfig, reduction_steps
+                        registry: Registry | None, R: int | None = None) -> tuple[str, str]:
+    """``("run", "")``, or ``("skip", reason)`` when the formulation's reduced model refuses
+    the case before any HF work: the friction laws its offline steps declare, its options
+    (an option of another formulation, e.g. ``S`` on a frictionless scene, or ``R`` for a
+    formulation without a dual space) and its early checks (``prepare``, e.g. the
+    collocation friction model takes no ``hyper = "eim"``); the reason is their message.
+    Without a registry nothing is checked here (the case records any failure itself)."""
+    from rbbench.rb.config import make_config
+    from rbbench.rb.offline import prepare_config
     from rbbench.scene.loading import SceneError
 
-    law = friction_of(scene).law
-    if registry is None or law == "none":
+    if registry is None:
         return "run", ""
     try:
-        config = ReduceConfig(**comp, **params)
-        steps = reduction_steps(config, registry, law)
-        laws = getattr(steps, "friction_laws", ("none",))
-        if law not in laws:
-            return "skip", (f"the reduced {steps.name!r} model of formulation "
-                            f"{comp['formulation']!r} supports the friction laws "
-                            f"{', '.join(laws)}, not {law!r}")
-        steps.prepare(scene, config, registry)
+        prepare_config(scene, make_config(**{k: v for k, v in comp.items() if v}, R=R,
+                                          **params), registry)
     except (SceneError, ValueError) as exc:
         return "skip", str(exc)
     return "run", ""

@@ -20,6 +20,8 @@ import math
 import re
 from typing import Any
 
+from rbbench.rb.friction.options import DEPRECATED_DUALS
+from rbbench.rb.friction.options import FRICTION_DUALS as _FRICTION_DUALS
 from rbbench.scene import limits
 
 __all__ = ["MAX_CASES", "MAX_REPETITIONS", "MAX_SIZE", "MAX_TIMEOUT_S", "REDUCE_FIELDS",
@@ -62,8 +64,8 @@ REDUCE_FIELDS: dict[str, tuple] = {
 }
 
 
-#: the reduced friction dual models (rbbench.rb.friction.offline.friction_dual)
-FRICTION_DUALS = ("seed", "wedge")
+#: the reduced friction dual models (rbbench.rb.friction.options), and their old names
+FRICTION_DUALS = (*_FRICTION_DUALS, *DEPRECATED_DUALS)
 
 
 def _online_methods() -> tuple[str, ...]:
@@ -113,15 +115,17 @@ def check_reduce_value(key: str, value: Any, where: str) -> None:
 
 def check_reduce_values(d: dict, where: str, grid: bool = False) -> None:
     """Every value of a ``[reduce]`` table (``grid``: of a ``[params.*]`` table, whose
-    values are lists of candidates), then the whole as a ReduceConfig."""
-    from rbbench.rb.offline import ReduceConfig
+    values are lists of candidates), then the whole as a ReduceConfig (a field that no
+    formulation takes is refused here; one that the case's formulation does not take makes
+    a skip row, :func:`rbbench.bench.matrix.reduced_model_check`)."""
+    from rbbench.rb.config import make_config
 
     for key, value in d.items():
         for v in (value if grid and isinstance(value, list) else [value]):
             check_reduce_value(key, v, where)
     if not grid:
         try:
-            ReduceConfig(**d)
+            make_config(**d)
         except (TypeError, ValueError) as exc:
             raise MatrixError(f"{where}: {exc}") from None
 

@@ -1,76 +1,87 @@
 """``rbbench reduce`` (offline stage and validation: ``result.json``) and
-``rbbench online-scaling``."""
+``rbbench online-scaling``: thin layers over :func:`rbbench.api.reduce`.
+
+Every reduction flag defaults to "not given" (``argparse.SUPPRESS``): only the fields the
+user typed reach the Python API, which takes the shared fields and the formulation's own
+options alike and refuses an option of another formulation before any HF work; the error
+names the flag as typed (:func:`flag`).
+"""
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
+from typing import Any
 
-from rbbench.cli.common import _add_option_args, _backend_options, _resolve_solver
-from rbbench.cli.console import _print_reduce_summary, _Progress
-from rbbench.runtime import openblas_env as _openblas_env  # noqa: F401  (first: before numpy loads OpenBLAS)
-from rbbench.scene.linear import is_linear
+from rbbench.cli.common import _add_option_args, _backend_options
+from rbbench.cli.console import _print_reduce_summary, _Progress, print_linear_reduce
+from rbbench.rb.config import OptionError
 from rbbench.scene.loading import SceneError, load_scene
 
-
-def _reduce_config(args):
-    from rbbench.rb.offline import ReduceConfig
-
-    _resolve_solver(args)
-    for flag, key in (("-N", "N"), ("-R", "R"), ("-S", "S"), ("--n-train", "n_train"),
-                      ("--n-valid", "n_valid"), ("--jobs", "jobs"), ("--m-eim", "m_eim")):
-        v = getattr(args, key, None)
-        if v is not None and v < 1:
-            raise SceneError(f"{flag} {v}: must be an integer >= 1")
-    try:
-        return ReduceConfig(primal=args.primal, dual=args.dual, stabilizer=args.stabilizer,
-                            hyper=args.hyper, N=args.N, R=args.R, S=args.S,
-                            n_train=args.n_train,
-                            n_valid=args.n_valid, n_jobs=args.jobs, solver=args.solver,
-                            backend=args.backend, formulation=args.formulation,
-                            tol_eim=args.tol_eim, m_eim=args.m_eim, delta_pga=args.delta_pga,
-                            k_pga_max=args.k_pga_max, online_method=args.online_method,
-                            gcns_per_iteration=args.gcns_per_iteration,
-                            gcns_patience=args.gcns_patience,
-                            friction_dual=args.friction_dual,
-                            backend_options=_backend_options(args.backend_option),
-                            formulation_options=_backend_options(
-                                args.formulation_option, "--formulation-option"))
-    except ValueError as exc:
-        raise SceneError(str(exc)) from None
+#: flags that are not ``--`` + the field's name with dashes
+FLAGS = {"N": "-N", "R": "-R", "S": "-S", "k_pga_max": "--k-max", "n_jobs": "--jobs"}
+#: integer flags that must be >= 1 (checked here, so that the message names the flag)
+POSITIVE = ("N", "R", "S", "n_train", "n_valid", "n_jobs", "m_eim", "n_eim_train", "k_pga_max",
+            "online_repeats", "gcns_per_iteration", "gcns_max", "gcns_patience")
+#: argparse destinations that are not reduction fields
+_NOT_FIELDS = {"scene", "func", "command", "set", "out", "quiet", "backend_option",
+               "formulation_option", "levels", "repeats"}
 
 
-def cmd_online_scaling(args) -> int:
-    from rbbench.studies.scaling import online_scaling, scaling_markdown
-
-    rows = online_scaling(args.scene, _reduce_config(args), tuple(args.levels),
-                          tuple(args.set or ()), repeats=args.repeats,
-                          progress=_Progress(args.quiet))
-    print(scaling_markdown(rows))
-    print("(online time: one reduced solve incl. the EIM evaluation; median and IQR over "
-          "validation mus x repeats, models interleaved; ratio: median / first level's)")
-    return 0
+def flag(field: str) -> str:
+    """The command-line flag of a reduction field (``S`` -> ``-S``)."""
+    return FLAGS.get(field, "--" + field.replace("_", "-"))
 
 
-def cmd_reduce(args) -> int:
-    from rbbench.rb.offline import reduce
+def reduce_fields(args: argparse.Namespace) -> dict[str, Any]:
+    """The reduction fields the user gave, integer flags checked (>= 1)."""
+    fields = {k: v for k, v in vars(args).items() if k not in _NOT_FIELDS}
+    for key in POSITIVE:
+        if key in fields and fields[key] < 1:
+            raise SceneError(f"{flag(key)} {fields[key]}: must be an integer >= 1")
+    if getattr(args, "backend_option", None):
+        fields["backend_options"] = _backend_options(args.backend_option)
+    if getattr(args, "formulation_option", None):
+        fields["formulation_options"] = _backend_options(args.formulation_option,
+                                                         "--formulation-option")
+    return fields
+
+
+def _flagged(exc: OptionError) -> SceneError:
+    """An option error with the flag the user typed in place of the field's name."""
+    return SceneError(exc.message(flag(exc.option)))
+
+
+def cmd_reduce(args: argparse.Namespace) -> int:
+    from rbbench.api import reduce
+    from rbbench.scene.linear import is_parabolic
 
     scene = load_scene(args.scene, overrides=args.set or [])
-    if is_linear(scene):
-        return _reduce_linear(scene, args)
-    _resolve_solver(args, scene)  # a friction scene: the solver declaring its law
-    cfg = _reduce_config(args)
-    progress = _Progress(args.quiet)
-    res = reduce(scene, cfg, progress=progress, snapshot_progress=not args.quiet)
+    try:
+        res = reduce(scene, progress=_Progress(args.quiet), snapshot_progress=not args.quiet,
+                     **reduce_fields(args))
+    except OptionError as exc:
+        raise _flagged(exc) from None
     s = res.summary()
-    tag = f"nitsche_{res.hyper}" if cfg.formulation == "nitsche" else \
-        f"{args.dual}_{args.stabilizer}"
-    if cfg.friction_dual != "seed":
-        tag += f"_{cfg.friction_dual}"
-    path = _write_result(args, scene, tag, s)
-    _print_reduce_summary(s, cfg.formulation)
+    c = s["config"]
+    path = _write_result(args, scene, _tag(c, res.hyper), s)
+    if c["formulation"] == "linear":
+        print_linear_reduce(s, is_parabolic(scene), scene.data["discretization"]["inner_product"])
+    else:
+        _print_reduce_summary(s, c["formulation"])
     print(f"wrote: {path}")
     return 0
+
+
+def _tag(c: dict[str, Any], hyper: str) -> str:
+    """The default output folder's suffix: the formulation's main choices."""
+    if c["formulation"] == "linear":
+        return "linear"
+    if c["formulation"] == "nitsche":
+        return f"nitsche_{hyper}"
+    tag = f"{c['dual']}_{c['stabilizer']}"
+    return tag + (f"_{c['friction_dual']}" if c.get("friction_dual") == "wedge" else "")
 
 
 def _write_result(args, scene, tag: str, s: dict) -> Path:
@@ -84,79 +95,100 @@ def _write_result(args, scene, tag: str, s: dict) -> Path:
     return out / "result.json"
 
 
-def _reduce_linear(scene, args) -> int:
-    """``rbbench reduce`` of a linear scene (:func:`rbbench.api.linear_config`)."""
-    from rbbench.api import linear_config
-    from rbbench.cli.console import print_linear_reduce
-    from rbbench.rb.linear.offline import reduce_linear
-    from rbbench.scene.linear import is_parabolic
+def cmd_online_scaling(args: argparse.Namespace) -> int:
+    from rbbench.rb.config import make_config
+    from rbbench.studies.scaling import online_scaling, scaling_markdown
 
-    fields = {"formulation": args.formulation} if args.formulation != "mixed" else {}
-    cfg = linear_config(scene, **fields, primal=args.primal, hyper=args.hyper, N=args.N,
-                        n_train=args.n_train, n_valid=args.n_valid, backend=args.backend,
-                        backend_options=_backend_options(args.backend_option))
-    s = reduce_linear(scene, cfg, progress=_Progress(args.quiet)).summary()
-    path = _write_result(args, scene, "linear", s)
-    print_linear_reduce(s, is_parabolic(scene), scene.data["discretization"]["inner_product"])
-    print(f"wrote: {path}")
+    try:
+        rows = online_scaling(args.scene, make_config(**reduce_fields(args)),
+                              tuple(args.levels), tuple(args.set or ()), repeats=args.repeats,
+                              progress=_Progress(args.quiet))
+    except OptionError as exc:
+        raise _flagged(exc) from None
+    print(scaling_markdown(rows))
+    print("(online time: one reduced solve incl. the EIM evaluation; median and IQR over "
+          "validation mus x repeats, models interleaved; ratio: median / first level's)")
     return 0
 
 
-def _add_reduce_args(rd) -> None:
+def _add_reduce_args(rd: argparse.ArgumentParser) -> None:
+    """The reduction flags: the shared fields, then each formulation's options (the help
+    says whose); none has a default here (the formulation's own applies)."""
+    rd.argument_default = argparse.SUPPRESS
     _add_option_args(rd)
-    rd.add_argument("--primal", default="pod")
-    rd.add_argument("--dual", default="mcpg", help="pod, cpg, mcpg, eng, nnmf")
-    rd.add_argument("--stabilizer", default="pga", help="none, supremizer, pga")
-    rd.add_argument("--hyper", default="auto",
-                    help="auto (affine if exact, else eim), affine (exact), eim (EIM of "
-                         "B(mu) Z and G(mu)), none (plain: HF assembly projected online); "
-                         "nitsche: auto = empirical cubature at the contact points, eim = DEIM, "
-                         "none = plain; friction: auto = none (plain), eim = the wedge model's "
-                         "EIM of its B, g and DEIM of the slip (--friction-dual wedge only)")
-    rd.add_argument("--online-method", default="auto",
-                    help="reduced solver: auto, nnls, pdas (condensed LCP), daqp (primal QP)")
-    rd.add_argument("--tol-eim", type=float, default=1e-4,
-                    help="EIM tolerance (relative max-norm training error)")
-    rd.add_argument("--m-eim", type=int, default=None, dest="m_eim",
-                    help="cap on the number of EIM terms (default: the tolerance decides)")
-    rd.add_argument("--delta-pga", type=float, default=None,
-                    help="PGA tolerance on sigma_max (default: see result.json pga_delta)")
-    rd.add_argument("--k-max", type=int, default=None, dest="k_pga_max",
-                    help="cap on the PGA dimension K (online primal size N + K)")
-    rd.add_argument("-N", type=int, default=None,
-                    help="primal size (default: POD tolerance); clipped to the number of "
-                         "training snapshots and to their numerical rank, with a warning "
-                         "in result.json 'warnings' and on the console (N in result.json: "
-                         "the size built)")
-    rd.add_argument("-R", type=int, default=None, help="max dual size (default: tolerance)")
-    rd.add_argument("-S", type=int, default=None,
-                    help="friction: tangential size (POD of lam_t; default: R)")
-    rd.add_argument("--gcns-per-iteration", type=int, default=2,
-                    help="friction: GCNS nodes added per iteration (seed: 2)")
-    rd.add_argument("--gcns-patience", type=int, default=1,
-                    help="friction: GCNS stops after this many increases of e_GCNS, keeping "
-                         "the best set (1: the seed's rule e(q) > e(q-1))")
-    rd.add_argument("--friction-dual", choices=("seed", "wedge"), default="seed",
-                    help="friction: the seed's dual model (normal cone + POD of lam_t + GCNS "
-                         "collocation) or 'wedge' (cones of F lam_n +- lam_t, De Saxce's "
-                         "fixed point: the Coulomb cone at every node)")
-    rd.add_argument("--n-train", type=int, default=None)
-    rd.add_argument("--n-valid", type=int, default=None)
-    rd.add_argument("--jobs", type=int, default=None, help="processes for HF snapshots")
-    rd.add_argument("--backend", default="skfem")
-    rd.add_argument("--formulation", default="mixed", help="mixed or nitsche")
-    rd.add_argument("--solver", default=None,
-                    help="default: the formulation's (ssn for mixed, newton for nitsche)")
-    rd.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    g = rd.add_argument_group("shared by every formulation")
+    g.add_argument("--formulation", help="mixed (default; linear on a linear scene), nitsche")
+    g.add_argument("--backend", help="skfem (default), ngsolve")
+    g.add_argument("--solver", help="the HF solver of the snapshots (default: the "
+                   "formulation's own: ssn for mixed, friction-ssn on a friction scene, "
+                   "newton for nitsche; a linear scene has none)")
+    g.add_argument("--primal", help="primal compressor: pod (default), greedy")
+    g.add_argument("--hyper", help="auto (default: the formulation's rule), affine (exact), "
+                   "eim (mixed: EIM of B(mu) Z and G(mu); nitsche: DEIM; friction: the wedge "
+                   "model's EIM of its B, g and DEIM of the slip), ecsw / deim (nitsche), "
+                   "none (plain: HF assembly projected online)")
+    g.add_argument("-N", type=int, help="primal size (default: POD tolerance --tol-pod); "
+                   "clipped to the number of training snapshots and to their numerical rank, "
+                   "with a warning in result.json 'warnings' (N there: the size built)")
+    g.add_argument("--tol-pod", type=float, help="POD energy tolerance (default 1e-4)")
+    g.add_argument("--n-train", type=int, help="training parameters (default: the scene's)")
+    g.add_argument("--n-valid", type=int, help="validation parameters (default: the scene's)")
+    g.add_argument("--online-repeats", type=int,
+                   help="timed online solves per validation parameter (default 20)")
+    g.add_argument("--jobs", type=int, dest="n_jobs",
+                   help="processes for the HF snapshots (default: the CPUs)")
+    g.add_argument("--cache-dir", help="HF snapshot cache (default .rbbench_cache)")
+    m = rd.add_argument_group("mixed formulation (frictionless and friction scenes)")
+    m.add_argument("--dual", help="dual compressor of the multiplier cone (registered: "
+                   "rbbench plugins, role dual; default mcpg)")
+    m.add_argument("-R", type=int, help="maximal dual size (default: --tol-dual)")
+    m.add_argument("--tol-dual", type=float, help="dual compressor tolerance on e_proj "
+                   "(default 1e-3)")
+    m.add_argument("--stabilizer", help="none, supremizer (frictionless only), pga "
+                   "(default)")
+    m.add_argument("--delta-pga", type=float,
+                   help="PGA tolerance on sigma_max (default: see result.json pga_delta)")
+    m.add_argument("--k-max", type=int, dest="k_pga_max",
+                   help="cap on the PGA dimension K (online primal size N + K)")
+    m.add_argument("--exact-max-r", type=int, help="largest cone whose inf-sup constant is "
+                   "computed exactly (default 10; larger: bounds)")
+    m.add_argument("--online-method", help="frictionless: reduced solver auto (default), "
+                   "nnls, pdas (condensed LCP), daqp (primal QP)")
+    f = rd.add_argument_group("mixed formulation on friction scenes")
+    f.add_argument("--friction-dual", choices=("collocation", "wedge", "seed"),
+                   help="the dual model: collocation (default: normal cone, POD of lam_t, "
+                   "Coulomb collocated at GCNS nodes) or wedge (cones of F lam_n +- lam_t, "
+                   "De Saxce's fixed point: the Coulomb cone at every node); 'seed': old "
+                   "name of collocation (deprecated)")
+    f.add_argument("-S", type=int, help="tangential size (collocation: POD of lam_t; wedge: "
+                   "generators of the F lam_n - lam_t cone; default R)")
+    f.add_argument("--gcns-per-iteration", type=int,
+                   help="collocation: GCNS nodes added per iteration (default 2)")
+    f.add_argument("--gcns-max", type=int, help="collocation: GCNS iterations at most")
+    f.add_argument("--gcns-patience", type=int,
+                   help="collocation: GCNS stops after this many increases of e_GCNS, keeping "
+                   "the best set (default 1: stop at the first increase)")
+    e = rd.add_argument_group("hyper-reduction (mixed, friction wedge, nitsche)")
+    e.add_argument("--tol-eim", type=float,
+                   help="EIM / DEIM / ECSW tolerance (relative training error; default 1e-4)")
+    e.add_argument("--m-eim", type=int,
+                   help="cap on the number of EIM terms or cubature points (default: the "
+                   "tolerance decides)")
+    e.add_argument("--n-eim-train", type=int, help="EIM training grid size (default: a "
+                   "multiple of --n-train)")
+    rd.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE", default=None,
+                    help="override a scene value (repeatable)")
 
 
 def _add_reduce_parser(sub) -> None:
-    rd = sub.add_parser("reduce", help="offline RB stage + online validation (mixed or "
-                        "nitsche formulation): errors, inf-sup constants, timings -> result.json")
-    rd.add_argument("scene")
+    rd = sub.add_parser("reduce", help="offline RB stage + online validation (mixed, nitsche "
+                        "or linear formulation): errors, inf-sup constants, timings -> "
+                        "result.json; an option of another formulation is an error")
+    rd.add_argument("scene", help="scene name in problems/ or path to a .toml file")
     _add_reduce_args(rd)
-    rd.add_argument("--out")
-    rd.add_argument("--quiet", action="store_true")
+    rd.add_argument("--out", default=None,
+                    help="output directory (default results/reduce/<scene>_<choices>)")
+    rd.add_argument("--quiet", action="store_true", default=False, help="no progress lines")
     rd.set_defaults(func=cmd_reduce)
 
 
@@ -168,5 +200,5 @@ def _add_online_scaling_parser(sub) -> None:
     _add_reduce_args(osc)
     osc.add_argument("--levels", type=int, nargs="+", default=[0, 1])
     osc.add_argument("--repeats", type=int, default=30)
-    osc.add_argument("--quiet", action="store_true")
+    osc.add_argument("--quiet", action="store_true", default=False)
     osc.set_defaults(func=cmd_online_scaling, hyper="eim")

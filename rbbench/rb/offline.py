@@ -13,34 +13,29 @@ e.g. :mod:`rbbench.rb.mixed.offline`, :mod:`rbbench.rb.nitsche.offline`) -> redu
 
 from __future__ import annotations
 
-import inspect
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from rbbench.hf.components import make_components
+from rbbench.hf.components import default_solver, make_components
 from rbbench.hf.model import ProblemCache, ProblemSource
 from rbbench.hf.snapshots.compute import SnapshotSet, compute_snapshots
-from rbbench.rb.hyper.reducers import BUILTIN as BUILTIN_HYPER
-from rbbench.rb.mixed.model import ONLINE_METHODS
+from rbbench.rb.config import ReduceConfig, parse_options, reduction_steps
 from rbbench.rb.validation import ReducedStage, ReduceResult, validate
 from rbbench.registry import Registry, default_registry
 from rbbench.runtime.workers import keep_workers
 from rbbench.scene.friction import friction_of
+from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import Scene, SceneError
 from rbbench.scene.sampling import parameter_set
 
-__all__ = ["DivergedError", "HYPER", "OfflineContext", "Offline", "ReduceConfig",
-           "ReduceResult", "check_finite",
-           "clipped_size", "eim_grid", "eim_training_set", "fixed_contact_points",
-           "offline", "primal_basis", "primal_histories", "reduce", "training_snapshots"]
-
-HYPER = ("auto", *BUILTIN_HYPER)  # "auto" (the formulation's rule) + the hyper-reducers
-
+__all__ = ["DivergedError", "OfflineContext", "Offline", "ReduceResult", "check_finite",
+           "clipped_size", "eim_grid", "eim_training_set", "fixed_contact_points", "offline",
+           "prepare_config", "primal_basis", "primal_histories", "reduce", "training_snapshots"]
 
 class DivergedError(RuntimeError):
     """A stage produced non-finite numbers (the runner's ``diverged`` status)."""
@@ -50,64 +45,6 @@ def check_finite(what: str, a: np.ndarray) -> None:
     """Raise :class:`DivergedError` if ``a`` has non-finite entries (``what``: the name)."""
     if not np.all(np.isfinite(a)):
         raise DivergedError(f"{what} has {int(np.sum(~np.isfinite(a)))} non-finite entries")
-
-
-@dataclass
-class ReduceConfig:
-    """Choices of one reduction (CLI ``rbbench reduce``)."""
-
-    primal: str = "pod"
-    dual: str = "mcpg"
-    stabilizer: str = "pga"
-    hyper: str = "auto"
-    N: int | None = None
-    R: int | None = None
-    S: int | None = None  # friction: dim X_S (POD of lam_t); default: R as built
-    tol_pod: float = 1e-4
-    tol_dual: float = 1e-3
-    delta_pga: float | None = None  # default: max beta / c over a training subset (seed rule)
-    k_pga_max: int | None = None  # cap on dim S_PGA (the online size is N + K)
-    n_train: int | None = None
-    n_valid: int | None = None
-    backend: str = "skfem"
-    formulation: str = "mixed"
-    solver: str = "ssn"
-    n_jobs: int | None = None
-    cache_dir: str = ".rbbench_cache"
-    online_repeats: int = 20
-    online_method: str = "auto"  # reduced solver: auto, nnls or pdas (LCP), daqp (QP)
-    backend_options: dict = field(default_factory=dict)  # e.g. NGSolve {"mesh": "skfem"}
-    formulation_options: dict = field(default_factory=dict)  # e.g. Nitsche {"gamma0": 1.0}
-    exact_max_r: int = 10
-    tol_eim: float = 1e-4
-    m_eim: int | None = None
-    n_eim_train: int | None = None  # default: 4 (n_train - 1) + 1 grid points (+ training);
-    # Nitsche: 2 (n_train - 1) + 1 (rbbench.rb.nitsche.offline)
-    gcns_per_iteration: int = 2  # friction: GCNS nodes added per iteration (seed: 40 / 20)
-    gcns_max: int | None = None  # friction: cap on the GCNS iterations
-    gcns_patience: int = 1  # friction: GCNS stops after this many increases (1: the seed)
-    # friction dual model: "seed" (normal cone + POD X_S + GCNS collocation) or "wedge" (ours:
-    # cones of F lam_n +- lam_t, De Saxce's fixed point; rbbench.rb.friction.wedge.model)
-    friction_dual: str = "seed"
-
-    @property
-    def component_options(self) -> dict:
-        """``{"backend": ..., "formulation": ...}`` for
-        :func:`rbbench.hf.components.make_components`."""
-        return {"backend": dict(self.backend_options),
-                "formulation": dict(self.formulation_options)}
-
-    def __post_init__(self) -> None:
-        # component names are checked against the registry in reduce(); here only what
-        # does not depend on which plugins are installed
-        if self.hyper not in HYPER:
-            raise ValueError(f"hyper {self.hyper!r}: valid: {', '.join(HYPER)}")
-        if self.online_method not in ONLINE_METHODS:
-            raise ValueError(f"online method {self.online_method!r}: valid: "
-                             f"{', '.join(ONLINE_METHODS)}")
-        if self.stabilizer == "supremizer" and self.hyper in ("affine", "eim"):
-            raise ValueError("stabilizer 'supremizer' builds V_N + S_R(mu) online from the HF "
-                             f"B(mu): use hyper 'none' or 'auto', not {self.hyper!r}")
 
 
 def _progress(msg: str) -> None:
@@ -145,6 +82,11 @@ class OfflineContext:
     def Z(self) -> np.ndarray:
         return self.primal.Z
 
+    @property
+    def options(self) -> Any:
+        """The formulation's options (its dataclass, parsed by :func:`prepare_config`)."""
+        return self.config.options
+
     def problem_source(self) -> ProblemSource:
         """``mu -> HF problem`` assembled afresh, on this context's components (picklable:
         the online stage of a model without hyper-reduction)."""
@@ -170,16 +112,6 @@ class Offline:
         return self.stage.model
 
 
-def reduction_steps(config: ReduceConfig, registry: Registry, law: str = "none") -> Any:
-    """The offline steps of ``config.formulation`` (its plugin's ``reduction()``; for a
-    friction ``law``, ``reduction(friction=law)`` when the plugin takes that keyword)."""
-    form = registry.create("formulation", config.formulation,
-                           **dict(config.formulation_options))
-    if law != "none" and "friction" in inspect.signature(form.reduction).parameters:
-        return form.reduction(friction=law)
-    return form.reduction()
-
-
 def check_hyper(config: ReduceConfig, registry: Registry) -> None:
     """The hyper-reducer ``config.hyper`` is registered and declares the formulation
     (``"auto"``: the formulation's own rule)."""
@@ -187,22 +119,52 @@ def check_hyper(config: ReduceConfig, registry: Registry) -> None:
         registry.create("hyper", config.hyper).check(config.formulation)
 
 
-def offline(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] = _progress,
-            snapshot_progress: bool = False, registry: Registry | None = None,
-            validation_snapshots: bool = True) -> Offline:
-    """Build the reduced model of ``config`` (no validation): snapshots, primal space, then
-    the formulation's steps. ``validation_snapshots = False`` skips the HF solves at the
-    validation parameters (the model is the same: only their values are used offline)."""
-    reg = registry or default_registry()
+def prepare_config(scene: Scene, config: ReduceConfig, registry: Registry
+                   ) -> tuple[Any, ReduceConfig]:
+    """The formulation's offline steps and the configuration they will run, checked before
+    any HF work: the formulation (default: ``linear`` on a linear scene, else ``mixed``),
+    the steps support the scene's friction law, the solver (default: the
+    formulation's own for that law), the formulation's options (:func:`parse_options`:
+    an option of another formulation is an :class:`~rbbench.rb.config.OptionError`),
+    the steps' own checks (``prepare``) and the hyper-reducer."""
     law = friction_of(scene).law
-    steps = reduction_steps(config, reg, law)
+    if config.formulation is None:
+        config = replace(config, formulation="linear" if is_linear(scene) else "mixed")
+    elif is_linear(scene) and config.formulation != "linear":
+        raise SceneError(f"{scene.path}: a linear scene (no contact) is reduced by the "
+                         f"formulation 'linear', not {config.formulation!r}")
+    steps = reduction_steps(config, registry, law)
     laws = getattr(steps, "friction_laws", ("none",))
     if law not in laws:
         raise SceneError(f"{scene.path}: [friction] law = {law!r}: the reduced "
                          f"{steps.name!r} model supports {', '.join(map(repr, laws))}; "
                          "solve the HF friction problem with `rbbench solve`")
-    config = steps.prepare(scene, config, reg)  # early checks, before any HF work
-    check_hyper(config, reg)
+    if config.solver is None and getattr(steps, "takes_solver", True):
+        config = replace(config, solver=default_solver(config.formulation, registry, law))
+    config = replace(config, options=parse_options(steps, config.options, registry))
+    config = steps.prepare(scene, config, registry)  # the steps' checks, before any HF work
+    check_hyper(config, registry)
+    return steps, config
+
+
+def offline(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] = _progress,
+            snapshot_progress: bool = False, registry: Registry | None = None,
+            validation_snapshots: bool = True) -> Offline:
+    """Build the reduced model of ``config`` (no validation): snapshots, primal space, then
+    the formulation's steps. ``validation_snapshots = False`` skips the HF solves at the
+    validation parameters (the model is the same: only their values are used offline).
+    A formulation with a skeleton of its own (the linear one) is reduced by :func:`reduce`."""
+    reg = registry or default_registry()
+    steps, config = prepare_config(scene, config, reg)
+    if hasattr(steps, "run"):
+        raise ValueError(f"{steps.label} runs a skeleton of its own: use reduce()")
+    return _build(scene, steps, config, progress, snapshot_progress, reg,
+                  validation_snapshots)
+
+
+def _build(scene: Scene, steps: Any, config: ReduceConfig, progress: Callable[[str], None],
+           snapshot_progress: bool, reg: Registry, validation_snapshots: bool) -> Offline:
+    """The shared offline skeleton on a prepared configuration (:func:`offline`)."""
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
     mus_train, train, mus_valid, valid = training_snapshots(
@@ -229,12 +191,18 @@ def offline(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] 
 def reduce(scene: Scene, config: ReduceConfig, progress: Callable[[str], None] = _progress,
            snapshot_progress: bool = False, registry: Registry | None = None) -> ReduceResult:
     """Run the offline stage on the training set and validate online (:func:`offline`, then
-    :func:`rbbench.rb.validation.validate`).
+    :func:`rbbench.rb.validation.validate`): the one dispatch of every reduction (the
+    command line, the Python API and the runner call it).
 
     The components are the registered plugins named in ``config`` (``registry``: default,
-    the discovered plugins); the formulation plugin supplies its reduction steps.
+    the discovered plugins); the formulation plugin supplies its reduction steps, and a
+    formulation with a skeleton of its own (``steps.run``: the linear one) runs it.
     """
-    off = offline(scene, config, progress, snapshot_progress, registry)
+    reg = registry or default_registry()
+    steps, config = prepare_config(scene, config, reg)
+    if hasattr(steps, "run"):
+        return steps.run(scene, config, progress, reg)
+    off = _build(scene, steps, config, progress, snapshot_progress, reg, True)
     return validate(off.context, off.stage)
 
 
@@ -270,22 +238,22 @@ def fixed_contact_points(scene: Scene, hyper: str, plain_ok: bool = True) -> boo
     return False
 
 
-def eim_grid(scene: Scene, config: ReduceConfig, n_train: int, per_interval: int = 4
+def eim_grid(scene: Scene, options: Any, n_train: int, per_interval: int = 4
              ) -> np.ndarray:
-    """``config.n_eim_train`` parameters (default ``per_interval (n_train - 1) + 1``): a
+    """``options.n_eim_train`` parameters (default ``per_interval (n_train - 1) + 1``): a
     uniform grid of D for one parameter, else the scene's training sampling."""
     lo, hi = scene.bounds[:, 0], scene.bounds[:, 1]
-    n_grid = config.n_eim_train or per_interval * (n_train - 1) + 1
+    n_grid = options.n_eim_train or per_interval * (n_train - 1) + 1
     if len(lo) == 1:
         return lo + np.linspace(0.0, 1.0, n_grid)[:, None] * (hi - lo)
     return parameter_set(scene, "train", n_grid)
 
 
-def eim_training_set(scene: Scene, config: ReduceConfig, mus_train: np.ndarray) -> np.ndarray:
+def eim_training_set(scene: Scene, options: Any, mus_train: np.ndarray) -> np.ndarray:
     """The EIM training set: the snapshot parameters plus :func:`eim_grid` (default
     4 (n_train - 1) + 1 points). Only the contact operators are evaluated there (no HF
     solve), so it can be much denser (seed: 61, 150)."""
-    return np.vstack([np.asarray(mus_train), eim_grid(scene, config, len(mus_train))])
+    return np.vstack([np.asarray(mus_train), eim_grid(scene, options, len(mus_train))])
 
 
 def primal_basis(reg: Registry, config: ReduceConfig, U: np.ndarray, X: Any,

@@ -26,14 +26,14 @@ def heat_seed(n_cells: int = 64, N: int = 25, n_train: int | None = None,
               n_valid: int | None = None, repeats: int = 20, backend: str = "skfem",
               progress=print) -> dict[str, Any]:
     """rbbench's figures on ``heat_robin`` (``n_cells`` squares per side) with ``N``."""
+    from rbbench.rb.config import make_config
     from rbbench.rb.linear.offline import reduce_linear
-    from rbbench.rb.offline import ReduceConfig
     from rbbench.scene.loading import load_scene
 
     scene = load_scene("heat_robin", [f"discretization.n_cells={n_cells}"])
     progress(f"heat_robin, {n_cells} x {n_cells} squares, N = {N} ({backend})")
     with tempfile.TemporaryDirectory() as cache:
-        cfg = ReduceConfig(formulation="linear", primal="pod", dual="", stabilizer="", N=N,
+        cfg = make_config(formulation="linear", primal="pod", dual="", stabilizer="", N=N,
                            n_train=n_train, n_valid=n_valid, cache_dir=cache,
                            online_repeats=repeats, backend=backend)
         s = reduce_linear(scene, cfg).summary()

@@ -22,7 +22,8 @@ def formulation_comparison(scene: str = "hertz_halfdisks", overrides=(), n_train
        (same ``N``; no dual space), u in the X norm and the multiplier / pressure in
        L2(Gamma_c) (mixed: the W norm of ``lam``).
     """
-    from rbbench.rb.offline import ReduceConfig, reduce
+    from rbbench.rb.config import make_config
+    from rbbench.rb.offline import reduce
     from rbbench.scene.sampling import parameter_set
 
     sc = load_scene(scene, list(overrides))
@@ -39,12 +40,12 @@ def formulation_comparison(scene: str = "hertz_halfdisks", overrides=(), n_train
     reduced = []
     common = dict(N=N, n_train=n_train, n_valid=n_valid, cache_dir=cache_dir)
     for R in Rs:
-        s = reduce(sc, ReduceConfig(R=R, tol_dual=0.0, **common)).summary()
+        s = reduce(sc, make_config(R=R, tol_dual=0.0, **common)).summary()
         reduced.append({"formulation": "mixed", "N": s["N"], "R": s["R"], "K": s["K_pga"],
                         "err_u_max": s["err_u_max"], "err_lam_max": s["err_lam_max"],
                         "t_online_s": s["t_online_median_s"]})
         progress(f"mixed reduction, R = {R}: err_u_max = {s['err_u_max']:.3e}")
-    s = reduce(sc, ReduceConfig(formulation="nitsche", **common)).summary()
+    s = reduce(sc, make_config(formulation="nitsche", **common)).summary()
     reduced.append({"formulation": "nitsche", "N": s["N"], "R": None, "K": 0,
                     "err_u_max": s["err_u_max"], "err_lam_max": s["err_lam_max"],
                     "t_online_s": s["t_online_median_s"]})

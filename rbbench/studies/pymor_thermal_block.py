@@ -52,11 +52,11 @@ def rbbench_column(scene: Any, N: int, n_train: int, n_valid: int, repeats: int,
                    backend: str = "skfem") -> dict[str, Any]:
     """rbbench's figures: :func:`rbbench.rb.linear.offline.reduce_linear` with a fresh
     snapshot cache (the training snapshots are solved, not read)."""
+    from rbbench.rb.config import make_config
     from rbbench.rb.linear.offline import reduce_linear
-    from rbbench.rb.offline import ReduceConfig
 
     with tempfile.TemporaryDirectory() as cache:
-        cfg = ReduceConfig(formulation="linear", primal="pod", dual="", stabilizer="", N=N,
+        cfg = make_config(formulation="linear", primal="pod", dual="", stabilizer="", N=N,
                            n_train=n_train, n_valid=n_valid, cache_dir=cache,
                            online_repeats=repeats, backend=backend)
         s = reduce_linear(scene, cfg).summary()

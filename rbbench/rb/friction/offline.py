@@ -29,22 +29,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from rbbench.rb.friction.collocation.stage import (
-    DEFINITIONS,
-    FRICTION_DUALS,
-    FrictionStage,
-    TangentialBasis,
-    TangentialPOD,
-    friction_dual,
-    tangential_pod,
-)
+from rbbench.rb.config import ReduceConfig
+from rbbench.rb.friction.collocation.stage import FrictionStage
+from rbbench.rb.friction.options import FrictionOptions
 from rbbench.rb.friction.wedge.stage import WedgeStage
-from rbbench.rb.offline import ReduceConfig, fixed_contact_points
+from rbbench.rb.offline import fixed_contact_points
 from rbbench.registry import Registry
 from rbbench.scene.loading import Scene, SceneError
 
-__all__ = ["DEFINITIONS", "FRICTION_DUALS", "FrictionReduction", "FrictionStage",
-           "TangentialBasis", "TangentialPOD", "WedgeStage", "friction_dual", "tangential_pod"]
+__all__ = ["FrictionReduction"]
 
 
 class FrictionReduction:
@@ -52,21 +45,25 @@ class FrictionReduction:
     of the mixed formulation)."""
 
     name = "mixed-friction"
+    label = "the mixed formulation on friction scenes"
     friction_laws = ("tresca", "coulomb")
+    Options = FrictionOptions
 
     def prepare(self, scene: Scene, config: ReduceConfig, registry: Registry) -> ReduceConfig:
         """Checks before any HF work: the named components exist, the stage's choices."""
-        for role in ("primal", "dual", "stabilizer"):
-            registry.get(role, getattr(config, role))
-        wedge = friction_dual(config) == "wedge"
+        options = config.options
+        registry.get("primal", config.primal)
+        registry.get("dual", options.dual)
+        registry.get("stabilizer", options.stabilizer)
+        wedge = options.friction_dual == "wedge"
         if config.hyper not in ("auto", "none") and not (wedge and config.hyper == "eim"):
             raise SceneError(f"{scene.path}: hyper {config.hyper!r}: the reduced friction "
                              "model takes hyper 'none' / 'auto' (plain), or 'eim' with the "
                              "wedge dual model (friction_dual = 'wedge')")
         if config.hyper == "eim":
             fixed_contact_points(scene, "eim")
-        if config.stabilizer not in ("none", "pga"):
-            raise SceneError(f"{scene.path}: stabilizer {config.stabilizer!r}: the reduced "
+        if options.stabilizer not in ("none", "pga"):
+            raise SceneError(f"{scene.path}: stabilizer {options.stabilizer!r}: the reduced "
                              "friction model takes 'none' or 'pga'")
         if scene.data.get("friction", {}).get("coefficient_law"):
             raise SceneError(f"{scene.path}: a slip-dependent friction coefficient (model B) "
@@ -74,10 +71,10 @@ class FrictionReduction:
         if wedge and \
                 scene.data.get("friction", {}).get("law", "coulomb") != "coulomb":
             raise SceneError(f"{scene.path}: the wedge dual model is Coulomb's cone; Tresca "
-                             "takes the seed's model")
+                             "takes the collocation model (friction_dual = 'collocation')")
         return config
 
     def reduce(self, ctx: Any) -> FrictionStage:
-        if friction_dual(ctx.config) == "wedge":
+        if ctx.options.friction_dual == "wedge":
             return WedgeStage(ctx)
         return FrictionStage(ctx)

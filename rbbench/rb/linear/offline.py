@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict
+from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Any
 
@@ -30,14 +30,14 @@ import scipy.sparse as sp
 from rbbench.hf.linear.model import NO_CONTACT, LinearHF, linear_snapshots, space_time_norm
 from rbbench.rb.algorithms.infsup import make_solver
 from rbbench.rb.compressors import PrimalBasis
+from rbbench.rb.config import ReduceConfig, config_dict
 from rbbench.rb.linear.model import ReducedLinear, build_reduced, coercivity_reference
 from rbbench.rb.offline import (
     OfflineContext,
-    ReduceConfig,
     check_finite,
+    prepare_config,
     primal_basis,
     primal_histories,
-    reduction_steps,
 )
 from rbbench.rb.online import ReducedBasis
 from rbbench.rb.validation import ReducedStage, ReduceResult, validate, xnorm2
@@ -68,15 +68,28 @@ DEFINITIONS = {
 }
 
 
+@dataclass
+class LinearOptions:
+    """The linear formulation takes no option of its own: no dual space, no stabiliser, no
+    solver (its reduction uses the shared fields only)."""
+
+
 class LinearReduction:
     """The linear formulation's steps in the offline skeleton (``Formulation.reduction()``)."""
 
     name = "linear"
+    label = "the linear formulation"
+    Options = LinearOptions
+    takes_solver = False
 
     def prepare(self, scene: Scene, config: ReduceConfig, registry: Registry) -> ReduceConfig:
-        """Checks before any HF work: a linear scene, a registered primal compressor
-        (``pod`` for heat: POD-greedy), hyper ``auto`` / ``affine`` (exact affine)."""
+        """Checks before any HF work: a linear scene, no solver, a registered primal
+        compressor (``pod`` for heat: POD-greedy), hyper ``auto`` / ``affine`` (exact
+        affine)."""
         check_physics(scene)
+        if config.solver is not None:
+            raise SceneError(f"{scene.path}: a linear scene (no contact) has one direct "
+                             f"solve: no solver option (got {config.solver!r})")
         registry.get("primal", config.primal)
         if is_parabolic(scene) and config.primal != "pod":
             raise SceneError(f"{scene.path}: physics 'heat' is reduced by POD-greedy (primal "
@@ -88,6 +101,12 @@ class LinearReduction:
 
     def reduce(self, ctx: OfflineContext) -> LinearStage:
         return LinearStage(ctx)
+
+    def run(self, scene: Scene, config: ReduceConfig, progress: Callable[[str], None],
+            registry: Registry) -> ReduceResult:
+        """The linear scenes' own skeleton (their HF snapshots need no contact components):
+        :func:`run_linear`."""
+        return run_linear(scene, config, progress, registry)
 
 
 class LinearStage(ReducedStage):
@@ -105,7 +124,7 @@ class LinearStage(ReducedStage):
         self.model = lin.build(self.Z)
         check_finite("reduced operators", self.model.A)
         ctx.timings["hyper_s"] = time.perf_counter() - t0
-        self.config = {**asdict(ctx.config), "hyper": "affine"}
+        self.config = {**config_dict(ctx.config), "hyper": "affine"}
         self.histories = {**primal_histories(ctx.primal), "alpha_ref": lin.alpha_ref,
                           "mu_ref": lin.mu_ref.tolist()}
         self.beta: dict[str, list] = {}
@@ -205,10 +224,17 @@ def reduce_linear(scene: Scene, config: ReduceConfig,
                   progress: Callable[[str], None] = lambda m: None,
                   registry: Registry | None = None) -> ReduceResult:
     """Offline (snapshots, primal / POD-greedy, the formulation's stage) then the shared
-    validation, for a linear scene (module docstring)."""
+    validation, for a linear scene (module docstring); :func:`rbbench.rb.offline.reduce`
+    dispatches a linear formulation here."""
     reg = registry or default_registry()
-    steps = reduction_steps(config, reg)
-    config = steps.prepare(scene, config, reg)
+    steps, config = prepare_config(scene, config, reg)
+    return steps.run(scene, config, progress, reg)
+
+
+def run_linear(scene: Scene, config: ReduceConfig, progress: Callable[[str], None],
+               reg: Registry) -> ReduceResult:
+    """The linear skeleton on a prepared configuration (``LinearReduction.run``)."""
+    steps = LinearReduction()
     t0 = time.perf_counter()
     mus_train = parameter_set(scene, "train", config.n_train)
     mus_valid = parameter_set(scene, "valid", config.n_valid)

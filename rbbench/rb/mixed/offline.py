@@ -13,7 +13,7 @@ and the inf-sup constants beta_HF, beta_dec, beta_on, beta_off per validation mu
 from __future__ import annotations
 
 import time
-from dataclasses import asdict
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -21,10 +21,10 @@ import numpy as np
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.affine import NotAffineError
 from rbbench.rb.compressors import make_stabilizer, pga_delta
-from rbbench.rb.mixed.model import build_affine_model, projector
+from rbbench.rb.config import ReduceConfig, config_dict
+from rbbench.rb.mixed.model import ONLINE_METHODS, build_affine_model, projector
 from rbbench.rb.mixed.plain import PlainProjection, PlainReducedModel
 from rbbench.rb.offline import (
-    ReduceConfig,
     check_finite,
     eim_training_set,
     fixed_contact_points,
@@ -33,7 +33,7 @@ from rbbench.rb.offline import (
 from rbbench.rb.online import PlainArrays, ReducedBasis
 from rbbench.rb.validation import ReducedStage, xnorm2
 from rbbench.registry import Registry
-from rbbench.scene.loading import Scene
+from rbbench.scene.loading import Scene, SceneError
 
 DEFINITIONS = {
     "err_u": "relative error ||u - u_N||_X / ||u||_X per validation mu (X: the scene's V inner "
@@ -90,16 +90,56 @@ DEFINITIONS = {
 }
 
 
+@dataclass
+class MixedOptions:
+    """The options of the mixed formulation's reduced model (frictionless scenes).
+
+    ``dual``: the registered dual compressor of the multiplier cone, ``R`` its maximal size
+    (default: the tolerance ``tol_dual`` on ``e_proj``); ``stabilizer``: ``none``,
+    ``supremizer`` (online) or ``pga`` (offline: tolerance ``delta_pga``, default the rule
+    of :func:`rbbench.rb.compressors.pga_delta`; at most ``k_pga_max`` vectors);
+    ``online_method``: the reduced solver (:data:`rbbench.rb.mixed.model.ONLINE_METHODS`);
+    ``exact_max_r``: the largest cone whose inf-sup constant is computed exactly (larger:
+    bounds); ``tol_eim``, ``m_eim``, ``n_eim_train``: the contact EIM's tolerance, size cap
+    and training grid (hyper ``eim``).
+    """
+
+    dual: str = "mcpg"
+    R: int | None = None
+    tol_dual: float = 1e-3
+    stabilizer: str = "pga"
+    delta_pga: float | None = None
+    k_pga_max: int | None = None
+    online_method: str = "auto"
+    exact_max_r: int = 10
+    tol_eim: float = 1e-4
+    m_eim: int | None = None
+    n_eim_train: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.online_method not in ONLINE_METHODS:
+            raise ValueError(f"online method {self.online_method!r}: valid: "
+                             f"{', '.join(ONLINE_METHODS)}")
+
+
 class MixedReduction:
     """The mixed formulation's steps in the offline skeleton (``Formulation.reduction()``)."""
 
     name = "mixed"
+    label = "the mixed formulation (frictionless scenes)"
+    Options = MixedOptions
 
     def prepare(self, scene: Scene, config: ReduceConfig, registry: Registry) -> ReduceConfig:
-        """Checks before any HF work: the named components exist, and the contact points
-        are fixed when hyper ``"eim"`` needs them (kept for :meth:`reduce`)."""
-        for role in ("primal", "dual", "stabilizer"):
-            registry.get(role, getattr(config, role))  # unknown names fail before HF work
+        """Checks before any HF work: the named components exist, an online stabiliser goes
+        with the plain model, and the contact points are fixed when hyper ``"eim"`` needs
+        them (kept for :meth:`reduce`)."""
+        options = config.options
+        registry.get("primal", config.primal)  # unknown names fail before HF work
+        registry.get("dual", options.dual)
+        registry.get("stabilizer", options.stabilizer)
+        if options.stabilizer == "supremizer" and config.hyper in ("affine", "eim"):
+            raise SceneError(f"stabilizer 'supremizer' builds V_N + S_R(mu) online from the HF "
+                             f"B(mu): use hyper 'none' or 'auto', not {config.hyper!r}")
         self.fixed_points = fixed_contact_points(scene, config.hyper)
         return config
 
@@ -114,12 +154,12 @@ class MixedStage(ReducedStage):
     definitions = DEFINITIONS
 
     def __init__(self, ctx: Any, fixed_points: bool) -> None:
-        self.ctx, config = ctx, ctx.config
+        self.ctx = ctx
         self.x_solve = inf.make_solver(ctx.X)
         self.Z = ctx.Z
         self.N = int(self.Z.shape[1])
         self.n_contact = int(ctx.train.LAM.shape[0])
-        self.config = asdict(config)
+        self.config = config_dict(ctx.config)
         self._dual_step(ctx)
         self._stabilizer_step(ctx)
         self._hyper_step(ctx, fixed_points)
@@ -129,46 +169,47 @@ class MixedStage(ReducedStage):
 
     # -- offline -----------------------------------------------------------------------
     def _dual_step(self, ctx: Any) -> None:
-        config = ctx.config
+        options = ctx.options
         t1 = time.perf_counter()
-        ctx.progress(f"dual compressor {config.dual}")
+        ctx.progress(f"dual compressor {options.dual}")
         W_ref = ctx.problem_at(ctx.scene.default_mu).W
-        self.dual = ctx.registry.create("dual", config.dual)(ctx.train.LAM, W_ref,
-                                                              tol=config.tol_dual,
-                                                              r_max=config.R)
+        self.dual = ctx.registry.create("dual", options.dual)(ctx.train.LAM, W_ref,
+                                                              tol=options.tol_dual,
+                                                              r_max=options.R)
         self.Vg = self.dual.generators
-        check_finite(f"dual compressor {config.dual!r}: the generators", self.Vg)
+        check_finite(f"dual compressor {options.dual!r}: the generators", self.Vg)
         self.R = int(self.Vg.shape[1])
         ctx.timings["dual_s"] = time.perf_counter() - t1
 
     def _stabilizer_step(self, ctx: Any) -> None:
-        config, primal = ctx.config, ctx.primal
+        options, primal = ctx.options, ctx.primal
         t1 = time.perf_counter()
-        self.stabilizer = stabilizer = make_stabilizer(ctx.registry, config)
-        if stabilizer.online and config.hyper in ("affine", "eim"):
-            raise ValueError(f"stabilizer {config.stabilizer!r} builds its space online from "
-                             f"the HF B(mu): use hyper 'none' or 'auto', not {config.hyper!r}")
+        self.stabilizer = stabilizer = make_stabilizer(ctx.registry, options)
+        hyper = ctx.config.hyper
+        if stabilizer.online and hyper in ("affine", "eim"):
+            raise ValueError(f"stabilizer {options.stabilizer!r} builds its space online from "
+                             f"the HF B(mu): use hyper 'none' or 'auto', not {hyper!r}")
         self.histories = {**primal_histories(primal), "e_proj": list(self.dual.e_proj),
                           "e_orth": list(self.dual.e_orth)}
         delta = None
-        if config.stabilizer == "pga":
+        if options.stabilizer == "pga":
             ctx.progress("PGA (supremizers on the training set)")
-            delta = pga_delta(config, [ctx.problem_at(mu) for mu in ctx.mus_train],
+            delta = pga_delta(options, [ctx.problem_at(mu) for mu in ctx.mus_train],
                               self.x_solve, self.Vg)
         self.Z_off, stab_hist = stabilizer.offline(
             self.Z, self.Vg, ctx.X, self.x_solve,
             (ctx.problem_at(mu).B for mu in ctx.mus_train), delta)
-        check_finite(f"stabilizer {config.stabilizer!r}: the offline basis", self.Z_off)
+        check_finite(f"stabilizer {options.stabilizer!r}: the offline basis", self.Z_off)
         self.K = int(self.Z_off.shape[1] - self.Z.shape[1])
         # beta_off applies to an offline stabiliser only
-        self.offline_stab = not stabilizer.online and config.stabilizer != "none"
+        self.offline_stab = not stabilizer.online and options.stabilizer != "none"
         self.histories.update({k: v for k, v in stab_hist.items() if k != "K"})
         ctx.timings["stabilizer_s"] = time.perf_counter() - t1
 
     def _hyper_step(self, ctx: Any, fixed_points: bool) -> None:
         """Exact affine, else (``"auto"``) EIM when the contact points are fixed
         (``fixed_points``), else the plain model."""
-        config, scene = ctx.config, ctx.scene
+        config, options, scene = ctx.config, ctx.options, ctx.scene
         t1 = time.perf_counter()
         hyper, model = config.hyper, None
         if not self.stabilizer.online and hyper in ("auto", "affine", "eim"):
@@ -187,7 +228,8 @@ class MixedStage(ReducedStage):
                              else "none")
             if hyper == "eim":
                 ctx.progress("EIM on the contact rows (B(mu) Z, G(mu))")
-                constraint = _contact_eim(ctx.backend, scene, config, ctx.problem_at,
+                constraint = _contact_eim(ctx.backend, scene, config.backend, options,
+                                          ctx.problem_at,
                                           ctx.mus_train, ctx.mus_valid, self.Z_off, self.Vg,
                                           self.histories)
                 model = build_affine_model(reduced_ops, scene.bounds,
@@ -198,7 +240,7 @@ class MixedStage(ReducedStage):
             stab = self.stabilizer if self.stabilizer.online else None
             model = PlainReducedModel(PlainArrays(ctx.problem_source(), PlainProjection(
                 self.Z_off, self.Vg, stab, ctx.X, self.x_solve)))
-        model.online_method = config.online_method
+        model.online_method = options.online_method
         model.basis = ReducedBasis(self.Z_off, self.Vg)
         self.hyper, self.model = hyper, model
         ctx.timings["hyper_s"] = time.perf_counter() - t1
@@ -226,7 +268,7 @@ class MixedStage(ReducedStage):
     def _infsup(self, p: Any) -> None:
         """beta_HF, beta_dec, beta_on (and beta_off) at one validation mu; H H^T =
         B X^{-1} B^T (m solves), computed once per mu."""
-        exact_max_r, X, Vg, Z = self.ctx.config.exact_max_r, self.ctx.X, self.Vg, self.Z
+        exact_max_r, X, Vg, Z = self.ctx.options.exact_max_r, self.ctx.X, self.Vg, self.Z
         B, Wm = p.B, p.W
         H = inf.supremizer_operator(B, self.x_solve)
         # beta_HF: whole V against the HF cone W+ (all m multipliers): only the span
@@ -258,19 +300,19 @@ class MixedStage(ReducedStage):
             timings["t_online_hf_assembly_s"] = float(np.median(self.t_asm))
 
 
-def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_train,
-                  mus_valid, Z: np.ndarray, Vg: np.ndarray, histories: dict):
+def _contact_eim(backend, scene: Scene, backend_name: str, options: MixedOptions, problem_at,
+                 mus_train, mus_valid, Z: np.ndarray, Vg: np.ndarray, histories: dict):
     """hyper = "eim": :func:`rbbench.rb.hyper.contact_eim.contact_eim`, its error curves and
     validation."""
     from rbbench.hf.geometry.operators import contact_operators
     from rbbench.rb.hyper.contact_eim import contact_eim, entrywise_eim_error
 
     if not hasattr(backend, "contact_layout"):
-        raise ValueError(f"hyper 'eim': backend {config.backend!r} provides no contact layout "
+        raise ValueError(f"hyper 'eim': backend {backend_name!r} provides no contact layout "
                          "(Backend.contact_layout); use hyper 'none'")
     layout = backend.contact_layout()
     p0 = problem_at(mus_train[0])
-    mus_eim = eim_training_set(scene, config, mus_train)
+    mus_eim = eim_training_set(scene, options, mus_train)
     dirichlet = np.setdiff1d(np.arange(layout.n_dofs), p0.free)
     B_eim, G_eim = [], []
     for mu in mus_eim:
@@ -282,7 +324,7 @@ def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_tr
         B_eim.append(Bfull[:, p0.free])
         G_eim.append(c.G())
     ceim = contact_eim(layout, B_eim, np.stack(G_eim, axis=1), Z, Vg, p0.free, mus_eim,
-                       tol=config.tol_eim, m_max=config.m_eim)
+                       tol=options.tol_eim, m_max=options.m_eim)
     ceim.info["n_eim_train"] = len(mus_eim)
     # validation e_EIM of the reduced constraint (seed's ratio of maxima over the set)
     num_b = den_b = num_g = den_g = 0.0
@@ -299,7 +341,7 @@ def _contact_eim(backend, scene: Scene, config: ReduceConfig, problem_at, mus_tr
     histories["eim"]["e_eim_valid_GN"] = float(num_g / den_g)
     histories["eim_entrywise"] = entrywise_eim_error(
         [problem_at(mu).B for mu in mus_train], [problem_at(mu).B for mu in mus_valid],
-        tol=config.tol_eim)
+        tol=options.tol_eim)
     return ceim
 
 

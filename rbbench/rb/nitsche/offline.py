@@ -11,7 +11,7 @@ the online iterates.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -25,6 +25,7 @@ from rbbench.rb.algorithms.affine import (
     affine_decomposition,
 )
 from rbbench.rb.algorithms.eim import deim
+from rbbench.rb.config import ReduceConfig, config_dict
 from rbbench.rb.hyper.contact_eim import HyperReductionError
 from rbbench.rb.nitsche.model import (
     NitscheReducedModel,
@@ -36,7 +37,6 @@ from rbbench.rb.nitsche.model import (
 )
 from rbbench.rb.offline import (
     DivergedError,
-    ReduceConfig,
     check_finite,
     eim_grid,
     fixed_contact_points,
@@ -83,18 +83,33 @@ DEFINITIONS = {
 ECSW_POINTS_PER_MODE = 6
 
 
+@dataclass
+class NitscheOptions:
+    """The options of the Nitsche formulation's reduced model: the hyper-reduction's
+    tolerance ``tol_eim`` (ECSW: on the relative residual of the training sums; DEIM: its
+    relative max-norm training error), its size cap ``m_eim`` (ECSW default:
+    :data:`ECSW_POINTS_PER_MODE` ``* N``) and training grid ``n_eim_train`` (default
+    ``2 (n_train - 1) + 1`` points)."""
+
+    tol_eim: float = 1e-4
+    m_eim: int | None = None
+    n_eim_train: int | None = None
+
+
 class NitscheReduction:
     """The Nitsche formulation's steps in the offline skeleton (``Formulation.reduction()``).
 
-    ``config`` fields used: ``primal``, ``N``, ``tol_pod``, ``hyper``, ``tol_eim``,
-    ``m_eim``, ``n_eim_train``, sizes, cache, ``online_repeats``; the dual / stabiliser
-    fields do not apply. ``hyper``: ``"auto"``: empirical cubature at the contact points
+    Shared fields used: ``primal``, ``N``, ``tol_pod``, ``hyper``, sizes, cache,
+    ``online_repeats``; its own options: :class:`NitscheOptions` (no dual space, no
+    stabiliser). ``hyper``: ``"auto"``: empirical cubature at the contact points
     (``"ecsw"``, tolerance ``tol_eim`` on the relative residual of the training sums, at
     most ``m_eim`` points, default :data:`ECSW_POINTS_PER_MODE` ``* N``); ``"eim"``: DEIM of
     the point contributions (``"deim"``); ``"none"``: plain.
     """
 
     name = "nitsche"
+    label = "the nitsche formulation"
+    Options = NitscheOptions
 
     def prepare(self, scene: Scene, config: ReduceConfig, registry: Registry) -> ReduceConfig:
         """Checks before any HF work. A solver that does not solve Nitsche (e.g. the
@@ -135,9 +150,7 @@ class NitscheStage(ReducedStage):
         self.Zfull[p0.free] = Z
         self.u_lift = p0.u_lift
         self.n_contact = int(self.layout.slave.n * self.layout.n_gauss)
-        cfg = asdict(config)
-        cfg.update(formulation="nitsche", solver=config.solver, dual=None, stabilizer=None)
-        self.config = cfg
+        self.config = config_dict(config)
         self._affine_step(ctx)
         Ysnap, plain_c = self._training_states(ctx)
         self._hyper_step(ctx, Ysnap, plain_c)
@@ -176,7 +189,7 @@ class NitscheStage(ReducedStage):
         training data) and the plain reduced solutions at the training parameters."""
         t1 = time.perf_counter()
         mus_train, theta = ctx.mus_train, self.theta
-        self.grid = grid = eim_grid(ctx.scene, ctx.config, len(mus_train), per_interval=2)
+        self.grid = grid = eim_grid(ctx.scene, ctx.options, len(mus_train), per_interval=2)
         c_hf_train = (self.Z.T @ (ctx.X @ ctx.train.U)).T  # projections (X-orthonormal Z)
         plain_c = np.zeros_like(c_hf_train)
         ctx.progress(f"plain reduced Newton on {len(mus_train)} training + {len(grid)} grid "
@@ -201,17 +214,17 @@ class NitscheStage(ReducedStage):
 
     def _hyper_step(self, ctx: Any, Ysnap: list[np.ndarray], plain_c: np.ndarray) -> None:
         t1 = time.perf_counter()
-        config, primal, nq = ctx.config, ctx.primal, self.n_contact
+        config, options, primal, nq = ctx.config, ctx.options, ctx.primal, self.n_contact
         hyper = {"none": "none", "eim": "deim", "deim": "deim"}.get(config.hyper, "ecsw")
         self.histories = {**primal_histories(primal), "plain_training_stops": self.plain_stops}
         sample = np.vstack([ctx.mus_train, self.grid, ctx.mus_valid])
         if hyper == "ecsw":
             ctx.progress("empirical cubature (ECSW) at the contact points")
-            ev, extra, info = _ecsw(self.layout, Ysnap, sample, nq, self.N, config,
+            ev, extra, info = _ecsw(self.layout, Ysnap, sample, nq, self.N, options,
                                     self.histories)
         elif hyper == "deim":
             ctx.progress("DEIM of the contact point contributions")
-            ev, extra, info = _deim(self.layout, Ysnap, sample, nq, self.N, config,
+            ev, extra, info = _deim(self.layout, Ysnap, sample, nq, self.N, options,
                                     self.histories)
         else:
             ev, extra = build_point_evaluator(self.layout, np.arange(nq), sample), {}
@@ -294,7 +307,7 @@ def _ratio(a: float, b: float) -> float:
 
 
 def _ecsw(layout: Any, Ysnap: list[np.ndarray], sample: np.ndarray, nq: int, N: int,
-          config: ReduceConfig, histories: dict) -> tuple[Any, dict, dict]:
+          options: NitscheOptions, histories: dict) -> tuple[Any, dict, dict]:
     """Empirical cubature: NNLS weights on the training sums (rows of G scaled to norm 1)."""
     H = np.zeros((nq, nq))
     g = np.zeros(nq)
@@ -307,24 +320,24 @@ def _ecsw(layout: Any, Ysnap: list[np.ndarray], sample: np.ndarray, nq: int, N: 
         H += (Y @ Y.T) / sc**2
         g += (Y @ bj) / sc**2
     bb = float(n_sums) or 1.0
-    cap = config.m_eim or ECSW_POINTS_PER_MODE * N
-    omega, errors = sparse_nnls(H, g, bb, tol=config.tol_eim, max_terms=cap)
+    cap = options.m_eim or ECSW_POINTS_PER_MODE * N
+    omega, errors = sparse_nnls(H, g, bb, tol=options.tol_eim, max_terms=cap)
     pts = np.flatnonzero(omega > 0)
     if pts.size == 0:
         raise HyperReductionError("ECSW selected no point: the contact sums are zero")
     ev = build_point_evaluator(layout, pts, sample)
     histories["eim_error"] = errors
     info = {"method": "ecsw", "rows": int(pts.size), "M": int(pts.size),
-            "tol": config.tol_eim, "max_points": int(cap), "e_train": float(errors[-1]),
+            "tol": options.tol_eim, "max_points": int(cap), "e_train": float(errors[-1]),
             "weights_sum_over_all": float(omega.sum() / nq)}
     return ev, {"omega": omega[pts]}, info
 
 
 def _deim(layout: Any, Ysnap: list[np.ndarray], sample: np.ndarray, nq: int, N: int,
-          config: ReduceConfig, histories: dict) -> tuple[Any, dict, dict]:
+          options: NitscheOptions, histories: dict) -> tuple[Any, dict, dict]:
     """DEIM of the point contributions (magic entries ``(point, column)``)."""
-    eim = deim(np.stack([Y.ravel() for Y in Ysnap], axis=1), tol=config.tol_eim,
-               m_max=config.m_eim)
+    eim = deim(np.stack([Y.ravel() for Y in Ysnap], axis=1), tol=options.tol_eim,
+               m_max=options.m_eim)
     if eim.m == 0:
         raise HyperReductionError("DEIM found no term: the contact contributions are zero")
     e_pt, e_col = np.divmod(eim.magic, N)
@@ -335,7 +348,7 @@ def _deim(layout: Any, Ysnap: list[np.ndarray], sample: np.ndarray, nq: int, N: 
                  TQinv=T @ np.linalg.inv(eim.Q[eim.magic]))
     histories["eim_error"] = eim.errors.tolist()
     info = {"method": "deim", "rows": int(pts.size), "M": int(eim.m),
-            "tol": config.tol_eim, "e_train": float(eim.errors[-1])}
+            "tol": options.tol_eim, "e_train": float(eim.errors[-1])}
     return ev, extra, info
 
 

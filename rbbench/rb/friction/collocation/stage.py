@@ -8,7 +8,7 @@ wedge one, :mod:`rbbench.rb.friction.wedge.stage`).
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from functools import partial
 from types import SimpleNamespace
 from typing import Any
@@ -22,6 +22,7 @@ from rbbench.rb.algorithms.cones.metric import span_projection
 from rbbench.rb.algorithms.gcns import gcns, tangential_violation
 from rbbench.rb.algorithms.pod import pod
 from rbbench.rb.compressors import make_stabilizer, pga_delta
+from rbbench.rb.config import config_dict
 from rbbench.rb.friction.collocation.model import (
     FrictionReducedModel,
     condense_reduced,
@@ -33,25 +34,8 @@ from rbbench.rb.friction.profiles import PROFILE_DEFINITION, lam_t_profiles
 from rbbench.rb.offline import check_finite, primal_histories
 from rbbench.rb.online import PlainArrays, ReducedBasis
 from rbbench.rb.validation import ReducedStage, xnorm2
-from rbbench.scene.loading import SceneError
 
-__all__ = ["DEFINITIONS", "FRICTION_DUALS", "FrictionStage", "TangentialBasis", "TangentialPOD",
-           "friction_dual", "tangential_pod"]
-
-#: the reduced friction dual models: ``seed`` (normal cone + POD X_S + GCNS collocation,
-#: this module) and ``wedge`` (Coulomb wedge cones + De Saxce's modified gap,
-#: :mod:`rbbench.rb.friction.wedge.stage`)
-FRICTION_DUALS = ("seed", "wedge")
-
-
-def friction_dual(config: Any) -> str:
-    """The dual model of a reduction: ``config.friction_dual`` (default ``"seed"``; read with
-    getattr so that a ReduceConfig without that field selects the seed's model)."""
-    name = getattr(config, "friction_dual", None) or "seed"
-    if name not in FRICTION_DUALS:
-        raise SceneError(f"friction dual model {name!r}: valid: {', '.join(FRICTION_DUALS)}")
-    return name
-
+__all__ = ["DEFINITIONS", "FrictionStage", "TangentialBasis", "TangentialPOD", "tangential_pod"]
 
 DEFINITIONS = {
     "err_u": "relative error ||u - u_N||_X / ||u||_X per validation mu (X: the scene's V inner "
@@ -149,8 +133,7 @@ class FrictionStage(ReducedStage):
         self.Z = ctx.Z
         self.N = int(self.Z.shape[1])
         self.n_contact = int(2 * ctx.train.LAM.shape[0])
-        self.config = {**asdict(config), "online_method": self.online_method,
-                       "friction_dual": friction_dual(config)}
+        self.config = {**config_dict(config), "online_method": self.online_method}
         self.beta: dict[str, list] = {}
         self._spaces(ctx)
         self._stabilizer(ctx)
@@ -163,18 +146,18 @@ class FrictionStage(ReducedStage):
     # -- offline -----------------------------------------------------------------------
     def _spaces(self, ctx: Any) -> None:
         """The normal cone (registered dual compressor) and X_S (:func:`tangential_pod`)."""
-        config = ctx.config
+        options = ctx.options
         t1 = time.perf_counter()
         self.W_ref = ctx.problem_at(ctx.scene.default_mu).W
-        ctx.progress(f"normal cone: dual compressor {config.dual}")
-        self.dual = ctx.registry.create("dual", config.dual)(
-            ctx.train.LAM, self.W_ref, tol=config.tol_dual, r_max=config.R)
+        ctx.progress(f"normal cone: dual compressor {options.dual}")
+        self.dual = ctx.registry.create("dual", options.dual)(
+            ctx.train.LAM, self.W_ref, tol=options.tol_dual, r_max=options.R)
         self.Vn = self.dual.generators
-        check_finite(f"dual compressor {config.dual!r}: the generators", self.Vn)
+        check_finite(f"dual compressor {options.dual!r}: the generators", self.Vn)
         self.R = int(self.Vn.shape[1])
         ctx.progress("tangential space: POD of lam_t")
         self.tangential = TangentialPOD()(ctx.train.LAM_T, self.W_ref,
-                                          s_max=config.S if config.S else self.R)
+                                          s_max=options.S if options.S else self.R)
         self.Vt = self.tangential.generators
         check_finite("tangential POD: the modes", self.Vt)
         self.S = self.tangential.S
@@ -186,19 +169,19 @@ class FrictionStage(ReducedStage):
 
     def _stabilizer(self, ctx: Any) -> None:
         """``none`` or PGA on the combined form (``B = [Bn; Bt]``, ``blockdiag(Vn, Vt)``)."""
-        config = ctx.config
+        options = ctx.options
         t1 = time.perf_counter()
         Vg = self._generators()
         combined = [SimpleNamespace(B=_stack_b(ctx.problem_at(mu)),
                                     W=sla.block_diag(*(2 * [ctx.problem_at(mu).W.toarray()])))
                     for mu in ctx.mus_train]
         delta = None
-        if config.stabilizer == "pga":
+        if options.stabilizer == "pga":
             ctx.progress("PGA on b^n + b^tau (supremizers on the training set)")
-            delta = pga_delta(config, combined, self.x_solve, Vg)
-        self.Z_off, hist = make_stabilizer(ctx.registry, config).offline(
+            delta = pga_delta(options, combined, self.x_solve, Vg)
+        self.Z_off, hist = make_stabilizer(ctx.registry, options).offline(
             self.Z, Vg, ctx.X, self.x_solve, (c.B for c in combined), delta)
-        check_finite(f"stabilizer {config.stabilizer!r}: the offline basis", self.Z_off)
+        check_finite(f"stabilizer {options.stabilizer!r}: the offline basis", self.Z_off)
         self.K = int(self.Z_off.shape[1] - self.N)
         self.histories.update({k: v for k, v in hist.items() if k != "K"})
         ctx.timings["stabilizer_s"] = time.perf_counter() - t1
@@ -209,7 +192,7 @@ class FrictionStage(ReducedStage):
 
     def _gcns(self, ctx: Any) -> None:
         """GCNS on the training set, then the model with the training solutions."""
-        config = ctx.config
+        options = ctx.options
         t1 = time.perf_counter()
         ctx.progress("GCNS (collocation nodes of the tangential constraint)")
         problems = [ctx.problem_at(mu) for mu in ctx.mus_train]
@@ -219,8 +202,8 @@ class FrictionStage(ReducedStage):
         self.train_cond = [condense_reduced(a) for a in self.train_arrays]
         self._x_last: dict[int, np.ndarray] = {}
         res = gcns(self._solve_training, ctx.train.LAM_T, [p.W for p in problems],
-                   per_iteration=config.gcns_per_iteration, max_iterations=config.gcns_max,
-                   patience=config.gcns_patience)
+                   per_iteration=options.gcns_per_iteration, max_iterations=options.gcns_max,
+                   patience=options.gcns_patience)
         self.gcns = res
         x_train = self._training_solutions(res.nodes)
         self.reduced = FrictionReducedModel(
@@ -307,7 +290,7 @@ class FrictionStage(ReducedStage):
         DEFINITIONS["beta"]); returns no per-mu metric."""
         consts = validation_constants(p.Bn, p.Bt, p.W, self.x_solve, self.ctx.X,
                                       self._generators(), self._n_signed(), self.Z_off,
-                                      self.ctx.config.exact_max_r)
+                                      self.ctx.options.exact_max_r)
         for name, r in consts.items():
             self.beta.setdefault(name, []).append(r.as_dict())
         return {}

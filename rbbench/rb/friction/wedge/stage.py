@@ -102,24 +102,24 @@ class WedgeStage(FrictionStage):
         self.model = wedge_hyper_model(
             self.reduced, self.wedge, self.Z_off, np.column_stack(self._slips),
             ctx.backend.contact_layout(), p0.free, ctx.problem_at, ctx.scene.bounds,
-            eim_training_set(ctx.scene, ctx.config, ctx.mus_train), tol=ctx.config.tol_eim,
-            m_max=ctx.config.m_eim)
+            eim_training_set(ctx.scene, ctx.config, ctx.mus_train), tol=ctx.options.tol_eim,
+            m_max=ctx.options.m_eim)
         self.hyper = "eim"
         self.histories["eim"] = self.model.info
         ctx.timings["hyper_s"] = time.perf_counter() - t1
 
     def _spaces(self, ctx: Any) -> None:
         """The ``w+`` and ``w-`` cones (the registered dual compressor)."""
-        config = ctx.config
+        options = ctx.options
         t1 = time.perf_counter()
         self.W_ref = ctx.problem_at(ctx.scene.default_mu).W
         F = np.asarray(ctx.problem_at(ctx.scene.default_mu).coefficient, float)
-        ctx.progress(f"wedge cones of F lam_n +- lam_t: dual compressor {config.dual}")
-        compress = ctx.registry.create("dual", config.dual)
+        ctx.progress(f"wedge cones of F lam_n +- lam_t: dual compressor {options.dual}")
+        compress = ctx.registry.create("dual", options.dual)
         self.wedge = wedge_basis(compress, ctx.train.LAM, ctx.train.LAM_T, F, self.W_ref,
-                                 tol=config.tol_dual, r_plus=config.R,
-                                 r_minus=config.S if config.S else config.R)
-        check_finite(f"dual compressor {config.dual!r}: the wedge generators",
+                                 tol=options.tol_dual, r_plus=options.R,
+                                 r_minus=options.S if options.S else options.R)
+        check_finite(f"dual compressor {options.dual!r}: the wedge generators",
                      self.wedge.generators)
         self.Vn, self.Vt = self.wedge.Ln, self.wedge.Lt
         self.R = int(self.wedge.Vp.shape[1])  # R + S dual unknowns, as the seed's
@@ -200,19 +200,14 @@ class WedgeStage(FrictionStage):
 def reduce_friction(scene: Any, config: Any, friction_dual: str = "wedge",
                     progress: Any = None) -> Any:
     """:func:`rbbench.rb.offline.reduce` with the friction dual model ``friction_dual``
-    (``"seed"`` or ``"wedge"``) on a copy of ``config``: a ReduceConfig field
-    ``friction_dual`` when it has one, else an attribute of the copy (read by
-    :func:`rbbench.rb.friction.collocation.stage.friction_dual`)."""
-    import copy
-    import dataclasses
+    (``"collocation"`` or ``"wedge"``) on a copy of ``config``."""
+    from dataclasses import asdict, is_dataclass, replace
 
     from rbbench.rb.offline import reduce
 
-    if "friction_dual" in {f.name for f in dataclasses.fields(config)}:
-        config = dataclasses.replace(config, friction_dual=friction_dual)
-    else:
-        config = copy.copy(config)
-        config.friction_dual = friction_dual
+    opts = config.options
+    values = asdict(opts) if is_dataclass(opts) else dict(opts)
+    config = replace(config, options={**values, "friction_dual": friction_dual})
     return reduce(scene, config) if progress is None else reduce(scene, config, progress)
 
 
