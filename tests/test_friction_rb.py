@@ -318,8 +318,8 @@ def test_wedge_model_against_the_seed_on_validation():
     the Coulomb cone at EVERY HF node (the seed's are not off its collocation nodes), and its
     lam_t error is far below the seed's (measured 0.19 against 3.6), above its floor."""
     res = {d: validate(_offline(dual=d).context, _offline(dual=d).stage).summary()
-           for d in ("seed", "wedge")}
-    w, s = res["wedge"], res["seed"]
+           for d in ("collocation", "wedge")}
+    w, s = res["wedge"], res["collocation"]
     assert w["online_stops"] == {"converged": 3} and w["S_q"] == 0
     assert w["friction_residual_max"] <= 1e-12 < s["friction_residual_max"]
     assert w["lam_t_best_max"] <= w["err_lam_t_max"] + 1e-12

@@ -54,13 +54,14 @@ def test_friction_rb_matrix_expands_and_skips_seed_with_eim():
     with eim is a skip row whose reason is the reduced model's own refusal."""
     m = load_matrix("friction_rb", registry=default_registry())
     by = {_key(c): c for c in m.cases}
-    assert set(by) == {("seed", "none", 1), ("seed", "none", 10), ("wedge", "none", None),
-                       ("seed", "eim", 1), ("seed", "eim", 10), ("wedge", "eim", None)}
+    assert set(by) == {("collocation", "none", 1), ("collocation", "none", 10),
+                       ("wedge", "none", None), ("collocation", "eim", 1),
+                       ("collocation", "eim", 10), ("wedge", "eim", None)}
     for k, c in by.items():
-        assert c.status == ("skip" if k[:2] == ("seed", "eim") else "run"), (k, c.reason)
+        assert c.status == ("skip" if k[:2] == ("collocation", "eim") else "run"), (k, c.reason)
         assert c.components["solver"] == "friction-ssn" and (c.N, c.R) == (30, 20)
         assert c.params["S"] == 20 and c.params["k_pga_max"] == 40
-    reason = by[("seed", "eim", 1)].reason
+    reason = by[("collocation", "eim", 1)].reason
     assert "hyper 'eim'" in reason and "wedge" in reason
     assert len({c.case_id for c in m.cases}) == 6
     assert by[("wedge", "eim", None)].reduce_config("/tmp").friction_dual == "wedge"
@@ -78,18 +79,20 @@ def test_friction_dual_axis_is_the_reduce_field(tmp_path):
     a, f = load_matrix(axis, registry=reg).cases, load_matrix(field, registry=reg).cases
     assert [c.case_id for c in a] == [c.case_id for c in f]
     both = tmp_path / "both.toml"
-    both.write_text(head + 'friction_dual = ["wedge"]\n[reduce]\nfriction_dual = "seed"\n')
+    both.write_text(head + 'friction_dual = ["wedge"]\n[reduce]\nfriction_dual = "collocation"\n')
     with pytest.raises(MatrixError, match="friction_dual is swept in \\[components\\]"):
         load_matrix(both, registry=reg)
     with pytest.raises(MatrixError, match="friction_dual is swept"):
-        load_matrix(axis, sets=["friction_dual=seed"], registry=reg)
+        load_matrix(axis, sets=["friction_dual=collocation"], registry=reg)
     bad = tmp_path / "bad.toml"
     bad.write_text(head + 'friction_dual = ["box"]\n')
-    with pytest.raises(MatrixError, match="friction_dual = 'box'; valid: seed, wedge"):
+    with pytest.raises(MatrixError,
+                       match="friction_dual = 'box'; valid: collocation, wedge, seed"):
         load_matrix(bad, registry=reg)
     grid = tmp_path / "grid.toml"
-    grid.write_text(head + "[params.friction_dual.seed]\ngcns_patience = [1, 2]\n")
-    with pytest.raises(MatrixError, match="'seed' is not in \\[components\\] friction_dual"):
+    grid.write_text(head + "[params.friction_dual.collocation]\ngcns_patience = [1, 2]\n")
+    with pytest.raises(MatrixError,
+                       match="'collocation' is not in \\[components\\] friction_dual"):
         load_matrix(grid, registry=reg)
     m = load_matrix("friction_rb", selectors=["friction_dual=wedge"], registry=reg)
     assert {c.params["friction_dual"] for c in m.cases} == {"wedge"} and len(m.cases) == 2
@@ -130,8 +133,9 @@ def _summary(dual: str) -> dict:
             "config": {"stabilizer": "pga", "friction_dual": dual},
             "err_lam_t_max": 0.19, "err_lam_t_mean": 0.08, "lam_t_best_max": 0.09,
             "friction_residual_max": 6e-17, "online_iterations_max": 6.0, "S": 4,
-            "S_q": 2 if dual == "seed" else 0, "gcns_iterations": 1 if dual == "seed" else 0,
-            "gcns_history": hist if dual == "seed" else [], "dim_v_off": 17,
+            "S_q": 2 if dual == "collocation" else 0,
+            "gcns_iterations": 1 if dual == "collocation" else 0,
+            "gcns_history": hist if dual == "collocation" else [], "dim_v_off": 17,
             "delta_pga": 0.072, "lam_t_profiles": prof, "histories": {},
             "per_mu": {"err_u": [1e-3, 1.5e-3], "beta": {
                 "dec": [{"value": 2e-6, "value_rel": 0.03}, {"value": 1e-6, "value_rel": 0.05}],
@@ -145,7 +149,7 @@ def _fake_reduce(summary: dict):
     return reduce
 
 
-@pytest.mark.parametrize("dual", ["seed", "wedge"])
+@pytest.mark.parametrize("dual", ["collocation", "wedge"])
 def test_friction_row_columns_and_details(monkeypatch, tmp_path, dual):
     """A friction reduction's summary goes into its row column by column (S_tau = S; the
     row's S stays the stabiliser size K), and its details keep gcns_history and
@@ -173,7 +177,7 @@ def test_friction_row_columns_and_details(monkeypatch, tmp_path, dual):
 def test_frictionless_row_leaves_friction_columns_empty(monkeypatch, tmp_path):
     import rbbench.rb.offline as offline
 
-    s = {k: v for k, v in _summary("seed").items()
+    s = {k: v for k, v in _summary("collocation").items()
          if k not in (*FRICTION_COLUMNS, "S", "gcns_history", "lam_t_profiles")}
     monkeypatch.setattr(offline, "reduce", _fake_reduce(s))
     case = load_matrix("hertz_rb", registry=default_registry()).cases[0]
@@ -185,10 +189,10 @@ def test_frictionless_row_leaves_friction_columns_empty(monkeypatch, tmp_path):
 
 
 def test_skip_row_names_the_pair():
-    m = load_matrix("friction_rb", selectors=["friction_dual=seed", "hyper=eim"],
+    m = load_matrix("friction_rb", selectors=["friction_dual=collocation", "hyper=eim"],
                     registry=default_registry())
     row = decided_row(m.cases[0], "r", "serial")["row"]
-    assert row["status"] == "skip" and row["friction_dual"] == "seed"
+    assert row["status"] == "skip" and row["friction_dual"] == "collocation"
     assert row["hyper"] == "eim" and "eim" in row["reason"]
     assert all(row[c] is None for c in FRICTION_COLUMNS)
 
@@ -212,9 +216,10 @@ def test_friction_rb_smoke_run_and_report(tmp_path):
     rows = {(r["row"]["friction_dual"], r["row"]["hyper"],
              json.loads(r["row"]["params"]).get("gcns_patience")): r for r in recs.values()}
     assert {k for k, r in rows.items() if r["row"]["status"] == "skip"} == {
-        ("seed", "eim", 1), ("seed", "eim", 10)}
+        ("collocation", "eim", 1), ("collocation", "eim", 10)}
     ok = {k: r for k, r in rows.items() if r["row"]["status"] == "ok"}
-    assert set(ok) == {("seed", "none", 1), ("seed", "none", 10), ("wedge", "none", None),
+    assert set(ok) == {("collocation", "none", 1), ("collocation", "none", 10),
+                       ("wedge", "none", None),
                        ("wedge", "eim", None)}, {k: r["row"]["reason"] for k, r in rows.items()}
     for k, r in ok.items():
         row = r["row"]

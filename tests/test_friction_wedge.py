@@ -95,19 +95,18 @@ def test_wedge_snapshots_reconstruct_and_refuse_outside_the_cone():
 
 
 def test_friction_dual_choice_and_table():
-    """The dual model is read from the config (default: the seed's); unknown names refused;
-    the comparison table puts summaries side by side."""
-    from types import SimpleNamespace
-
-    from rbbench.rb.friction.offline import friction_dual
+    """The dual model is an option (default: collocation; the old name 'seed' deprecated);
+    unknown names refused; the comparison table puts summaries side by side."""
+    from rbbench.rb.friction.options import FrictionOptions
     from rbbench.rb.friction.wedge.stage import comparison_table
-    from rbbench.scene.loading import SceneError
 
-    assert friction_dual(SimpleNamespace()) == "seed"
-    assert friction_dual(SimpleNamespace(friction_dual="wedge")) == "wedge"
-    with pytest.raises(SceneError, match="valid: seed, wedge"):
-        friction_dual(SimpleNamespace(friction_dual="box"))
-    table = comparison_table({"seed": {"R": 20, "S": 20, "err_u_max": 0.015},
+    assert FrictionOptions().friction_dual == "collocation"
+    assert FrictionOptions(friction_dual="wedge").friction_dual == "wedge"
+    with pytest.warns(DeprecationWarning, match="'seed' is now 'collocation'"):
+        assert FrictionOptions(friction_dual="seed").friction_dual == "collocation"
+    with pytest.raises(ValueError, match="valid: collocation, wedge"):
+        FrictionOptions(friction_dual="box")
+    table = comparison_table({"collocation": {"R": 20, "S": 20, "err_u_max": 0.015},
                               "wedge": {"R": 20, "S": 20, "err_u_max": 2.4e-4}})
     assert "| dual unknowns (R + S) | 40 | 40 |" in table
     assert "| err_u max | 1.50e-02 | 2.40e-04 |" in table

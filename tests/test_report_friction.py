@@ -76,11 +76,11 @@ def _records(friction: bool = True) -> list[dict]:
     recs = [{"row": _row("plain", None, "eim"), "details": {"valid_mus": MUS}}]
     if friction:
         recs += [dict(zip(("row", "details"), _friction(*a, **kw), strict=True)) for a, kw in (
-            (("seed1", "seed", "none", 3, 6.35), {"params": {"gcns_patience": 1}}),
-            (("seed10", "seed", "none", 5, 1.0), {"params": {"gcns_patience": 10}}),
+            (("seed1", "collocation", "none", 3, 6.35), {"params": {"gcns_patience": 1}}),
+            (("seed10", "collocation", "none", 5, 1.0), {"params": {"gcns_patience": 10}}),
             (("wedge", "wedge", "none", None, 0.187), {}),
             (("wedgeeim", "wedge", "eim", None, 0.181), {}))]
-        recs.append({"row": _row("seedeim", "seed", "eim", status="skip"), "details": {}})
+        recs.append({"row": _row("seedeim", "collocation", "eim", status="skip"), "details": {}})
     return recs
 
 
@@ -169,7 +169,7 @@ def test_without_friction_data_figures_skip_quietly(tmp_path):
     assert "Reduced friction models" not in md and "### GCNS" not in md
     assert "### lam_t" not in md
     assert not {"gcns", "lam_t"} & (set(out.skipped) | set(out.figures))
-    recs = [r for r in _records() if r["row"]["friction_dual"] != "seed"]  # wedge: no GCNS
+    recs = [r for r in _records() if r["row"]["friction_dual"] != "collocation"]  # wedge: no GCNS
     ctx = _context(load_run(write_run_dir(tmp_path / "wedge", recs)))
     with pytest.raises(_Skip, match="no ok friction case with a GCNS history") as exc:
         _fig_gcns(ctx)

@@ -28,10 +28,10 @@ repetitions. Example (every table but ``[matrix]`` is optional)::
     k_pga_max = [20, 40]
 
 A model axis (:data:`MODEL_AXES`) is a ReduceConfig field swept like a component:
-``[components] friction_dual = ["seed", "wedge"]`` (friction scenes), with its own
-grids ``[params.friction_dual.seed]``; the value goes to the case's parameters (the
+``[components] friction_dual = ["collocation", "wedge"]`` (friction scenes), with its own
+grids ``[params.friction_dual.collocation]``; the value goes to the case's parameters (the
 same case as ``[reduce] friction_dual``). Combinations the formulation's reduced model
-refuses before any HF work (e.g. the seed's friction model with ``hyper = "eim"``) are
+refuses before any HF work (e.g. the collocation friction model with ``hyper = "eim"``) are
 ``skip`` rows with its reason.
 
 A scene entry ``name@variant`` is the scene ``name`` under its own
