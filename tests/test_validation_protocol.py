@@ -55,7 +55,7 @@ class Spy:
 @pytest.fixture
 def spies(monkeypatch):
     found = []
-    real = skeleton.offline
+    real = skeleton._build  # the shared skeleton behind reduce() and offline()
 
     def spied(*args, **kwargs):
         off = real(*args, **kwargs)
@@ -63,7 +63,7 @@ def spies(monkeypatch):
         found.append(off.stage.model)
         return off
 
-    monkeypatch.setattr(skeleton, "offline", spied)
+    monkeypatch.setattr(skeleton, "_build", spied)
     import rbbench.rb.linear.offline as linear
 
     real_linear = linear.LinearStage.__init__

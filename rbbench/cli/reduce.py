@@ -50,7 +50,7 @@ def reduce_fields(args: argparse.Namespace) -> dict[str, Any]:
 
 def _flagged(exc: OptionError) -> SceneError:
     """An option error with the flag the user typed in place of the field's name."""
-    return SceneError(exc.message(flag(exc.option)))
+    return SceneError(exc.message(flag))
 
 
 def cmd_reduce(args: argparse.Namespace) -> int:

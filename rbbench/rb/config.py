@@ -11,6 +11,7 @@ names the option and the formulations that take it (never a silently ignored opt
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields, is_dataclass
 from typing import Any
 
@@ -99,14 +100,16 @@ class OptionError(SceneError):
 
     def __init__(self, option: str, where: str, valid: list[str], owners: list[str]) -> None:
         self.option, self.where, self.valid, self.owners = option, where, valid, owners
-        super().__init__(self.message(repr(option)))
+        super().__init__(self.message(repr))
 
-    def message(self, shown: str) -> str:
-        """The message with the option shown as ``shown`` (e.g. a command-line flag)."""
+    def message(self, show: Callable[[str], str]) -> str:
+        """The message with every option name shown by ``show`` (e.g. its command-line
+        flag)."""
+        shown = show(self.option)
         takes = (f"{shown} is an option of {', '.join(self.owners)}" if self.owners
                  else f"{shown} is an option of no installed formulation")
         return (f"option {shown}: not an option of {self.where} (its options: "
-                f"{', '.join(self.valid) or 'none'}); {takes}")
+                f"{', '.join(map(show, self.valid)) or 'none'}); {takes}")
 
 
 def reduction_steps(config: ReduceConfig, registry: Registry, law: str = "none") -> Any:

@@ -60,7 +60,7 @@ class ReduceResult:
         t_hf = float(np.median(self.t_hf))
         out = {
             "scene": self.scene, "N": self.N, "R": self.R, "K_pga": self.K_pga,
-            "dim_primal_online": self.N + (self.K_pga if self.config["stabilizer"] == "pga"
+            "dim_primal_online": self.N + (self.K_pga if self.config.get("stabilizer") == "pga"
                                            else 0),
             "hyper": self.hyper, "M_eim": self.histories.get("eim", {}).get("rows"),
             "n_train": self.n_train, "n_valid": self.n_valid,

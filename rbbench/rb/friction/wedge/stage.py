@@ -102,7 +102,7 @@ class WedgeStage(FrictionStage):
         self.model = wedge_hyper_model(
             self.reduced, self.wedge, self.Z_off, np.column_stack(self._slips),
             ctx.backend.contact_layout(), p0.free, ctx.problem_at, ctx.scene.bounds,
-            eim_training_set(ctx.scene, ctx.config, ctx.mus_train), tol=ctx.options.tol_eim,
+            eim_training_set(ctx.scene, ctx.options, ctx.mus_train), tol=ctx.options.tol_eim,
             m_max=ctx.options.m_eim)
         self.hyper = "eim"
         self.histories["eim"] = self.model.info
