@@ -145,7 +145,7 @@ class HFFloor:
     """The HF contact solve against its floor (issue 17): ``hertz_halfdisks`` at mu = 1 on
     the default mesh refined ``level`` times (36910 / 75226 / 159k dofs at levels 0 / 1 / 2),
     per direct solver of the condensation (``linear_solver`` of ``ssn``: the Schur
-    complement of the KKT matrix by SuperLU or PARDISO, :mod:`rbbench.hf.solvers.condensation`;
+    complement of the KKT matrix by SuperLU or PARDISO, :mod:`rbbench.hf.condensation.schur`;
     PARDISO skipped when ``pypardiso`` is not installed).
 
     ``setup_cache`` runs ``rbbench solve``'s solve once per case (:func:`solve_hf`, one
@@ -161,7 +161,7 @@ class HFFloor:
     timeout = TIMEOUT
 
     def setup_cache(self):
-        from rbbench.hf.solvers.pardiso import available
+        from rbbench.hf.condensation.pardiso import available
         from rbbench.scene.loading import load_scene
 
         out = {}

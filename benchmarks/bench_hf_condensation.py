@@ -4,9 +4,10 @@ Issue 17, item 2. ``hertz_halfdisks`` at mu = 1 on the default mesh refined ``le
 times; the contact problem is built once per level (assembly excluded) and each timed call
 is one ``ssn`` solve (condensation, PDAS, recovery of u) with one BLAS thread:
 
-* ``columns``: today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.solvers.lcp.condense`), SuperLU;
+* ``columns``: today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.condensation.dense.condense`),
+SuperLU;
 * ``superlu`` / ``pardiso``: ``D`` as the Schur complement of the KKT matrix
-  (:func:`rbbench.hf.solvers.condensation.condense_schur`);
+  (:func:`rbbench.hf.condensation.schur.condense_schur`);
 * the floor: one SuperLU factorisation + one solve of the same stiffness
   (:func:`rbbench.hf.model.solve_floor`).
 
@@ -48,7 +49,7 @@ def contact_problem(level: int):
 
 
 def _variants() -> list[str]:
-    from rbbench.hf.solvers.pardiso import available
+    from rbbench.hf.condensation.pardiso import available
 
     return [v for v in VARIANTS if v != "pardiso" or available()]
 

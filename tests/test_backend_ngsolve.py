@@ -21,8 +21,8 @@ from rbbench_plugins.backends.ngsolve.fe import sparse_cholesky
 from rbbench_plugins.backends.skfem.meshes import graded_half_disk, unit_square  # noqa: E402
 
 from rbbench.cli import main  # noqa: E402
+from rbbench.hf.condensation.dense import condense
 from rbbench.hf.model import solve_hf  # noqa: E402
-from rbbench.hf.solvers import lcp  # noqa: E402
 from rbbench.registry import default_registry  # noqa: E402
 from rbbench.scene.loading import load_scene  # noqa: E402
 from rbbench.testing import HERTZ_COARSE  # noqa: E402
@@ -267,8 +267,8 @@ def test_factorize_hook_reaches_the_condensed_solver():
     assert prob.factorize is spy
     res = reg.create("solver", "ssn").solve(prob)
     assert calls == [prob.A.shape] and res.converged
-    ref = lcp.condense(prob.A, prob.F, prob.B, prob.G)  # SuperLU
-    hook = lcp.condense(prob.A, prob.F, prob.B, prob.G, factorize=sparse_cholesky)
+    ref = condense(prob.A, prob.F, prob.B, prob.G)  # SuperLU
+    hook = condense(prob.A, prob.F, prob.B, prob.G, factorize=sparse_cholesky)
     assert _rel(hook.D, ref.D) < 1e-10 and _rel(hook.u0, ref.u0) < 1e-10
     plain = NGSolveBackend(b.scene, direct_solver="scipy").discretize(b.scene.default_mu)
     assert plain.factorize is None

@@ -1,9 +1,9 @@
 """The Delassus operator as the Schur complement of the KKT matrix (issue 17, item 2).
 
-The new path (:func:`rbbench.hf.solvers.condensation.condense_schur`, SuperLU or PARDISO) against
-today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.solvers.lcp.condense`, ``condensation="columns"``)
-and against dense linear algebra written out here; on raw values (``D``, ``q``, ``u``,
-``lam``), never after clipping.
+The new path (:func:`rbbench.hf.condensation.schur.condense_schur`, SuperLU or PARDISO) against
+today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.condensation.dense.condense`,
+``condensation="columns"``) and against dense linear algebra written out here; on raw values (``D``,
+``q``, ``u``, ``lam``), never after clipping.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from rbbench.hf.solvers import condensation as cd
-from rbbench.hf.solvers import lcp
-from rbbench.hf.solvers.pardiso import available as pardiso_available
+from rbbench.hf.condensation import schur as cd
+from rbbench.hf.condensation.dense import condense, factorize
+from rbbench.hf.condensation.pardiso import available as pardiso_available
 from rbbench.registry import default_registry
 
 SOLVERS = ["superlu"] + (["pardiso"] if pardiso_available() else [])
@@ -55,7 +55,7 @@ def test_kkt_matrix_is_the_saddle_point_matrix_and_its_lower_triangle():
 @pytest.mark.parametrize("solver", SOLVERS)
 def test_schur_condensation_equals_the_dense_columns(solver):
     A, F, B, G = _problem()
-    ref = lcp.condense(A, F, B, G)
+    ref = condense(A, F, B, G)
     new = cd.condense_schur(A, F, B, G, linear_solver=solver)
     Ad, Bd = A.toarray(), B.toarray()
     D_dense = Bd @ np.linalg.solve(Ad, Bd.T)
@@ -100,7 +100,7 @@ def test_dependent_rows_fall_back_to_the_columns_and_say_so():
     B2 = sp.vstack([B, B[:1]]).tocsr()  # a repeated row: K singular
     cond = cd.condense_problem(A, F, B2, np.append(G, G[0]), linear_solver="superlu")
     assert "columns" in cond.info["fallback"] and cond.info["condensation"] == "columns"
-    ref = lcp.condense(A, F, B2, np.append(G, G[0]))
+    ref = condense(A, F, B2, np.append(G, G[0]))
     assert _rel(cond.D, ref.D) == 0.0
 
 
@@ -114,7 +114,7 @@ def test_options_are_checked_and_auto_keeps_a_backend_solver():
 
     def backend(M):
         calls.append(M.shape)
-        return lcp.factorize(M).solve
+        return factorize(M).solve
 
     cond = cd.condense_problem(A, F, B, G, factorize=backend)
     assert calls == [A.shape] and cond.info["linear_solver"] == "backend"
@@ -193,7 +193,7 @@ def test_pardiso_solves_in_halves_around_the_schur_block():
 def test_pardiso_floor_factorisation_takes_spd_and_indefinite_matrices():
     """The floor's ``factorized``: Cholesky for an SPD stiffness, and a symmetric
     indefinite matrix (which Cholesky refuses) still solved exactly by LDL^T."""
-    from rbbench.hf.solvers.pardiso import factorized
+    from rbbench.hf.condensation.pardiso import factorized
 
     A, F, _, _ = _problem(zero_row=False)
     assert _rel(factorized(A)(F), np.linalg.solve(A.toarray(), F)) < 1e-12

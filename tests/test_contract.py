@@ -59,7 +59,8 @@ def test_builtin_roles_are_all_exercised():
 # the contract rejects broken components
 # ---------------------------------------------------------------------------
 def _reference_solver(problem: ContactProblem, warm_start=None) -> SolveResult:
-    from rbbench.hf.solvers.lcp import condense, nnls_dual
+    from rbbench.hf.condensation.dense import condense
+    from rbbench.hf.solvers.lcp import nnls_dual
 
     cond = condense(problem.A, problem.F, problem.B, problem.G)
     lam = nnls_dual(cond.D, cond.q) if cond.q.size else np.zeros(0)
@@ -94,7 +95,7 @@ class _NegativeMultipliers:
     """Solves the equality-constrained problem (all constraints active): lam may be < 0."""
 
     def solve(self, problem, warm_start=None):
-        from rbbench.hf.solvers.lcp import condense
+        from rbbench.hf.condensation.dense import condense
 
         cond = condense(problem.A, problem.F, problem.B, problem.G)
         lam = np.linalg.lstsq(cond.D, -cond.q, rcond=None)[0]
@@ -144,7 +145,8 @@ def test_solver_contract_rejects_false_convergence_on_infeasible_problem():
             self.max_iter = max_iter
 
         def solve(self, problem, warm_start=None):
-            from rbbench.hf.solvers.lcp import condense, uzawa
+            from rbbench.hf.condensation.dense import condense
+            from rbbench.hf.solvers.lcp import uzawa
 
             cond = condense(problem.A, problem.F, problem.B, problem.G)
             lam, it, _, res, _ = uzawa(cond.D, cond.q, warm_start, tol=1e-13,

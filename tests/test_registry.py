@@ -137,6 +137,7 @@ from rbbench.hf.solvers import lcp
 from rbbench.hookspecs import hookimpl
 from rbbench.interfaces import Solver, SolveResult
 from rbbench.registry import ComponentSpec
+from rbbench.hf.condensation.dense import condense
 
 
 class ProjectedGradientSolver(Solver):
@@ -148,7 +149,7 @@ class ProjectedGradientSolver(Solver):
         self.max_iter, self.tol = int(max_iter), float(tol)
 
     def solve(self, problem, warm_start=None):
-        cond = lcp.condense(problem.A, problem.F, problem.B, problem.G)
+        cond = condense(problem.A, problem.F, problem.B, problem.G)
         D, q = cond.D, cond.q
         step = 1.0 / np.linalg.eigvalsh(D)[-1] if q.size else 1.0
         lam = np.zeros(q.size) if warm_start is None else np.maximum(warm_start, 0.0)

@@ -131,7 +131,7 @@ def test_floor_solves_the_stiffness():
     got = {}
 
     def factorize(A):
-        from rbbench.hf.solvers.lcp import factorize as lu
+        from rbbench.hf.condensation.dense import factorize as lu
 
         solve = lu(A).solve
 
@@ -149,7 +149,7 @@ def test_floor_solves_the_stiffness():
 def test_floor_uses_the_solves_linear_solver():
     """A solve condensed on PARDISO is timed against a PARDISO floor (same solver, not
     SuperLU), named in floor.solver; the floor's x solves A x = F (dense reference)."""
-    from rbbench.hf.solvers.pardiso import available, warm_up
+    from rbbench.hf.condensation.pardiso import available, warm_up
 
     if not available():
         pytest.skip("pypardiso not installed")
@@ -163,7 +163,7 @@ def test_floor_uses_the_solves_linear_solver():
     p = sol.problem
     fl = solve_floor(p, "pardiso")
     assert fl["solver"].startswith("PARDISO")
-    from rbbench.hf.solvers.pardiso import factorized
+    from rbbench.hf.condensation.pardiso import factorized
 
     x = factorized(p.A)(np.asarray(p.F, float))
     ref = np.linalg.solve(p.A.toarray(), p.F)

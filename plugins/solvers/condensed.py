@@ -1,11 +1,11 @@
 """Condensed VI solvers: semismooth Newton (primal-dual active set) and Uzawa.
 
 Both condense the contact problem on its multipliers once per mu
-(:func:`rbbench.hf.solvers.condensation.condense_problem`) and work on the LCP of the contact
+(:func:`rbbench.hf.condensation.schur.condense_problem`) and work on the LCP of the contact
 unknowns (:mod:`rbbench.hf.solvers.lcp`). Options of both: ``condensation`` (``"schur"``: the
 Schur complement of the KKT matrix, one sparse factorisation; ``"columns"``: the dense
 ``A^{-1} B^T``, the reference) and ``linear_solver`` (``"auto"``, ``"superlu"``,
-``"pardiso"``; :data:`rbbench.hf.solvers.condensation.LINEAR_SOLVERS`).
+``"pardiso"``; :data:`rbbench.hf.condensation.schur.LINEAR_SOLVERS`).
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import time
 
 import numpy as np
 
+from rbbench.hf.condensation.schur import check_options, condense_problem
 from rbbench.hf.solvers import lcp
-from rbbench.hf.solvers.condensation import check_options, condense_problem
 from rbbench.interfaces import ContactProblem, Solver, SolveResult
 
 
@@ -24,17 +24,17 @@ class CondensationOptions:
 
     def _set_condensation(self, condensation: str, linear_solver: str) -> None:
         """Check the options; a Schur condensation that may use PARDISO loads it now
-        (:func:`rbbench.hf.solvers.pardiso.warm_up`: its first call is a per-process cost,
+        (:func:`rbbench.hf.condensation.pardiso.warm_up`: its first call is a per-process cost,
         paid at construction, outside the timed solves)."""
         check_options(condensation, linear_solver)
         self.condensation, self.linear_solver = condensation, linear_solver
         if condensation == "schur" and linear_solver in ("auto", "pardiso"):
-            from rbbench.hf.solvers.pardiso import warm_up
+            from rbbench.hf.condensation.pardiso import warm_up
 
             warm_up()
 
     def condense(self, A, F, B, G, factorize=None):
-        """:func:`~rbbench.hf.solvers.condensation.condense_problem` with this solver's options."""
+        """:func:`~rbbench.hf.condensation.schur.condense_problem` with this solver's options."""
         return condense_problem(A, F, B, G, condensation=self.condensation,
                                 linear_solver=self.linear_solver, factorize=factorize)
 

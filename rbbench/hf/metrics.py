@@ -286,9 +286,10 @@ DEFINITIONS = {
     "floor_s": "the floor of the solve (s): one factorisation + one solve A x = F of the same "
                "stiffness on the free dofs with the direct solver of the solve's condensation "
                "(PARDISO when it ran on PARDISO, else the backend's factorize, else SuperLU "
-               "as rbbench.hf.solvers.lcp.factorize; floor.solver names it), timed in the same run "
-               "right after the solve, with one BLAS thread as the solve; floor.factor_s, "
-               "floor.solve_s its parts. PARDISO's first call in a process (library "
+               "as rbbench.hf.condensation.dense.factorize; floor.solver names it), timed "
+               "in the same run right after the solve, with one BLAS thread as the solve; "
+               "floor.factor_s, floor.solve_s its parts. PARDISO's first call in a process "
+               "(library "
                "loading, ~0.6 s) is paid at solver construction (times_s.setup_s)",
     "solve_over_floor": "times_s.solve_s / floor_s: the solver's time (condensation, "
                         "contact iterations, recovery of u; no assembly, no meshing) over "

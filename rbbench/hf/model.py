@@ -21,9 +21,9 @@ from rbbench.hf.components import (
     make_components,
     warm_up,
 )
+from rbbench.hf.condensation.dense import factorize
 from rbbench.hf.geometry.checks import flag
 from rbbench.hf.metrics import contact_metrics
-from rbbench.hf.solvers import lcp
 from rbbench.interfaces import (
     ContactProblem,
     Discretization,
@@ -254,20 +254,21 @@ def solve_floor(problem: Any, linear_solver: str | None = None) -> dict[str, Any
     """Time one factorisation + one solve ``A x = F`` of the problem's stiffness on the free
     dofs with the direct solver the HF solve used: PARDISO when ``linear_solver`` is
     ``"pardiso"`` (the solve's condensation ran on it), else ``problem.factorize`` (the
-    backend's), else SuperLU (:func:`rbbench.hf.solvers.lcp.factorize`): the floor of a contact
-    solve (issue 17).
+    backend's), else SuperLU (:func:`rbbench.hf.condensation.dense.factorize`): the floor of a
+    contact solve (issue 17).
 
     Returns ``factor_s``, ``solve_s`` and their sum ``floor_s`` (s) and ``solver``.
     """
     t0 = time.perf_counter()
     if linear_solver == "pardiso":
-        from rbbench.hf.solvers.pardiso import factorized
+        from rbbench.hf.condensation.pardiso import factorized
 
-        solve, name = factorized(problem.A), "PARDISO (rbbench.hf.solvers.pardiso.factorized)"
+        solve, name = factorized(problem.A), "PARDISO (rbbench.hf.condensation.pardiso.factorized)"
     elif problem.factorize is not None:
         solve, name = problem.factorize(problem.A), "backend factorize"
     else:
-        solve, name = lcp.factorize(problem.A).solve, "SuperLU (rbbench.hf.solvers.lcp.factorize)"
+        solve = factorize(problem.A).solve
+        name = "SuperLU (rbbench.hf.condensation.dense.factorize)"
     t1 = time.perf_counter()
     x = solve(np.asarray(problem.F, dtype=float))
     t2 = time.perf_counter()

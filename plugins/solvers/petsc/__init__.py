@@ -8,7 +8,7 @@ The problem (seed 000, "Mixed formulation"; :class:`rbbench.interfaces.ContactPr
   ``x = (u, lam)`` and solves it with a PETSc SNES variational-inequality
   Newton method (``vinewtonrsls``, reduced-space active set, by default).
 * :class:`PetscTaoSolver` condenses it on the contact unknowns with
-  :func:`rbbench.hf.solvers.lcp.condense` and solves the bound-constrained dual QP
+  :func:`rbbench.hf.condensation.dense.condense` and solves the bound-constrained dual QP
   ``min_{lam >= 0} 1/2 lam^T D lam + q^T lam`` with PETSc TAO (``tron``).
 
 Both also solve a :class:`rbbench.interfaces.FrictionProblem` (issue 13) over its load

@@ -23,7 +23,7 @@ from rbbench_plugins.solvers.petsc.common import (
 )
 
 from rbbench.hf.algebra import friction as fa
-from rbbench.hf.solvers.condensation import condense_problem
+from rbbench.hf.condensation.schur import condense_problem
 from rbbench.interfaces import ContactProblem, FrictionProblem, SolveResult
 
 __all__ = ["TAO_TYPES", "PetscTaoSolver"]
@@ -55,7 +55,7 @@ def _tao_callbacks(Ds: np.ndarray, q: np.ndarray, qnorm: float, counts: dict[str
 class PetscTaoSolver(_PetscSolver):
     """PETSc TAO bound-constrained QP on the condensed dual problem.
 
-    :func:`rbbench.hf.solvers.condensation.condense_problem` (the Schur complement of the KKT
+    :func:`rbbench.hf.condensation.schur.condense_problem` (the Schur complement of the KKT
     matrix; a backend's own solver: the dense columns) forms the Delassus
     operator ``D = B A^{-1} B^T`` and ``q = G - B A^{-1} F``; the multipliers
     solve LCP(q, D), the optimality system of::

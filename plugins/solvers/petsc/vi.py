@@ -25,7 +25,7 @@ from rbbench_plugins.solvers.petsc.common import (
 )
 
 from rbbench.hf.algebra import friction as fa
-from rbbench.hf.solvers import lcp
+from rbbench.hf.condensation.dense import factorize
 from rbbench.interfaces import ContactProblem, FrictionProblem, SolveResult
 
 __all__ = ["ORDERINGS", "SNES_TYPES", "PetscVISolver"]
@@ -96,7 +96,7 @@ def _initial_point(kkt: _KKT, A: sp.csr_matrix, B: sp.csr_matrix, F: np.ndarray,
     t_warm = 0.0
     if lam0 is not None:
         tw = time.perf_counter()
-        u0 = lcp.factorize(A).solve(F - B.T @ lam0)
+        u0 = factorize(A).solve(F - B.T @ lam0)
         x0 = np.r_[u0[kkt.perm], lam0 / kkt.t] / kkt.sigma
         t_warm = time.perf_counter() - tw
     return x0, t_warm

@@ -40,8 +40,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.optimize import lsq_linear
 
-from rbbench.hf.solvers.condensation import condense_problem
-from rbbench.hf.solvers.lcp import _scaling
+from rbbench.hf.condensation.dense import delassus_scaling
+from rbbench.hf.condensation.schur import condense_problem
 from rbbench.interfaces import Factorize
 
 #: names of the per-condition residuals reported by every friction solver
@@ -103,8 +103,8 @@ def condense_friction(A: sp.spmatrix, F: np.ndarray, Bn: sp.spmatrix, Bt: sp.spm
     """Condense the friction problem with one factorisation.
 
     ``B = [Bn; Bt]`` and ``G = [G; ut_prev]`` in
-    :func:`rbbench.hf.solvers.condensation.condense_problem` (``condensation``, ``linear_solver``;
-    default: the dense ``A^{-1} B^T`` of :func:`rbbench.hf.solvers.lcp.condense`), so
+    :func:`rbbench.hf.condensation.schur.condense_problem` (``condensation``, ``linear_solver``;
+    default: the dense ``A^{-1} B^T`` of :func:`rbbench.hf.condensation.dense.condense`), so
     ``q_t = ut_prev - Bt u0`` and ``displacement([lam_n; lam_t])`` is ``u``.
     """
     G = np.asarray(G, float).ravel()
@@ -285,7 +285,7 @@ def uzawa_friction(D: np.ndarray, q: np.ndarray, s: float | np.ndarray | None = 
     F_arr = None if F is None else node_array(F, m, "F")
     lmax = float(sla.eigvalsh(D, subset_by_index=[2 * m - 1, 2 * m - 1])[0]) if m else 1.0
     rho = omega / lmax if lmax > 0 else 1.0
-    c = _scaling(D)
+    c = delassus_scaling(D)
     x = np.zeros(2 * m) if lam0 is None else _project(np.asarray(lam0, float), m, s_arr, F_arr)
     history: list[float] = []
     best, best_it, it, reason = math.inf, 0, 0, "max_iterations"

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from rbbench.hf.condensation.dense import factorize
 from rbbench.hf.model import HFSolution, hf_vectors
 from rbbench.hf.snapshots.compute import (
     Snapshot,
@@ -32,7 +33,6 @@ from rbbench.hf.snapshots.compute import (
     save_snapshot,
     snapshot_key,
 )
-from rbbench.hf.solvers import lcp
 from rbbench.interfaces import Discretization, Factorize, HFVectors, SolveResult
 from rbbench.interfaces.problems import _FreeDofs
 from rbbench.registry import Registry, default_registry
@@ -97,10 +97,10 @@ def build_linear(disc: Discretization) -> LinearProblem:
 
 def _factor(problem: LinearProblem, S: sp.csr_matrix):
     """The backend's direct solver, else SuperLU in symmetric mode as the HF contact solvers
-    (:func:`rbbench.hf.solvers.lcp.factorize`)."""
+    (:func:`rbbench.hf.condensation.dense.factorize`)."""
     if problem.factorize is not None:
         return problem.factorize(S)
-    return lcp.factorize(S).solve
+    return factorize(S).solve
 
 
 def solve_linear(problem: LinearProblem) -> np.ndarray:

@@ -1,89 +1,20 @@
-"""Condensed contact problem and its solvers (plain functions on arrays).
-
-The HF mixed problem (seed 000, "Mixed formulation")::
-
-    A u + B^T lam = F,  lam >= 0,  s := G - B u >= 0,  lam . s = 0
-
-is condensed on the contact unknowns with one factorisation of ``A``:
-``u = u0 - A^{-1} B^T lam`` with ``u0 = A^{-1} F``, hence the linear
-complementarity problem LCP(q, D)::
-
-    s = q + D lam,  q = G - B u0,  D = B A^{-1} B^T  (Delassus operator)
-    lam >= 0,  s >= 0,  lam . s = 0.
-
-It is also the optimality system of the dual QP
-``min_{lam >= 0} 1/2 lam^T D lam + q^T lam``.
+"""The linear complementarity problem of the condensed contact problem and its solvers
+(plain functions on arrays): LCP(q, D), ``s = q + D lam``, ``lam >= 0``, ``s >= 0``,
+``lam . s = 0``, with the Delassus operator ``D = B A^{-1} B^T`` of
+:mod:`rbbench.hf.condensation` (the optimality system of the dual QP
+``min_{lam >= 0} 1/2 lam^T D lam + q^T lam``): the primal-dual active set (PDAS), Lawson-
+Hanson's NNLS on a Cholesky factor, Uzawa, and the natural residual that checks them.
 """
 
 from __future__ import annotations
 
-import time
 import warnings
-from collections.abc import Callable
-from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg as sla
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.optimize import nnls
 
-from rbbench.interfaces import Factorize
-
-
-@dataclass
-class Condensed:
-    """Result of :func:`condense`: everything needed to solve and recover ``u``."""
-
-    u0: np.ndarray  # A^{-1} F
-    AinvBt: np.ndarray  # A^{-1} B^T (n x m, dense)
-    D: np.ndarray  # B A^{-1} B^T (m x m)
-    q: np.ndarray  # G - B u0
-    t_factor: float
-    t_condense: float
-    solve: Callable[[np.ndarray], np.ndarray] | None = None  # A^{-1}, for further loads
-    B: sp.csr_matrix | None = None
-    info: dict = field(default_factory=dict)
-
-    def displacement(self, lam: np.ndarray) -> np.ndarray:
-        return self.u0 - self.AinvBt @ lam
-
-    def load(self, F: np.ndarray, G: np.ndarray) -> Condensed:
-        """The same ``D`` with another load: ``u0 = A^{-1} F``, ``q = G - B u0``."""
-        u0 = self.solve(np.asarray(F, dtype=float))
-        return replace(self, u0=u0, q=np.asarray(G - self.B @ u0, dtype=float).ravel())
-
-
-def factorize(A: sp.spmatrix):
-    """Sparse LU of the SPD stiffness (SuperLU, symmetric mode: see pitfalls.md)."""
-    return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                     options={"SymmetricMode": True})
-
-
-def _scipy_solver(A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
-    return factorize(A).solve
-
-
-def condense(A: sp.spmatrix, F: np.ndarray, B: sp.spmatrix, G: np.ndarray,
-             factorize: Factorize | None = None) -> Condensed:
-    """Factorise ``A`` once and form the Delassus operator ``D = B A^{-1} B^T``.
-
-    ``factorize(A)`` returns ``solve(b)`` for ``b`` of shape (n,) or (n, k): a
-    backend's direct solver (``ContactProblem.factorize``); ``None`` uses
-    SuperLU (:func:`factorize`).
-    """
-    t0 = time.perf_counter()
-    solve = (factorize or _scipy_solver)(A)
-    t1 = time.perf_counter()
-    u0 = solve(np.asarray(F, dtype=float))
-    B = sp.csr_matrix(B)
-    Bt = np.asarray(B.T.toarray())
-    AinvBt = solve(Bt) if Bt.shape[1] else np.zeros((A.shape[0], 0))
-    D = np.asarray(B @ AinvBt)
-    D = 0.5 * (D + D.T)
-    q = np.asarray(G - B @ u0).ravel()
-    return Condensed(u0, AinvBt, D, q, t1 - t0, time.perf_counter() - t1, solve, B,
-                     {"condensation": "columns"})
+from rbbench.hf.condensation.dense import delassus_scaling
 
 
 def natural_residual(D: np.ndarray, q: np.ndarray, lam: np.ndarray, c: float) -> float:
@@ -95,11 +26,6 @@ def natural_residual(D: np.ndarray, q: np.ndarray, lam: np.ndarray, c: float) ->
     s = q + D @ lam
     scale = max(np.linalg.norm(c * q), np.finfo(float).tiny)
     return float(np.linalg.norm(np.minimum(lam, c * s)) / scale)
-
-
-def _scaling(D: np.ndarray) -> float:
-    d = np.diag(D)
-    return 1.0 / float(np.mean(d)) if d.size and np.mean(d) > 0 else 1.0
 
 
 def _solve_active(D: np.ndarray, q: np.ndarray, active: np.ndarray) -> np.ndarray:
@@ -146,7 +72,7 @@ def pdas(D: np.ndarray, q: np.ndarray, lam0: np.ndarray | None = None, max_iter:
 
     Returns ``(lam, iterations, stop_reason, residuals, info)``.
     """
-    c = _scaling(D)
+    c = delassus_scaling(D)
     m = q.size
     info: dict = {}
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(D))):
@@ -197,7 +123,7 @@ def uzawa(D: np.ndarray, q: np.ndarray, lam0: np.ndarray | None = None, omega: f
     """
     if not 0.0 < omega < 2.0:
         raise ValueError(f"uzawa: omega = {omega!r} must lie in (0, 2)")
-    c = _scaling(D)
+    c = delassus_scaling(D)
     m = q.size
     lmax = float(sla.eigvalsh(D, subset_by_index=[m - 1, m - 1])[0]) if m else 1.0
     rho = omega / lmax

@@ -80,9 +80,9 @@ def make_solver(X) -> Solver:
     ----------
     X : sparse matrix, ndarray, object with a ``solve`` method, or callable
         A sparse matrix is factorised once with SuperLU in symmetric mode
-        (:func:`rbbench.hf.solvers.lcp.factorize`), a dense one with a Cholesky factorisation; an
-        existing factorisation (``scipy.sparse.linalg.splu`` result, ...) is used through its
-        ``solve`` method; a callable is returned unchanged.
+        (:func:`rbbench.hf.condensation.dense.factorize`), a dense one with a Cholesky
+        factorisation; an existing factorisation (``scipy.sparse.linalg.splu`` result, ...) is used
+        through its ``solve`` method; a callable is returned unchanged.
 
     Notes
     -----
@@ -91,7 +91,7 @@ def make_solver(X) -> Solver:
     0.4 s.
     """
     if sp.issparse(X):
-        from rbbench.hf.solvers.lcp import factorize
+        from rbbench.hf.condensation.dense import factorize
 
         lu = factorize(X)
         return lambda rhs: lu.solve(np.asfortranarray(rhs, dtype=float))

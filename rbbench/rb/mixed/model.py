@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
+from rbbench.hf.condensation.dense import delassus_scaling
 from rbbench.hf.solvers import lcp
 from rbbench.interfaces import HFVectors
 from rbbench.rb.algorithms.affine import (
@@ -137,7 +138,7 @@ def _nnls_scaled(D: np.ndarray, q: np.ndarray, tol: float = 1e-10) -> np.ndarray
         x = lcp.nnls_dual(D / dm, q / qm)
     except (np.linalg.LinAlgError, RuntimeError):
         return None
-    if not lcp.natural_residual(D / dm, q / qm, x, lcp._scaling(D / dm)) <= tol:
+    if not lcp.natural_residual(D / dm, q / qm, x, delassus_scaling(D / dm)) <= tol:
         return None
     return x * (qm / dm)
 

@@ -1,6 +1,6 @@
 """The Delassus operator as a Schur complement of the KKT matrix (issue 17, item 2).
 
-:func:`rbbench.hf.solvers.lcp.condense` forms ``D = B A^{-1} B^T`` from ``A^{-1} B^T``, one
+:func:`rbbench.hf.condensation.dense.condense` forms ``D = B A^{-1} B^T`` from ``A^{-1} B^T``, one
 triangular solve pair per multiplier (512 dense right-hand sides at level 1 of
 ``hertz_halfdisks``: 88 % of the HF time). Here ``D`` is read off one sparse LU of the
 saddle-point matrix with the multipliers eliminated last::
@@ -20,7 +20,7 @@ dofs may still come after the first multiplier: the trailing block then holds th
 complement on the multipliers and those ``k`` dofs, and they are eliminated from it densely
 (``S_MM - S_MO S_OO^{-1} S_OM``). Multipliers whose row of ``B`` is zero (no quadrature
 point in their support) are left out of ``K``: their rows and columns of ``D`` are zero,
-as in :func:`~rbbench.hf.solvers.lcp.condense`.
+as in :func:`~rbbench.hf.condensation.dense.condense`.
 
 The load (``q``) and the displacement (``u``) come from solves with ``K``: with
 ``K [x; y] = [F; G]``, ``y = -D^{-1} q`` so ``q = -D y``; and for any multipliers ``lam``,
@@ -41,8 +41,10 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from rbbench.hf.condensation.dense import condense
+
 #: ``condensation`` option of the condensed solvers: Schur complement of the KKT matrix, or
-#: today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.solvers.lcp.condense`, the reference)
+#: today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.condensation.dense.condense`, the reference)
 CONDENSATIONS = ("schur", "columns")
 #: ``linear_solver`` option: the sparse direct solver of the condensation; ``"auto"``:
 #: the backend's own solver when it gives one (``problem.factorize``, with ``"columns"``,
@@ -58,7 +60,7 @@ class SchurFactor:
     solve: Callable[[np.ndarray], np.ndarray]  # K^{-1}, K of size n + m_k
     info: dict[str, Any] = field(default_factory=dict)
     #: PARDISO: K^{-1} in two halves around the Schur block (``forward``, ``backward``:
-    #: :class:`rbbench.hf.solvers.pardiso.SchurSolves`), else None
+    #: :class:`rbbench.hf.condensation.pardiso.SchurSolves`), else None
     halves: Any = None
 
 
@@ -183,10 +185,10 @@ def check_options(condensation: str, linear_solver: str) -> None:
 def schur_factor(A: sp.spmatrix, B: sp.spmatrix, linear_solver: str = "superlu"
                  ) -> SchurFactor:
     """The :class:`SchurFactor` of ``(A, B)`` with ``linear_solver`` (``"superlu"`` or
-    ``"pardiso"``, which needs ``pypardiso``: :mod:`rbbench.hf.solvers.pardiso`)."""
+    ``"pardiso"``, which needs ``pypardiso``: :mod:`rbbench.hf.condensation.pardiso`)."""
     if linear_solver != "pardiso":
         return schur_superlu(A, B)
-    from rbbench.hf.solvers.pardiso import schur_pardiso
+    from rbbench.hf.condensation.pardiso import schur_pardiso
 
     n, m = A.shape[0], B.shape[0]
     Kl = kkt_matrix(A, B, lower=True)  # its CSC arrays: the CSR of the upper triangle
@@ -200,7 +202,7 @@ def schur_factor(A: sp.spmatrix, B: sp.spmatrix, linear_solver: str = "superlu"
 
 def _pardiso_available() -> bool:
     try:
-        from rbbench.hf.solvers.pardiso import available
+        from rbbench.hf.condensation.pardiso import available
     except ImportError:  # pragma: no cover - the module itself imports without pypardiso
         return False
     return available()
@@ -209,7 +211,8 @@ def _pardiso_available() -> bool:
 @dataclass
 class SchurCondensed:
     """The condensed problem of :func:`condense_schur`, the interface of
-    :class:`rbbench.hf.solvers.lcp.Condensed` (``D``, ``q``, ``displacement``, ``load``, times)."""
+    :class:`rbbench.hf.condensation.dense.Condensed` (``D``, ``q``, ``displacement``, ``load``,
+    times)."""
 
     D: np.ndarray  # m x m, zero rows / columns for zero rows of B
     q: np.ndarray
@@ -279,7 +282,7 @@ def condense_schur(A: sp.spmatrix, F: np.ndarray, B: sp.spmatrix, G: np.ndarray,
                    linear_solver: str = "superlu") -> SchurCondensed:
     """Condense ``A u + B^T lam = F`` on ``lam`` by the Schur complement of the KKT matrix.
 
-    Same ``D`` and ``q`` as :func:`rbbench.hf.solvers.lcp.condense` (to rounding) without
+    Same ``D`` and ``q`` as :func:`rbbench.hf.condensation.dense.condense` (to rounding) without
     ``A^{-1} B^T``; ``t_factor`` is the factorisation of ``K`` with the extraction of
     ``D``, ``t_condense`` the solve for ``q``.
     """
@@ -306,17 +309,16 @@ def condense_problem(A: sp.spmatrix, F: np.ndarray, B: sp.spmatrix, G: np.ndarra
     """The condensed problem (``D``, ``q``, ``displacement``, ``load``) by the chosen method.
 
     ``"columns"``, or ``"auto"`` with a backend solver ``factorize``:
-    :func:`rbbench.hf.solvers.lcp.condense` (dense ``A^{-1} B^T``, the reference). Otherwise
+    :func:`rbbench.hf.condensation.dense.condense` (dense ``A^{-1} B^T``, the reference). Otherwise
     :func:`condense_schur` with PARDISO (``"pardiso"``, or ``"auto"`` when ``pypardiso`` is
     installed) or SuperLU. PARDISO missing: SuperLU; a Schur factorisation that fails
     (singular ``K``, a pivot off the diagonal or perturbed): the columns. Each fallback is
     said in ``info["fallback"]``; ``info`` also names the method and the solver used.
     """
-    from rbbench.hf.solvers import lcp
 
     check_options(condensation, linear_solver)
     if condensation == "columns" or (linear_solver == "auto" and factorize is not None):
-        cond = lcp.condense(A, F, B, G, factorize=factorize)
+        cond = condense(A, F, B, G, factorize=factorize)
         cond.info["linear_solver"] = "backend" if factorize is not None else "superlu"
         return cond
     info: dict[str, Any] = {}
@@ -328,7 +330,7 @@ def condense_problem(A: sp.spmatrix, F: np.ndarray, B: sp.spmatrix, G: np.ndarra
     try:
         cond = condense_schur(A, F, B, G, linear_solver=chosen)
     except (RuntimeError, np.linalg.LinAlgError) as exc:
-        cond = lcp.condense(A, F, B, G, factorize=factorize)
+        cond = condense(A, F, B, G, factorize=factorize)
         info["fallback"] = f"columns ({chosen} Schur complement failed: {exc})"
     cond.info.update(info)
     return cond

@@ -5,7 +5,7 @@ PARDISO computes the dense Schur complement of a sparse matrix on the rows marke
 factors of the rest, the Schur block itself left unfactorised; oneMKL developer
 reference, "pardiso iparm parameter"). ``K = [[A, B^T], [B, 0]]`` is symmetric
 indefinite (``mtype = -2``, upper triangle), its Schur complement on the multipliers is
-``-D`` (:mod:`rbbench.hf.solvers.condensation`). Solves with ``K`` go in two halves around the
+``-D`` (:mod:`rbbench.hf.condensation.schur`). Solves with ``K`` go in two halves around the
 Schur block (:class:`SchurSolves`): the forward substitution (phase 331) leaves the Schur
 right-hand side ``G - B A^{-1} F`` in the multiplier rows, the backward substitution
 (phase 333) takes the multiplier values put there and returns ``A^{-1} (F - B^T y)``.
@@ -165,7 +165,7 @@ def schur_pardiso(K_upper: sp.csr_matrix, m: int) -> tuple[np.ndarray, SchurSolv
 
     Returns ``(S, solves, info)``: the dense Schur complement, the :class:`SchurSolves`
     with ``K`` and a record (``factor_nnz``, ``perturbed_pivots``). With ``K`` the KKT
-    matrix, ``S = -D`` (:func:`rbbench.hf.solvers.condensation.schur_factor`).
+    matrix, ``S = -D`` (:func:`rbbench.hf.condensation.schur.schur_factor`).
     """
     N = K_upper.shape[0]
     h = _Handle(K_upper, np.arange(N - m, N))
