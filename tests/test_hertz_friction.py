@@ -66,7 +66,7 @@ def test_png_has_the_friction_panel(solution, tmp_path):
 
 
 def test_solve_prints_the_friction_and_mindlin_lines(capsys):
-    from rbbench.cli import print_summary
+    from rbbench.cli.console import print_summary
 
     sc = load_scene("mindlin_cylinders", ["discretization.h_contact=0.002"])
     sol = solve_hf(sc, None)

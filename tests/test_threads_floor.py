@@ -13,6 +13,7 @@ from threadpoolctl import threadpool_info, threadpool_limits
 from rbbench.cli.console import print_summary
 from rbbench.hf.components import make_components
 from rbbench.hf.model import solve_floor, solve_hf
+from rbbench.interfaces import HFVectors, ReducedSolution
 from rbbench.rb.validation import ReducedStage, validate
 from rbbench.runtime import threads
 from rbbench.runtime.threads import blas_pools, one_blas_thread
@@ -73,20 +74,31 @@ def test_hf_solve_runs_with_one_thread(two_threads):
     assert _blas_threads() == outside
 
 
-class _Stage(ReducedStage):
+class _Model:
     """A reduced model that returns the HF solution and records the BLAS threads online."""
 
-    config, histories, definitions, beta = {"stabilizer": "none"}, {}, {}, {}
+    parameters = None
 
     def __init__(self, valid):
         self.valid, self.seen = valid, []
 
-    def online(self, mu, problem):
+    def solve(self, mu):
         self.seen.append(_blas_threads())
         j = int(np.flatnonzero(self.valid.mus[:, 0] == mu[0])[0])
-        return SimpleNamespace(stop_reason="converged"), self.valid.U[:, j], [1e-6]
+        return ReducedSolution(mu=mu, u=np.array([float(j)]), lam=np.zeros(0), iterations=0,
+                               stop_reason="converged", time_s=1e-6)
 
-    def metrics(self, mu, p, u, lam, result, u_n):
+    def reconstruct(self, sol):
+        return HFVectors(u=self.valid.U[:, int(sol.u[0])], lam=np.zeros(0))
+
+
+class _Stage(ReducedStage):
+    config, histories, definitions, beta = {"stabilizer": "none"}, {}, {}, {}
+
+    def __init__(self, valid):
+        self.model = _Model(valid)
+
+    def metrics(self, mu, p, u, lam, result, hf):
         return {"err_lam": 0.0}
 
 
@@ -97,10 +109,12 @@ def test_validation_loop_runs_with_one_thread(two_threads):
     prob = SimpleNamespace(A=np.eye(n), F=np.zeros(n))
     ctx = SimpleNamespace(valid=sets, train=sets, X=np.eye(n), timings={}, t0=time.perf_counter(),
                           mus_train=sets.mus, scene=SimpleNamespace(name="fake"),
-                          problem_at=lambda mu: prob, progress=lambda s: None)
+                          problem_at=lambda mu: prob, progress=lambda s: None,
+                          config=SimpleNamespace(online_repeats=1))
     stage = _Stage(sets)
     res = validate(ctx, stage)
-    assert len(stage.seen) == n and all(t == [1] * len(two_threads) for t in stage.seen)
+    seen = stage.model.seen
+    assert len(seen) == n and all(t == [1] * len(two_threads) for t in seen)
     assert res.summary()["blas_threads"]["limit"] == 1
     assert _blas_threads() == two_threads
     assert res.err_u == [0.0] * n  # the HF solution returned: zero error
