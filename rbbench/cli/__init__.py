@@ -18,6 +18,7 @@ from rbbench.runtime import openblas_env  # noqa: F401  (first: before numpy loa
 import argparse
 import sys
 
+from rbbench._compat import deprecated_names
 from rbbench.bench.errors import ResultsError
 from rbbench.cli.optimize import add_parser as _add_optimize_parser
 from rbbench.cli.reduce import _add_online_scaling_parser, _add_reduce_parser
@@ -71,3 +72,6 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+__getattr__ = deprecated_names(__name__)  # names that left this module (rbbench._compat)

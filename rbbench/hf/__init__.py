@@ -1,9 +1,15 @@
-"""High fidelity: contact geometry, the condensed LCP, friction and Nitsche algebra, analytic
-references (Hertz, Cattaneo-Mindlin), the HF model (:class:`rbbench.hf.model.HFModel`),
-snapshots and the files of a solve.
+"""High fidelity: one-way from the scene to the snapshots.
 
-Data flow: scene -> backend operators (:mod:`.contact_geometry`: :mod:`.facets`,
-:mod:`.facet_chains`, :mod:`.pairing`) -> formulation + solver (:mod:`.model`, :mod:`.lcp`,
-:mod:`.friction_algebra` and :mod:`.friction_solvers`, :mod:`.nitsche_algebra`) -> snapshots
-(:mod:`.snapshots`).
+* :mod:`.geometry`: the contact boundaries, pairing and contact operators (backend-agnostic);
+* :mod:`.references`: analytic references (2D Hertz, Cattaneo-Mindlin);
+* :mod:`.condensation`: the contact problem condensed on its contact unknowns (Delassus);
+* :mod:`.algebra`: the algebra of the friction and Nitsche formulations;
+* :mod:`.solvers`: the LCP and friction solvers on the condensed problem;
+* :mod:`.components` (the backend, formulation and solver by name), :mod:`.model` (the HF
+  model: one solve), :mod:`.metrics` (its labelled numbers), :mod:`.output` (its files);
+* :mod:`.snapshots`: HF snapshots, cached; :mod:`.linear`: the linear scenes without contact.
 """
+
+from rbbench._compat import deprecated_names
+
+__getattr__ = deprecated_names(__name__)  # the names of rbbench 0.1's flat rbbench.hf

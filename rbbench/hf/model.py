@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from rbbench._compat import deprecated_names
 from rbbench.hf.components import (
     default_solver,
     discretize_for,
@@ -303,3 +304,4 @@ def solve_hf(scene: Scene, mu: Any = None, backend: str = "skfem", formulation: 
                    components).solve(mu, progress, floor=floor)
 
 
+__getattr__ = deprecated_names(__name__)  # names that left this module (rbbench._compat)

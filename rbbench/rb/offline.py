@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from rbbench._compat import deprecated_names
 from rbbench.hf.components import default_solver, make_components
 from rbbench.hf.model import ProblemCache, ProblemSource
 from rbbench.hf.snapshots.compute import SnapshotSet, compute_snapshots
@@ -295,3 +296,6 @@ def training_snapshots(scene: Scene, config: ReduceConfig, formulation: str, sol
         train = compute_snapshots(scene, mus_train, **snap_kw)
         valid = compute_snapshots(scene, mus_valid, **snap_kw) if validation else None
     return mus_train, train, mus_valid, valid
+
+
+__getattr__ = deprecated_names(__name__)  # names that left this module (rbbench._compat)

@@ -1,6 +1,7 @@
 """Scenes: the schema, loading and validation of scene files (:mod:`.loading`; the linear
 scenes without contact: :mod:`.linear`) and parameter sampling (:mod:`.sampling`)."""
 
+from rbbench._compat import deprecated_names
 from rbbench.scene.linear import LINEAR_PHYSICS  # registers the linear scenes' schema
 from rbbench.scene.loading import (
     PROBLEMS_DIR,
@@ -16,3 +17,6 @@ from rbbench.scene.sampling import parameter_set
 
 __all__ = ["LINEAR_PHYSICS", "PROBLEMS_DIR", "Parameter", "Scene", "SceneError", "find_scene",
            "load_scene", "parameter_set", "parse_override", "validate"]
+
+
+__getattr__ = deprecated_names(__name__)  # names that left this module (rbbench._compat)

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from rbbench._compat import deprecated_names
 from rbbench.studies.formatting import markdown_table
 
 __all__ = ["INSTALL_HINT", "pymor_column", "rbbench_column",
@@ -193,3 +194,6 @@ def side_by_side_markdown(res: dict[str, Any]) -> str:
             f"{su['n_cells']} squares, N = {su['N']}, {su['n_train']} training / "
             f"{su['n_valid']} validation parameters, {su['repeats']} online repeats\n\n"
             + text)
+
+
+__getattr__ = deprecated_names(__name__)  # names that left this module (rbbench._compat)

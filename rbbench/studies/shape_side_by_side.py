@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from rbbench._compat import deprecated_names
 from rbbench.studies.formatting import markdown_table
 
 __all__ = ["shape_markdown", "shape_side_by_side"]
@@ -61,3 +62,6 @@ def shape_markdown(r: dict[str, Any]) -> str:
             + markdown_table(("", "HF-driven", "RB-driven"), rows)
             + f"\n\nwall HF / RB {r['wall_ratio']:.2f}, (J_RB - J_HF) / J_HF "
               f"{r['J_rel_diff']:.2e}, one evaluation HF / RB {r['eval_speedup']:.2f}")
+
+
+__getattr__ = deprecated_names(__name__)  # names that left this module (rbbench._compat)

@@ -45,6 +45,8 @@ from typing import Any
 
 import numpy as np
 
+from rbbench._compat import deprecated_names
+
 __all__ = ["CASES", "snapshot_workers"]
 
 CASES = ("serial", "fresh", "kept_1st", "kept_2nd")
@@ -115,3 +117,6 @@ def markdown(rows: dict[str, dict[str, float]], n_jobs: int) -> str:
         lines.append(f"| {case} | {jobs} | {r['median_s']:.3f} | {r['iqr_s']:.3f} | "
                      f"{r['speedup']:.2f}x |")
     return "\n".join(lines)
+
+
+__getattr__ = deprecated_names(__name__)  # names that left this module (rbbench._compat)
