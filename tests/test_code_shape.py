@@ -6,7 +6,11 @@
 * no import circle between the modules of ``rbbench`` (imports inside functions count:
   a lazy import is still a dependency); ``rbbench/__init__.py`` (the lazy Python face)
   and ``rbbench/_compat.py`` (old paths) are outside the graph;
-* the layers import downwards only: scene <- hf <- rb <- bench / studies / cli.
+* the layers import downwards only: scene <- hf <- rb <- bench / studies / cli, and inside
+  ``rbbench.hf`` and ``rbbench.rb`` their folders too (:data:`SUBLAYERS`; every folder and
+  module there has a place, so a new one must be placed here); the formulations of
+  ``rbbench.rb`` are peers that never import each other (:data:`PEERS`);
+* no folder holds more than :data:`MAX_FOLDER_MODULES` modules (split it by concept).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 MAX_MODULE_LINES = 600
 MAX_FUNCTION_LINES = 80
+MAX_FOLDER_MODULES = 15
 SOURCES = sorted([*(ROOT / "rbbench").rglob("*.py"), *(ROOT / "plugins").rglob("*.py")])
 OUTSIDE_GRAPH = {"rbbench", "rbbench._compat"}
 
@@ -26,6 +31,20 @@ OUTSIDE_GRAPH = {"rbbench", "rbbench._compat"}
 #: registry, interfaces, hookspecs, provenance are layer 0: the shared vocabulary)
 LAYERS = {"scene": 1, "hf": 2, "rb": 3, "bench": 4, "optim": 4, "studies": 5, "testing": 5,
           "api": 6, "cli": 7}
+
+#: inside a layer, its folders and modules in import order: a module may import those of a
+#: lower or equal rank only (the data flow: geometry -> condensed problem -> solvers -> one HF
+#: solve -> snapshots; shared RB algorithms -> the offline skeleton -> the formulations)
+SUBLAYERS = {
+    "rbbench.hf": {"geometry": 1, "references": 1, "condensation": 2, "algebra": 3,
+                   "solvers": 4, "components": 5, "metrics": 5, "model": 6, "output": 7,
+                   "snapshots": 7, "linear": 8},
+    "rbbench.rb": {"algorithms": 1, "online": 1, "hyper": 2, "compressors": 2, "config": 3,
+                   "validation": 3, "offline": 4, "mixed": 5, "nitsche": 5, "friction": 5,
+                   "linear": 5},
+}
+#: folders of the same rank that must not import each other (one per formulation)
+PEERS = {"rbbench.rb": {"mixed", "nitsche", "friction", "linear"}}
 
 
 def _rel(p: Path) -> str:
@@ -130,6 +149,16 @@ def _layer(mod: str) -> int | None:
     return LAYERS.get(parts[1], 0) if len(parts) > 1 else 0
 
 
+def _sublayer(mod: str) -> tuple[str, str, int] | None:
+    """``(layer package, folder or module, rank)`` of a module inside a :data:`SUBLAYERS`
+    package (None outside them, or for the package itself)."""
+    for pkg, ranks in SUBLAYERS.items():
+        if mod.startswith(pkg + "."):
+            part = mod[len(pkg) + 1:].split(".")[0]
+            return pkg, part, ranks.get(part, -1)
+    return None
+
+
 def test_sources_found():
     assert len(SOURCES) > 40
     assert "rbbench.rb.offline" in import_graph()
@@ -160,6 +189,37 @@ def test_layers_import_downwards():
         bad += [f"{mod} -> {d}" for d in deps
                 if (ld := _layer(d)) is not None and ld > lm]
     assert not bad, "imports from a higher layer: " + "; ".join(sorted(bad))
+
+
+def test_every_folder_of_a_layer_has_a_place():
+    unplaced = sorted({f"{s[0]}.{s[1]}" for mod in import_graph()
+                       if (s := _sublayer(mod)) is not None and s[2] < 0})
+    assert not unplaced, "folders / modules without a rank in SUBLAYERS: " + ", ".join(unplaced)
+
+
+def test_folders_inside_a_layer_import_downwards():
+    bad = []
+    for mod, deps in import_graph().items():
+        me = _sublayer(mod)
+        if me is None:
+            continue
+        for d in deps:
+            other = _sublayer(d)
+            if other is None or other[0] != me[0] or other[1] == me[1]:
+                continue
+            peers = PEERS.get(me[0], set())
+            if other[2] > me[2] or (me[1] in peers and other[1] in peers):
+                bad.append(f"{mod} -> {d}")
+    assert not bad, "imports against the flow of a layer: " + "; ".join(sorted(bad))
+
+
+def test_folder_sizes():
+    big = []
+    for d in sorted({p.parent for p in SOURCES}):
+        n = len([p for p in d.glob("*.py") if p.name != "__init__.py"])
+        if n > MAX_FOLDER_MODULES:
+            big.append(f"{_rel(d)}/ ({n} modules)")
+    assert not big, f"folders over {MAX_FOLDER_MODULES} modules: " + "; ".join(big)
 
 
 @pytest.mark.parametrize("src, expected", [
