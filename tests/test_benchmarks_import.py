@@ -99,6 +99,17 @@ def test_every_module_imports_and_benchmarks_are_callable(modules):
     assert not missing, f"benchmarks missing: {sorted(missing)}"
 
 
+def test_benchmarks_holds_asv_benchmarks_only(modules):
+    """Every module of ``benchmarks/`` but its shared settings defines asv benchmarks; the
+    diagnostics of the machine live in ``tools/diagnostics/`` (and import)."""
+    empty = [m for m, mod in modules.items() if m != "_common" and not _benchmarks(mod)]
+    assert not empty, f"benchmarks/ modules without an asv benchmark: {empty}"
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    for m in pkgutil.iter_modules([str(ROOT / "tools" / "diagnostics")]):
+        importlib.import_module(f"tools.diagnostics.{m.name}")
+
+
 def test_module_level_benchmarks_take_no_arguments(modules):
     """asv runs every module-level function with a benchmark prefix without arguments:
     a helper named ``time_...`` (taking the problem) fails ``asv check``; name helpers

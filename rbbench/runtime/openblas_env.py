@@ -12,7 +12,7 @@ each new thread then spins 2^28 cycles on a core that the other process needs. M
 first tasks of the call right after the one that started the pool (this process restored
 its BLAS threads at that call's end) took 0.196-0.258 s with 2^28 cycles and 0.154-0.186 s
 with 2^20, against 0.15-0.16 s for later tasks
-(``python -m benchmarks.kept_pool_first_tasks``). 2^20 cycles (~0.4 ms) still keeps threads
+(``python -m tools.diagnostics.kept_pool_first_tasks``). 2^20 cycles (~0.4 ms) still keeps threads
 awake between close BLAS calls of a multithreaded phase.
 """
 

@@ -11,8 +11,8 @@ a freshly forked worker's first solve is slower than its later ones. The larger 
 OpenBLAS threads re-created in the worker and spinning ~0.1 s (now avoided: ``blas_cap``
 below); what is left is its first touch of ~52-55 MB of fresh memory (the solve's
 transients, which the parent keeps in its heap: ~1.9-2.5 us per 4 kB page in a forked
-child on this virtual machine, ``python -m benchmarks.first_touch_fork``), 0.18-0.19 s
-against 0.155-0.16 s (``python -m benchmarks.snapshot_pool_budget``).
+child on this virtual machine, ``python -m tools.diagnostics.first_touch_fork``), 0.18-0.19 s
+against 0.155-0.16 s (``python -m tools.diagnostics.snapshot_pool_budget``).
 :func:`release_free_heap` before the fork halves those faults; a kept pool has none.
 
 Safety of a kept pool:

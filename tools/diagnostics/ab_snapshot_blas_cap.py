@@ -1,6 +1,6 @@
 """Side by side: snapshot workers that inherit the BLAS cap against workers that set it.
 
-Issue 17, item 4. OpenBLAS re-creates its threads in a ``fork`` child at the child's first
+The snapshot workers. OpenBLAS re-creates its threads in a ``fork`` child at the child's first
 ``set_num_threads`` call, and each new thread spins ~0.1 s; since this change a ``fork``
 pool's workers inherit the cap from this process (:func:`rbbench.runtime.threads.capped_for_fork`)
 and ``threadpoolctl`` is called only on the pools off the limit
@@ -12,7 +12,7 @@ before each serial call (as ``rbbench studies snapshot-workers``: it pays the pa
 the previous fork left in this process); the speed-up of a mode is its serial median over
 its 2-worker median::
 
-    python -m benchmarks.ab_snapshot_blas_cap --rounds 15 --pause 0.5
+    python -m tools.diagnostics.ab_snapshot_blas_cap --rounds 15 --pause 0.5
 
 Not an asv benchmark (it patches the code it compares); asv times the code as it is
 (``bench_hf.SnapshotWorkers``).
@@ -75,7 +75,7 @@ def ab(rounds: int, pause: float, P: int = 8, n_jobs: int = 2) -> dict[str, floa
 
 
 def main() -> None:
-    from benchmarks._common import rounds_and_pause
+    from tools.diagnostics.common import rounds_and_pause
 
     args = rounds_and_pause(__doc__, 15)
     out = ab(args.rounds, args.pause)

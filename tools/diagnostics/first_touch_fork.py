@@ -1,8 +1,8 @@
 """Diagnostic: what a new process pays to write fresh memory once, on this machine.
 
-Issue 17, item 4 (2 workers >= 1.85x of 1 on 8 parameters): a freshly forked snapshot
+The snapshot speed-up target (2 workers >= 1.85x of 1 on 8 parameters): a freshly forked snapshot
 worker's first task writes ~52 MB of memory that the serial process already holds
-(``python -m benchmarks.snapshot_pool_budget``), and that first touch bounds a fresh
+(``python -m tools.diagnostics.snapshot_pool_budget``), and that first touch bounds a fresh
 2-worker call. Each round forks one child per kind, a pause apart; the child maps ``--mb``
 MB of private anonymous memory, writes one byte per 4 kB page and reports the time:
 
@@ -16,7 +16,7 @@ the whole size, and the huge pages the kernel handed out (``thp_fault_alloc`` of
 free memory to its host: a 2 MB block the guest freed long enough ago is no longer backed
 by the host and costs far more to touch than one freed just before::
 
-    python -m benchmarks.first_touch_fork --rounds 9 --mb 52
+    python -m tools.diagnostics.first_touch_fork --rounds 9 --mb 52
 
 Linux only (``fork``, ``/proc``); not an asv benchmark.
 """

@@ -1,6 +1,6 @@
 """Diagnostic: where the time of a fresh 2-worker snapshot call goes, against a serial one.
 
-Issue 17, item 4 (2 workers >= 1.85x of 1 on 8 parameters). Each round times, in this
+The snapshot speed-up target (2 workers >= 1.85x of 1 on 8 parameters). Each round times, in this
 process, one serial call (after an untimed one-parameter call that pays the page faults
 the last fork left here, as ``rbbench studies snapshot-workers`` does) and one call that
 starts its own ``fork`` pool, each into a fresh cache directory, with an untimed pause after
@@ -20,7 +20,7 @@ system-wide monotonic clock on Linux) and the anonymous memory their first task 
 * ``balanced bound``: the serial call over ``pre + first + (P / n - 1) (later + between)
   + post``, the speed-up of a perfectly balanced call with these parts::
 
-    python -m benchmarks.snapshot_pool_budget --rounds 10
+    python -m tools.diagnostics.snapshot_pool_budget --rounds 10
 
 OpenBLAS's idle spin is set as under the ``rbbench`` command (:mod:`rbbench.runtime.openblas_env`).
 Not an asv benchmark (it patches the worker task and reads ``/proc``: Linux).
@@ -37,14 +37,14 @@ from rbbench.runtime import openblas_env as _openblas_env  # noqa: F401  (first,
 # isort: split
 import numpy as np
 
-from benchmarks._common import logged_worker_tasks, task_log
-from benchmarks.first_touch_fork import in_child
 from rbbench.hf.snapshots import compute as snapshots
+from tools.diagnostics.common import logged_worker_tasks, task_log
+from tools.diagnostics.first_touch_fork import in_child
 
 
 def first_touch_us_per_page(nbytes: int = 64 << 20) -> float:
     """Microseconds per 4 kB page for a forked child to write ``nbytes`` of fresh private
-    memory once (4 kB pages: :func:`benchmarks.first_touch_fork.in_child`)."""
+    memory once (4 kB pages: :func:`tools.diagnostics.first_touch_fork.in_child`)."""
     return in_child(nbytes, huge=False)[0] * 1e6 / (nbytes // 4096)
 
 
@@ -98,7 +98,7 @@ def budget(rounds: int, pause: float, P: int = 8, n_jobs: int = 2) -> dict[str, 
 
 
 def main() -> None:
-    from benchmarks._common import rounds_and_pause
+    from tools.diagnostics.common import rounds_and_pause
 
     args = rounds_and_pause(__doc__, 10)
     m = budget(args.rounds, args.pause)

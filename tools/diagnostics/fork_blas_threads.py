@@ -1,16 +1,16 @@
 """Diagnostic: the OpenBLAS threads a ``fork`` child re-creates when it sets a thread limit.
 
-Issue 17, item 4. OpenBLAS shuts its threads down at a fork; the child's first
+The snapshot workers. OpenBLAS shuts its threads down at a fork; the child's first
 ``set_num_threads`` call re-creates them (even to the count it has), and each spins about
 0.1 s before it sleeps. For each case a child is forked after numpy's and scipy's BLAS
 ran with 2 threads, caps itself at 1 thread as a snapshot worker does
 (:func:`rbbench.runtime.threads.limit_blas_threads`), then sleeps 0.3 s; printed: the child's
 threads and the CPU time it used during the sleep (all of it spinning threads)::
 
-    python -m benchmarks.fork_blas_threads
+    python -m tools.diagnostics.fork_blas_threads
 
 ``set anew``: the parent had 2 threads at the fork (the child sets every pool, as before
-issue 17's fix); ``inherited``: the parent forked inside
+the fix of the inherited cap); ``inherited``: the parent forked inside
 :func:`rbbench.runtime.threads.capped_for_fork` (the child finds the pools at 1 and sets
 nothing). Not an asv benchmark (it forks and reads ``/proc``: Linux).
 """

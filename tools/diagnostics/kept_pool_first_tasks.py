@@ -1,7 +1,7 @@
 """Diagnostic: the first tasks of a kept pool's calls, by OpenBLAS's idle-thread spin.
 
-Issue 17, item 4 (:mod:`rbbench.runtime.openblas_env`). At the end of the call that starts a pool
-this process restores its BLAS pools and OpenBLAS re-creates its threads, which spin
+The kept snapshot pool (:mod:`rbbench.runtime.openblas_env`). At the end of the call that starts a
+pool this process restores its BLAS pools and OpenBLAS re-creates its threads, which spin
 ``2^OPENBLAS_THREAD_TIMEOUT`` cycles when idle; the call right after (``rbbench reduce``'s
 validation call) meets them. For each value, alternating, a fresh Python process (the
 variable is read once, when OpenBLAS loads) runs ``--blocks`` :func:`keep_workers` blocks
@@ -9,7 +9,7 @@ of 4 back-to-back calls (8 parameters of Hertz level 0, 2 workers); printed per 
 range of the workers' first-task times in each call of a block, and of their later
 tasks::
 
-    python -m benchmarks.kept_pool_first_tasks --values 28 20 --processes 2 --blocks 3
+    python -m tools.diagnostics.kept_pool_first_tasks --values 28 20 --processes 2 --blocks 3
 
 Not an asv benchmark (it starts processes with their own environment).
 """
@@ -28,11 +28,11 @@ def _child(blocks: int) -> None:
     import tempfile
     import time
 
-    from benchmarks._common import logged_worker_tasks, task_log
     from rbbench.hf.snapshots import compute as snapshots
     from rbbench.runtime.workers import keep_workers
     from rbbench.scene.loading import load_scene
     from rbbench.scene.sampling import parameter_set
+    from tools.diagnostics.common import logged_worker_tasks, task_log
 
     scene = load_scene("hertz_halfdisks", [])
     mus = parameter_set(scene, "valid", n=8, kind="lhs")
@@ -67,7 +67,7 @@ def main() -> None:
     for k in range(args.processes):
         for v in (args.values if k % 2 == 0 else args.values[::-1]):
             env = {**os.environ, "OPENBLAS_THREAD_TIMEOUT": str(v)}
-            res = subprocess.run([sys.executable, "-m", "benchmarks.kept_pool_first_tasks",
+            res = subprocess.run([sys.executable, "-m", "tools.diagnostics.kept_pool_first_tasks",
                                   "--child", "--blocks", str(args.blocks)], env=env,
                                  check=True, capture_output=True, text=True)
             for key, times in json.loads(res.stdout.splitlines()[-1]).items():

@@ -1,0 +1,1 @@
+"""Diagnostics of the machine behind measured figures (not asv benchmarks): README.md."""
