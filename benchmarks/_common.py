@@ -68,14 +68,17 @@ def reduced_case(case: str, cache_dir: str, **changes) -> dict:
     """Run ``rbbench reduce`` on ``case``; keep what the online suites need (picklable).
 
     Returns ``{"model": ReducedModel, "mu": default mu, "summary": {...}}`` where
-    ``summary`` holds the scalar results of :meth:`ReduceResult.summary`.
+    ``summary`` holds the scalar results of :meth:`ReduceResult.summary`; the model without
+    its reconstruction basis (HF size, used by ``reconstruct`` only: the online solves and
+    their memory are measured without it).
     """
     from rbbench.rb.offline import reduce
 
     sc = scene(case)
     res = reduce(sc, reduce_config(case, cache_dir, **changes))
-    if res.model is None:
-        raise RuntimeError(f"{case}: reduce() built no ReducedModel (hyper {res.hyper!r})")
+    if res.hyper == "none":
+        raise RuntimeError(f"{case}: reduce() built no hyper-reduced model (hyper 'none')")
+    res.model.basis = None
     summary = {k: v for k, v in res.summary().items()
                if v is None or isinstance(v, (int, float, str, bool))}
     return {"model": res.model, "mu": sc.default_mu, "summary": summary}
