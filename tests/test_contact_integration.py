@@ -228,12 +228,13 @@ def test_reduce_with_segmented_points_falls_back_to_plain_or_refuses(tmp_path):
     from rbbench.scene.loading import SceneError, load_scene
 
     sc = load_scene("hertz_halfdisks", SEGMENTED)
-    common = dict(dual="mcpg", stabilizer="none", N=4, R=4, n_train=4, n_valid=2, n_jobs=1,
-                  cache_dir=str(tmp_path), online_repeats=1)
-    for config in (make_config(hyper="eim", **common),
+    common = dict(N=4, n_train=4, n_valid=2, n_jobs=1, cache_dir=str(tmp_path),
+                  online_repeats=1)
+    mixed = dict(dual="mcpg", stabilizer="none", R=4, **common)
+    for config in (make_config(hyper="eim", **mixed),
                    make_config(formulation="nitsche", solver="newton", hyper="auto",
-                                **common)):
+                               **common)):
         with pytest.raises(SceneError, match="contact_integration = 'segmented'"):
             reduce(sc, config)
-    r = reduce(sc, make_config(hyper="auto", **common))  # B(mu) not affine, no EIM: plain
+    r = reduce(sc, make_config(hyper="auto", **mixed))  # B(mu) not affine, no EIM: plain
     assert r.hyper == "none" and np.all(np.isfinite(r.err_u)) and max(r.err_u) < 0.1

@@ -64,7 +64,7 @@ def test_friction_rb_matrix_expands_and_skips_seed_with_eim():
     reason = by[("collocation", "eim", 1)].reason
     assert "hyper 'eim'" in reason and "wedge" in reason
     assert len({c.case_id for c in m.cases}) == 6
-    assert by[("wedge", "eim", None)].reduce_config("/tmp").friction_dual == "wedge"
+    assert by[("wedge", "eim", None)].reduce_config("/tmp").options["friction_dual"] == "wedge"
 
 
 def test_friction_dual_axis_is_the_reduce_field(tmp_path):

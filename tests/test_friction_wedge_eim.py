@@ -13,7 +13,7 @@ import pytest
 from rbbench.rb.config import make_config
 from rbbench.rb.friction.wedge.hyper import WedgeHyperModel, slip_deim
 from rbbench.rb.friction.wedge.model import WedgeReducedModel, project_wedge
-from rbbench.rb.offline import offline
+from rbbench.rb.offline import offline, prepare_config
 from rbbench.scene.loading import SceneError, load_scene
 
 COARSE = ["discretization.degree=1", "discretization.h_contact=0.02",
@@ -128,7 +128,6 @@ def _arrays(obj, seen=None):
 def test_slip_deim_interpolates_at_its_nodes_and_refuses_hyper_with_seed():
     """Slip DEIM: exact on its snapshots at full size and exact when there is no slip; hyper
     'eim' needs the wedge dual model."""
-    from rbbench.rb.friction.offline import FrictionReduction
     from rbbench.registry import default_registry
 
     rng = np.random.default_rng(0)
@@ -141,6 +140,6 @@ def test_slip_deim_interpolates_at_its_nodes_and_refuses_hyper_with_seed():
     scene = load_scene("hertz_friction", overrides=COARSE)
     cfg = make_config(solver="friction-ssn", hyper="eim")
     with pytest.raises(SceneError, match="wedge"):
-        FrictionReduction().prepare(scene, cfg, default_registry())
+        prepare_config(scene, cfg, default_registry())
     assert WedgeReducedModel.__dataclass_fields__.keys() <= \
         WedgeHyperModel.__dataclass_fields__.keys()

@@ -152,10 +152,10 @@ def test_report_writes_friction_figures_and_table(tmp_path):
              and "---" not in ln]
     assert len(lines) == 5  # 4 ok cases + the skip row; the frictionless row is not there
     by = {ln.split(" | ")[0].removeprefix("| "): ln for ln in lines}
-    assert set(by) == {"seed+none gcns_patience=1", "seed+none gcns_patience=10",
-                       "wedge+none", "wedge+eim", "seed+eim"}
-    assert "| 6.35 (0.0910) |" in by["seed+none gcns_patience=1"]
-    assert by["seed+eim"].rstrip().endswith("| skip |")
+    assert set(by) == {"collocation+none gcns_patience=1", "collocation+none gcns_patience=10",
+                       "wedge+none", "wedge+eim", "collocation+eim"}
+    assert "| 6.35 (0.0910) |" in by["collocation+none gcns_patience=1"]
+    assert by["collocation+eim"].rstrip().endswith("| skip |")
     assert "![gcns](gcns.png)" in md and "![lam_t_wedgeeim](lam_t_wedgeeim.png)" in md
     assert "S_tau: friction scenes" in md  # the column definitions
 

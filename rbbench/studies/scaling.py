@@ -49,7 +49,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                     out = res.model.solve(mu)  # the model's online method: config's
                     times[k].append(out.time_s)
                     paths[k].add(str(getattr(out, "path", "python")))
-                    methods[k].add(str(getattr(out, "method", config.online_method)))
+                    methods[k].add(str(getattr(out, "method", "")))
     rows = []
     base = float(np.median(times[0]))
     for level, res, t, path, meth in zip(levels, results, times, paths, methods, strict=True):
