@@ -238,4 +238,4 @@ def test_friction_rb_smoke_run_and_report(tmp_path):
     out = report(tmp_path / "out", formats=("png",))
     assert "gcns" in out.figures and len([n for n in out.figures if n.startswith("lam_t_")]) == 4
     md = out.summary_md.read_text()
-    assert "## Reduced friction models" in md and "seed+eim" in md
+    assert "## Reduced friction models" in md and "collocation+eim" in md
