@@ -166,8 +166,11 @@ NAMES: dict[str, dict[str, str]] = {
                            "build_problem": f"{_MODEL}:build_problem"},
     "rbbench.cli": {k: f"rbbench.cli.{m}:{k}" for k, m in _CLI.items()},
     "rbbench.hf.snapshots": {"limit_blas_threads": "rbbench.runtime.threads:limit_blas_threads"},
-    "rbbench.scene": {k: f"rbbench.scene.loading:{k}"
-                      for k in ("Field", "KEY_NEUTRAL_DEFAULTS", "SCHEMA", "key_data")},
+    "rbbench.scene": {"Field": "rbbench.scene.schema:Field",
+                      "SCHEMA": "rbbench.scene.schema:SCHEMA",
+                      "KEY_NEUTRAL_DEFAULTS": "rbbench.scene.loading:KEY_NEUTRAL_DEFAULTS",
+                      "key_data": "rbbench.scene.loading:key_data"},
+    "rbbench.scene.loading": {"Field": "rbbench.scene.schema:Field"},
     "rbbench.nitsche_reduced": {"reduce_nitsche": "rbbench._compat:reduce_nitsche"},
     "rbbench.rb_pipeline": {"HYPER": "rbbench.rb.config:HYPER"},
     "rbbench.rb.friction_stage": {"friction_dual": "rbbench._compat:friction_dual"},

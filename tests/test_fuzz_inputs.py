@@ -26,7 +26,8 @@ from hypothesis import strategies as st  # noqa: E402
 
 from rbbench.cli import main  # noqa: E402
 from rbbench.scene.limits import NAME_PATTERN, PARAMETER_PATTERN, check_name  # noqa: E402
-from rbbench.scene.loading import PROBLEMS_DIR, SCHEMA  # noqa: E402
+from rbbench.scene.loading import PROBLEMS_DIR  # noqa: E402
+from rbbench.scene.schema import SCHEMA  # noqa: E402
 
 pytestmark = pytest.mark.timeout(300)
 

@@ -9,14 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rbbench.scene.loading import (
-    PROBLEMS_DIR,
-    SCHEMA,
-    Scene,
-    SceneError,
-    load_scene,
-    parse_override,
-)
+from rbbench.scene.loading import PROBLEMS_DIR, Scene, SceneError, load_scene, parse_override
+from rbbench.scene.schema import SCHEMA
 
 HERTZ = PROBLEMS_DIR / "hertz_halfdisks.toml"
 MEMBRANE = PROBLEMS_DIR / "membrane_obstacle.toml"

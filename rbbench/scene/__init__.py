@@ -5,7 +5,6 @@ from rbbench._compat import deprecated_names
 from rbbench.scene.linear import LINEAR_PHYSICS  # registers the linear scenes' schema
 from rbbench.scene.loading import (
     PROBLEMS_DIR,
-    Parameter,
     Scene,
     SceneError,
     find_scene,
@@ -14,6 +13,7 @@ from rbbench.scene.loading import (
     validate,
 )
 from rbbench.scene.sampling import parameter_set
+from rbbench.scene.schema import Parameter
 
 __all__ = ["LINEAR_PHYSICS", "PROBLEMS_DIR", "Parameter", "Scene", "SceneError", "find_scene",
            "load_scene", "parameter_set", "parse_override", "validate"]

@@ -17,17 +17,8 @@ from __future__ import annotations
 from typing import Any
 
 from rbbench.scene import limits
-from rbbench.scene.loading import (
-    PHYSICS_VALIDATORS,
-    SCHEMA,
-    Field,
-    Scene,
-    SceneError,
-    _check_value,
-    _err,
-    _parameters,
-    _unknown,
-)
+from rbbench.scene.loading import PHYSICS_VALIDATORS, Scene, SceneError, _parameters
+from rbbench.scene.schema import SCHEMA, Field, _check_value, _err, _unknown
 
 __all__ = ["LINEAR_PHYSICS", "LINEAR_SCHEMA", "block_parameters", "is_linear", "is_parabolic",
            "validate_linear"]

@@ -19,7 +19,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from rbbench.registry import ComponentSpec, Registry
-from rbbench.scene.loading import SCHEMA, Scene, load_scene
+from rbbench.scene.loading import Scene, load_scene
+from rbbench.scene.schema import SCHEMA
 
 #: Overrides making ``hertz_halfdisks`` cheap enough for a contract run.
 HERTZ_COARSE = ("discretization.h_contact=0.02", "discretization.h_max=0.2")
