@@ -1,4 +1,7 @@
-"""Training and validation parameter sets (seed 000, "Finite training set and snapshots").
+"""Training and validation parameter sets.
+
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational
+inequalities" (talk), slide "Finite training set and snapshots".
 
 :func:`parameter_set` draws ``D_train`` or ``D_valid`` inside the closed
 parameter domain ``D`` of a scene, honouring the scene's ``[sampling]`` table
