@@ -171,7 +171,9 @@ def condition_residuals(prob: NitscheFrictionProblem, fs: FrictionState) -> dict
     (``D = 0``: displacements divided by ``max(|gap|, |v|)``, forces by the largest traction).
 
     Not zero at the discrete solution: Nitsche imposes the conditions weakly, so they
-    measure its consistency error (``O(h)``), like the seed's ``e_AC``; the Newton
+    measure its consistency error (``O(h)``), like the ``e_AC`` of Benaceur, Drouet,
+    Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational
+    inequalities" (talk); the Newton
     residual measures the algebraic convergence.
     """
     lam_n, lam_t = tractions(fs)

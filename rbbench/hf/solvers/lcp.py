@@ -1,6 +1,7 @@
 """Condensed contact problem and its solvers (plain functions on arrays).
 
-The HF mixed problem (seed 000, "Mixed formulation")::
+The HF mixed problem (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction
+methods: parametric variational inequalities" (talk), slide "Mixed formulation")::
 
     A u + B^T lam = F,  lam >= 0,  s := G - B u >= 0,  lam . s = 0
 
@@ -186,11 +187,11 @@ def pdas(D: np.ndarray, q: np.ndarray, lam0: np.ndarray | None = None, max_iter:
 def uzawa(D: np.ndarray, q: np.ndarray, lam0: np.ndarray | None = None, omega: float = 1.0,
           tol: float = 1e-9, max_iter: int = 200_000,
           stall_window: int = 5000) -> tuple[np.ndarray, int, str, list[float], dict]:
-    """Uzawa projected iteration (seed 000, "Uzawa"), on the condensed problem.
+    """Uzawa projected iteration (Benaceur et al., slide "Uzawa"), on the condensed problem.
 
     ``lam_{k+1} = max(0, lam_k - rho (G - B u_{k+1}))`` with
     ``A u_{k+1} = F - B^T lam_k``; condensed, ``G - B u_{k+1} = q + D lam_k``,
-    so every iterate equals the seed's. ``rho = omega / lambda_max(D)``
+    so every iterate equals that of Benaceur et al.'s Uzawa. ``rho = omega / lambda_max(D)``
     (convergent for 0 < omega < 2). Stops on the natural residual ``<= tol``,
     on ``max_iter``, on NaN, or on stagnation (no decrease of the best residual
     over ``stall_window`` iterations).
