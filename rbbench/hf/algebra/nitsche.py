@@ -3,9 +3,8 @@ the metrics and the reduced model.
 
 Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
 variational inequalities" (talk), slides "Nitsche's method (1/2)" and "(2/2)"; Chouly & Hild
-(2013),
-Chouly, Hild & Renard (2015). With ``[x]_- = min(x, 0)`` (non-positive part),
-the Signorini conditions ``u_n <= d^n``, ``sigma_nn(u) <= 0``,
+(2013), Chouly, Hild & Renard (2015). With ``[x]_- = min(x, 0)`` (non-positive part), the
+Signorini conditions ``u_n <= d^n``, ``sigma_nn(u) <= 0``,
 ``sigma_nn(u) (u_n - d^n) = 0`` are equivalent to the Alart-Curnier equation::
 
     sigma_nn(u) = [P_gamma(u)]_-,   P_gamma(u) = sigma_nn(u) - gamma (u_n - d^n),

@@ -127,9 +127,8 @@ class SlaveStress:
 
     Nitsche's method (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction
     methods: parametric variational inequalities" (talk), slide "Nitsche's method (1/2)";
-    Chouly & Hild 2013) needs
-    the normal stress ``sigma_nn(u) = n . sigma(u) n`` of the slave body on the
-    contact boundary. It is evaluated in the element adjacent to each slave facet
+    Chouly & Hild 2013) needs the normal stress ``sigma_nn(u) = n . sigma(u) n`` of the slave
+    body on the contact boundary. It is evaluated in the element adjacent to each slave facet
     from the Lagrange basis on that element (P1: constant per element; P2: at the
     point), plane strain ``sigma = lambda tr(eps) I + 2 mu_L eps``. The body map is a
     similarity ``x = s(mu) x_hat + c(mu)``, so physical gradients are reference

@@ -2,8 +2,8 @@
 
 Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
 variational inequalities" (talk), slide "Finite training set and snapshots": every compressor
-and stabiliser
-works on the same snapshots, so they are computed once per *content* and reused.
+and stabiliser works on the same snapshots, so they are computed once per *content* and
+reused.
 
 Cache layout::
 
