@@ -14,7 +14,7 @@ parameter domain ``D`` of a scene, honouring the scene's ``[sampling]`` table
 
 Training and validation draw from different random streams of the same seed
 (``default_rng((seed, 0))`` and ``default_rng((seed, 1))``), so with the same
-kind and size the two sets still differ. A ``"uniform"`` grid ignores the seed:
+kind and size the two sets still differ. A ``"uniform"`` grid ignores ``seed``:
 a uniform validation set of the same size as a uniform training set is the
 same grid.
 """
