@@ -1,14 +1,15 @@
 """Built-in rbbench plugins, registered through the ``rbbench`` entry point.
 
-Declarations only: nothing heavy is imported here. Each target module is
-imported when a run uses it.
+Declarations only: nothing heavy is imported here. Each target module is imported when a run
+uses it. "Benaceur et al." in the descriptions: Benaceur, Drouet, Ehrlacher, Ern & Niakh,
+"Model order reduction methods: parametric variational inequalities" (talk).
 """
 
 from rbbench.hookspecs import hookimpl
 from rbbench.registry import ComponentSpec
 
 _ALL_PHYSICS = ("elasticity", "poisson")
-#: The linear scenes (issue 18): assembled by each backend's ``linear_target``, no contact.
+#: The linear scenes: assembled by each backend's ``linear_target``, no contact.
 _LINEAR_PHYSICS = ("thermal", "heat")
 _COMP = "rbbench.rb.compressors"
 
@@ -17,9 +18,9 @@ _DUALS = (
     ("pod", "PODLam", False, True, (),
      "POD of the multipliers: a linear span, NOT a cone (baseline: positivity lost)"),
     ("cpg", "CPG", True, True, (),
-     "Cone Projected Greedy: normalised selected snapshots (seed 000, CPG algorithm)"),
+     "Cone Projected Greedy: normalised selected snapshots (Benaceur et al., CPG algorithm)"),
     ("mcpg", "MCPG", True, True, ("daqp",),
-     "modified CPG: generators peeled of the previous cone by a QP (seed 000, mCPG)"),
+     "modified CPG: generators peeled of the previous cone by a QP (Benaceur et al., mCPG)"),
     ("eng", "ENG", True, True, ("daqp",),
      "Enlarged Nonnegative Greedy (our design): mCPG peeling of every generator"),
     ("nnmf", "NNMF", True, False, (),
@@ -126,21 +127,21 @@ def _solvers(add):
         name="uzawa", role="solver",
         target="rbbench_plugins.solvers.condensed:UzawaSolver",
         capabilities={"formulations": ("mixed",)},
-        description="Uzawa projected dual iteration (seed 000 baseline), condensed",
+        description="Uzawa projected dual iteration (Benaceur et al.'s baseline), condensed",
     ))
     add(ComponentSpec(
         name="friction-ssn", role="solver",
         target="rbbench_plugins.solvers.friction:FrictionSSNSolver",
         capabilities={"formulations": ("mixed",), "friction": ("none", "tresca", "coulomb")},
         description="friction by active set on the condensed nodal problem: Tresca PDAS, "
-                    "Coulomb direct on the wedge (method='fixed_point': the seed's fixed "
-                    "point on Tresca), model B fixed point on the coefficient; load steps",
+                    "Coulomb direct on the wedge (method='fixed_point': Benaceur et al.'s "
+                    "fixed point on Tresca), model B fixed point on the coefficient; load steps",
     ))
     add(ComponentSpec(
         name="friction-uzawa", role="solver",
         target="rbbench_plugins.solvers.friction:FrictionUzawaSolver",
         capabilities={"formulations": ("mixed",), "friction": ("none", "tresca", "coulomb")},
-        description="the seed's Uzawa for friction (normal then tangential projection), "
+        description="Benaceur et al.'s Uzawa for friction (normal then tangential projection), "
                     "condensed, over the load steps (baseline)",
     ))
     add(ComponentSpec(
@@ -150,7 +151,7 @@ def _solvers(add):
         capabilities={"formulations": ("mixed",), "friction": ("none", "tresca", "coulomb")},
         description="PETSc SNES VI (vinewtonrsls, reduced-space active set) on the "
                     "sparse KKT system as a mixed complementarity problem; friction: Tresca "
-                    "box QP by SNES VI, Coulomb / model B by the seed's fixed point on it",
+                    "box QP by SNES VI, Coulomb / model B by the fixed point on it",
     ))
     add(ComponentSpec(
         name="petsc-tao", role="solver",
@@ -190,13 +191,13 @@ def _compressors(add):
     add(ComponentSpec(
         name="pod", role="primal", target=f"{_COMP}:PODPrimal",
         capabilities={"tol": "energy", "nested": True},
-        description="POD in the X inner product, energy tolerance (seed 000, Method 1)",
+        description="POD in the X inner product, energy tolerance (Benaceur et al., Method 1)",
     ))
     add(ComponentSpec(
         name="greedy", role="primal", target=f"{_COMP}:GreedyPrimal",
         capabilities={"tol": "max", "nested": True},
         description="ideal greedy on the training snapshots (true projection error), "
-                    "max tolerance (seed 000, Method 2)",
+                    "max tolerance (Benaceur et al., Method 2)",
     ))
     # dual compressors: W_R+ from multiplier snapshots
     for name, cls, cone, nested, modules, text in _DUALS:
@@ -233,5 +234,5 @@ def _stabilizers(add):
     add(ComponentSpec(
         name="pga", role="stabilizer", target=f"{_COMP}:PGAStabilizer",
         capabilities={"online_hf": False, "inf_sup": "training set"},
-        description="Projected Greedy Algorithm: V_N + S_R^red built offline (seed 000)",
+        description="Projected Greedy Algorithm: V_N + S_R^red built offline (Benaceur et al.)",
     ))

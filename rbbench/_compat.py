@@ -135,6 +135,8 @@ SPLIT = {
     f"{_PLUG}.backends.ngsolve_backend": (f"{_PLUG}.backends.ngsolve.backend",
                                           f"{_PLUG}.backends.ngsolve.fe",
                                           f"{_PLUG}.backends.ngsolve.meshes"),
+    # renamed after the method (a heat equation with a Robin condition)
+    "rbbench.studies.heat_seed": ("rbbench.studies.heat_robin",),
 }
 
 _MODEL = "rbbench.hf.model"
@@ -178,7 +180,17 @@ NAMES: dict[str, dict[str, str]] = {
     **{f"rbbench.studies.{old}": {
         "add_parser": f"rbbench.cli.studies:_add_{new}_parser",
         "run": f"rbbench.cli.studies:cmd_{new}"} for old, new in _STUDY_CLI.items()},
+    # names of documents replaced by names of methods or by "published"
+    "rbbench.hf.algebra.friction": {"SEED001": "rbbench.hf.algebra.friction:MODEL_B"},
+    "rbbench.studies.nitsche_eac": {
+        "SEED_EAC": "rbbench.studies.nitsche_eac:PUBLISHED_EAC",
+        "SEED_H": "rbbench.studies.nitsche_eac:PUBLISHED_H",
+        "seed_h_overrides": "rbbench.studies.nitsche_eac:published_h_overrides"},
 }
+NAMES["rbbench.studies.heat_seed"].update({
+    "SEED": "rbbench.studies.heat_robin:PUBLISHED",
+    "heat_seed": "rbbench.studies.heat_robin:heat_robin_study",
+    "heat_seed_markdown": "rbbench.studies.heat_robin:heat_robin_markdown"})
 
 
 def _resolve(target: str) -> Any:

@@ -73,7 +73,7 @@ def solve(scene: str | Path | Scene, mu: Any = None, backend: str = "skfem",
     HFSolution
         ``.result`` (``u``, ``lam``, ``converged``), ``.metrics`` (the numbers of
         ``summary.json``), ``.disc``, ``.problem``, ``.times``.
-        A linear scene (``thermal_block``, ``heat_robin``; no contact, issue 18):
+        A linear scene (``thermal_block``, ``heat_robin``; no contact):
         :func:`rbbench.hf.linear.solve.solve_linear_hf`, ``.problem`` a
         :class:`~rbbench.hf.linear.model.LinearProblem`, ``.metrics`` without contact fields.
     """

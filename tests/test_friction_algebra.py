@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rbbench.hf.algebra.friction import (
-    SEED001,
+    MODEL_B,
     CoefficientLaw,
     condense_friction,
     node_array,
@@ -258,7 +258,7 @@ def test_non_finite_data_stops_with_nan():
 def test_model_b_converges_with_its_contraction_and_a_consistent_coefficient():
     D, q = _problem(3, 10)
     ut_prev = np.random.default_rng(0).uniform(-0.5, 0.5, 10)
-    r = coulomb_model_b(D, q, SEED001, ut_prev=ut_prev)
+    r = coulomb_model_b(D, q, MODEL_B, ut_prev=ut_prev)
     assert r.stop_reason == "converged"
     assert 0.0 <= r.info["contraction"] < 1.0
     ut = ut_prev + slip(D, q, r.lam_n, r.lam_t)

@@ -157,7 +157,7 @@ def test_tresca_extremes(shear):
 
 def test_model_b_reports_its_contraction(shear):
     _, disc, _ = shear
-    prob, res = _solve(shear, FrictionLaw("coulomb", coefficient_law="seed001"))
+    prob, res = _solve(shear, FrictionLaw("coulomb", coefficient_law="model_b"))
     assert res.stop_reason in ("converged", "stagnation", "diverged", "max_iterations")
     assert "contraction" in res.info and "ratios" in res.info
     assert res.converged, res.info.get("why")

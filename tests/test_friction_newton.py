@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from rbbench_plugins.solvers.friction import FrictionSSNSolver
 
-from rbbench.hf.algebra.friction import SEED001, CoefficientLaw, friction_residuals, slip
+from rbbench.hf.algebra.friction import MODEL_B, CoefficientLaw, friction_residuals, slip
 from rbbench.hf.components import make_components
 from rbbench.hf.solvers import friction as fs
 from rbbench.interfaces import FrictionLaw
@@ -29,7 +29,7 @@ def _model_b_case(seed: int, m: int = 12) -> tuple[np.ndarray, np.ndarray, np.nd
 
 def _model_b_residual(D, q, ut_prev, x) -> float:
     m = ut_prev.size
-    F = SEED001.f(np.abs(ut_prev + slip(D, q, x[:m], x[m:])))
+    F = MODEL_B.f(np.abs(ut_prev + slip(D, q, x[:m], x[m:])))
     return friction_residuals(D, q, x[:m], x[m:], F * x[:m])["max"]
 
 
@@ -42,8 +42,8 @@ def test_newton_equals_the_fixed_point_in_fewer_iterations(seed):
     fixed point 11, 23, 23, 17, 25, 47, 22, 48 outer and 13-50 inner iterations, contraction
     0.10-0.64."""
     D, q, ut_prev = _model_b_case(seed)
-    fp = fs.coulomb_model_b(D, q, SEED001, ut_prev=ut_prev)
-    nt = fs.model_b_newton(D, q, SEED001, ut_prev=ut_prev)
+    fp = fs.coulomb_model_b(D, q, MODEL_B, ut_prev=ut_prev)
+    nt = fs.model_b_newton(D, q, MODEL_B, ut_prev=ut_prev)
     assert fp.stop_reason == nt.stop_reason == "converged"
     assert nt.info["method"] == "newton" and "fallback" not in nt.info
     assert np.abs(nt.x - fp.x).max() <= 1e-9 * np.abs(fp.x).max()
@@ -59,11 +59,11 @@ def test_failed_newton_falls_back_to_the_fixed_point(seed):
     """A wrong derivative (-50 f'): Newton's residual stops decreasing, the fixed point
     runs instead, says so, and gives the fixed point's solution."""
     D, q, ut_prev = _model_b_case(seed)
-    wrong = CoefficientLaw("wrong", SEED001.f, lambda t: -50.0 * SEED001.df(t))
+    wrong = CoefficientLaw("wrong", MODEL_B.f, lambda t: -50.0 * MODEL_B.df(t))
     r = fs.model_b_newton(D, q, wrong, ut_prev=ut_prev)
     assert r.stop_reason == "converged" and r.info["method"] == "fixed_point"
     assert "did not decrease" in r.info["fallback"] and r.info["newton_iterations"] > 0
-    fp = fs.coulomb_model_b(D, q, SEED001, ut_prev=ut_prev)
+    fp = fs.coulomb_model_b(D, q, MODEL_B, ut_prev=ut_prev)
     assert np.array_equal(r.x, fp.x)
     stopped = fs.model_b_newton(D, q, wrong, ut_prev=ut_prev, fallback=False)
     assert stopped.stop_reason == "stagnation" and stopped.info["method"] == "newton"
@@ -72,7 +72,7 @@ def test_failed_newton_falls_back_to_the_fixed_point(seed):
 def test_law_without_derivative_is_refused():
     D, q, ut_prev = _model_b_case(0, 3)
     with pytest.raises(ValueError, match="no derivative"):
-        fs.model_b_newton(D, q, CoefficientLaw("flat", SEED001.f), ut_prev=ut_prev)
+        fs.model_b_newton(D, q, CoefficientLaw("flat", MODEL_B.f), ut_prev=ut_prev)
 
 
 def test_friction_ssn_newton_on_the_sheared_scene():
@@ -92,7 +92,7 @@ def test_friction_ssn_newton_on_the_sheared_scene():
     sc = load_scene("hertz_halfdisks", mesh)
     b, f, _ = make_components(sc)
     prob = f.build(b.discretize(sc.default_mu),
-                   friction=FrictionLaw("coulomb", coefficient_law="seed001"))
+                   friction=FrictionLaw("coulomb", coefficient_law="model_b"))
     fp = FrictionSSNSolver(method="direct").solve(prob)
     nt = FrictionSSNSolver(method="newton").solve(prob)
     assert fp.converged and nt.converged and nt.info["method"] == "newton"

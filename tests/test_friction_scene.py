@@ -70,9 +70,9 @@ def test_coulomb_constant_parametric_and_coefficient_law():
     assert f.coefficient_law is None and friction_value(sc, "coefficient") == 0.2
     sc = load_scene(HERTZ, ['friction.law="coulomb"', 'friction.coefficient="mu.mu"'])
     assert friction_value(sc, "coefficient", np.array([0.8])) == 0.8
-    sc = load_scene(HERTZ, ['friction.law="coulomb"', 'friction.coefficient="seed001"'])
-    assert friction_of(sc).coefficient_law == "seed001"
-    assert friction_value(sc, "coefficient", sc.default_mu) == "seed001"
+    sc = load_scene(HERTZ, ['friction.law="coulomb"', 'friction.coefficient="model_b"'])
+    assert friction_of(sc).coefficient_law == "model_b"
+    assert friction_value(sc, "coefficient", sc.default_mu) == "model_b"
     # the boundary values are valid: nu_F = 0 reproduces the frictionless problem
     assert friction_of(load_scene(HERTZ, COULOMB[:1] + ["friction.coefficient=0"])).active
 
@@ -93,6 +93,15 @@ def test_tresca_threshold_and_load_steps():
     sc = load_scene(HERTZ, TRESCA + ["load.tangential_displacement=0.001",
                                      "load.load_steps=[{normal=1.0, tangential=-0.5}]"])
     assert friction_of(sc).steps == ((1.0, -0.5),)
+
+
+def test_old_coefficient_law_name_still_loads_with_a_deprecation_warning():
+    """``"seed001"``, the former name of ``"model_b"``, loads as ``"model_b"`` and warns."""
+    with pytest.warns(DeprecationWarning, match="'seed001' is now 'model_b'"):
+        sc = load_scene(HERTZ, ['friction.law="coulomb"', 'friction.coefficient="seed001"'])
+    assert friction_of(sc).coefficient_law == "model_b"
+    new = load_scene(HERTZ, ['friction.law="coulomb"', 'friction.coefficient="model_b"'])
+    assert sc.fingerprint() == new.fingerprint()
 
 
 def test_coefficient_law_names_match_the_hf_registry():
@@ -116,9 +125,9 @@ def test_scene_file_with_a_friction_section(tmp_path):
 # ---------------------------------------------------------------------------
 @pytest.mark.parametrize("overrides, fragments", [
     (['friction.law="coulomb"', "friction.coefficient=-0.2"],
-     ["[friction] coefficient", "-0.2 is out of range", "a number >= 0", "'seed001'"]),
-    (['friction.law="coulomb"', 'friction.coefficient="seed002"'],
-     ["[friction] coefficient", "'seed002' is not valid", "'seed001'"]),
+     ["[friction] coefficient", "-0.2 is out of range", "a number >= 0", "'model_b'"]),
+    (['friction.law="coulomb"', 'friction.coefficient="model_c"'],
+     ["[friction] coefficient", "'model_c' is not valid", "'model_b'"]),
     (['friction.law="coulomb"', 'friction.coefficient="mu.radius"'],
      ["[friction] coefficient", "parameter 'radius'", "declared: mu"]),
     (['friction.law="coulomb"', "friction.coefficient=true"],

@@ -150,11 +150,14 @@ def test_studies_group_lists_and_runs_both(capsys, monkeypatch):
         main(["studies", "--help"])
     assert exc.value.code == 0
     text = capsys.readouterr().out
-    assert "pymor-thermal-block" in text and "heat-seed" in text
+    assert "pymor-thermal-block" in text and "heat-robin" in text
     monkeypatch.setitem(sys.modules, "pymor", None)  # the not_installed row, quickly
     assert main(["studies", "pymor-thermal-block", "--n-cells", "8", "-N", "3", "--n-train",
                  "8", "--n-valid", "2", "--repeats", "1"]) == 0
     out = capsys.readouterr().out
     assert "| max relative error, H1_0 seminorm |" in out and "pip install pymor" in out
+    assert main(["studies", "heat-robin", "--n-cells", "8", "-N", "3", "--repeats", "1"]) == 0
+    assert "| N | 25 | 3 |" in capsys.readouterr().out
+    # the former name of the subcommand, a deprecated alias
     assert main(["studies", "heat-seed", "--n-cells", "8", "-N", "3", "--repeats", "1"]) == 0
     assert "| N | 25 | 3 |" in capsys.readouterr().out

@@ -168,14 +168,14 @@ def test_study_subcommands_parse_and_print(capsys, monkeypatch):
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest="study")
     studies._add_pymor_thermal_block_parser(sub)
-    studies._add_heat_seed_parser(sub)
+    studies._add_heat_robin_parser(sub)
     monkeypatch.setitem(sys.modules, "pymor", None)  # the not_installed row, quickly
     args = ap.parse_args(["pymor-thermal-block", "--n-cells", "8", "-N", "3", "--n-train",
                           "8", "--n-valid", "2", "--repeats", "1"])
     assert studies.cmd_pymor_thermal_block(args) == 0
     out = capsys.readouterr().out
     assert "| max relative error, H1_0 seminorm |" in out and "pip install pymor" in out
-    args = ap.parse_args(["heat-seed", "--n-cells", "8", "-N", "3", "--repeats", "1"])
-    assert studies.cmd_heat_seed(args) == 0
+    args = ap.parse_args(["heat-robin", "--n-cells", "8", "-N", "3", "--repeats", "1"])
+    assert studies.cmd_heat_robin(args) == 0
     out = capsys.readouterr().out
     assert "| N | 25 | 3 |" in out and "| HF nodes | 51,500 | 81 |" in out

@@ -243,10 +243,10 @@ def test_newton_converges_superlinearly_on_tresca(mindlin):
 
 
 def test_model_b_and_the_summary_block():
-    """seed001 (F(|u_t|)) converges on the shear case; rbbench's HF model writes the friction
+    """model_b (F(|u_t|)) converges on the shear case; rbbench's HF model writes the friction
     outputs and the Mindlin block for a Nitsche solve."""
     sc = load_scene("hertz_halfdisks", MESH + SHEAR + ['friction.law="coulomb"',
-                                                       'friction.coefficient="seed001"'])
+                                                       'friction.coefficient="model_b"'])
     sol = HFModel(sc, formulation="nitsche").solve()
     assert sol.result.converged and sol.components["solver"] == "newton"
     F = sol.result.info["coefficient_points"]

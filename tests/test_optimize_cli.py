@@ -18,7 +18,7 @@ def test_hf_bundle_run_writes_everything(tmp_path, capsys):
     assert main(["optimize", *TINY, "--max-iter", "4", "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     for key in ("J0", "J_opt", "ratio", "iterations", "hf_solves", "wall_s",
-                "constraint_residuals_opt", "stop_reason"):
+                "constraint_residuals_opt", "stop_reason", "published"):
         assert key in s
     assert s["J_opt"] <= s["J0"]
     assert s["constraint_residual_max_opt"] <= 1e-8

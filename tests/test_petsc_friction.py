@@ -161,7 +161,7 @@ def test_mindlin_coulomb_and_model_b_by_the_fixed_point_on_petsc_tresca(mindlin,
     equals friction-ssn's fixed point on PDAS (1e-9) and reports its contraction and the
     last inner PETSc reason."""
     for law in (FrictionLaw("coulomb", coefficient=0.2),
-                FrictionLaw("coulomb", coefficient_law="seed001")):
+                FrictionLaw("coulomb", coefficient_law="model_b")):
         _, ref = _solve(mindlin, law, FrictionSSNSolver(method="fixed_point"))
         _, res = _solve(mindlin, law, cls())
         assert res.converged and ref.converged, res.info.get("why")

@@ -91,7 +91,7 @@ def run_dir(tmp_path: Path) -> Path:
 
 # ------------------------------------------------------------------------------ figures
 def test_gcns_figure_draws_each_seed_history_and_circles_the_kept_q(run_dir):
-    """One curve per seed-model case in each panel (e_GCNS left, e_nt_rel right), values as
+    """One curve per collocation-model case in each panel (e_GCNS left, e_nt_rel right), values as
     stored (0 drawn at the 1e-12 floor), the kept q circled at its own value."""
     ctx = _context(load_run(run_dir))
     fig, caption = _fig_gcns(ctx)
@@ -99,7 +99,7 @@ def test_gcns_figure_draws_each_seed_history_and_circles_the_kept_q(run_dir):
     for ax, key in zip(fig.axes[:2], ("e_gcns", "e_nt_rel"), strict=True):
         assert ax.get_yscale() == "log"
         curves = [ln for ln in ax.lines if ln.get_label() and not ln.get_label().startswith("_")]
-        assert len(curves) == 2  # the two seed cases, not the wedge ones
+        assert len(curves) == 2  # the two collocation cases, not the wedge ones
         circles = [ln for ln in ax.lines if ln.get_marker() == "o"]
         for cid in ("seed1", "seed10"):
             hist = recs[cid]["details"]["gcns_history"]

@@ -1,4 +1,4 @@
-"""The backend role for the linear scenes (issue 18): no contact operator, no multiplier.
+"""The backend role for the linear scenes: no contact operator, no multiplier.
 
 A linear backend assembles, once, the parameter-independent pieces of
 :mod:`rbbench.scene.linear` (stiffness per conductivity block, mass, boundary mass, the

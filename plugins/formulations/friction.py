@@ -1,9 +1,10 @@
-"""The mixed friction problem (issue 13): :class:`rbbench.interfaces.FrictionProblem`.
+"""The mixed friction problem: :class:`rbbench.interfaces.FrictionProblem`.
 
-Seed 000, slides "Coulomb contact problem", "Tangential constraints", "Algebraic
-formulation / Collocation method": P2 (or P1) displacements, P1 multipliers on the slave
-contact nodes for both the normal and the tangential constraint (``S = (d-1) R = R``
-in 2D), so ``(lam_n, lam_t)`` pair up per collocation node. ``Bn = B_nodal``,
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Coulomb contact problem", "Tangential constraints",
+"Algebraic formulation / Collocation method": P2 (or P1) displacements, P1 multipliers on the
+slave contact nodes for both the normal and the tangential constraint (``S = (d-1) R = R`` in
+2D), so ``(lam_n, lam_t)`` pair up per collocation node. ``Bn = B_nodal``,
 ``Gn = G_nodal``, ``Bt = Mt^T diag(w) Ut``; Dirichlet dofs are eliminated by the lifting
 of each load step (``Discretization.dirichlet_steps``).
 

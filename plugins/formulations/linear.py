@@ -1,4 +1,4 @@
-"""The linear formulation (issue 18): no constraint, no multiplier, no contact operator.
+"""The linear formulation: no constraint, no multiplier, no contact operator.
 
 ``build(disc)`` restricts a linear discretization (``disc.contact`` is None) to the free
 dofs (:class:`rbbench.hf.linear.model.LinearProblem`: ``A u = F``, or implicit Euler with the mass

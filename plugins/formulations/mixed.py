@@ -1,4 +1,7 @@
-"""Mixed (Lagrange multiplier) formulation, seed 000 slide "Mixed formulation".
+"""Mixed (Lagrange multiplier) formulation.
+
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slide "Mixed formulation".
 
 ``B = Mlam^T diag(w) Un`` and ``G = Mlam^T diag(w) gap`` from the backend's
 contact operators; Dirichlet dofs are eliminated by lifting. A friction scene (``friction``

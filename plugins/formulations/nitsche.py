@@ -1,4 +1,7 @@
-"""Nitsche formulation (frictionless contact), seed 000 slides "Nitsche's method (1/2), (2/2)".
+"""Nitsche formulation (frictionless contact).
+
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Nitsche's method (1/2), (2/2)".
 
 Chouly & Hild (2013), Chouly, Hild & Renard (2015): the Alart-Curnier
 equation ``sigma_nn(u) = [sigma_nn(u) - gamma (u_n - d^n)]_-`` imposed weakly
@@ -6,7 +9,7 @@ equation ``sigma_nn(u) = [sigma_nn(u) - gamma (u_n - d^n)]_-`` imposed weakly
 used (``Un``, ``Snn``, weights, gap, facet lengths), so the formulation runs on
 every backend that builds ``Snn`` on request (``needs = {"stress"}``).
 
-Friction (issue 13): Chouly-Hild-Renard's tangential term
+Friction: Chouly-Hild-Renard's tangential term
 (:mod:`rbbench.hf.algebra.nitsche_friction`) with the slave shear stress ``Snt`` and the tangential
 jump ``Ut`` (built when a friction scene asks for the tangential operators), over the load
 steps of the scene (:func:`rbbench_plugins.formulations.friction.load_steps`).
@@ -39,7 +42,7 @@ class NitscheFormulation(Formulation):
     Parameters
     ----------
     theta : float
-        1 (symmetric: the seed's choice, a minimisation), 0 (skew-less) or -1
+        1 (symmetric: Benaceur et al.'s choice, a minimisation), 0 (skew-less) or -1
         (skew-symmetric, well posed for every ``gamma0 > 0``).
     gamma0 : float
         Dimensionless Nitsche parameter, ``gamma = gamma0 E / h`` with ``E`` the

@@ -76,7 +76,9 @@ class SemismoothNewtonSolver(_CondensedSolver):
 
 
 class UzawaSolver(_CondensedSolver):
-    """Uzawa (seed 000 baseline; see :func:`rbbench.hf.solvers.lcp.uzawa`)."""
+    """Uzawa (the baseline of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction
+    methods: parametric variational inequalities" (talk), slide "Uzawa"; see
+    :func:`rbbench.hf.solvers.lcp.uzawa`)."""
 
     name = "uzawa"
 

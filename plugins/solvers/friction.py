@@ -1,4 +1,4 @@
-"""Solvers of the mixed friction problem (issue 13): ``friction-ssn`` and ``friction-uzawa``.
+"""Solvers of the mixed friction problem: ``friction-ssn`` and ``friction-uzawa``.
 
 Both factorise the stiffness once per mu, condense on the contact nodes
 (``x = [lam_n; lam_t]``, ``D = B A^{-1} B^T``, ``B = [Bn; Bt]``;
@@ -8,12 +8,13 @@ step is warm-started from the multipliers of the previous one. A step that does 
 converge stops the sequence (its stop reason is the result's).
 
 * ``friction-ssn``: Tresca by the primal-dual active set (:func:`pdas_tresca`); Coulomb
-  directly on the wedge (:func:`coulomb_direct`, ``method="direct"``) or by the seed's
-  fixed point on Tresca (:func:`coulomb_fixed_point`, ``method="fixed_point"``); a slip
-  law (model B) by a fixed point on the coefficient (:func:`coulomb_model_b`) or, with
+  directly on the wedge (:func:`coulomb_direct`, ``method="direct"``) or by the fixed point on
+  Tresca of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+  variational inequalities" (talk) (:func:`coulomb_fixed_point`, ``method="fixed_point"``); a
+  slip law (model B) by a fixed point on the coefficient (:func:`coulomb_model_b`) or, with
   ``method="newton"``, by a semismooth Newton with the law's derivative
   (:func:`model_b_newton`, the fixed point as its fallback).
-* ``friction-uzawa``: the seed's Uzawa (:func:`uzawa_friction`; model B: the same fixed
+* ``friction-uzawa``: Benaceur et al.'s Uzawa (:func:`uzawa_friction`; model B: the same fixed
   point on the coefficient with Uzawa inside).
 * any Tresca solver of the box QP (PETSc's ``petsc-vi`` / ``petsc-tao``):
   :func:`tresca_runner` builds the Coulomb and model-B fixed points around it.
@@ -143,7 +144,7 @@ def tresca_runner(problem: FrictionProblem, tresca: Callable[..., fa.FrictionRes
     """The :func:`solve_steps` runner of ``problem`` around one Tresca solve
     ``tresca(D, q, s, lam0=x0)`` (the box QP of :mod:`rbbench.hf.algebra.friction`).
 
-    Tresca: ``tresca`` itself; Coulomb: the seed's fixed point on Tresca
+    Tresca: ``tresca`` itself; Coulomb: Benaceur et al.'s fixed point on Tresca
     (:func:`~rbbench.hf.solvers.friction.coulomb_fixed_point` with ``tresca`` inside);
     model B: the fixed point on the coefficient around that one. The scalar ``info`` of the
     last Tresca solve is copied into the result's ``info`` under ``"inner_<key>"``.
@@ -234,7 +235,7 @@ class FrictionSSNSolver(_FrictionSolver):
 
 
 class FrictionUzawaSolver(_FrictionSolver):
-    """The seed's Uzawa for friction (normal then tangential projection; model B: a fixed
+    """Benaceur et al.'s Uzawa for friction (normal then tangential projection; model B: a fixed
     point on the coefficient with Uzawa inside)."""
 
     name = "friction-uzawa"

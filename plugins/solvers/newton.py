@@ -1,8 +1,10 @@
 """Generalised (semismooth) Newton for the Nitsche contact problem, with a line search.
 
-Seed 000, slide "HF model" of Nitsche's method: ``u_{k+1} = u_k + delta u_k`` with
-``(A_gamma + B_gamma(u_k)) delta u_k = -R_gamma(u_k)``, the tangent built with the
-Heaviside function ``H(-P_gamma(u_k))`` (:func:`rbbench.hf.algebra.nitsche.tangent`). The
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slide "HF model" of Nitsche's method:
+``u_{k+1} = u_k + delta u_k`` with ``(A_gamma + B_gamma(u_k)) delta u_k = -R_gamma(u_k)``, the
+tangent built with the Heaviside function ``H(-P_gamma(u_k))``
+(:func:`rbbench.hf.algebra.nitsche.tangent`). The
 residual is piecewise affine in ``u``: once the active set is right, one full
 step solves the problem to rounding.
 

@@ -1,4 +1,4 @@
-"""Generalised Newton for Nitsche friction over the load steps (issue 13; Renard 2013).
+"""Generalised Newton for Nitsche friction over the load steps (Renard 2013).
 
 :class:`~rbbench.interfaces.NitscheFrictionProblem`, algebra in
 :mod:`rbbench.hf.algebra.nitsche_friction`: ``K(u_k) d = -R(u_k)`` with ``K`` an element of the

@@ -5,6 +5,9 @@ holds (unit, and for errors: relative, which norm, max or mean over which
 set); :func:`column_definitions` is written beside every results table in
 ``manifest.json``, and ``rbbench report`` / ``rbbench compare`` read only
 the columns declared here.
+
+"Published" values and "Benaceur et al." refer to Benaceur, Drouet, Ehrlacher, Ern & Niakh,
+"Model order reduction methods: parametric variational inequalities" (talk).
 """
 
 from __future__ import annotations
@@ -72,9 +75,9 @@ COLUMNS: tuple[Column, ...] = (
     _c("hyper_used", "str", "components", "", "hyper-reducer actually used (affine / eim / "
        "none)"),
     _c("friction_dual", "str", "components", "", "friction scenes, mode rb: the reduced "
-       "friction dual model (seed: normal cone of lam_n + POD space X_S of lam_t + GCNS "
-       "collocation, the seed's; wedge: cones of F lam_n +- lam_t, Coulomb at every HF "
-       "node); empty for frictionless scenes; a skip row: the value asked"),
+       "friction dual model (collocation: normal cone of lam_n + POD space X_S of lam_t + GCNS "
+       "collocation, as in Benaceur et al.'s talk; wedge: cones of F lam_n +- lam_t, Coulomb at "
+       "every HF node); empty for frictionless scenes; a skip row: the value asked"),
     _c("executor", "str", "components", "", "executor that ran the case"),
     _c("params", "str", "components", "", "component parameters of the case, JSON"),
     # status
@@ -93,15 +96,15 @@ COLUMNS: tuple[Column, ...] = (
     _c("S", "int", "sizes", "", "stabiliser size: PGA vectors K (0 for none; R per mu for "
        "online supremizers)"),
     _c("M_eim", "int", "sizes", "", "EIM magic rows evaluated online (hyper eim)"),
-    _c("S_tau", "int", "sizes", "", "friction scenes, mode rb: tangential dual size (seed "
-       "model: dim X_S, POD modes of lam_t; wedge model: R-, generators V- of the cone of "
-       "F lam_n - lam_t, R being those of F lam_n + lam_t); result.json's S"),
-    _c("S_q", "int", "sizes", "", "friction, seed model: collocation nodes of the kept GCNS "
-       "set C(q) (seed: 40); 0 for the wedge model (no collocation)"),
-    _c("gcns_iterations", "int", "sizes", "", "friction, seed model: q of the kept GCNS set "
-       "(seed: 20); 0 for the wedge model"),
+    _c("S_tau", "int", "sizes", "", "friction scenes, mode rb: tangential dual size "
+       "(collocation model: dim X_S, POD modes of lam_t; wedge model: R-, generators V- of the "
+       "cone of F lam_n - lam_t, R being those of F lam_n + lam_t); result.json's S"),
+    _c("S_q", "int", "sizes", "", "friction, collocation model: collocation nodes of the "
+       "kept GCNS set C(q) (published: 40); 0 for the wedge model (no collocation)"),
+    _c("gcns_iterations", "int", "sizes", "", "friction, collocation model: q of the kept "
+       "GCNS set (published: 20); 0 for the wedge model"),
     _c("dim_v_off", "int", "sizes", "", "friction scenes, mode rb: N + K, the primal space "
-       "after PGA on the combined form b^n + b^tau (seed: 70)"),
+       "after PGA on the combined form b^n + b^tau (published: 70)"),
     # HF solve (mode hf; contact force also for reference in rb mode: not filled)
     _c("contact_force", "float", "accuracy", "N/m", "mode hf: total normal contact force per "
        "unit thickness at the scene's default mu (rbbench.hf.model contact_force)"),
@@ -137,14 +140,14 @@ COLUMNS: tuple[Column, ...] = (
     _c("err_lam_t_max", "float", "accuracy", "1", _ERR_T + ", max " + _VALID),
     _c("err_lam_t_mean", "float", "accuracy", "1", _ERR_T + ", mean " + _VALID),
     _c("lam_t_best_max", "float", "accuracy", "1", "friction: ||lam_t - Pi lam_t||_W / "
-       "||lam_t||_W, Pi the W-projection onto the tangential space (seed model: X_S; wedge "
+       "||lam_t||_W, Pi the W-projection onto the tangential space (collocation model: X_S; wedge "
        "model: span(Lt), the tangential parts (V+ c+ - V- c-) / 2 of the wedge generators): "
        "the floor of err_lam_t, max " + _VALID),
     _c("friction_residual_max", "float", "accuracy", "1", "friction: max over ALL HF nodes "
        "of [|lam_t| - F lam_n]_+ (Tresca: [|lam_t| - s]_+) of the reconstructed reduced "
        "multipliers, relative to the largest reconstructed lam_n (Tresca: s), max " + _VALID),
     _c("online_iterations_max", "int", "accuracy", "", "friction: iterations of the online "
-       "fixed point (seed: Tresca QPs; wedge: De Saxce), max " + _VALID),
+       "fixed point (collocation: Tresca QPs; wedge: De Saxce), max " + _VALID),
     # stability
     _c("beta_hf_min", "float", "stability", "", _BETA + "; whole V against the HF cone"),
     _c("beta_hf_kind", "str", "stability", "", "kind of beta_hf_min"),
@@ -159,7 +162,7 @@ COLUMNS: tuple[Column, ...] = (
     _c("beta_off_kind", "str", "stability", "", "kind of beta_off_min"),
     *(_c(f"beta_{b}_rel_min", "float", "stability", "1", "friction scenes, mode rb: "
          f"beta_{b} of the combined form b^n + b^tau divided by c_HF(mu), the HF "
-         "continuity constant (dimensionless: the seed's beta / c ratio; " + what + "), min "
+         "continuity constant (dimensionless: Benaceur et al.'s beta / c ratio; " + what + "), min "
          + _VALID + " (the per-mu values are of the kinds of beta_" + b + "_min)")
       for b, what in (("hf", "whole V against R^m_+ x R^m, span lower bound; only up to "
                              "2m = 400 multiplier rows"),
@@ -167,8 +170,8 @@ COLUMNS: tuple[Column, ...] = (
                       ("off", "span Z_off, the online primal space, against the reduced "
                               "dual set"))),
     _c("delta_pga", "float", "stability", "1", "friction scenes, mode rb: PGA tolerance, "
-       "the seed's rule sup_mu beta / c_HF of the combined form over every fifth training mu "
-       "(a span lower bound; seed: 0.072); empty without PGA"),
+       "Benaceur et al.'s rule sup_mu beta / c_HF of the combined form over every fifth training "
+       "mu (a span lower bound; published: 0.072); empty without PGA"),
     # timings
     _c("t_snapshots_s", "float", "timings", "s", "HF snapshots (wall; 0 when all came from "
        "the cache)"),

@@ -1,11 +1,14 @@
 """The ``rbbench`` command line.
 
 ``rbbench solve SCENE``: one HF solve with summary and files (``--formulation nitsche``);
-``rbbench nitsche-table``: the seed's Alart-Curnier residual table (Nitsche);
+``rbbench nitsche-table``: the relative Alart-Curnier residual table of the Nitsche solve beside
+the published one (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+parametric variational inequalities" (talk));
 ``rbbench plugins``: every registered component and whether it is importable;
 ``rbbench scenes``: the scenes in ``problems/``;
 ``rbbench run MATRIX``: a run matrix, one results row per case;
-``rbbench studies STUDY``: the linear scenes beside pyMOR and the seed (issue 18);
+``rbbench studies STUDY``: the linear scenes beside pyMOR and the published figures, the shape
+optimisation HF- and RB-driven, HF snapshot workers;
 ``rbbench report DIR`` / ``rbbench compare A B``: plots, tables, regressions.
 Bad input exits with status 2 and a message naming what is wrong.
 """

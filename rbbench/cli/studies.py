@@ -1,6 +1,11 @@
 """The study commands: ``rbbench hertz-table``, ``nitsche-table``, ``nitsche-compare`` and
-``rbbench studies STUDY`` (pymor-thermal-block, heat-seed, shape-side-by-side,
-snapshot-workers); the studies themselves live in :mod:`rbbench.studies`."""
+``rbbench studies STUDY`` (pymor-thermal-block, heat-robin, shape-side-by-side,
+snapshot-workers); the studies themselves live in :mod:`rbbench.studies`.
+
+The published figures are those of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order
+reduction methods: parametric variational inequalities" (talk), and of the talk "On
+coupling of complementarity with friction in contact shape optimization" (model B).
+"""
 
 from __future__ import annotations
 
@@ -16,11 +21,11 @@ from rbbench.studies.formatting import print_and_dump
 
 def add_parser(sub) -> None:
     """Register ``studies`` and one subcommand per study on the CLI's subparsers."""
-    st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-seed, "
+    st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-robin, "
                         "shape-side-by-side, snapshot-workers)")
     group = st.add_subparsers(dest="study", required=True, metavar="STUDY")
     for add, run in ((_add_pymor_thermal_block_parser, cmd_pymor_thermal_block),
-                     (_add_heat_seed_parser, cmd_heat_seed),
+                     (_add_heat_robin_parser, cmd_heat_robin),
                      (_add_shape_side_by_side_parser, cmd_shape_side_by_side),
                      (_add_snapshot_workers_parser, cmd_snapshot_workers)):
         add(group).set_defaults(func=run)
@@ -89,20 +94,21 @@ def _add_hertz_table_parser(sub) -> None:
 
 def _add_nitsche_table_parser(sub) -> None:
     nt = sub.add_parser("nitsche-table",
-                        help="the seed's Alart-Curnier residual e_AC^n of the Nitsche solve "
-                             "against h and mu, side by side with the seed (Markdown table)")
+                        help="the relative Alart-Curnier residual e_AC^n of the Nitsche solve "
+                             "against h and mu, side by side with Benaceur et al.'s published "
+                             "table (Markdown table)")
     nt.add_argument("scene", nargs="?", default="hertz_halfdisks")
     nt.add_argument("--h", type=float, nargs="+", default=[5.0, 2.5, 1.25],
-                    help="the seed's mesh sizes (mm), mapped to discretization.h_contact by "
-                         "rbbench.studies.nitsche_eac.seed_h_overrides")
+                    help="the published mesh sizes (mm), mapped to discretization.h_contact "
+                         "by rbbench.studies.nitsche_eac.published_h_overrides")
     nt.add_argument("--mu", type=float, nargs="+", default=[0.7, 1.0, 1.3])
     nt.add_argument("--backend", default="skfem")
     nt.add_argument("--theta", type=float, default=1.0)
     nt.add_argument("--gamma0", type=float, default=None, help="default: the formulation's")
     nt.add_argument("--load", type=float, default=0.09,
-                    help="imposed displacement d (m); the seed's 0.09 by default")
+                    help="imposed displacement d (m); the talk's 0.09 by default")
     nt.add_argument("--degree", type=int, choices=(1, 2), default=2,
-                    help="displacement degree (the seed's Hertz setting: P2)")
+                    help="displacement degree (the talk's Hertz setting: P2)")
     nt.add_argument("--quadrature", type=int, default=0,
                     help="Gauss points per contact facet or piece (0: degree + 1)")
     nt.add_argument("--normals", choices=("facet", "smooth"), default="smooth",
@@ -121,7 +127,7 @@ def _add_nitsche_compare_parser(sub) -> None:
     nc.add_argument("scene", nargs="?", default="hertz_halfdisks")
     nc.add_argument("-N", type=int, default=20)
     nc.add_argument("-R", type=int, nargs="+", default=[10, 30, 40])
-    nc.add_argument("--n-train", type=int, default=61, help="|D_train| (the seed: 61)")
+    nc.add_argument("--n-train", type=int, default=61, help="|D_train| (the talk: 61)")
     nc.add_argument("--n-valid", type=int, default=10)
     _add_study_tail(nc, cmd_nitsche_compare)
 
@@ -148,10 +154,13 @@ def cmd_pymor_thermal_block(args: argparse.Namespace) -> int:
                        args.repeats, args.backend)
     return print_and_dump(side_by_side_markdown(res), res, args.json)
 
-def _add_heat_seed_parser(sub: Any) -> argparse.ArgumentParser:
-    """``rbbench studies heat-seed`` (``sub``: argparse subparsers)."""
-    p = sub.add_parser("heat-seed", help="the seed's heat equation (N = 25) beside its "
-                       "valve figure: HF / RB times, L2(0, T; H1) error")
+def _add_heat_robin_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies heat-robin`` (``sub``: argparse subparsers; ``heat-seed``: its
+    former name, a deprecated alias)."""
+    p = sub.add_parser("heat-robin", aliases=["heat-seed"],
+                       help="Benaceur et al.'s heat equation (N = 25) beside their published "
+                       "valve figures: HF / RB times, L2(0, T; H1) error (alias heat-seed: "
+                       "deprecated)")
     p.add_argument("--n-cells", type=int, default=64, help="squares per side (default 64)")
     p.add_argument("-N", type=int, default=25)
     p.add_argument("--repeats", type=int, default=20, help="online repeats per mu")
@@ -159,17 +168,18 @@ def _add_heat_seed_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     return p
 
-def cmd_heat_seed(args: argparse.Namespace) -> int:
+def cmd_heat_robin(args: argparse.Namespace) -> int:
     """Run the study and print its table."""
-    from rbbench.studies.heat_seed import heat_seed, heat_seed_markdown
+    from rbbench.studies.heat_robin import heat_robin_markdown, heat_robin_study
 
-    res = heat_seed(args.n_cells, args.N, repeats=args.repeats, backend=args.backend)
-    return print_and_dump(heat_seed_markdown(res), res, args.json)
+    res = heat_robin_study(args.n_cells, args.N, repeats=args.repeats, backend=args.backend)
+    return print_and_dump(heat_robin_markdown(res), res, args.json)
 
 def _add_shape_side_by_side_parser(sub: Any) -> argparse.ArgumentParser:
     """``rbbench studies shape-side-by-side`` (``sub``: argparse subparsers)."""
-    p = sub.add_parser("shape-side-by-side", help="seed 001's shape optimisation, HF- and "
-                       "RB-driven in one process: J, HF solves, wall time")
+    p = sub.add_parser("shape-side-by-side", help="shape optimisation (model B of the "
+                       "shape-optimisation talk), HF- and RB-driven in one process: J, HF "
+                       "solves, wall time")
     p.add_argument("--scene", default="shape_coulomb")
     p.add_argument("--metric", choices=("identity", "bfgs"), default="identity")
     p.add_argument("--max-iter", type=int, default=100)

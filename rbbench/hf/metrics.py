@@ -149,7 +149,7 @@ def normal_operators(prob: Any, c: Any) -> tuple[Any, np.ndarray, Any, np.ndarra
 
 
 def _friction_metrics(prob: FrictionProblem, res: SolveResult, c: Any) -> dict[str, Any]:
-    """Friction outputs (issue 13): tangential force, node states, stick-zone half-width,
+    """Friction outputs: tangential force, node states, stick-zone half-width,
     the stick / slip residual of the last load step (see :data:`DEFINITIONS`)."""
     info = res.info
     lam_t = np.asarray(info.get("lam_t", np.zeros(prob.n_nodes)), float)
@@ -194,8 +194,10 @@ def _nitsche_friction_metrics(prob: NitscheFrictionProblem, res: SolveResult, c:
 
 
 def _nitsche_metrics(prob: NitscheProblem, res: SolveResult, c: Any) -> dict[str, Any]:
-    """Nitsche: force from the point pressures ``-[P_gamma(u)]_-`` (the consistent reaction
-    of the Nitsche equation), their peak, and the seed's relative AC residual ``e_ac``.
+    """Nitsche: force from the point pressures ``-[P_gamma(u)]_-`` (the consistent reaction of
+    the Nitsche equation), their peak, and the relative AC residual ``e_ac`` of Benaceur,
+    Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational
+    inequalities" (talk), slide "Relative error on the Alart-Curnier reformulation".
 
     ``lam`` (hence ``max_pressure``, half-width, complementarity) is the L2 projection of
     that pressure on the multiplier space (:func:`rbbench.hf.algebra.nitsche.project_pressure`).
@@ -219,7 +221,7 @@ DEFINITIONS = {
     "contact_force": "total normal contact force per unit thickness (N/m): vertical resultant "
                      "int lam (-n_y) over the slave zone (obstacle: int lam); Nitsche: "
                      "int p (-n_y) with the point pressures p = -[P_gamma(u)]_-",
-    "e_ac": "Nitsche only: relative Alart-Curnier residual (seed 000) "
+    "e_ac": "Nitsche only: relative Alart-Curnier residual (Benaceur et al.) "
             "||sigma_nn(u) - [P_gamma(u)]_-|| / ||sigma_nn(u)||, L2(Gamma_c) norms by the "
             "contact quadrature, a fraction (not %)",
     "max_pressure_quadrature": "Nitsche only: largest point pressure -[P_gamma(u)]_- (Pa)",
@@ -293,8 +295,7 @@ DEFINITIONS = {
                "loading, ~0.6 s) is paid at solver construction (times_s.setup_s)",
     "solve_over_floor": "times_s.solve_s / floor_s: the solver's time (condensation, "
                         "contact iterations, recovery of u; no assembly, no meshing) over "
-                        "the floor; 1 is one factorisation + one solve (issue 17 goal: "
-                        "<= 1.5)",
+                        "the floor; 1 is one factorisation + one solve (target: <= 1.5)",
     "blas_threads": BLAS_THREADS_DEFINITION,
     "zone_saturated": "true if the first or last multiplier of the potential zone is active: "
                       "the contact patch reaches the edge of the potential zone",

@@ -256,7 +256,7 @@ def solve_floor(problem: Any, linear_solver: str | None = None) -> dict[str, Any
     dofs with the direct solver the HF solve used: PARDISO when ``linear_solver`` is
     ``"pardiso"`` (the solve's condensation ran on it), else ``problem.factorize`` (the
     backend's), else SuperLU (:func:`rbbench.hf.condensation.dense.factorize`): the floor of a
-    contact solve (issue 17).
+    contact solve.
 
     Returns ``factor_s``, ``solve_s`` and their sum ``floor_s`` (s) and ``solver``.
     """

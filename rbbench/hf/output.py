@@ -158,9 +158,11 @@ def _draw_pressure(ax: Any, table: dict, m: dict) -> None:
 
 
 def _draw_friction(ax: Any, sol: HFSolution, table: dict) -> None:
-    """The seed's friction figure: ``lam_t`` and ``+- F lam_n`` per friction node, stick
-    nodes marked; with a ``mindlin`` block, the Cattaneo-Mindlin shear traction ``q(x)``
-    (compared as ``sign(Q) lam_t t_x``, :mod:`rbbench.hf.references.mindlin`)."""
+    """The friction figure of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction
+    methods: parametric variational inequalities" (talk), slide "HF solutions": ``lam_t`` and
+    ``+- F lam_n`` per friction node, stick nodes marked; with a ``mindlin`` block, the
+    Cattaneo-Mindlin shear traction ``q(x)`` (compared as ``sign(Q) lam_t t_x``,
+    :mod:`rbbench.hf.references.mindlin`)."""
     m = sol.metrics
     order = np.argsort(table["x"])
     x, lam_t, lam_n = table["x"][order], table["lam_t"][order], table["pressure"][order]

@@ -20,7 +20,8 @@ Factorize = Callable[[sp.csr_matrix], Callable[[np.ndarray], np.ndarray]]
 class ContactOperators:
     """Contact-boundary operators at contact quadrature points x_q on the slave side.
 
-    Seed 000, slide "HF model": ``b^n(v, eta) = int_{Gamma_c} v_n eta``,
+    Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+    variational inequalities" (talk), slide "HF model": ``b^n(v, eta) = int_{Gamma_c} v_n eta``,
     ``g^n(eta) = int_{Gamma_c} d^n eta``. With the matrices below,
     ``B = Mlam^T diag(weights) Un`` and ``G = Mlam^T diag(weights) gap``.
 
@@ -57,8 +58,8 @@ class ContactOperators:
         ``Snn``: the ``h`` of the Nitsche parameter ``gamma = gamma0 E / h``).
     Mt : (n_q, n_nodes) sparse or None
         The tangential (friction) multiplier basis at the quadrature points: continuous
-        P1 hat functions of the slave contact nodes, whatever ``multiplier`` is (seed 000,
-        "Collocation method": P1 multipliers, ``S = (d-1) R``, ``S_0 = R``). Built with
+        P1 hat functions of the slave contact nodes, whatever ``multiplier`` is (Benaceur et al.,
+        slide "Collocation method": P1 multipliers, ``S = (d-1) R``, ``S_0 = R``). Built with
         ``Ut``.
     Snt : (n_q, n_dofs) sparse or None
         Shear stress ``sigma_nt(u)(x_q) = t_1 . sigma(u) n_1`` of the slave body at the

@@ -31,7 +31,10 @@ class _FreeDofs:
 
 @dataclass
 class ContactProblem(_FreeDofs):
-    """The algebraic HF contact problem on the free dofs (seed 000, "Mixed formulation").
+    """The algebraic HF contact problem on the free dofs.
+
+    Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+    variational inequalities" (talk), slide "Mixed formulation".
 
     Find ``u, lam`` with ``A u + B^T lam = F``, ``lam >= 0``, ``B u <= G``,
     ``lam . (G - B u) = 0``. ``free`` maps free to global dofs; ``u_lift``
@@ -55,7 +58,8 @@ class FrictionLaw:
     """The friction law of a scene at one mu (``[friction]``, ``"mu.NAME"`` resolved).
 
     ``law``: ``"tresca"`` (``threshold`` s, Pa) or ``"coulomb"`` (``coefficient`` nu_F, a
-    number, or ``coefficient_law`` the name of a slip law ``F(|u_t|)``, seed 001 model B).
+    number, or ``coefficient_law`` the name of a slip law ``F(|u_t|)``, model B of the talk
+    "On coupling of complementarity with friction in contact shape optimization").
     """
 
     law: str
@@ -82,8 +86,8 @@ class LoadStep:
 
 @dataclass
 class FrictionProblem(_FreeDofs):
-    """The algebraic HF friction problem on the free dofs (seed 000, "Coulomb contact
-    problem", "Algebraic formulation / Collocation method"; issue 13).
+    """The algebraic HF friction problem on the free dofs (Benaceur et al., slides "Coulomb
+    contact problem", "Algebraic formulation / Collocation method").
 
     Per load step, find ``u, lam_n, lam_t`` (one pair per collocation node) with
     ``A u + Bn^T lam_n + Bt^T lam_t = F``, Signorini on ``(lam_n, Gn - Bn u)`` and, with
@@ -130,7 +134,8 @@ class FrictionProblem(_FreeDofs):
 
 @dataclass
 class NitscheProblem(_FreeDofs):
-    """The algebraic Nitsche contact problem on the free dofs (seed 000, "Nitsche's method").
+    """The algebraic Nitsche contact problem on the free dofs (Benaceur et al., slides "Nitsche's
+    method").
 
     Frictionless Signorini conditions in the Alart-Curnier form
     ``sigma_nn(u) = [P_gamma(u)]_-`` with ``P_gamma(u) = sigma_nn(u) - gamma (u_n - d^n)``
@@ -140,7 +145,7 @@ class NitscheProblem(_FreeDofs):
         a(u, v) - theta int 1/gamma sigma_nn(u) sigma_nn(v)
                 + int 1/gamma [P_gamma(u)]_- (theta sigma_nn(v) - gamma v_n) = f(v)
 
-    (``theta = 1``: the seed's symmetric variant, the optimality condition of the
+    (``theta = 1``: Benaceur et al.'s symmetric variant, the optimality condition of the
     Nitsche energy; ``0``: skew-less; ``-1``: skew-symmetric). Integrals are the
     slave-side quadrature of the contact operators. Algebra: :mod:`rbbench.hf.algebra.nitsche`.
 
@@ -247,7 +252,8 @@ class NitscheFrictionProblem(NitscheProblem):
     threshold, coefficient : (n_q,) or None
         Tresca ``s`` (Pa) or Coulomb ``nu_F`` per point.
     coefficient_law : str or None
-        A slip law ``F(|u_t|)`` (seed 001 model B) of the full tangential jump per point.
+        A slip law ``F(|u_t|)`` (model B of the shape-optimisation talk) of the full
+        tangential jump per point.
     """
 
     Ut: sp.csr_matrix | None = None

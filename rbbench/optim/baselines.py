@@ -1,8 +1,9 @@
 """Smooth baseline for the shape optimisation: scipy's SLSQP on the same oracle.
 
-SLSQP (Kraft 1988) treats the oracle's subgradient as a gradient. On a nonsmooth
-``Theta`` its quasi-Newton model and line search have no convergence guarantee; it is the
-baseline the seed's bundle method is compared with, not a second optimiser to trust.
+SLSQP (Kraft 1988) treats the oracle's subgradient as a gradient. On a nonsmooth ``Theta`` its
+quasi-Newton model and line search have no convergence guarantee; it is the baseline the bundle
+trust method (as in the talk "On coupling of complementarity with friction in contact shape
+optimization") is compared with, not a second optimiser to trust.
 Same result type as :func:`rbbench.optim.bundle.bundle_trust`; ``f`` and ``g`` are divided
 by :func:`~rbbench.optim.bundle.objective_scale` internally so that ``ftol`` is relative
 to ``|f(x0)|``. SLSQP keeps the bounds at every evaluation but may evaluate the oracle

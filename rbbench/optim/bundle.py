@@ -281,7 +281,7 @@ class _Run:
         return call_oracle(self.oracle, y, self.n)
 
     def start(self) -> str | None:
-        """Evaluate ``x0``, fix the scale, seed the bundle with the centre's cut."""
+        """Evaluate ``x0``, fix the scale, start the bundle with the centre's cut."""
         try:
             f, g = self.evaluate(self.x)
         except OracleFailure as exc:

@@ -1,4 +1,5 @@
-"""Pictures of a shape optimisation run (seed 001's figures): bodies, normal stress, history."""
+"""Pictures of a shape optimisation run: bodies, normal stress, history (the figures of the
+talk "On coupling of complementarity with friction in contact shape optimization", Example 1)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -31,8 +32,8 @@ def plot_bodies(sc: ShapeScene, states: dict[str, ShapeState], path: Path,
                 magnify: float | None = None) -> Path:
     """Unloaded outline and the deformed mesh coloured by sigma_22 (kPa), one panel a state.
 
-    Seed 001's "initial / optimal design: unloaded and deformed body" and "normal stress"
-    figures in one picture; the displacement is magnified by ``magnify`` (stated).
+    The shape-optimisation talk's "initial / optimal design: unloaded and deformed body" and
+    "normal stress" figures in one picture; the displacement is magnified by ``magnify`` (stated).
     """
     plt = _plt()
     g = sc.grid

@@ -1,6 +1,6 @@
 """The feasible set of the design: a polyhedron ``{x : lb <= x <= ub, cl <= C x <= cu}``
-(seed 001's admissible shapes: box bounds, slope bounds and the area, affine in the
-design)."""
+(the admissible shapes of the talk "On coupling of complementarity with friction in contact
+shape optimization": box bounds, slope bounds and the area, affine in the design)."""
 
 from __future__ import annotations
 

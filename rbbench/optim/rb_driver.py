@@ -1,8 +1,9 @@
 """Reduced-basis-driven shape optimisation: a trust region of local reduced models.
 
-After Qian, Grepl, Veroy, Willcox (2017, SIAM J. Sci. Comput. 39:S434) and Keil,
-Mechelli, Ohlberger, Schindler, Volkwein (2021, ESAIM M2AN 55:1239), adapted to the
-nonsmooth ``Theta`` of seed 001 and the bundle method:
+After Qian, Grepl, Veroy, Willcox (2017, SIAM J. Sci. Comput. 39:S434) and Keil, Mechelli,
+Ohlberger, Schindler, Volkwein (2021, ESAIM M2AN 55:1239), adapted to the nonsmooth ``Theta`` of
+model B of the talk "On coupling of complementarity with friction in contact shape optimization"
+and the bundle method:
 
 1. At an HF-verified centre ``alpha_k`` the reduced model of ``shape_reduced`` gets the
    interior space of the HF factors there (``interior_space``: the harmonic extensions of

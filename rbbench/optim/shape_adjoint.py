@@ -1,10 +1,11 @@
 """Objective and one subgradient of ``Theta(alpha) = J(alpha, S(alpha))`` by one adjoint solve.
 
-Seed 001, implicit programming: ``xi = grad_alpha J + (grad_alpha F)^T b`` with ``b``
-solving ``0 = grad_y J + (grad_y F)^T b + D*Q(y, -F)(b)``. At every contact node the
+Implicit programming as in the talk "On coupling of complementarity with friction in contact
+shape optimization": ``xi = grad_alpha J + (grad_alpha F)^T b`` with ``b`` solving
+``0 = grad_y J + (grad_y F)^T b + D*Q(y, -F)(b)``. At every contact node the
 limiting coderivative ``D*Q`` is replaced by one element: the derivative of the branch of
 the semismooth system that the node is on (``shape_state``). On the strong sets of the
-seed's partition (strong contact / no contact x sliding / strong sticking) this is the
+talk's partition (strong contact / no contact x sliding / strong sticking) this is the
 coderivative itself; on the weak sets (weak contact, weak sticking: a kink of ``max`` or
 of the projection) the branch convention of ``shape_state`` picks one of the limits that
 make up Propositions 3 and 4, i.e. an element of the limiting coderivative, so ``xi`` is a
@@ -59,7 +60,7 @@ def subgradient(sc: ShapeScene, st: ShapeState) -> np.ndarray:
 
 
 def partition(sc: ShapeScene, st: ShapeState, tol: float = 1e-9) -> dict[str, int]:
-    """Counts of the seed's partition of ``gph Q`` (model B table) at the state.
+    """Counts of the shape-optimisation talk's partition of ``gph Q`` (model B table) at the state.
 
     Contact: ``no`` (gap > 0, lam = 0), ``weak`` (both 0 to ``tol``), ``strong``
     (lam > 0); friction on contact nodes: ``sliding`` (u_t != 0), ``weak sticking``

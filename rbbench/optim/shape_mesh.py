@@ -1,7 +1,8 @@
 """Moving mesh, Q1 plane-strain stiffness and its design derivative for ``shape_coulomb``.
 
-The body of seed 001, ``Omega(alpha) = {a < x1 < b, alpha(x1) < x2 < gamma}``, is meshed
-by a structured grid of ``nx x ny`` bilinear isoparametric quadrilaterals (Q1, 2 x 2 Gauss
+The body of the talk "On coupling of complementarity with friction in contact shape
+optimization", ``Omega(alpha) = {a < x1 < b, alpha(x1) < x2 < gamma}``, is meshed by a
+structured grid of ``nx x ny`` bilinear isoparametric quadrilaterals (Q1, 2 x 2 Gauss
 points). Node ``(i, j)`` sits at ``x1 = a + i h`` and
 ``x2 = alpha_i + (gamma - alpha_i) eta_j`` with ``eta_j = j / ny``: the mesh moves with
 the design, the dof count does not. Column ``i`` of nodes depends on ``alpha_i`` only, so

@@ -1,8 +1,10 @@
-"""The ``shape_coulomb`` scene (seed 001, model B): data, validation, admissible set.
+"""The ``shape_coulomb`` scene: data, validation, admissible set.
+
+Model B of the talk "On coupling of complementarity with friction in contact shape optimization".
 
 Read from ``problems/optimize/shape_coulomb.toml``; every invalid field raises
 :class:`~rbbench.scene.parameters.SceneError` naming the file and key and what is valid
-(the CLI turns it into exit code 2). The admissible set ``omega`` of seed 001,
+(the CLI turns it into exit code 2). The admissible set ``omega`` of the talk,
 
 ``0 <= alpha_i <= C0``, ``|alpha_{i+1} - alpha_i| <= C1 h``, ``C2 <= meas Omega(alpha) <= C3``,
 
@@ -58,7 +60,7 @@ class ShapeScene:
         return elasticity_matrix(self.E, self.nu)
 
     def friction(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``F(t) = F0 / ((t / l)^2 + 1)`` (seed 001: F0 = 0.25, l = 1) and ``F'(t)``."""
+        """``F(t) = F0 / ((t / l)^2 + 1)`` (model B: F0 = 0.25, l = 1) and ``F'(t)``."""
         s = np.asarray(t) / self.slip_scale
         F = self.friction0 / (s * s + 1.0)
         return F, -2.0 * self.friction0 * s / ((s * s + 1.0) ** 2 * self.slip_scale)
@@ -78,7 +80,7 @@ class ShapeScene:
         return self.initial_height * shapes[self.initial]
 
     def admissible(self) -> dict[str, np.ndarray]:
-        """The polyhedron ``lb <= alpha <= ub``, ``cl <= C alpha <= cu`` of seed 001."""
+        """The polyhedron ``lb <= alpha <= ub``, ``cl <= C alpha <= cu`` (the admissible set)."""
         n, h = self.n_contact, self.grid.h
         diff = np.zeros((n - 1, n))
         diff[np.arange(n - 1), np.arange(n - 1)] = -1.0

@@ -1,8 +1,9 @@
-"""Model-B Coulomb contact state of seed 001 by a semismooth Newton method on the contact dofs.
+"""Model-B Coulomb contact state by a semismooth Newton method on the contact dofs.
 
-Seed 001, eq. (2) with ``Q~_i = F(|u_t^i|) lam^i d|u_t^i|``: the body rests on the rigid
+Model B of the talk "On coupling of complementarity with friction in contact shape
+optimization", eq. (2) with ``Q~_i = F(|u_t^i|) lam^i d|u_t^i|``: the body rests on the rigid
 line ``x2 = 0``; at design node ``i`` the gap is ``u_nu^i + alpha_i >= 0`` (``u_nu = u_2``,
-``u_t = u_1``, the seed's kinematics), ``lam^i >= 0`` the nodal normal force and ``tau^i``
+``u_t = u_1``, the talk's kinematics), ``lam^i >= 0`` the nodal normal force and ``tau^i``
 the tangential force on the body, ``tau^i in -F(|u_t^i|) lam^i d|u_t^i|``.
 
 The stiffness is condensed onto the contact dofs (Schur complement, one factorisation of
@@ -235,5 +236,5 @@ def _state(sc, alpha, cond, y, jac, active, stick, c, it, res) -> ShapeState:
 
 
 def objective(sc: ShapeScene, lam: np.ndarray) -> float:
-    """Seed 001's ``J = ||lam||_p^p`` (p = 6) of the nodal normal forces."""
+    """The shape-optimisation talk's ``J = ||lam||_p^p`` (p = 6) of the nodal normal forces."""
     return float(np.sum(np.abs(lam) ** sc.power))

@@ -1,7 +1,9 @@
 """Registry-facing protocol layer for the compressors and stabilisers of the RB pipeline.
 
-Seed 000, slide "Decorrelated model reduction": the offline stage is (1) training set and
-snapshots, (2) compression of the reduced spaces (a primal space ``V_N`` and a reduced
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slide "Decorrelated model reduction": the offline stage is
+(1) training set and snapshots, (2) compression of the reduced spaces (a primal space ``V_N``
+and a reduced
 cone ``W_R^+``), then, since ``beta_dec`` may vanish, (3) a stabilisation of the primal
 space (slides "Enhancement by supremizers", "Parameter-dependent context", "Projected
 Greedy Algorithm (PGA)"). The numerics live in :mod:`rbbench.rb.algorithms.pod`,
@@ -102,7 +104,8 @@ class PrimalCompressor(Protocol):
 
 
 class PODPrimal:
-    """POD of the displacement snapshots (seed 000, "Method 1: Proper Orthogonal Decomposition").
+    """POD of the displacement snapshots (Benaceur et al., "Method 1: Proper Orthogonal
+    Decomposition").
 
     Wraps :func:`rbbench.rb.algorithms.pod.pod` (method of snapshots in the X inner product).
     ``tol`` is an energy tolerance: ``N`` is the smallest size with
@@ -125,12 +128,12 @@ class PODPrimal:
 
 
 class GreedyPrimal:
-    """Greedy selection of snapshots (seed 000, "Method 2: (Ideal) Greedy algorithms").
+    """Greedy selection of snapshots (Benaceur et al., "Method 2: (Ideal) Greedy algorithms").
 
     Wraps :func:`rbbench.rb.algorithms.pod.weak_greedy`. Indicator: by default (``indicator=None``)
     the TRUE projection error ``||u(mu) - Pi_{V_{N-1}} u(mu)||_X`` of every training snapshot,
-    i.e. the *ideal* greedy on the training set (the seed's ``sigma_N``; it needs the
-    snapshots, which the pipeline has, and makes ``sigma`` non-increasing). The seed notes
+    i.e. the *ideal* greedy on the training set (Benaceur et al.'s ``sigma_N``; it needs
+    the snapshots, which the pipeline has, and makes ``sigma`` non-increasing). The talk notes
     that a posteriori error estimators replace it in practice: pass such an estimator as
     ``indicator(Z, p) -> float`` (``Z`` the current X-orthonormal basis, ``p`` the snapshot
     column) to run a weak greedy instead.
@@ -168,9 +171,9 @@ class DualCompressor:
 
     ``LAM`` (m x Q) holds the multiplier snapshots (non-negative for the cone methods),
     ``W`` the multiplier Gram matrix (sparse, dense or diagonal weights, see
-    :func:`rbbench.rb.algorithms.cones.as_metric`). ``tol`` bounds ``e_proj(R)`` (seed 000, slide
-    "mCPG algorithm (4/4)"), ``r_max`` caps ``R``. Constructor keyword options are passed on to
-    the wrapped function (e.g. ``sweeps`` for ENG, ``seed`` / ``max_iter`` for NNMF).
+    :func:`rbbench.rb.algorithms.cones.as_metric`). ``tol`` bounds ``e_proj(R)`` (Benaceur
+    et al., slide "mCPG algorithm (4/4)"), ``r_max`` caps ``R``. Constructor keyword options are
+    passed on to the wrapped function (e.g. ``sweeps`` for ENG, ``seed`` / ``max_iter`` for NNMF).
     Subclasses set :attr:`name`, the key in ``DUAL_COMPRESSORS`` (so command-line names are
     those keys).
     """
@@ -197,23 +200,22 @@ class PODLam(DualCompressor):
 
 
 class CPG(DualCompressor):
-    """Cone Projected Greedy, :func:`rbbench.rb.algorithms.cones.cpg` (seed 000, slide "CPG
-    algorithm")."""
+    """Cone Projected Greedy, :func:`rbbench.rb.algorithms.cones.cpg` (Benaceur et al., slide
+    "CPG algorithm")."""
 
     name = "cpg"
 
 
 class MCPG(DualCompressor):
-    """Modified CPG, :func:`rbbench.rb.algorithms.cones.mcpg` (seed 000, slide "mCPG algorithm
-    (2/4)")."""
+    """Modified CPG, :func:`rbbench.rb.algorithms.cones.mcpg` (Benaceur et al., slide "mCPG
+    algorithm (2/4)")."""
 
     name = "mcpg"
 
 
 class ENG(DualCompressor):
-    """Enlarged Nonnegative Greedy as designed in :func:`rbbench.rb.algorithms.cones.eng` (seed:
-    named
-    only)."""
+    """Enlarged Nonnegative Greedy as designed in :func:`rbbench.rb.algorithms.cones.eng`
+    (Benaceur et al., slide "mCPG algorithm (3/4)": named only)."""
 
     name = "eng"
 
@@ -256,7 +258,7 @@ class Stabilizer(Protocol):
 
 
 class NoStabilizer:
-    """No stabilisation: the "decorrelated" model ``V_N x W_R^+`` (seed 000, slide
+    """No stabilisation: the "decorrelated" model ``V_N x W_R^+`` (Benaceur et al., slide
     "Decorrelated model reduction"), whose ``beta_dec`` is not guaranteed to be positive."""
 
     name = "none"
@@ -273,7 +275,7 @@ class NoStabilizer:
 
 
 class SupremizerStabilizer(NoStabilizer):
-    """Online supremizers ``V_N + S_R(mu)`` (seed 000, slide "Parameter-dependent context").
+    """Online supremizers ``V_N + S_R(mu)`` (Benaceur et al., slide "Parameter-dependent context").
 
     ``S_R(mu) = span X^{-1} B(mu)^T Vg`` (:func:`rbbench.rb.algorithms.pga.supremizers`) contains
     the supremizer of every element of ``W_R^+``, so ``beta_on(mu) >= beta_HF(mu)`` for EVERY
@@ -291,13 +293,13 @@ class SupremizerStabilizer(NoStabilizer):
 
 
 class PGAStabilizer(NoStabilizer):
-    """Projected Greedy Algorithm (seed 000, slides "Projected Greedy Algorithm (PGA)",
+    """Projected Greedy Algorithm (Benaceur et al., slides "Projected Greedy Algorithm (PGA)",
     "Some details"): ``V_off = V_N + S_R^red`` built offline.
 
     :func:`rbbench.rb.algorithms.pga.pga` on the supremizers ``T(mu_p)`` of the training parameters:
     ``S_R^red`` grows greedily until ``max_train sigma_S(mu) <= delta``, so that
     ``beta_off(mu) >= sqrt(1 - delta^2) beta_on(mu) > 0`` on the TRAINING set
-    (:func:`rbbench.rb.algorithms.pga.riesz_lower_bound`; the seed's "Main result" under its
+    (:func:`rbbench.rb.algorithms.pga.riesz_lower_bound`; Benaceur et al.'s "Main result" under its
     condition). Nothing is asserted outside the training set. ``Z_off = [Z, basis of S_R^red]``.
 
     History: ``sigma_max`` (before each addition, non-increasing), ``pga_delta``,
@@ -332,10 +334,10 @@ def pga_default_delta(B_train: Iterable[Any], W_train: Iterable[Any], x_solve: X
                       Vg: np.ndarray, fraction: float = 0.5, over: str = "min") -> float:
     """``fraction * min_mu beta_span(mu) / c(mu)`` over the given parameters.
 
-    ``over="max"`` with ``fraction=1`` is the seed's own rule (the sup), used by
+    ``over="max"`` with ``fraction=1`` is Benaceur et al.'s own rule (the sup), used by
     :func:`rbbench.rb.offline.reduce`.
 
-    The seed's choice is ``delta_PGA = sup_train beta_HF / c_HF`` (slide "Projected Greedy
+    Benaceur et al.'s choice is ``delta_PGA = sup_train beta_HF / c_HF`` (slide "Projected Greedy
     Algorithm (PGA)", 0.072 there). Computable stand-in, as in :func:`rbbench.rb.offline.
     reduce`: ``beta_span`` is :func:`rbbench.rb.algorithms.infsup.infsup_span` over the whole HF
     primal space and ``span(Vg)`` (a lower bound of ``beta_on``) and ``c`` the continuity constant
@@ -368,7 +370,7 @@ def make_stabilizer(reg: Any, config: Any) -> Any:
 
 def pga_delta(config: Any, problems: list, x_solve: Any,
               Vg: np.ndarray) -> float | None:
-    """The PGA tolerance: ``config.delta_pga``, else the seed's rule (friction example:
+    """The PGA tolerance: ``config.delta_pga``, else Benaceur et al.'s rule (friction example:
     ``delta_PGA = sup beta_HF / c_HF = 0.072``) with beta the span value over the reduced
     cone (a lower bound), over every fifth training problem. ``None`` unless PGA."""
     if config.stabilizer != "pga":

@@ -253,7 +253,7 @@ def eim_grid(scene: Scene, options: Any, n_train: int, per_interval: int = 4
 def eim_training_set(scene: Scene, options: Any, mus_train: np.ndarray) -> np.ndarray:
     """The EIM training set: the snapshot parameters plus :func:`eim_grid` (default
     4 (n_train - 1) + 1 points). Only the contact operators are evaluated there (no HF
-    solve), so it can be much denser (seed: 61, 150)."""
+    solve), so it can be much denser (Benaceur et al.: 61, 150)."""
     return np.vstack([np.asarray(mus_train), eim_grid(scene, options, len(mus_train))])
 
 

@@ -8,7 +8,7 @@ thread spins 2^N cycles before it sleeps; OpenBLAS's default is 2^28, about 0.1 
 command forks (snapshot workers, the runner's case processes), OpenBLAS shuts its threads
 down at every fork, and a process re-creates them at its next thread-count change:
 each new thread then spins 2^28 cycles on a core that the other process needs. Measured
-(issue 17, Hertz level 0, 8 parameters, a kept pool of 2 workers, 6 blocks per value): the
+(Hertz level 0, 8 parameters, a kept pool of 2 workers, 6 blocks per value): the
 first tasks of the call right after the one that started the pool (this process restored
 its BLAS threads at that call's end) took 0.196-0.258 s with 2^28 cycles and 0.154-0.186 s
 with 2^20, against 0.15-0.16 s for later tasks

@@ -1,6 +1,6 @@
 """BLAS thread pools: a process-wide cap (snapshot workers) and one BLAS thread per solve.
 
-Issue 17, item 3: on a loaded 2-core machine two BLAS threads made ``A^-1 B^T`` 12x
+On a loaded 2-core machine two BLAS threads made ``A^-1 B^T`` 12x
 slower (30.8 s against 2.49 s, Hertz level 0); on a quiet one they gain nothing. Every
 HF solve (:meth:`rbbench.hf.model.HFModel.solve`) and every timed online loop
 (:func:`rbbench.rb.validation.validate`) therefore runs inside :func:`one_blas_thread`.
@@ -88,8 +88,8 @@ def capped_for_fork(n: int) -> Iterator[str]:
     The children inherit the cap, so their :func:`limit_blas_threads` finds the OpenBLAS
     pools at ``n`` and calls nothing on them: no OpenBLAS threads are re-created in them
     (module docstring; an OpenMP runtime that resets at fork is set again there).
-    Measured (Hertz level 0, 8 parameters, 2 fork workers, 1 BLAS thread each; issue 17's
-    closing note): every worker had 2 extra OpenBLAS threads with 0.02-0.10 s of CPU after
+    Measured (Hertz level 0, 8 parameters, 2 fork workers, 1 BLAS thread each; the
+    final measurement): every worker had 2 extra OpenBLAS threads with 0.02-0.10 s of CPU after
     its first solve without the block, and 1 thread in all with it. This process pays the
     re-creation instead, once, when its pools are restored after the block (if any pool
     had more than ``n`` threads). Yields ``"threadpoolctl"`` or ``"inherited"`` (nothing

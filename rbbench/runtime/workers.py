@@ -6,7 +6,7 @@ workers, BLAS threads and start method share one pool, shut down when the outerm
 ends. ``rbbench reduce`` computes its training and then its validation snapshots in one
 block, so its second call finds workers whose memory is already their own.
 
-Why keep them (issue 17, measured on Hertz level 0, 8 parameters, 2 workers against 1):
+Why keep them (measured on Hertz level 0, 8 parameters, 2 workers against 1):
 a freshly forked worker's first solve is slower than its later ones. The larger part was
 OpenBLAS threads re-created in the worker and spinning ~0.1 s (now avoided: ``blas_cap``
 below); what is left is its first touch of ~52-55 MB of fresh memory (the solve's
@@ -80,7 +80,7 @@ def release_free_heap() -> bool:
     Called before forking workers: a page the parent freed but kept mapped is shared
     copy-on-write, and a worker's first write to it copies it; a released page is a fresh
     zero page instead. Measured (Hertz level 0, 8 parameters, 2 workers against 1, with
-    and without it in 12 interleaved rounds; issue 17's closing note): 1.71x -> 1.84x and
+    and without it in 12 interleaved rounds; the final measurement): 1.71x -> 1.84x and
     1.77x -> 1.83x in two runs. Returns whether it ran."""
     if not sys.platform.startswith("linux"):
         return False

@@ -1,12 +1,14 @@
 """The friction of a scene: the ``[friction]`` section and the friction loads of ``[load]``.
 
-Seed 000, slides "Coulomb contact problem" and "Tangential constraints"; seed 001, model B.
-Issue 13::
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Coulomb contact problem" and "Tangential
+constraints"; model B of the talk "On coupling of complementarity with friction in contact
+shape optimization"::
 
     [friction]
     law = "coulomb"            # "none" (default; an absent section is "none"), "tresca", "coulomb"
     coefficient = 0.2          # Coulomb nu_F: a number >= 0, "mu.NAME", or a coefficient law
-                               # of the slip |u_t| ("seed001": F(t) = 0.25 / (t^2 + 1))
+                               # of the slip |u_t| ("model_b": F(t) = 0.25 / (t^2 + 1))
     # threshold = 1.0e6        # Tresca s (Pa): a number >= 0 or "mu.NAME"
 
     [load]
@@ -21,13 +23,15 @@ from the previous step.
 
 The scene layer imports nothing above it, so the coefficient laws are named here
 (:data:`COEFFICIENT_LAW_NAMES`) and defined in :mod:`rbbench.hf.algebra.friction`
-(``COEFFICIENT_LAWS``); a test keeps the two in step. A frictionless scene holds none
-of these keys in its cache key (:func:`key_neutral`).
+(``COEFFICIENT_LAWS``); a test keeps the two in step. A former name
+(:data:`DEPRECATED_COEFFICIENT_LAWS`) still loads, with a :class:`DeprecationWarning`. A
+frictionless scene holds none of these keys in its cache key (:func:`key_neutral`).
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,7 +42,9 @@ from rbbench.scene.parameters import SceneError
 #: the friction laws of ``[friction] law``
 LAWS = ("none", "tresca", "coulomb")
 #: slip-dependent coefficient laws ``F(|u_t|)`` (``rbbench.hf.algebra.friction.COEFFICIENT_LAWS``)
-COEFFICIENT_LAW_NAMES = ("seed001",)
+COEFFICIENT_LAW_NAMES = ("model_b",)
+#: former names of the coefficient laws, accepted with a DeprecationWarning until rbbench 0.3
+DEPRECATED_COEFFICIENT_LAWS = {"seed001": "model_b"}
 #: the keys of ``[friction]``, and the law each of the other keys belongs to
 FRICTION_KEYS = ("law", "threshold", "coefficient")
 _KEY_LAW = {"threshold": "tresca", "coefficient": "coulomb"}
@@ -105,6 +111,11 @@ def _check_law(data: dict[str, Any], path: str, params: dict[str, Any]) -> str:
         table["threshold"] = _number(path, "[friction] threshold", table["threshold"], params,
                                      'a number >= 0 or "mu.NAME" for a declared parameter')
     coef = table.get("coefficient")
+    if isinstance(coef, str) and coef in DEPRECATED_COEFFICIENT_LAWS:
+        new = DEPRECATED_COEFFICIENT_LAWS[coef]
+        warnings.warn(f"{path}: [friction] coefficient {coef!r} is now {new!r} (the old name "
+                      "goes in rbbench 0.3)", DeprecationWarning, stacklevel=2)
+        coef = table["coefficient"] = new
     if coef is not None and coef not in COEFFICIENT_LAW_NAMES:
         if isinstance(coef, str) and not coef.startswith("mu."):
             raise _err(path, "[friction] coefficient",

@@ -1,10 +1,12 @@
 """Linear scenes without contact: stationary diffusion (``thermal``) and the heat equation
-(``heat``), issue 18.
+(``heat``).
 
 ``physics = "thermal"``: ``-div(kappa(mu) grad u) = f`` on the unit square, ``u = 0`` on the
 boundary (pyMOR's thermal block: ``kappa = mu_i`` on block ``i`` of a ``bx x by`` grid).
-``physics = "heat"``: seed 000, "Simple toy example: heat equation": ``du/dt - div(mu grad
-u) = f``, ``-mu du/dn = h0 u`` on the boundary, ``u(0) = u0``, implicit Euler in time.
+``physics = "heat"``: Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+parametric variational inequalities" (talk), slide "Simple toy example: heat equation":
+``du/dt - div(mu grad u) = f``, ``-mu du/dn = h0 u`` on the boundary, ``u(0) = u0``, implicit
+Euler in time.
 
 Both are affine in mu (every coefficient is a number or ``"mu.NAME"``): the backend assembles
 the parameter-independent terms once (``rbbench_plugins.backends.linear_common``). A linear

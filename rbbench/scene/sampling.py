@@ -1,4 +1,7 @@
-"""Training and validation parameter sets (seed 000, "Finite training set and snapshots").
+"""Training and validation parameter sets.
+
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational
+inequalities" (talk), slide "Finite training set and snapshots".
 
 :func:`parameter_set` draws ``D_train`` or ``D_valid`` inside the closed
 parameter domain ``D`` of a scene, honouring the scene's ``[sampling]`` table
@@ -11,7 +14,7 @@ parameter domain ``D`` of a scene, honouring the scene's ``[sampling]`` table
 
 Training and validation draw from different random streams of the same seed
 (``default_rng((seed, 0))`` and ``default_rng((seed, 1))``), so with the same
-kind and size the two sets still differ. A ``"uniform"`` grid ignores the seed:
+kind and size the two sets still differ. A ``"uniform"`` grid ignores ``seed``:
 a uniform validation set of the same size as a uniform training set is the
 same grid.
 """

@@ -1,7 +1,8 @@
 """Does ``beta_dec`` vanish over the reduced cone, and does PGA restore it? (measured)
 
-Seed 000, slide "Decorrelated model reduction": with ``V_N = POD(u)`` and
-``W_R^+ = mCPG(lam)`` chosen independently, nothing guarantees
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slide "Decorrelated model reduction": with ``V_N = POD(u)``
+and ``W_R^+ = mCPG(lam)`` chosen independently, nothing guarantees
 
     beta_dec(mu) = inf_{eta in W_R^+} sup_{v in V_N} b(mu; v, eta) / (||v||_V ||eta||_W) > 0,
 

@@ -1,4 +1,8 @@
-"""Nitsche against mixed: HF energies and reduced errors (``rbbench nitsche-compare``)."""
+"""Nitsche against mixed: HF energies and reduced errors (``rbbench nitsche-compare``).
+
+As in Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Comparison with the mixed formulation (1/2), (2/2)".
+"""
 
 from __future__ import annotations
 
@@ -12,7 +16,7 @@ __all__ = ["comparison_markdown", "formulation_comparison"]
 def formulation_comparison(scene: str = "hertz_halfdisks", overrides=(), n_train: int = 61,
                            n_valid: int = 10, N: int = 20, Rs=(10, 30, 40),
                            cache_dir: str = ".rbbench_cache", progress=print) -> dict:
-    """Seed 000, "Comparison with the mixed formulation (1/2), (2/2)".
+    """Benaceur et al., slides "Comparison with the mixed formulation (1/2), (2/2)".
 
     1. HF energies ``J(mu; u(mu)) = 1/2 a(u, u) - f(u)`` of the mixed (LAC + ssn) and
        Nitsche (newton) solutions over ``D_train``.

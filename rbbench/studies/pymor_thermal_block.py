@@ -1,5 +1,5 @@
-"""rbbench and pyMOR side by side on pyMOR's thermal block (issue 18;
-``rbbench studies pymor-thermal-block``).
+"""rbbench and pyMOR side by side on pyMOR's thermal block (``rbbench studies
+pymor-thermal-block``).
 
 The problem of :func:`pymor.analyticalproblems.thermalblock.thermal_block_problem`:
 ``-div(kappa grad u) = 1`` on the unit square, ``u = 0`` on the boundary, ``kappa = mu_i``

@@ -1,5 +1,6 @@
-"""HF- and RB-driven shape optimisation side by side (issue 15; ``rbbench studies
-shape-side-by-side``).
+"""HF- and RB-driven shape optimisation side by side (``rbbench studies shape-side-by-side``).
+
+Model B of the talk "On coupling of complementarity with friction in contact shape optimization".
 
 :func:`rbbench.optim.rb_driver.side_by_side` in one process with one BLAS thread: the
 bundle trust-region method on the HF ``Theta`` and the trust region of reduced models from

@@ -1,5 +1,5 @@
 """``rbbench studies snapshot-workers``: HF snapshots with 1 and with n worker processes,
-interleaved in one process (issue 17: 2 workers >= 1.85x of 1 on 8 parameters).
+interleaved in one process (target: 2 workers >= 1.85x of 1 on 8 parameters).
 
 Every round times, each into a fresh cache directory (so every solve runs), the same
 ``P`` parameters in three units, ``serial``, ``fresh`` and the ``kept`` block, whose order
@@ -22,7 +22,7 @@ call, one untimed snapshot in this process (``settle``): a ``fork`` write-protec
 process's pages, and after a pool call its next work takes a page fault on each page it
 writes again (measured: 7.5k faults, a serial call 1.232 s right after a fresh pool call
 against 1.196 s after a serial one, 8 rounds); without it the serial time, hence every
-speed-up, carried the previous unit's cost (about 3 % too high, up to stop 27). The
+speed-up, carried the previous unit's cost (about 3 % too high in earlier runs). The
 faults of the settling call are reported (``settle_faults``, median): that cost lands on
 whatever this process does after a pool call. After the serial
 call, the fresh call and the block the study waits ``pause`` seconds (default 0.5),

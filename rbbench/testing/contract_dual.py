@@ -1,4 +1,8 @@
-"""Contract of the dual-compressor role (:class:`rbbench.rb.algorithms.cones.DualBasis`)."""
+"""Contract of the dual-compressor role (:class:`rbbench.rb.algorithms.cones.DualBasis`).
+
+The error measures are those of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order
+reduction methods: parametric variational inequalities" (talk), slide "mCPG algorithm (4/4)".
+"""
 
 from __future__ import annotations
 
@@ -140,8 +144,8 @@ def check_dual(factory: Callable[..., Any], capabilities: dict | None = None,
       reduced cone lies in ``W+``);
     * ``e_proj`` and ``e_orth`` of length ``R`` with values in ``[0, 1]``; ``e_proj[-1]``
       equal to an independent recomputation (NNLS on the cone, least squares on a span) of
-      ``max_q ||theta_q - Pi theta_q||_W / max_q ||theta_q||_W`` (seed 000, slide "mCPG
-      algorithm (4/4)");
+      ``max_q ||theta_q - Pi theta_q||_W / max_q ||theta_q||_W`` (Benaceur et al., slide
+      "mCPG algorithm (4/4)");
     * ``capabilities["nested"]``: ``e_proj`` non-increasing (to ``1e-12``);
     * with ``tol``: ``R`` is the first size with ``e_proj <= tol`` (``e_proj[:-1] > tol``);
     * the snapshots are not modified.

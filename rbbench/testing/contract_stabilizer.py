@@ -1,5 +1,10 @@
 """Contract of the stabiliser role (:mod:`rbbench.rb.compressors` protocol): the offline
-enrichment, the online basis and the declared inf-sup guarantee."""
+enrichment, the online basis and the declared inf-sup guarantee.
+
+The guarantees are those of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction
+methods: parametric variational inequalities" (talk), slides "Parameter-dependent context" and
+"Main result".
+"""
 
 from __future__ import annotations
 
@@ -154,10 +159,10 @@ def check_stabilizer(factory: Callable[..., Any], capabilities: dict | None = No
       and spans exactly ``Z_off`` when ``online`` is False;
     * the declared guarantee ``capabilities["inf_sup"]`` holds, with the span inf-sup
       ``beta`` of ``b(mu; v, eta) = eta^T B(mu) v`` (a lower bound of the cone value, and
-      what the seed's proofs bound): ``"every mu"``: ``beta = beta_on`` (whole primal
-      space) on the training matrices and on a new one (seed 000, "Parameter-dependent
+      what Benaceur et al.'s proofs bound): ``"every mu"``: ``beta = beta_on`` (whole primal
+      space) on the training matrices and on a new one (Benaceur et al., "Parameter-dependent
       context"); ``"training set"``: ``beta >= sqrt(1 - delta^2) beta_on > 0`` on the
-      training matrices (seed 000 "Main result"; the sharper Riesz form of
+      training matrices (Benaceur et al., "Main result"; the sharper Riesz form of
       :func:`rbbench.rb.algorithms.pga.riesz_lower_bound`); ``"not guaranteed"``: nothing.
     """
     caps = dict(capabilities or {})

@@ -1,4 +1,4 @@
-"""NGSolve assembly of the linear scenes (issue 18; :mod:`.linear_common`).
+"""NGSolve assembly of the linear scenes (:mod:`.linear_common`).
 
 The very mesh of the scikit-fem backend (the arrays of
 :func:`rbbench_plugins.backends.skfem.meshes.unit_square`, vertex ``i`` = row ``i``), assembled by

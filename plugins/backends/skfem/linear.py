@@ -1,4 +1,4 @@
-"""scikit-fem assembly of the linear scenes (issue 18; :mod:`.linear_common`).
+"""scikit-fem assembly of the linear scenes (:mod:`.linear_common`).
 
 The unit square of the membrane scene (:func:`rbbench_plugins.backends.skfem.meshes.unit_square`,
 ``n_cells 2**level`` squares per side, two triangles each), P1 or P2 Lagrange; one stiffness

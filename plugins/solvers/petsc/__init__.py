@@ -1,6 +1,8 @@
 """PETSc solvers for the mixed contact problem: SNES VI on the KKT system, TAO on the dual.
 
-The problem (seed 000, "Mixed formulation"; :class:`rbbench.interfaces.ContactProblem`)::
+The problem (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+parametric variational inequalities" (talk), slide "Mixed formulation";
+:class:`rbbench.interfaces.ContactProblem`)::
 
     A u + B^T lam = F,  lam >= 0,  G - B u >= 0,  lam . (G - B u) = 0.
 
@@ -11,11 +13,11 @@ The problem (seed 000, "Mixed formulation"; :class:`rbbench.interfaces.ContactPr
   :func:`rbbench.hf.condensation.dense.condense` and solves the bound-constrained dual QP
   ``min_{lam >= 0} 1/2 lam^T D lam + q^T lam`` with PETSc TAO (``tron``).
 
-Both also solve a :class:`rbbench.interfaces.FrictionProblem` (issue 13) over its load
+Both also solve a :class:`rbbench.interfaces.FrictionProblem` over its load
 steps (:func:`rbbench_plugins.solvers.friction.solve_steps`): Tresca, the box QP
 ``min 1/2 x^T D x + q^T x``, ``lam_n >= 0``, ``|lam_t| <= s`` on the condensed nodal
 problem (:mod:`rbbench.hf.algebra.friction`), by SNES VI as a mixed complementarity
-problem or by TAO with bounds (``tresca``); Coulomb by the seed's fixed point on it
+problem or by TAO with bounds (``tresca``); Coulomb by Benaceur et al.'s fixed point on it
 (``s = nu_F lam_n`` of the previous iterate), model B by the fixed point on the
 coefficient around that.
 

@@ -300,8 +300,9 @@ class _PetscSolver(Solver):
                        warm_start: np.ndarray | None = None) -> SolveResult:
         """A :class:`FrictionProblem` over its load steps
         (:func:`rbbench_plugins.solvers.friction.solve_steps`): Tresca by :meth:`tresca`,
-        Coulomb by the seed's fixed point on it, model B by the fixed point on the
-        coefficient around that (:func:`~rbbench_plugins.solvers.friction.tresca_runner`)."""
+        Coulomb by the fixed point on it (``s = nu_F lam_n`` of the previous iterate), model B
+        by the fixed point on the coefficient around that
+        (:func:`~rbbench_plugins.solvers.friction.tresca_runner`)."""
         from rbbench_plugins.solvers.friction import solve_steps, tresca_runner
 
         return solve_steps(problem, tresca_runner(problem, self.tresca), warm_start)

@@ -35,7 +35,7 @@ SNES_TYPES = ("vinewtonrsls", "vinewtonssls")
 #: Fill-reducing orderings of the stiffness block (PETSc ``MatOrderingType``).
 ORDERINGS = ("qmd", "nd", "rcm", "1wd")
 #: ``-snes_vi_zero_tolerance`` of the Tresca solve: ``x_i`` counts as at its bound only when
-#: it is (PETSc's default 1e-8 left lam_t within 1e-8 of a moving bound: the seed's fixed
+#: it is (PETSc's default 1e-8 left lam_t within 1e-8 of a moving bound: the Coulomb fixed
 #: point on Tresca then stalled at a friction residual of 1e-8 on mindlin_cylinders)
 VI_ZERO_TOL = 0.0
 

@@ -1,13 +1,14 @@
-"""The reduced friction models in a report (issue 14, item 6): the GCNS curves, lam_t of the
-HF against the reduced solution, and the friction table of the summary.
+"""The reduced friction models in a report: the GCNS curves, lam_t of the HF against the
+reduced solution, and the friction table of the summary.
 
-Seed 000, slides "Greedy Collocation Node Selection (GCNS)" (``e_GCNS(q)`` and
-``e_GCNS^{n tau}(q)`` against ``q``) and "RB solutions" (``lam_t`` HF and RB against ``x``
-with the Coulomb bounds ``+- F lam_n`` at ``mu = 0.7, 1, 1.3``). The data are the case
-details the runner keeps for a friction row (``gcns_history``, ``lam_t_profiles``,
-:mod:`rbbench.bench.execution`); rows whose ``friction_dual`` is empty are not friction
-rows. A figure without data raises :class:`~rbbench.bench.report.plotting._Skip` (the
-summary says why).
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Greedy Collocation Node Selection (GCNS)"
+(``e_GCNS(q)`` and ``e_GCNS^{n tau}(q)`` against ``q``) and "RB solutions" (``lam_t`` HF and
+RB against ``x`` with the Coulomb bounds ``+- F lam_n`` at ``mu = 0.7, 1, 1.3``). The data are
+the case details the runner keeps for a friction row (``gcns_history``, ``lam_t_profiles``,
+:mod:`rbbench.bench.execution`); rows whose ``friction_dual`` is empty are not friction rows.
+A figure without data raises :class:`~rbbench.bench.report.plotting._Skip` (the summary says
+why).
 """
 
 from __future__ import annotations
@@ -86,11 +87,11 @@ def _gcns_curve(ax, hist: list[dict[str, Any]], key: str, chosen: Any, colour: A
 
 
 def _fig_gcns(ctx: _Ctx):
-    """GCNS curves of the seed-model cases: e_GCNS(q) and the relative e_GCNS^{n tau}(q)."""
+    """GCNS curves of the collocation-model cases: e_GCNS(q) and the relative e_GCNS^{n tau}(q)."""
     have = [(r, d) for r, d in _friction_details(ctx) if _gcns_history(d)]
     if not have:
         raise _Skip("no ok friction case with a GCNS history (details.gcns_history: the "
-                    "seed's dual model; the wedge model has no collocation)")
+                    "collocation model; the wedge model has no collocation)")
     from matplotlib import colormaps
 
     cmap = colormaps["tab10"]
@@ -110,13 +111,13 @@ def _fig_gcns(ctx: _Ctx):
         ax.set_title(title, fontsize=9)
     handles, names = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, names, loc="outside lower center", fontsize=8, ncols=1)
-    fig.suptitle("GCNS curves (reduced friction, the seed's dual model)", fontsize=11)
-    caption = ("Per ok friction case with the seed's dual model (first repetition), from "
+    fig.suptitle("GCNS curves (reduced friction, the collocation model)", fontsize=11)
+    caption = ("Per ok friction case with the collocation model (first repetition), from "
                "its gcns_history: left, e_GCNS(q), the largest relative W-error of the "
                "reduced lam_t over the training set with the collocation set C(q); right, "
                "the largest violation of the Coulomb bound over the training set and all HF "
                "nodes, relative to the largest |lam_t| of the snapshots. Circled: the q "
-               "kept (gcns_iterations; the seed's rule stops at e_GCNS(q) > e_GCNS(q-1), "
+               "kept (gcns_iterations; Benaceur et al.'s rule stops at e_GCNS(q) > e_GCNS(q-1), "
                "gcns_patience > 1 keeps going and keeps the best set).")
     if floored:
         caption += f" Values <= {_FLOOR:g} (e.g. 0) are drawn at {_FLOOR:g} as triangles."
@@ -195,8 +196,8 @@ def _figs_lam_t(ctx: _Ctx) -> list[tuple[str, Any, str]]:
                    "solution (black) and of the reconstructed reduced solution (red) at the "
                    "contact nodes against x, with the HF Coulomb bounds +- F lam_n (dashed), "
                    "one panel per parameter (the training parameters nearest to the ends and "
-                   "the centre of the parameter box, so the HF values are snapshots: the "
-                   "seed's 'RB solutions'). The case's err_lam_t_max over the validation set: "
+                   "the centre of the parameter box, so the HF values are snapshots: as in the "
+                   "published 'RB solutions'). The case's err_lam_t_max over the validation set: "
                    f"{_fmt(r.get('err_lam_t_max'))} (floor lam_t_best_max "
                    f"{_fmt(r.get('lam_t_best_max'))}).")
         out.append((f"lam_t_{r.get('case_id')}", _profile_figure(det["lam_t_profiles"], title),

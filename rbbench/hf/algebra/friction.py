@@ -1,8 +1,11 @@
 """Collocated 2D friction on the condensed contact problem (plain functions on arrays).
 
-Seed 000, slides "Coulomb contact problem", "HF model", "Tangential constraints",
-"Algebraic formulation / Collocation method" (P1 multipliers, ``S = (d-1) R = R`` in 2D,
-one tangential multiplier per collocation node); seed 001, model B (``F(|u_t|)``).
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Coulomb contact problem", "HF model", "Tangential
+constraints", "Algebraic formulation / Collocation method" (P1 multipliers,
+``S = (d-1) R = R`` in 2D, one tangential multiplier per collocation node); model B
+(``F(|u_t|)``) of the talk "On coupling of complementarity with friction in contact shape
+optimization".
 
 With ``m`` collocation nodes the mixed problem is
 ``A u + Bn^T lam_n + Bt^T lam_t = F``. As in :mod:`rbbench.hf.solvers.lcp` it is condensed with
@@ -16,7 +19,7 @@ one factorisation of ``A``: ``B = [Bn; Bt]``, ``x = [lam_n; lam_t]`` (length ``2
 ``v = Bt u - ut_prev`` is the slip measured from the previous step (Coulomb friction is
 path-dependent).
 
-**Sign convention.** ``lam_t`` is the seed's multiplier: it enters ``A u + Bt^T lam_t = F``
+**Sign convention.** ``lam_t`` is Benaceur et al.'s multiplier: it enters ``A u + Bt^T lam_t = F``
 exactly as ``lam_n`` does, so the tangential force on the body is ``-lam_t``. Friction
 opposes the slip, hence at every node::
 
@@ -75,25 +78,26 @@ class FrictionResult:
 
 @dataclass(frozen=True)
 class CoefficientLaw:
-    """A slip-dependent friction coefficient ``F(t)``, ``t = |u_t|`` (seed 001, model B)."""
+    """A slip-dependent friction coefficient ``F(t)``, ``t = |u_t|`` (as in model B of the
+    shape-optimisation talk)."""
 
     name: str
     f: Callable[[np.ndarray], np.ndarray]
     df: Callable[[np.ndarray], np.ndarray] | None = None
 
 
-def _seed001(t: np.ndarray) -> np.ndarray:
+def _model_b(t: np.ndarray) -> np.ndarray:
     return 0.25 / (np.asarray(t, float) ** 2 + 1.0)
 
 
-def _seed001_derivative(t: np.ndarray) -> np.ndarray:
+def _model_b_derivative(t: np.ndarray) -> np.ndarray:
     t = np.asarray(t, float)
     return -0.5 * t / (t**2 + 1.0) ** 2
 
 
-#: seed 001, model B: ``F(t) = 0.25 / (t^2 + 1)``
-SEED001 = CoefficientLaw("seed001", _seed001, _seed001_derivative)
-COEFFICIENT_LAWS: dict[str, CoefficientLaw] = {"seed001": SEED001}
+#: model B of the shape-optimisation talk: ``F(t) = 0.25 / (t^2 + 1)``
+MODEL_B = CoefficientLaw("model_b", _model_b, _model_b_derivative)
+COEFFICIENT_LAWS: dict[str, CoefficientLaw] = {"model_b": MODEL_B}
 
 
 def condense_friction(A: sp.spmatrix, F: np.ndarray, Bn: sp.spmatrix, Bt: sp.spmatrix,
@@ -266,11 +270,11 @@ def uzawa_friction(D: np.ndarray, q: np.ndarray, s: float | np.ndarray | None = 
                    F: float | np.ndarray | None = None, lam0: np.ndarray | None = None,
                    omega: float = 1.0, tol: float = 1e-10, max_iter: int = 200_000,
                    stall_window: int = 5000) -> FrictionResult:
-    """The seed's Uzawa for friction (seed 000, "HF model" / "Collocation method").
+    """Benaceur et al.'s Uzawa for friction (slides "HF model" / "Collocation method").
 
     ``lam_n <- max(0, lam_n - rho w_n)``, then ``lam_t <- clip(lam_t - rho w_t, -s, s)``
     with ``s`` given (Tresca) or ``s = F lam_n`` at the new ``lam_n`` (Coulomb); condensed,
-    ``w = q + D x`` is the seed's ``G - B U_{k+1}``. ``rho = omega / lambda_max(D)``:
+    ``w = q + D x`` is their ``G - B U_{k+1}``. ``rho = omega / lambda_max(D)``:
     projected gradient on the Tresca QP, convergent for ``0 < omega < 2``; no guarantee
     for Coulomb. Stops on the natural residual ``||x - P(x - w / mean diag D)||_inf /
     fscale <= tol``, NaN, growth (``diverged``), ``max_iter`` or no progress over
@@ -314,3 +318,8 @@ def uzawa_friction(D: np.ndarray, q: np.ndarray, s: float | np.ndarray | None = 
         x = _project(x - rho * w, m, s_arr, F_arr)
     thr = s_arr if s_arr is not None else F_arr * x[:m]
     return finish(D, q, x, thr, it, reason, history, {"rho": rho})
+
+
+from rbbench._compat import deprecated_names  # noqa: E402 - after the module's own names
+
+__getattr__ = deprecated_names(__name__)  # renamed names (rbbench._compat)

@@ -1,9 +1,10 @@
 """Algebra of the Nitsche contact formulation (frictionless), shared by the HF solver,
 the metrics and the reduced model.
 
-Seed 000, slides "Nitsche's method (1/2)" and "(2/2)"; Chouly & Hild (2013),
-Chouly, Hild & Renard (2015). With ``[x]_- = min(x, 0)`` (non-positive part),
-the Signorini conditions ``u_n <= d^n``, ``sigma_nn(u) <= 0``,
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Nitsche's method (1/2)" and "(2/2)"; Chouly & Hild
+(2013), Chouly, Hild & Renard (2015). With ``[x]_- = min(x, 0)`` (non-positive part), the
+Signorini conditions ``u_n <= d^n``, ``sigma_nn(u) <= 0``,
 ``sigma_nn(u) (u_n - d^n) = 0`` are equivalent to the Alart-Curnier equation::
 
     sigma_nn(u) = [P_gamma(u)]_-,   P_gamma(u) = sigma_nn(u) - gamma (u_n - d^n),
@@ -14,7 +15,7 @@ for any ``gamma > 0``. Nitsche's method imposes it weakly: for all ``v``::
             + int 1/gamma [P_gamma(u)]_- P_theta(v) = f(v),
     P_theta(v) = theta sigma_nn(v) - gamma v_n.
 
-``theta = 1`` is the seed's variant: the optimality condition of the Nitsche energy
+``theta = 1`` is Benaceur et al.'s variant: the optimality condition of the Nitsche energy
 ``J(v) = 1/2 a(v, v) - f(v) - 1/2 int sigma_nn(v)^2 / gamma
 + 1/2 int [P_gamma(v)]_-^2 / gamma``; ``theta = 0`` and ``theta = -1`` (skew-symmetric)
 are the usual variants. ``gamma = gamma0 E / h`` (Pa/m) with ``E`` the slave's
@@ -27,7 +28,7 @@ Discrete form (points ``q`` with weights ``w_q``, ``D = diag(w / gamma)``,
     R(u) = A u - F - theta S^T D s + (theta S - G U)^T D [P]_-
     K(u) = A - theta S^T D S + (theta S - G U)^T D H (S - G U),   H = diag(P < 0)
 
-``K`` is the generalised (Heaviside) Jacobian of ``R`` (seed: ``A_gamma + B_gamma(u_k)``
+``K`` is the generalised (Heaviside) Jacobian of ``R`` (Benaceur et al.: ``A_gamma + B_gamma(u_k)``
 with the tangent ``H(-P_gamma(u_k))``). The contact pressure is ``p = -[P]_- >= 0``.
 """
 
@@ -82,7 +83,7 @@ def state(prob: NitscheProblem, u_free: np.ndarray) -> NitscheState:
 
 def residual(prob: NitscheProblem, u_free: np.ndarray, st: NitscheState | None = None
              ) -> np.ndarray:
-    """``R(u)`` (module docstring; seed "Residual vector R_gamma^n")."""
+    """``R(u)`` (module docstring; Benaceur et al.'s "Residual vector R_gamma^n")."""
     st = state(prob, u_free) if st is None else st
     dw = prob.weights / prob.gamma
     th = float(prob.theta)
@@ -94,7 +95,7 @@ def residual(prob: NitscheProblem, u_free: np.ndarray, st: NitscheState | None =
 
 def tangent(prob: NitscheProblem, u_free: np.ndarray, st: NitscheState | None = None
             ) -> sp.csr_matrix:
-    """``K(u)`` (module docstring; seed "Tangent matrix B_gamma^n(mu, w)"), sparse."""
+    """``K(u)`` (module docstring; Benaceur et al.'s "Tangent matrix B_gamma^n(mu, w)"), sparse."""
     st = state(prob, u_free) if st is None else st
     dw = prob.weights / prob.gamma
     th = float(prob.theta)
@@ -107,7 +108,8 @@ def tangent(prob: NitscheProblem, u_free: np.ndarray, st: NitscheState | None = 
 
 
 def energy(prob: NitscheProblem, u_free: np.ndarray, st: NitscheState | None = None) -> float:
-    """Nitsche energy ``J(u)`` (seed "Nitsche's energy"); ``R`` is its gradient for theta = 1."""
+    """Nitsche energy ``J(u)`` (Benaceur et al.'s "Nitsche's energy"); ``R`` is its gradient
+    for theta = 1."""
     st = state(prob, u_free) if st is None else st
     dw = prob.weights / prob.gamma
     return float(0.5 * u_free @ (prob.A @ u_free) - prob.F @ u_free
@@ -134,7 +136,7 @@ def project_pressure(prob: NitscheProblem, p: np.ndarray) -> np.ndarray:
 
 
 def ac_residual(prob: NitscheProblem, u_free: np.ndarray) -> float:
-    """Seed's relative Alart-Curnier residual ``e_AC^n`` (slide "Relative error on the
+    """Benaceur et al.'s relative Alart-Curnier residual ``e_AC^n`` (slide "Relative error on the
     Alart-Curnier reformulation"), a fraction::
 
         e_AC = || sigma_nn(u) - [P_gamma(u)]_- || / || sigma_nn(u) ||
@@ -149,7 +151,7 @@ def ac_residual(prob: NitscheProblem, u_free: np.ndarray) -> float:
 
 
 # ---------------------------------------------------------------------------
-# e_AC variants (the seed's "l2(Gamma_c)" norm is not specified; README "Nitsche")
+# e_AC variants (Benaceur et al.'s "l2(Gamma_c)" norm is not specified; README "Nitsche")
 # ---------------------------------------------------------------------------
 def _facet_operators(layout, mu: np.ndarray, s_local: np.ndarray):
     """``(Un, gap, Snn, fq)`` at local coordinates ``s_local`` of every slave facet.
@@ -178,7 +180,7 @@ def ac_residual_nodal(s: np.ndarray, pen: np.ndarray, gamma: np.ndarray) -> floa
 
 def ac_residual_variants(layout, prob: NitscheProblem, u: np.ndarray, mu,
                          n_points: int = 6) -> dict[str, float]:
-    """The seed's relative Alart-Curnier residual under three readings of its norm.
+    """Benaceur et al.'s relative Alart-Curnier residual under three readings of its norm.
 
     ``u``: all dofs (``result.u``); ``layout``: the backend's
     :class:`~rbbench.hf.geometry.operators.ContactLayout`. Returns fractions:

@@ -170,9 +170,10 @@ def condition_residuals(prob: NitscheFrictionProblem, fs: FrictionState) -> dict
     ``d^n - u_n``, the slip ``v`` and the Nitsche tractions (:func:`tractions`) given directly
     (``D = 0``: displacements divided by ``max(|gap|, |v|)``, forces by the largest traction).
 
-    Not zero at the discrete solution: Nitsche imposes the conditions weakly, so they
-    measure its consistency error (``O(h)``), like the seed's ``e_AC``; the Newton
-    residual measures the algebraic convergence.
+    Not zero at the discrete solution: Nitsche imposes the conditions weakly, so they measure
+    its consistency error (``O(h)``), like the ``e_AC`` of Benaceur, Drouet, Ehrlacher, Ern &
+    Niakh, "Model order reduction methods: parametric variational inequalities" (talk); the
+    Newton residual measures the algebraic convergence.
     """
     lam_n, lam_t = tractions(fs)
     g = (fs.normal.P - fs.normal.s) / prob.gamma  # d^n - u_n, from P_n = s - gamma (u_n - d^n)

@@ -81,7 +81,7 @@ class _Handle:
         self.pt = np.zeros(64, dtype=np.int64)
         self.iparm = np.zeros(64, dtype=np.int32)
         # iparm[23] = 1: the two-level factorisation, faster than the classic one on both
-        # the KKT matrix and the floor's A (issue 17: level 2 of hertz_halfdisks, analysis
+        # the KKT matrix and the floor's A (measured: level 2 of hertz_halfdisks, analysis
         # included; level 0 even), exact as the classic one (no approximation)
         self.iparm[[0, 1, 7, 9, 17, 20, 23, 34, 35]] = [1, 2, 0, 13, -1, 1, 1, 1,
                                                         1 if len(schur_rows) else 0]

@@ -1,4 +1,4 @@
-"""The Delassus operator as a Schur complement of the KKT matrix (issue 17, item 2).
+"""The Delassus operator as a Schur complement of the KKT matrix.
 
 :func:`rbbench.hf.condensation.dense.condense` forms ``D = B A^{-1} B^T`` from ``A^{-1} B^T``, one
 triangular solve pair per multiplier (512 dense right-hand sides at level 1 of

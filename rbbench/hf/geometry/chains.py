@@ -125,9 +125,10 @@ def with_vertex_normals(chain: FacetChain) -> FacetChain:
 class SlaveStress:
     """The slave body's elements next to its contact facets: ``sigma_nn`` at contact points.
 
-    Nitsche's method (seed 000, "Nitsche's method (1/2)"; Chouly & Hild 2013) needs
-    the normal stress ``sigma_nn(u) = n . sigma(u) n`` of the slave body on the
-    contact boundary. It is evaluated in the element adjacent to each slave facet
+    Nitsche's method (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction
+    methods: parametric variational inequalities" (talk), slide "Nitsche's method (1/2)";
+    Chouly & Hild 2013) needs the normal stress ``sigma_nn(u) = n . sigma(u) n`` of the slave
+    body on the contact boundary. It is evaluated in the element adjacent to each slave facet
     from the Lagrange basis on that element (P1: constant per element; P2: at the
     point), plane strain ``sigma = lambda tr(eps) I + 2 mu_L eps``. The body map is a
     similarity ``x = s(mu) x_hat + c(mu)``, so physical gradients are reference

@@ -1,4 +1,4 @@
-"""Checks of a computed contact solution from its pointwise gap (issue 16).
+"""Checks of a computed contact solution from its pointwise gap.
 
 The mixed formulation constrains the mean gap over each multiplier's support (LAC patch,
 facet or hat), not the gap at a point. Two numbers of ``summary.json`` come from the

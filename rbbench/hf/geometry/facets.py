@@ -189,7 +189,9 @@ def multiplier_basis(kind: str, n_facets: int, facet_of_q: np.ndarray, s_q: np.n
     """Multiplier basis at quadrature points for slave facets ordered along the zone.
 
     * ``"lac"``: P0 per patch of ``patch`` consecutive facets (Local Average
-      Contact, Abbas-Drouet-Hild 2018, used by seed 000 with P1 displacements);
+      Contact, Abbas-Drouet-Hild 2018, used with P1 displacements by Benaceur, Drouet,
+      Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational
+      inequalities" (talk));
       a remainder shorter than a patch joins the last patch.
     * ``"p0"``: P0 per facet.
     * ``"p1"``: continuous P1 along the chain of facets (nodal values).

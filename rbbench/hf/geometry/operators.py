@@ -19,8 +19,9 @@ exactly: the mortar-style segment-to-segment integration that passes the contact
 patch test on non-matching meshes, which Gauss-point-to-segment does not
 (Zavarise & De Lorenzis 2009; Puso & Laursen 2004). The constraint is imposed
 weakly against the multiplier space, ``int (u_n - d^n) eta <= 0`` for
-``eta >= 0``, which is the Lagrange-multiplier (mortar-like) form of seed 000
-("HF model"), integrated with slave-side quadrature.
+``eta >= 0``, which is the Lagrange-multiplier (mortar-like) form of Benaceur, Drouet,
+Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational inequalities"
+(talk), slide "HF model", integrated with slave-side quadrature.
 
 The code lives in :mod:`rbbench.hf.geometry.facets` (Gauss rules, shape functions, normals, ray
 casts, multiplier bases), :mod:`rbbench.hf.geometry.chains` (body maps, facet chains, vertex
@@ -190,7 +191,7 @@ def friction_multipliers(layout: ContactLayout, p: Pairing, mu: np.ndarray
     """``(Mt, C(mu))``: the P1 friction multipliers at the points of pairing ``p`` and the
     collocation nodes ``C(mu) = h(mu)(C_hat)`` (:func:`collocation_nodes`).
 
-    Seed 000, "Algebraic formulation / Collocation method": P1 multipliers, one
+    Benaceur et al., slides "Algebraic formulation / Collocation method": P1 multipliers, one
     tangential multiplier per slave contact node (``S = (d-1) R = R`` in 2D).
     """
     Mt = multiplier_basis("p1", layout.n_facets, layout.slave.ids[p.fq], p.sq)

@@ -1,10 +1,12 @@
-"""HF solves of the linear scenes (issue 18): no contact operator, no multiplier, no VI.
+"""HF solves of the linear scenes: no contact operator, no multiplier, no VI.
 
 :class:`LinearProblem` is the algebraic problem on the free dofs (homogeneous Dirichlet
 eliminated for ``thermal``; every dof free for ``heat``): ``A u = F`` (elliptic), or
-implicit Euler ``(M / dt + A) u^k = M / dt u^{k-1} + F``, ``u^0 = u0`` (seed 000, the heat
-equation). :func:`solve_linear` solves it with one factorisation (the backend's direct
-solver, else SuperLU); a trajectory is stored as ``(K, n_free)`` rows ``u^1 .. u^K`` and
+implicit Euler ``(M / dt + A) u^k = M / dt u^{k-1} + F``, ``u^0 = u0`` (Benaceur, Drouet,
+Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational inequalities"
+(talk), slide "Simple toy example: heat equation"). :func:`solve_linear` solves it with one
+factorisation (the backend's direct solver, else SuperLU); a trajectory is stored as
+``(K, n_free)`` rows ``u^1 .. u^K`` and
 flattened row by row for the snapshot set, so that the space-time norm
 ``kron(dt I_K, X)`` (:func:`space_time_norm`) is the discrete ``L2(0, T; X)`` norm.
 

@@ -1,4 +1,4 @@
-"""``rbbench solve`` of a linear scene (issue 18): one sparse solve, its summary and files.
+"""``rbbench solve`` of a linear scene: one sparse solve, its summary and files.
 
 :func:`solve_linear_hf` returns the :class:`~rbbench.hf.model.HFSolution` of
 :func:`rbbench.hf.model.solve_hf` (``problem``: a :class:`~rbbench.hf.linear.model.LinearProblem`,

@@ -1,4 +1,4 @@
-"""The Cattaneo-Mindlin check of a friction solve (issue 13, ``[reference] mindlin``).
+"""The Cattaneo-Mindlin check of a friction solve (``[reference] mindlin``).
 
 At the solver's own normal force ``P`` (``contact_force``) and tangential force ``Q``
 (``tangential_force``), Hertz gives ``a`` and ``p0`` (:func:`rbbench.hf.references.hertz.hertz_2d`)
@@ -9,7 +9,9 @@ traction ``q(x)`` (:func:`rbbench.hf.references.hertz.mindlin_from_hertz`). The 
   between the outermost stick node and its neighbour (slip or open) along x, so the
   nodal measure ``stick_half_width`` (which stops at the last stick node, ``h / 2`` short
   on each side) is not biased; both are reported.
-* the shear traction: ``lam_t`` is the seed's multiplier, entering ``A u + Bt^T lam_t = F``
+* the shear traction: ``lam_t`` is the tangential multiplier of Benaceur, Drouet, Ehrlacher,
+  Ern & Niakh, "Model order reduction methods: parametric variational inequalities" (talk),
+  slide "HF model", entering ``A u + Bt^T lam_t = F``
   as ``lam_n`` does, so the traction on the slave body is ``-lam_t`` and ``lam_t t_x``
   (``t = (-n_y, n_x)``, ``t_x ~ 1`` under the upper body) is the traction the slave exerts
   on the master, of the sign of ``Q``. The relative L2 error

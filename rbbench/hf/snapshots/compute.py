@@ -1,7 +1,9 @@
 """HF snapshots ``(u(mu_p), lam(mu_p))``, computed once and cached on disk.
 
-Seed 000, "Finite training set and snapshots": every compressor and stabiliser
-works on the same snapshots, so they are computed once per *content* and reused.
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slide "Finite training set and snapshots": every compressor
+and stabiliser works on the same snapshots, so they are computed once per *content* and
+reused.
 
 Cache layout::
 

@@ -6,11 +6,13 @@ opposing the slip) are those of :mod:`rbbench.hf.algebra.friction`.
 
 * :func:`pdas_tresca`: primal-dual active set (Hintermueller-Ito-Kunisch 2002) on the box
   ``lam_n >= 0``, ``|lam_t| <= s`` jointly with Signorini;
-* :func:`coulomb_fixed_point`: the seed's fixed point on Tresca with ``s = F lam_n``;
+* :func:`coulomb_fixed_point`: the fixed point on Tresca with ``s = F lam_n`` of Benaceur,
+  Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational
+  inequalities" (talk);
 * :func:`coulomb_direct`: active set on the 2D wedge ``|lam_t| <= F lam_n`` (the collocated
   2D Coulomb problem is a non-symmetric LCP; Alart-Curnier 1991 predictor);
-* :func:`coulomb_model_b`: seed 001's model B, ``F = f(|u_t|)``, by a fixed point on the
-  coefficient.
+* :func:`coulomb_model_b`: model B of the talk "On coupling of complementarity with friction
+  in contact shape optimization", ``F = f(|u_t|)``, by a fixed point on the coefficient.
 
 Anti-cycling (pitfalls.md, "Contact algebra"): a tangential dof never jumps from one bound
 to the other (it becomes free / stick first), the PDAS constant is ``1 / D_ii`` per dof,
@@ -28,7 +30,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from rbbench.hf.algebra.friction import (
-    SEED001,
+    MODEL_B,
     CoefficientLaw,
     FrictionResult,
     box_bounds,
@@ -173,7 +175,7 @@ def coulomb_fixed_point(D: np.ndarray, q: np.ndarray, F: float | np.ndarray,
                         lam0: np.ndarray | None = None, max_iter: int = 200,
                         tol: float = 1e-10, window: int = 20,
                         tresca: Callable[..., FrictionResult] = pdas_tresca) -> FrictionResult:
-    """The seed's fixed point: Tresca with ``s = F lam_n^k`` until
+    """Benaceur et al.'s fixed point: Tresca with ``s = F lam_n^k`` until
     ``||x^{k+1} - x^k||_inf <= tol * fscale`` and the Coulomb residuals are ``<= 10 tol``.
 
     ``tresca(D, q, s, lam0=x)`` solves each Tresca problem (:func:`pdas_tresca`, or any
@@ -343,11 +345,11 @@ def coulomb_direct(D: np.ndarray, q: np.ndarray, F: float | np.ndarray,
 
 # --------------------------------------------------------------------------- model B
 
-def coulomb_model_b(D: np.ndarray, q: np.ndarray, law: CoefficientLaw = SEED001,
+def coulomb_model_b(D: np.ndarray, q: np.ndarray, law: CoefficientLaw = MODEL_B,
                     ut_prev: np.ndarray | None = None, max_iter: int = 100,
                     tol: float = 1e-10, window: int = 20,
                     inner: Callable[..., FrictionResult] = coulomb_direct) -> FrictionResult:
-    """Seed 001's model B: Coulomb with ``F_i = f(|u_t,i|)`` by a fixed point on ``F``.
+    """Model B (shape-optimisation talk): Coulomb with ``F_i = f(|u_t,i|)``, fixed point on ``F``.
 
     ``u_t = ut_prev + v`` (the relative tangential displacement at the end of the step).
     ``F^0 = f(|ut_prev|)``; iterate ``F^{k+1} = f(|u_t(x(F^k))|)`` with the ``inner``
@@ -426,11 +428,11 @@ def _model_b_state(D: np.ndarray, q: np.ndarray, law: CoefficientLaw, ut_prev: n
     return F, friction_residuals(D, q, x[:m], x[m:], F * x[:m])["max"]
 
 
-def model_b_newton(D: np.ndarray, q: np.ndarray, law: CoefficientLaw = SEED001,
+def model_b_newton(D: np.ndarray, q: np.ndarray, law: CoefficientLaw = MODEL_B,
                    ut_prev: np.ndarray | None = None, lam0: np.ndarray | None = None,
                    max_iter: int = 100, tol: float = 1e-10, window: int = 8,
                    fallback: bool = True) -> FrictionResult:
-    """Seed 001's model B by a semismooth Newton with the derivative ``f'`` of the law.
+    """Model B (shape-optimisation talk) by a semismooth Newton with the law's derivative ``f'``.
 
     Active set on the Coulomb wedge (Alart-Curnier predictor of :func:`coulomb_direct` with
     ``F = f(|u_t(x)|)``); each iteration solves the pattern's system linearised in ``x``,

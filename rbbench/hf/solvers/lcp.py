@@ -1,7 +1,9 @@
 """The linear complementarity problem of the condensed contact problem and its solvers
 (plain functions on arrays): LCP(q, D), ``s = q + D lam``, ``lam >= 0``, ``s >= 0``,
 ``lam . s = 0``, with the Delassus operator ``D = B A^{-1} B^T`` of
-:mod:`rbbench.hf.condensation` (the optimality system of the dual QP
+:mod:`rbbench.hf.condensation` (the HF mixed problem of Benaceur, Drouet, Ehrlacher, Ern &
+Niakh, "Model order reduction methods: parametric variational inequalities" (talk), slide
+"Mixed formulation", condensed on the contact unknowns; the optimality system of the dual QP
 ``min_{lam >= 0} 1/2 lam^T D lam + q^T lam``): the primal-dual active set (PDAS), Lawson-
 Hanson's NNLS on a Cholesky factor, Uzawa, and the natural residual that checks them.
 """
@@ -112,11 +114,11 @@ def pdas(D: np.ndarray, q: np.ndarray, lam0: np.ndarray | None = None, max_iter:
 def uzawa(D: np.ndarray, q: np.ndarray, lam0: np.ndarray | None = None, omega: float = 1.0,
           tol: float = 1e-9, max_iter: int = 200_000,
           stall_window: int = 5000) -> tuple[np.ndarray, int, str, list[float], dict]:
-    """Uzawa projected iteration (seed 000, "Uzawa"), on the condensed problem.
+    """Uzawa projected iteration (Benaceur et al., slide "Uzawa"), on the condensed problem.
 
     ``lam_{k+1} = max(0, lam_k - rho (G - B u_{k+1}))`` with
     ``A u_{k+1} = F - B^T lam_k``; condensed, ``G - B u_{k+1} = q + D lam_k``,
-    so every iterate equals the seed's. ``rho = omega / lambda_max(D)``
+    so every iterate equals that of Benaceur et al.'s Uzawa. ``rho = omega / lambda_max(D)``
     (convergent for 0 < omega < 2). Stops on the natural residual ``<= tol``,
     on ``max_iter``, on NaN, or on stagnation (no decrease of the best residual
     over ``stall_window`` iterations).

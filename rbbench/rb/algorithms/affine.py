@@ -1,7 +1,9 @@
 """Exact affine decompositions in mu, verified by probing (the "exact-affine" hyper-reducer).
 
-``O(mu) = sum_k theta_k(mu) O_k`` with ``theta = [1, mu_1, ..., mu_p]``: seed 000, slide
-"Offline / online decomposition". Shared by the mixed and the Nitsche reduced models.
+``O(mu) = sum_k theta_k(mu) O_k`` with ``theta = [1, mu_1, ..., mu_p]``: Benaceur, Drouet,
+Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational inequalities"
+(talk), slide "Affine parametric decomposition". Shared by the mixed and the Nitsche reduced
+models.
 """
 
 from __future__ import annotations

@@ -1,9 +1,11 @@
 """Empirical interpolation (EIM / DEIM) of parameter-dependent vectors and sparse matrices.
 
-Seed 000, "Affine parametric decomposition": ``B(mu) ~ E(mu) = sum_j alpha_j(mu) B_j``
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slide "Affine parametric decomposition":
+``B(mu) ~ E(mu) = sum_j alpha_j(mu) B_j``
 with ``alpha(mu)`` fixed by interpolation at ``J`` "magic" entries (Barrault,
 Maday, Nguyen, Patera 2004), so that the online stage needs only those
-entries of ``B(mu)``. Errors follow the seed's "EIM errors" slide::
+entries of ``B(mu)``. Errors follow their "EIM errors" slide::
 
     e_EIM = max_mu ||B(mu) - E(mu)||_{l_inf(ij)} / max_mu ||B(mu)||_{l_inf(ij)}
 
@@ -41,7 +43,7 @@ class EIMResult:
         Magic (interpolation) indices.
     errors : (m,)
         ``errors[k]``: relative max-norm interpolation error over the training
-        snapshots with the first ``k + 1`` basis vectors (seed definition, above).
+        snapshots with the first ``k + 1`` basis vectors (Benaceur et al.'s definition, above).
     picks : list of int
         Training columns selected by the greedy EIM (empty for DEIM).
     method : {"eim", "deim"}
@@ -93,8 +95,8 @@ def deim(snapshots: np.ndarray, tol: float | None = None, m_max: int | None = No
     m_max : int, optional
         Largest number of terms.
     method : {"eim", "deim"}
-        ``"eim"`` (default): greedy EIM of Barrault-Maday-Nguyen-Patera (seed slide
-        "Affine parametric decomposition"): pick the snapshot with the largest max-norm
+        ``"eim"`` (default): greedy EIM of Barrault-Maday-Nguyen-Patera (Benaceur et
+        al., slide "Affine parametric decomposition"): pick the snapshot with the largest max-norm
         interpolation error, its largest residual entry is the next magic point, and the
         residual normalised to 1 there is the next basis vector. ``"deim"``: POD (SVD)
         basis with the DEIM index selection of Chaturantabut-Sorensen.
@@ -271,7 +273,7 @@ def matrix_eim(mats: list, tol: float | None = None, m_max: int | None = None,
 
 
 def eim_error(result: EIMResult | MatrixEIM, mats) -> float:
-    """Seed's ``e_EIM``: ``max_mu ||B - E||_{l_inf(ij)} / max_mu ||B||_{l_inf(ij)}``.
+    """Benaceur et al.'s ``e_EIM``: ``max_mu ||B - E||_{l_inf(ij)} / max_mu ||B||_{l_inf(ij)}``.
 
     ``mats`` is a list of sparse matrices for a :class:`MatrixEIM`, and an (n, P)
     array (or a list of vectors) for an :class:`EIMResult`. Entries outside the
@@ -299,7 +301,7 @@ def eim_error_curve(result: EIMResult, snapshots: np.ndarray) -> dict[str, np.nd
     """Errors of the nested interpolants ``I_k`` (the first ``k`` terms, ``k = 1 .. m``) of a
     greedy :class:`EIMResult` on the columns of ``snapshots`` (n, P), e.g. a validation set.
 
-    Returns ``{"ratio": seed e_EIM, max_mu ||s - I_k s||_inf / max_mu ||s||_inf,
+    Returns ``{"ratio": Benaceur et al.'s e_EIM, max_mu ||s - I_k s||_inf / max_mu ||s||_inf,
     "max_rel": max_mu ||s - I_k s||_inf / ||s||_inf}`` (zero columns skipped), each (m,).
     Greedy EIM only (its ``Q[magic]`` is unit lower triangular, so the first ``k`` terms
     are an interpolant); a DEIM result raises ``ValueError``.

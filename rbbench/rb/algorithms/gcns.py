@@ -1,5 +1,8 @@
-"""Greedy Collocation Node Selection (GCNS), seed 000, slides "Greedy Collocation Node
-Selection (GCNS)" and "GCNS algorithm": a plain function on arrays.
+"""Greedy Collocation Node Selection (GCNS) as a plain function on arrays.
+
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Greedy Collocation Node Selection (GCNS)" and "GCNS
+algorithm".
 
 The reduced friction problem (:mod:`rbbench.rb.friction.collocation.model`) imposes the tangential
 constraint ``|lam_S^tau(c_s)| <= nu_F lam_R^n(c_s)`` at a subset ``C(q)`` of the HF
@@ -10,19 +13,19 @@ collocation nodes only. GCNS grows that subset:
   every training mu at ``C(q)``, the violation ``[|lam_S^tau| - nu_F lam_R^n]_+`` at ALL
   HF nodes; ``mu_q`` = the training mu of the largest violation (``e_GCNS^{n tau}(q)``,
   its max norm), and the ``per_iteration`` nodes of largest violation at ``mu_q`` join
-  ``C(q + 1)`` (the seed reached ``S_q = 40`` nodes in ``q = 20``: 2 per iteration);
+  ``C(q + 1)`` (the talk reports ``S_q = 40`` nodes in ``q = 20``: 2 per iteration);
 * ``e_GCNS(q) = max_mu ||lam^tau - lam_S^{tau,q}||_{Gamma_c(mu)} / ||lam^tau||_{Gamma_c(mu)}``
   (HF snapshots against the reduced solution);
 * stop when ``e_GCNS(q) > e_GCNS(q - 1)`` (the previous set is kept), when no node is
   violated (outside ``C(q)``), when every node is selected, or after ``max_iterations``
-  additions. ``patience = k > 1`` relaxes the seed's rule (our option): stop after ``k``
+  additions. ``patience = k > 1`` relaxes Benaceur et al.'s rule (our option): stop after ``k``
   consecutive iterations above the best ``e_GCNS`` so far and keep the best set. Measured
   on hertz_friction P1 with full-rank bases (7 training mu): ``e_GCNS`` rises at q = 4
-  (S_q = 8) before falling to 1e-13 at S_q = 26, so the seed's rule stops at q = 3.
+  (S_q = 8) before falling to 1e-13 at S_q = 26, so Benaceur et al.'s rule stops at q = 3.
 
 Measured on hertz_friction P1, default mesh (513 nodes, 41 training mu, N = 30, R = S = 20,
 PGA to dim 70): ``C(0) = {}`` leaves lam_t unconstrained (stick everywhere,
-``e_GCNS(0) = 32``); the seed's rule stops at q = 12 (S_q = 24, ``e_GCNS = 6.4``); past it
+``e_GCNS(0) = 32``); their rule stops at q = 12 (S_q = 24, ``e_GCNS = 6.4``); past it
 ``e_GCNS`` reaches 1.0 at S_q ~ 48 and stays there: a node open at some mu pins
 ``(Vt theta)_r = 0`` there (``s_r = nu_F lam_n,R = 0``), and once the pinned rows span
 ``X_S`` the reduced lam_t of that mu is 0 (relative error exactly 1).
@@ -98,14 +101,14 @@ def gcns(solve_all: SolveAll, LAM_T: np.ndarray, W: Sequence[Any], per_iteration
     W : sequence of (m, m)
         The L2(Gamma_c(mu_p)) Gram matrix of the nodal multipliers per training mu.
     per_iteration : int
-        Nodes added per iteration (default 2, the seed's ``S_q / q``).
+        Nodes added per iteration (default 2, the published ``S_q / q``).
     max_iterations : int, optional
         Cap on the number of additions (default: until a stop rule or all nodes).
     lam_scale : float, optional
         Scale of ``e_nt_rel`` (default: the largest ``|lam_t|`` snapshot value).
     patience : int
-        Consecutive increases of ``e_GCNS`` over its best that stop the loop (1: the
-        seed's rule ``e_GCNS(q) > e_GCNS(q - 1)``).
+        Consecutive increases of ``e_GCNS`` over its best that stop the loop (1: Benaceur
+        et al.'s rule ``e_GCNS(q) > e_GCNS(q - 1)``).
     tol : float
         ``e_nt <= tol * lam_scale`` counts as no violation (solver round-off).
     """

@@ -1,7 +1,8 @@
 """Inf-sup and boundedness constants of ``b(mu; v, eta) = eta^T B(mu) v``, over spans and cones.
 
-Setting (algebraic, free dofs; science.md section 3, seed 000 slides "Enhancement by
-supremizers" and "Projected Greedy Algorithm (2/2)"):
+Setting (algebraic, free dofs; science.md section 3; Benaceur, Drouet, Ehrlacher, Ern & Niakh,
+"Model order reduction methods: parametric variational inequalities" (talk), slides
+"Enhancement by supremizers" and "Projected Greedy Algorithm (2/2)"):
 
 * ``X`` (n x n, sparse SPD): Gram matrix of the primal inner product, ``||v||_V^2 = v^T X v``;
 * ``W`` (m x m SPD, often diagonal): Gram matrix of the multiplier inner product;
@@ -27,7 +28,7 @@ enumeration for small ``R``, else a multistart upper estimate). ``beta = 0`` on 
 iff ``C alpha = 0`` for some ``alpha >= 0, sum(alpha) = 1``: :func:`beta_zero_test`
 (:mod:`rbbench.rb.algorithms.infsup_zero`: an SVD bound, else an LP).
 
-Which number is which (seed 000, slide "Projected Greedy Algorithm (2/2)"), for one ``mu``:
+Which number is which (Benaceur et al., slide "Projected Greedy Algorithm (2/2)"), for one ``mu``:
 
 * ``beta_HF``: ``Z = None``, generators = all HF multiplier dofs (``Vg = I_m``; on the HF
   cone ``W^+`` this is a span *lower bound*, the cone value is not computed for ``m`` large);
@@ -270,7 +271,7 @@ def infsup_span(S: np.ndarray, M: np.ndarray, *, rtol: float = GRAM_RTOL) -> flo
     (``Vg y ~ 0``) and are removed before the eigensolve. An eigenvalue ratio
     ``lambda_min / lambda_max <= SPAN_ROUNDOFF`` (1e-12, a few hundred machine epsilons: the
     eigensolver's absolute accuracy is ``O(eps lambda_max)``) is zero to round-off and
-    reported as 0, not as a positive bound (issue 16: a membrane beta_dec at a ratio of
+    reported as 0, not as a positive bound (seen: a membrane beta_dec at a ratio of
     3e-16 was reported as 1.5e-9).
     """
     return _span_from(_pencil_eigenvalues(S, M, rtol))
@@ -297,7 +298,7 @@ def span_constants(S: np.ndarray, M: np.ndarray, *, rtol: float = GRAM_RTOL
     """``(infsup_span(S, M), boundedness_constant(S, M))`` from one eigensolve.
 
     Their ratio ``beta / c`` is dimensionless: invariant under a rescaling of ``X`` (e.g.
-    the Young modulus of the energy inner product) and of ``W`` (seed 000: ``delta_PGA =
+    the Young modulus of the energy inner product) and of ``W`` (Benaceur et al.: ``delta_PGA =
     sup beta_HF / c_HF``).
     """
     w = _pencil_eigenvalues(S, M, rtol)

@@ -13,7 +13,7 @@ thin SVD ``Cn = U diag(s) V^T``:
 * else the LP ``min ||Rc a||_1, a >= 0, sum(a) = 1`` on ``Rc = diag(s) V^T`` restricted to
   ``s > 1e-3 rtol`` (the rows dropped change ``||Cn a||_2`` by less than ``1e-3 rtol``): HiGHS
   (``"highs"``), then its dual simplex and its interior point method when a run returns no
-  point (issue 16: "beta = 0 LP failed: (HiGHS Status 0: Not Set)" on the membrane,
+  point (seen: "beta = 0 LP failed: (HiGHS Status 0: Not Set)" on the membrane,
   n_cells = 28, cpg, R = 4; not reproduced here: 20 validation mus x 3 rotations of the
   factor ``H`` all solved). A point the LP returns is a witness whatever its status:
   ``||Cn a||_2 <= rtol`` proves ``beta = 0``; ``beta != 0`` needs an optimal LP.

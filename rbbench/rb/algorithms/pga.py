@@ -1,7 +1,8 @@
 """Supremizers and the Projected Greedy Algorithm (PGA) for an offline inf-sup stable primal space.
 
-Seed 000, slides "Parameter-dependent context", "Approximation of S_R", "Main result",
-"Projected Greedy Algorithm (PGA)" and "Some details". Notation as in
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Parameter-dependent context", "Approximation of
+S_R", "Main result", "Projected Greedy Algorithm (PGA)" and "Some details". Notation as in
 :mod:`rbbench.rb.algorithms.infsup`: ``X`` (n x n, SPD) is the primal Gram matrix, all norms and
 projections below are in the X-inner product ``(u, v)_X = u^T X v``.
 
@@ -11,7 +12,7 @@ projections below are in the X-inner product ``(u, v)_X = u^T X v``.
 * ``sigma_S(mu) = ||(I - Pi_{V_N + S})|_{S_R(mu)}||_{L(V)}`` in ``[0, 1]``: how badly the
   offline space ``V_N + S`` misses the supremizers of ``mu``.
 * :func:`pga` builds ``S`` greedily over a training set until ``max sigma_S <= delta``;
-  ``V_off = V_N + S``, and :func:`theorem_lower_bound` is the seed's "Main result".
+  ``V_off = V_N + S``, and :func:`theorem_lower_bound` is Benaceur et al.'s "Main result".
 """
 
 from __future__ import annotations
@@ -225,14 +226,14 @@ class PGAResult:
     sigma_max : (K + 1,) ndarray
         ``sigma_max[i] = max_{mu in train} sigma_{S^i}(mu)`` with ``S^i`` the span of the
         first ``i`` basis vectors: the value before each addition (``i < K``) and the final
-        one (``i = K``). Non-increasing (seed slide "Some details", "Monotonicity").
+        one (``i = K``). Non-increasing (Benaceur et al., slide "Some details", "Monotonicity").
     picks : list of int
         ``picks[i]`` = index into ``T_list`` of the parameter whose supremizer residual gave
-        basis vector ``i`` (``mu_{i+1}`` of the seed).
+        basis vector ``i`` (``mu_{i+1}`` of Benaceur et al.).
     stop_reason : str
         ``"tolerance"`` (``sigma_max[-1] <= delta``), ``"exhausted"`` (``sigma_max[-1] <=
-        sigma_zero``: ``V_N + S`` contains every training ``S_R(mu)``, the seed's finite
-        termination), or ``"max_dim"`` (``K = max_dim``, tolerance not reached).
+        sigma_zero``: ``V_N + S`` contains every training ``S_R(mu)``, the finite termination
+        of Benaceur et al.), or ``"max_dim"`` (``K = max_dim``, tolerance not reached).
     sigma : (P,) ndarray
         Final ``sigma_S(mu)`` for every training parameter.
     """
@@ -252,7 +253,7 @@ class PGAResult:
 def pga(T_list: Sequence[np.ndarray], Z: np.ndarray, X, delta: float,
         max_dim: int | None = None, *, rtol: float = RANK_RTOL,
         sigma_zero: float = SIGMA_ZERO) -> PGAResult:
-    """Projected Greedy Algorithm (seed 000, slide "Some details").
+    """Projected Greedy Algorithm (Benaceur et al., slide "Some details").
 
     ``S^0 = {}``; while ``e_n = max_mu sigma_{S^n}(mu) > delta``: pick
     ``mu_n = argmax_mu sigma_{S^n}(mu)``; ``v^(1)`` = the unit-X-norm element of
@@ -279,7 +280,7 @@ def pga(T_list: Sequence[np.ndarray], Z: np.ndarray, X, delta: float,
     X : (n, n) matrix
         Primal Gram matrix (sparse or dense).
     delta : float
-        Tolerance ``delta_PGA`` on ``max sigma``. The seed uses ``sup_train beta_HF / c_HF``;
+        Tolerance ``delta_PGA`` on ``max sigma``. Benaceur et al. use ``sup_train beta_HF / c_HF``;
         the "Main result" condition holds on every training ``mu`` only for
         ``delta < min_train beta_on / c_HF``, while :func:`riesz_lower_bound` gives
         ``beta_off >= sqrt(1 - delta^2) beta_on > 0`` on the training set for any
@@ -435,7 +436,8 @@ class _Space:
 
 
 def theorem_lower_bound(beta_on, c_hf, sigma):
-    """Seed 000 "Main result": ``beta*_S(mu) = (beta_on - c_HF sigma_S) / (1 + sigma_S)``.
+    """``beta*_S(mu) = (beta_on - c_HF sigma_S) / (1 + sigma_S)`` (Benaceur et al., slide
+    "Main result").
 
     If ``sigma_S(mu) < beta_on(mu) / c_HF(mu)`` then ``beta_off(mu) >= beta*_S(mu) > 0``,
     where ``beta_off`` is the inf-sup over ``W_R^+`` (cone, or its span: the proof works for
@@ -454,7 +456,8 @@ def theorem_lower_bound(beta_on, c_hf, sigma):
 def riesz_lower_bound(beta_on, sigma):
     """Sharper bound ``beta_off(mu) >= sqrt(1 - sigma_S(mu)^2) beta_on(mu)`` (no ``c_HF``).
 
-    Not in the seed; follows from the X-Riesz structure of ``b``. For ``eta = Vg y`` let
+    Not in Benaceur et al.'s talk; follows from the X-Riesz structure of ``b``. For
+    ``eta = Vg y`` let
     ``s = T(mu) y = X^{-1} B^T eta``, the supremizer, which lies in ``S_R(mu)``. Then
     ``b(v, eta) = (s, v)_X``, so ``sup_{v in Y} b(v, eta) / ||v||_X = ||Pi_Y s||_X`` for any
     ``Y``; ``beta_on`` uses ``Y = V_N + S_R(mu)`` (``Pi_Y s = s``) and ``beta_off`` uses

@@ -1,9 +1,10 @@
 """Primal compressors: POD and the (ideal / weak) greedy algorithm.
 
-Seed 000, "Method 1: Proper Orthogonal Decomposition" and "Method 2: (Ideal)
-Greedy algorithms" / "Quasi-optimality of greedy algorithms" (DeVore, Petrova,
-Wojtaszczyk). Both return an X-orthonormal basis ``Z`` (``Z^T X Z = I``) of
-the span of selected snapshots, with ``X`` the V inner product matrix.
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Method 1: Proper Orthogonal Decomposition" and
+"Method 2: (Ideal) Greedy algorithms" / "Quasi-optimality of greedy algorithms" (DeVore,
+Petrova, Wojtaszczyk). Both return an X-orthonormal basis ``Z`` (``Z^T X Z = I``) of the span
+of selected snapshots, with ``X`` the V inner product matrix.
 """
 
 from __future__ import annotations
@@ -167,8 +168,8 @@ class GreedyResult:
     sigma : (N + 1,)
         ``sigma[k]`` is the largest error (true or indicated) over the training set
         with the first ``k`` basis vectors: ``sigma[0] = max_p ||u_p||_X`` for the ideal
-        greedy, and each entry is the max *before* adding ``Z[:, k]``. (The seed's
-        ``sigma_N`` is our ``sigma[N - 1]``.)
+        greedy, and each entry is the max *before* adding ``Z[:, k]``. (Benaceur et
+        al.'s ``sigma_N`` is our ``sigma[N - 1]``.)
     d_pod : (r + 1,)
         Proxy for the Kolmogorov width of the *training set*: ``d_pod[k] = max_p
         ||u_p - Pi_{POD_k} u_p||_X``, an upper bound of the training-set width ``d_k``.
@@ -195,7 +196,7 @@ class GreedyResult:
 def weak_greedy(U: np.ndarray, X=None,
                 indicator: Callable[[np.ndarray, int], float] | None = None,
                 tol: float = 1e-8, n_max: int | None = None) -> GreedyResult:
-    """Greedy selection of snapshots (seed 000, "Method 2: (Ideal) Greedy algorithms").
+    """Greedy selection of snapshots (Benaceur et al., "Method 2: (Ideal) Greedy algorithms").
 
     Parameters
     ----------

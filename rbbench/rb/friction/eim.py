@@ -1,8 +1,9 @@
 """Hyper-reduction of the friction constraint: EIM of ``Bn(mu) Z``, ``Bt(mu) Z`` and ``Gn(mu)``.
 
-Seed 000, slides "Preliminaries" (3: "Dependence of the RB problem on the HF dimensions ->
-EIM") and "EIM errors" (``B^n(mu)``, ``B^tau(mu)``; issue 14, item 3). The friction rows are
-the P1 nodal ones (:class:`rbbench.interfaces.FrictionProblem`): ``Bn = Mt^T diag(w) Un``,
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Preliminaries" (3: "Dependence of the RB problem on
+the HF dimensions -> EIM") and "EIM errors" (``B^n(mu)``, ``B^tau(mu)``). The friction rows
+are the P1 nodal ones (:class:`rbbench.interfaces.FrictionProblem`): ``Bn = Mt^T diag(w) Un``,
 ``Bt = Mt^T diag(w) Ut``, ``Gn = Mt^T diag(w) gap`` with ``Mt`` the hat functions of the slave
 contact nodes. As in the frictionless case (:mod:`rbbench.rb.hyper.contact_eim`, whose docstring
 gives the reasons), the greedy EIM interpolates the smooth reduced quantities, not the
@@ -56,7 +57,7 @@ def friction_layout(layout: ContactLayout) -> ContactLayout:
 def friction_training_operators(layout: ContactLayout, mus: np.ndarray, free: np.ndarray
                                 ) -> tuple[list[sp.csr_matrix], list[sp.csr_matrix], np.ndarray]:
     """``(Bn list, Bt list, Gn (m, P))`` at the rows of ``mus`` on the free dofs, from the
-    layout alone (no HF solve: the EIM training set can be dense, seed: 61, 150).
+    layout alone (no HF solve: the EIM training set can be dense, published: 61, 150).
 
     Raises :class:`HyperReductionError` when a contact row has a Dirichlet column (then
     ``Gn`` and the tangential lifting ``ut_lift`` would depend on the lifting).
@@ -192,7 +193,7 @@ def friction_eim(layout: ContactLayout, Bn_train: Sequence, Bt_train: Sequence,
     tol, m_max
         EIM stopping (relative max-norm training error; largest size), each of the three.
     valid : (Bn_valid, Bt_valid, Gn_valid), optional
-        Validation operators: ``info["valid_curves"]`` gets the seed's e_EIM and the max
+        Validation operators: ``info["valid_curves"]`` gets Benaceur et al.'s e_EIM and the max
         relative error of each nested interpolant
         (:func:`rbbench.rb.algorithms.eim.eim_error_curve`).
     slip_rows : (M_s,) int, optional
@@ -246,7 +247,7 @@ def _valid_curves(results: tuple[EIMResult, ...], valid: tuple, Z: np.ndarray
 def reduced_eim_errors(feim: FrictionEIM, mus: np.ndarray, Bn: Sequence, Bt: Sequence,
                        Gn: np.ndarray, Z: np.ndarray, Vn: np.ndarray, Vt: np.ndarray
                        ) -> dict[str, float]:
-    """Seed's ratio of maxima over ``mus`` of the max-norm error of the reduced arrays
+    """Benaceur et al.'s ratio of maxima over ``mus`` of the max-norm error of the reduced arrays
     ``Bn_N``, ``Bt_N``, ``Gn_N`` (EIM against the projection of the exact operators)."""
     num, den = np.zeros(3), np.zeros(3)
     for j, mu in enumerate(np.atleast_2d(np.asarray(mus, dtype=float))):

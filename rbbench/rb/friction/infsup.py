@@ -1,6 +1,8 @@
-"""Inf-sup constants and PGA of the combined friction form ``b = b^n + b^tau`` (issue 14, item 2).
+"""Inf-sup constants and PGA of the combined friction form ``b = b^n + b^tau``.
 
-Seed 000, slide "Preliminaries" (2: "Stabilization using PGA algorithm")::
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slide "Preliminaries" (2: "Stabilization using PGA
+algorithm")::
 
     b(mu; v, eta) = b^n(mu; v, eta^n) + b^tau(mu; v, eta^tau),   eta = (eta^n, eta^tau)
 
@@ -21,9 +23,9 @@ with ``S``, ``M`` of :func:`rbbench.rb.algorithms.infsup.quotient_matrices`. Num
 * zero test (:func:`mixed_zero_test`): exact LP after projecting out the tangential range;
 * ``c_HF``: the continuity constant of the combined HF form (:func:`hf_constants`).
 
-Normalisation (issue 16): the raw values carry units (``X`` is the energy inner product, so
+Normalisation: the raw values carry units (``X`` is the energy inner product, so
 ``beta ~ 1 / sqrt(E)``). The dimensionless value reported beside them is ``beta / c_HF(mu)``,
-the seed's own ratio (``delta_PGA = sup beta_HF / c_HF``): invariant under any rescaling
+Benaceur et al.'s own ratio (``delta_PGA = sup beta_HF / c_HF``): invariant under any rescaling
 of ``X``, ``W`` or the multiplier units, and in ``[0, 1]`` for ``beta <= c_HF``.
 """
 
@@ -215,7 +217,7 @@ def hf_constants(Bn, Bt, W, x_solve: Any) -> CombinedInfSup:
 
     ``value = span`` is the exact value over ``R^{2m}``, a LOWER BOUND of the HF value
     (the normal cone is not enumerated at this size); ``is_zero`` is the exact LP test on the
-    HF set; ``c = c_HF``, ``value_rel = beta_HF / c_HF`` (the seed's ratio).
+    HF set; ``c = c_HF``, ``value_rel = beta_HF / c_HF`` (Benaceur et al.'s ratio).
     """
     H = inf.supremizer_operator(combined_b(Bn, Bt), x_solve)
     return _hf_from_factor(H, combined_w(W).toarray(), int(Bn.shape[0]))

@@ -1,6 +1,8 @@
-"""The mixed friction model's offline steps (issue 14, stage 1: the plain reduced model).
+"""The mixed friction model's offline steps (the plain reduced model).
 
-Seed 000, slides "Plain RBM", "Preliminaries", "Greedy Collocation Node Selection (GCNS)".
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Plain RBM", "Preliminaries", "Greedy Collocation
+Node Selection (GCNS)".
 After the primal space V_N (shared skeleton, :mod:`rbbench.rb.offline`; POD of u):
 
 1. the normal cone ``W_R^n = Span+(Vn)`` of the lam_n snapshots (a registered dual
@@ -17,8 +19,9 @@ After the primal space V_N (shared skeleton, :mod:`rbbench.rb.offline`; POD of u
    time), then the small Coulomb solve
    (:class:`rbbench.rb.friction.collocation.model.FrictionReducedModel`).
 
-These are the seed's model (:class:`rbbench.rb.friction.collocation.stage.FrictionStage`,
-``friction_dual = "seed"``, the default). ``friction_dual = "wedge"`` selects our alternative
+These steps are Benaceur et al.'s model, the collocation model
+(:class:`rbbench.rb.friction.collocation.stage.FrictionStage`, ``friction_dual = "collocation"``,
+the default). ``friction_dual = "wedge"`` selects our alternative
 (:class:`rbbench.rb.friction.wedge.stage.WedgeStage`): cones of ``F lam_n +- lam_t`` in
 place of steps 1 and 3 (the Coulomb cone at every HF node, no GCNS) and De Saxce's fixed
 point online (:mod:`rbbench.rb.friction.wedge.model`). The choice is read from the ReduceConfig

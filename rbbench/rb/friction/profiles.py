@@ -1,7 +1,9 @@
-"""Contact profiles of a reduced friction model against the HF snapshots (issue 14, item 6).
+"""Contact profiles of a reduced friction model against the HF snapshots.
 
-Seed 000, slide "RB solutions": ``lam_t`` of the HF and of the reduced solution against
-``x`` on the contact zone, with the Coulomb bounds ``+- F lam_n``, at ``mu = 0.7, 1, 1.3``.
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slide "RB solutions": ``lam_t`` of the HF and of the reduced
+solution against ``x`` on the contact zone, with the Coulomb bounds ``+- F lam_n``, at
+``mu = 0.7, 1, 1.3``.
 The profiles are taken at the training parameters nearest to the lower bound, the middle
 and the upper bound of the parameter box (the HF values are then the snapshots themselves:
 no extra HF solve); ``mu`` records the parameters actually used.
@@ -21,7 +23,7 @@ PROFILE_DEFINITION = (
     "bound of the parameter box; HF values are the training snapshots): x (m) of the "
     "contact (collocation) nodes in ascending order, lam_t_hf / lam_t_rb (Pa, nodal P1 "
     "values of the HF and the reconstructed reduced tangential multiplier), lam_n_hf / "
-    "lam_n_rb (Pa), bound_hf = F lam_n of the HF solution (Pa): the seed's figure 'RB "
+    "lam_n_rb (Pa), bound_hf = F lam_n of the HF solution (Pa): Benaceur et al.'s figure 'RB "
     "solutions'")
 
 

@@ -1,10 +1,11 @@
 """Hyper-reduction of the contact constraint: EIM of ``B(mu) Z`` and ``G(mu)`` (``hyper = "eim"``).
 
-Why not the entries of ``B(mu)``. On a parametrised geometry (seed 000,
+Why not the entries of ``B(mu)``. On a parametrised geometry (Benaceur, Drouet, Ehrlacher, Ern
+& Niakh, "Model order reduction methods: parametric variational inequalities" (talk), slide
 "Affine parametric decomposition") ``B(mu)`` is not affine: every slave
 quadrature point slides along the master polygon as mu changes, so each
 *entry* of ``B(mu)`` is a hat-shaped function of mu, and the entrywise EIM
-of the seed generalises badly (its ``e_EIM`` is still reported, see
+of Benaceur et al. generalises badly (its ``e_EIM`` is still reported, see
 :func:`entrywise_eim_error`: on ``hertz_halfdisks`` with 21 training
 parameters it interpolates the training set and misses the validation set
 by 69 %). Interpolating the columns of ``C(mu) = B(mu) Z`` over the multiplier
@@ -343,7 +344,7 @@ def local_free_rows(ev: RowEvaluator, free: np.ndarray, n_dofs: int) -> np.ndarr
 
 def entrywise_eim_error(B_train: list, B_valid: list, tol: float = 1e-8,
                         m_max: int | None = None) -> dict:
-    """The seed's entrywise EIM of ``B(mu)`` (slide "EIM errors"), for comparison.
+    """Benaceur et al.'s entrywise EIM of ``B(mu)`` (slide "EIM errors"), for comparison.
 
     Returns the training error curve and the validation ``e_EIM`` at the
     final size (ratio of maxima over the validation set).

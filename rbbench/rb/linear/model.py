@@ -1,10 +1,11 @@
-"""Reduced linear models with a residual-based a posteriori error estimator (issue 18).
+"""Reduced linear models with a residual-based a posteriori error estimator.
 
 Galerkin projection on an X-orthonormal basis ``Z`` with the exact affine decomposition
 ``A(mu) Z = sum_q theta_q(mu) (A_q Z)``, ``F(mu) = sum_q theta_q(mu) F_q``,
 ``theta = [1, mu_1, ..., mu_p]``, found and verified by probing
-(:func:`rbbench.rb.algorithms.affine.affine_decomposition`; seed 000, "Offline / online
-decomposition").
+(:func:`rbbench.rb.algorithms.affine.affine_decomposition`; Benaceur, Drouet, Ehrlacher, Ern &
+Niakh, "Model order reduction methods: parametric variational inequalities" (talk), slide
+"Affine parametric decomposition").
 
 Estimator (Patera & Rozza 2007; Grepl & Patera 2005; Haasdonk & Ohlberger 2008): with the
 Riesz representers of the residual pieces, ``||r(mu)||_{X'}^2 = c^T G c`` (``G``: their

@@ -1,4 +1,4 @@
-"""The offline skeleton for the linear scenes (issue 18): no dual, no stabiliser, no contact.
+"""The offline skeleton for the linear scenes: no dual, no stabiliser, no contact.
 
 The same steps and objects as :func:`rbbench.rb.offline.offline` (training / validation
 sets, cached HF snapshots, a primal space, the formulation's ``reduction()`` steps building
@@ -6,7 +6,9 @@ a :class:`~rbbench.rb.validation.ReducedStage`, then the shared
 :func:`~rbbench.rb.validation.validate`), with the HF solves of :mod:`rbbench.hf.linear.model`
 instead of a contact solver: nothing of the contact pipeline is built.
 
-* ``thermal`` (elliptic): primal = the registered compressor (``pod``: seed 000, Method 1).
+* ``thermal`` (elliptic): primal = the registered compressor (``pod``: Benaceur, Drouet,
+  Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational inequalities"
+  (talk), slide "Method 1: Proper Orthogonal Decomposition").
 * ``heat`` (implicit Euler): primal ``pod`` is POD-greedy (Haasdonk & Ohlberger 2008): POD
   in time of the projection error of the trajectory the estimator ranks worst over the
   training set, one mode per iteration, up to ``N`` (else tolerance ``tol_pod`` on the

@@ -1,4 +1,4 @@
-"""The compiled online path of the mixed reduced model (issue 17, item 1): contact EIM or
+"""The compiled online path of the mixed reduced model: contact EIM or
 exact affine constraints.
 
 :meth:`rbbench.rb.mixed.model.ReducedModel.solve` spends ~95 % of its ~420 us on the

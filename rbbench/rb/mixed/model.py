@@ -1,6 +1,8 @@
 """The reduced model: small dense arrays only, picklable, timed alone.
 
-Reduced problem (seed 000, "Decorrelated model reduction", step 3): with a
+Reduced problem (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+parametric variational inequalities" (talk), slide "Decorrelated model reduction", step 3):
+with a
 primal basis Z (n x N) and a dual cone W_R^+ = Span+(Vg) (Vg: m x R),
 ``u_N = Z c`` and ``lam_R = Vg alpha``, ``alpha >= 0``::
 

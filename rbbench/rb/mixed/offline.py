@@ -1,7 +1,9 @@
 """The mixed formulation's offline steps: dual cone, stabiliser, hyper-reduction.
 
-Seed 000, "Decorrelated model reduction": after the primal space V_N (shared skeleton,
-:mod:`rbbench.rb.offline`) the multiplier snapshots are compressed to a cone
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slide "Decorrelated model reduction": after the primal space
+V_N (shared skeleton, :mod:`rbbench.rb.offline`) the multiplier snapshots are compressed to a
+cone
 ``W_R^+ = Span+(Vg)`` (a registered dual compressor: CPG, mCPG, ENG, ...), the saddle point
 is stabilised (none / online supremizers / PGA, a registered stabiliser), and the reduced
 constraint ``(B_N(mu), G_N(mu))`` is made HF-size independent by the exact affine
@@ -63,7 +65,7 @@ DEFINITIONS = {
             "supremizers, equal to whole V against the reduced cone); off: V_N + S_PGA. "
             "The raw values carry units (X is the energy inner product: beta ~ 1 / sqrt(E)); "
             "'value_rel' = value / c_HF(mu) and 'span_rel' = span / c_HF(mu) are "
-            "dimensionless (invariant under rescaling X or W; the seed's ratio delta_PGA = "
+            "dimensionless (invariant under rescaling X or W; Benaceur et al.'s ratio delta_PGA = "
             "sup beta_HF / c_HF), every row divided by the same c_HF(mu) so rows compare",
     "beta_rel": "beta_<name>_rel_min / beta_<name>_span_rel_min: min over the validation "
                 "set of the rows' value_rel / span_rel (beta / c_HF(mu), see 'beta'); "
@@ -76,17 +78,19 @@ DEFINITIONS = {
                 "with the HF size",
     "speedup": "median HF solve time / median online time",
     "e_proj": "dual compressor: relative max projection error of the multiplier snapshots on "
-              "the cone after r generators (seed 000, mCPG (4/4))",
+              "the cone after r generators (Benaceur et al., mCPG algorithm (4/4))",
     "e_orth": "normalised distance of each new generator from the previous cone",
     "sigma_max": "PGA: max over the training set of sigma_S(mu) before each addition",
-    "pga_delta": "PGA tolerance on sigma_max; default: the seed's rule delta = sup_mu beta/c "
+    "pga_delta": "PGA tolerance on sigma_max; default: Benaceur et al.'s rule "
+                 "delta = sup_mu beta/c "
                  "over a training subset, beta the inf-sup over span(generators) in whole V "
                  "(a lower bound of beta_on), c the boundedness constant",
     "eim_error": "hyper 'eim': relative max-norm EIM training error of the contact rows "
-                 "B(mu) Z_off after each magic row (seed 'EIM errors' definition, ratio of "
+                 "B(mu) Z_off after each magic row (Benaceur et al.'s 'EIM errors' definition, "
+                 "ratio of "
                  "maxima over the training set); eim_error_G the same for G(mu); "
                  "eim.e_eim_valid_BN / _GN: the resulting error of B_N, G_N over the validation "
-                 "set; eim_entrywise: the seed's entrywise EIM of B(mu) for comparison",
+                 "set; eim_entrywise: Benaceur et al.'s entrywise EIM of B(mu) for comparison",
 }
 
 
@@ -326,7 +330,7 @@ def _contact_eim(backend, scene: Scene, backend_name: str, options: MixedOptions
     ceim = contact_eim(layout, B_eim, np.stack(G_eim, axis=1), Z, Vg, p0.free, mus_eim,
                        tol=options.tol_eim, m_max=options.m_eim)
     ceim.info["n_eim_train"] = len(mus_eim)
-    # validation e_EIM of the reduced constraint (seed's ratio of maxima over the set)
+    # validation e_EIM of the reduced constraint (Benaceur et al.'s ratio of maxima over the set)
     num_b = den_b = num_g = den_g = 0.0
     for mu in mus_valid:
         p = problem_at(mu)

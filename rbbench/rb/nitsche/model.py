@@ -1,6 +1,8 @@
 """Reduced Nitsche model: POD primal space, DEIM of the contact term at quadrature points.
 
-Seed 000, slides "RB model" (Nitsche): ``u_N = Z c``, a reduced Newton method
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "RB model" (Nitsche): ``u_N = Z c``, a reduced Newton
+method
 ``(A_N + B_N(mu, c_k)) dc = -R_N(mu, c_k)``, and an affine approximation of the
 parameter- and iteration-dependent contact arrays so that the online stage does
 not depend on the HF size.
@@ -39,10 +41,10 @@ mesh. Two ways to replace the sum over all points (``ReduceConfig.hyper``):
   online Newton solves not converging: ``[P_gamma]_-`` has a kink at the contact
   edge, which moves with mu and c, and an interpolation from a few point values
   generalises badly (as the entrywise EIM of ``B(mu)`` in :mod:`rbbench.rb.hyper.contact_eim`).
-  Kept for comparison with the seed's EIM.
+  Kept for comparison with Benaceur et al.'s EIM.
 * ``"none"`` -> plain: the exact sum over all points online (HF-size dependent).
 
-Why not the seed's entrywise EIM of the HF tangent ``B_gamma(mu, u_k)``: its
+Why not Benaceur et al.'s entrywise EIM of the HF tangent ``B_gamma(mu, u_k)``: its
 entries move with the pairing, and an entry gathers the points of a master dof,
 which change with mu; the point contributions are local (one point's pairing
 and stress give all its entries).
@@ -55,8 +57,8 @@ HF solutions. The online Newton method starts from the reduced solution at the
 nearest training parameter (small arrays stored in the model); the training
 iterates use the nearest *other* training parameter, a wider jump. Cold starts
 (``c = 0``: no contact, then a deep penetration) are left out: their huge
-pressures would set the scale of the relative tolerance. Reported (the seed's
-"EIM errors", ratios of maxima over the validation set): ``e_EIM`` of the reduced
+pressures would set the scale of the relative tolerance. Reported (Benaceur et
+al.'s "EIM errors", ratios of maxima over the validation set): ``e_EIM`` of the reduced
 contact residual ``r_c = sum_q y_q`` and of its tangent, at every online Newton
 iterate and at convergence.
 """

@@ -4,8 +4,9 @@ reduced Newton method; empirical cubature (ECSW) or DEIM at the contact points.
 The model and the online solve are in :mod:`rbbench.rb.nitsche.model` (its docstring
 describes the reduced residual, the hyper-reduction and its training); the skeleton
 (snapshots, primal space) is :mod:`rbbench.rb.offline`; validation adds the pressure and
-sigma_nn errors, the plain model's error (the floor for this V_N) and the seed's e_EIM along
-the online iterates.
+sigma_nn errors, the plain model's error (the floor for this V_N) and the e_EIM of Benaceur,
+Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational
+inequalities" (talk), slide "EIM errors", along the online iterates.
 """
 
 from __future__ import annotations
@@ -50,13 +51,13 @@ from rbbench.scene.loading import Scene
 DEFINITIONS = {
     "err_u": "relative error ||u - u_N||_X / ||u||_X per validation mu (X: the scene's V inner "
              "product on free dofs; u: the HF Nitsche solution); *_max / *_mean over the "
-             "validation set (the seed's e_N^u)",
+             "validation set (Benaceur et al.'s e_N^u)",
     "err_lam": "Nitsche: relative L2(Gamma_c) error of the contact pressure -[P_gamma]_- at the "
                "quadrature points, ||p(u) - p(u_N)|| / ||p(u)|| (the Nitsche multiplier)",
-    "err_snn": "the seed's e_N^nn: ||sigma_nn(u) - sigma_nn(u_N)|| / ||sigma_nn(u)|| in "
+    "err_snn": "Benaceur et al.'s e_N^nn: ||sigma_nn(u) - sigma_nn(u_N)|| / ||sigma_nn(u)|| in "
                "L2(Gamma_c) (contact quadrature), per validation mu",
     "penetration": "largest pointwise penetration max_q (Un u_N - gap)_+ (m) per validation mu",
-    "energy_err": "|J(u_N) - J(u)| / |J(u)|, J = 1/2 a(u, u) - f(u) (the seed's HF energy)",
+    "energy_err": "|J(u_N) - J(u)| / |J(u)|, J = 1/2 a(u, u) - f(u) (Benaceur et al.'s HF energy)",
     "t_online": "wall time of one online solve: evaluate the hyper-reduction points at mu "
                 "(pairing restricted to their facets), reduced Newton from the nearest "
                 "training solution; median and IQR over validation mus x repeats (s)",
@@ -65,7 +66,7 @@ DEFINITIONS = {
     "eim_error": "training error of the hyper-reduction after each added term: ECSW: relative "
                  "l2 residual of the weighted training sums; DEIM: greedy EIM relative max-norm "
                  "error of the point contributions (ratio of maxima)",
-    "eim": "rows: points evaluated online; e_eim_valid: the seed's e_EIM of the reduced "
+    "eim": "rows: points evaluated online; e_eim_valid: Benaceur et al.'s e_EIM of the reduced "
            "contact residual r_c = sum_q y_q over the validation set and every online Newton "
            "iterate (max over mu and k of ||r_c - r_c^hyper||_inf / max of ||r_c||_inf); "
            "e_eim_cv_valid: at convergence only; *_by_iteration: per iteration index; "
@@ -265,7 +266,7 @@ class NitscheStage(ReducedStage):
         return {"err_lam": _l2rel(w, pu - pN, pu), "penetration": pen}
 
     def _eim_along_iterates(self, mu: np.ndarray, u: np.ndarray) -> None:
-        """The plain model's error and the seed's e_EIM along the online iterates at mu."""
+        """The plain model's error and Benaceur et al.'s e_EIM along the online iterates at mu."""
         X, model, acc, num_k = self.ctx.X, self.model, self.acc, self.num_k
         rp = full_points(self.layout, mu, self.Zfull, self.u_lift, self.gamma0)
         th = self.coef(mu)

@@ -1,7 +1,8 @@
 """Dual compressors: reduced positive cones ``W_R^+`` from multiplier snapshots.
 
-Setting (``science.md`` section 2, step 2; seed 000, slides "CPG algorithm" and
-"mCPG algorithm (1/4)" to "(4/4)"): the multiplier snapshots ``theta_q``
+Setting (``science.md`` section 2, step 2; Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model
+order reduction methods: parametric variational inequalities" (talk), slides "CPG algorithm"
+and "mCPG algorithm (1/4)" to "(4/4)"): the multiplier snapshots ``theta_q``
 (``q = 1..Q``) are the columns of a dense ``Theta`` (``n x Q``) with
 non-negative entries (the HF positive cone ``W^+`` is the non-negative orthant
 of the coefficients). ``W`` is the SPD Gram matrix of the multiplier space and
@@ -10,12 +11,12 @@ whose generators ``v_1..v_R`` span the reduced cone
 ``W_R^+ = Span^+{v_r} = {V alpha, alpha >= 0}`` (or, for the POD baseline, a
 linear space).
 
-Error measures (seed, slide "mCPG algorithm (4/4)"):
+Error measures (Benaceur et al., slide "mCPG algorithm (4/4)"):
 
 * ``e_proj(R) = max_q ||(I - Pi_{W_R^+}) theta_q||_W / max_q ||theta_q||_W``,
   with ``Pi_{W_R^+}`` the W-orthogonal projection onto the closed convex cone
   (computed exactly by :func:`cone_projection`).
-* ``e_orth(r)``: the seed writes ``||(I - Pi_{W_R^+}) nu_r||_W``, which is zero
+* ``e_orth(r)``: Benaceur et al. write ``||(I - Pi_{W_R^+}) nu_r||_W``, which is zero
   for every generator of ``W_R^+`` if read literally. We read it as the
   *aperture of the new generator*: its normalised distance from the previous
   cone, ``e_orth(r) = ||(I - Pi_{W_{r-1}^+}) nu_r||_W / ||nu_r||_W`` in

@@ -1,7 +1,9 @@
 """The greedy cone compressors CPG, mCPG and ENG, and their result :class:`DualBasis`.
 
 Setting and error measures: :mod:`rbbench.rb.algorithms.cones`. One shared loop (:func:`_greedy`,
-the selection of the seed's "CPG algorithm"); the methods differ in the generator they add
+the selection of the "CPG algorithm" of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order
+reduction methods: parametric variational inequalities" (talk)); the methods differ in the
+generator they add
 (the raw snapshot, or its mCPG residual, :func:`rbbench.rb.algorithms.cones.split.mcpg_split`) and,
 for ENG, in a peeling pass over all generators after each addition.
 """
@@ -51,7 +53,7 @@ class DualBasis:
     selected : list of int
         Snapshot index ``q_r`` picked at each greedy iteration (empty if none).
     e_proj : list of float
-        ``e_proj(r)``, ``r = 1..R`` (seed, "mCPG algorithm (4/4)"); NaN where
+        ``e_proj(r)``, ``r = 1..R`` (Benaceur et al., slide "mCPG algorithm (4/4)"); NaN where
         not computed (non-nested NNMF, see ``info``).
     e_orth : list of float
         Aperture ``||(I - Pi_{W_{r-1}^+}) v_r||_W / ||v_r||_W`` of each new
@@ -114,7 +116,7 @@ def _greedy(
     make_generator: Callable[[np.ndarray, ConeGram, dict], np.ndarray],
     post_add: Callable[[np.ndarray, WMetric, dict], np.ndarray] | None = None,
 ) -> DualBasis:
-    """Shared loop of CPG / mCPG / ENG (selection of the seed's "CPG algorithm")."""
+    """Shared loop of CPG / mCPG / ENG (selection of Benaceur et al.'s "CPG algorithm")."""
     t0 = time.perf_counter()
     M = as_metric(W)
     T, n_clipped = _check_snapshots(Theta)
@@ -174,7 +176,8 @@ def _greedy(
 # ----------------------------------------------------------------------- greedies
 def cpg(Theta: np.ndarray, W: Any, tol: float = 1e-3, r_max: int | None = None,
         **options: Any) -> DualBasis:
-    """Cone Projected Greedy (seed 000, slide "CPG algorithm" [Benaceur, Ern, Ehrlacher 2020]).
+    """Cone Projected Greedy (Benaceur et al., slide "CPG algorithm" [Benaceur, Ern, Ehrlacher
+    2020]).
 
     Iteration ``r``: select ``q_r = argmax_q ||(I - Pi_{W_{r-1}^+}) theta_q||_W``
     and set ``W_r^+ = Span^+{theta_{q_1}, ..., theta_{q_r}}``; each generator is
@@ -231,7 +234,7 @@ def _mcpg_generator(th: np.ndarray, gram: ConeGram, info: dict) -> np.ndarray:
 
 def mcpg(Theta: np.ndarray, W: Any, tol: float = 1e-3, r_max: int | None = None,
          **options: Any) -> DualBasis:
-    """Modified Cone Projected Greedy (seed 000, slide "mCPG algorithm (2/4)").
+    """Modified Cone Projected Greedy (Benaceur et al., slide "mCPG algorithm (2/4)").
 
     Same selection as :func:`cpg`; the new generator is
     ``nu_r = theta_{q_r} - theta_tilde_{r-1}`` (normalised in ``W``), where
@@ -240,7 +243,7 @@ def mcpg(Theta: np.ndarray, W: Any, tol: float = 1e-3, r_max: int | None = None,
     exact QP). Since ``theta_{q_r} = nu_r + theta_tilde`` with
     ``theta_tilde in W_{r-1}^+``, the cones are nested and contain the selected
     snapshots, as for CPG, but the generators are "peeled" of what the previous
-    cone already explains. The seed (slides "(3/4)", "(4/4)") reports a wider
+    cone already explains. Benaceur et al. (slides "(3/4)", "(4/4)") report a wider
     aperture (larger ``e_orth``), better accuracy and a better conditioned
     Gram matrix than CPG; this is an empirical claim, not a theorem (the
     selections of the two greedies differ after the first step).
@@ -291,7 +294,7 @@ def eng(Theta: np.ndarray, W: Any, tol: float = 1e-3, r_max: int | None = None,
         *, sweeps: int = 1, min_gain: float = 1e-10, **options: Any) -> DualBasis:
     """Enlarged Nonnegative Greedy: CPG selection + mCPG peeling of *all* generators.
 
-    The seed (slide "mCPG algorithm (3/4)") only names ENG [Bakhta, Boiveau,
+    Benaceur et al. (slide "mCPG algorithm (3/4)") only name ENG [Bakhta, Boiveau,
     Maday & Mula 2020] as the idea of building progressively a cone of wider
     aperture inside ``W^+``; the paper's algorithm was not available to us.
     What is implemented here is our design, built on one elementary fact:

@@ -205,7 +205,8 @@ def cone_projection(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | float]:
     """W-orthogonal projection onto the cone ``Span^+(columns of V)``.
 
-    Implements ``Pi^W_{W_R^+}`` of the seed (slides "CPG algorithm" and
+    Implements ``Pi^W_{W_R^+}`` of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order
+    reduction methods: parametric variational inequalities" (talk) (slides "CPG algorithm" and
     "mCPG algorithm (4/4)"): ``alpha = argmin_{alpha >= 0} ||theta - V alpha||_W``.
     Solved as an exact active-set NNLS (Lawson-Hanson) on the ``R x R``
     triangular factor of ``C V`` (see :class:`ConeGram`), one small solve per

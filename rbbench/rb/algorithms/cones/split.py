@@ -1,4 +1,7 @@
-"""The mCPG split ``theta = theta_tilde + nu`` (seed 000, slide "mCPG algorithm (2/4)").
+"""The mCPG split ``theta = theta_tilde + nu``.
+
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slide "mCPG algorithm (2/4)".
 
 A QP in the cone coefficients, solved by ``daqp`` after an exact presolve and made exactly
 feasible afterwards (see :func:`mcpg_split`). Used by the mCPG and ENG greedies of
@@ -92,7 +95,7 @@ def mcpg_split(
     W: Any = None,
     gram: ConeGram | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-    """The mCPG split ``theta = theta_tilde + nu`` (seed, slide "mCPG algorithm (2/4)").
+    """The mCPG split ``theta = theta_tilde + nu`` (Benaceur et al., slide "mCPG algorithm (2/4)").
 
     ``theta_tilde = V alpha`` solves ::
 

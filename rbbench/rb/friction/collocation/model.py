@@ -1,8 +1,9 @@
 """The reduced friction model: small dense arrays, the online Coulomb solve, picklable.
 
-Seed 000, slides "Plain RBM", "Preliminaries" (4: "Large collocation sets"). With a primal
-basis ``Z`` (n x N), the normal cone ``W_R^n = Span+(Vn)`` (Vn: m x R, mCPG) and the
-tangential space ``X_S = span(Vt)`` (Vt: m x S, POD of lam_t), ``u_N = Z a``,
+Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), slides "Plain RBM", "Preliminaries" (4: "Large collocation
+sets"). With a primal basis ``Z`` (n x N), the normal cone ``W_R^n = Span+(Vn)`` (Vn: m x R,
+mCPG) and the tangential space ``X_S = span(Vt)`` (Vt: m x S, POD of lam_t), ``u_N = Z a``,
 ``lam_n = Vn c_n``, ``lam_t = Vt theta``, the reduced problem of one load step is::
 
     A_N a + Bn_N^T c_n + Bt_N^T theta = F_N,   c_n >= 0,   Vn^T (Gn - Bn Z a) in (R_+^R)^*
@@ -16,7 +17,7 @@ condensation (:mod:`rbbench.hf.algebra.friction`), ``a = a0 - A_N^{-1} B_N^T x``
 ``q_N = [Gn_N - Bn_N a0; gt_N - Bt_N a0]``, and Tresca is the QP
 ``min 1/2 x^T D_N x + q_N^T x`` over ``c_n >= 0``, ``-s <= Qt theta <= s``, solved by daqp
 (Arnstrom et al. 2022; ``D_N`` may be singular when ``R + S > N``: daqp's proximal
-regularisation, ``u_N`` is unique, the multipliers need not be). Coulomb is the seed's
+regularisation, ``u_N`` is unique, the multipliers need not be). Coulomb is Benaceur et al.'s
 fixed point on Tresca, ``s_r = nu_F (Qn c_n)_r`` of the previous iterate, warm-started from
 the nearest training mu.
 """
@@ -132,7 +133,7 @@ class FrictionOnlineResult:
 def solve_coulomb(cond: ReducedCondensed, Qn: np.ndarray, Qt: np.ndarray,
                   values: np.ndarray, law: str = "coulomb", x0: np.ndarray | None = None,
                   tol: float = 1e-10, max_iter: int = 200) -> FrictionOnlineResult:
-    """Tresca (one QP, ``s = values``) or Coulomb by the seed's fixed point on Tresca
+    """Tresca (one QP, ``s = values``) or Coulomb by Benaceur et al.'s fixed point on Tresca
     (``s = values * (Qn c_n)`` of the previous iterate, clipped at 0) until the relative
     increment is ``<= tol`` (relative to ``max(||x||_inf, 1e-12 ||q|| / ||D||_2)``: a
     zero solution, all nodes open, converges too). Stops ``"converged"``,

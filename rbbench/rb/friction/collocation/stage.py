@@ -1,8 +1,9 @@
-"""The seed's reduced friction model as a stage of the offline skeleton (issue 14, stage 1).
+"""The collocation reduced friction model as a stage of the offline skeleton.
 
-Seed 000, slides "Plain RBM", "Preliminaries", "Greedy Collocation Node Selection (GCNS)";
-the steps are listed in :mod:`rbbench.rb.friction.offline` (which selects this stage or the
-wedge one, :mod:`rbbench.rb.friction.wedge.stage`).
+The model of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+parametric variational inequalities" (talk), slides "Plain RBM", "Preliminaries", "Greedy
+Collocation Node Selection (GCNS)"; the steps are listed in :mod:`rbbench.rb.friction.offline`
+(which selects this stage or the wedge one, :mod:`rbbench.rb.friction.wedge.stage`).
 """
 
 from __future__ import annotations
@@ -56,7 +57,8 @@ DEFINITIONS = {
                     "training mu and HF nodes of [|lam_t,S| - nu_F lam_n,R]_+ (Pa; e_nt_rel: "
                     "over max |lam_t| of the snapshots), e_gcns = max over training mu of "
                     "||lam_t - lam_t,S||_W / ||lam_t||_W, mu_index (training column mu_q)",
-    "gcns_iterations": "q of the kept collocation set (seed: 20); S_q its size (seed: 40)",
+    "gcns_iterations": "q of the kept collocation set (published: 20); S_q its size "
+                       "(published: 40)",
     "t_online": "wall time of one online solve: HF assembly at mu + projection on the bases "
                 "(t_online_hf_assembly_s, the plain model: grows with the HF size) + the "
                 "reduced Coulomb fixed point (t_online_solve_median_s); median over "
@@ -65,10 +67,10 @@ DEFINITIONS = {
     "u_best": "per validation mu: ||u - Pi u||_X / ||u||_X, Pi the X-projection onto the "
               "online primal space span(Z_off): the floor of err_u",
     "dim_v_off": "N + K: the primal space after the stabiliser (PGA on the combined form "
-                 "b^n + b^tau: [Bn; Bt] against blockdiag(Vn, Vt); seed: 70)",
-    "delta_pga": "PGA tolerance: the seed's rule sup_mu beta / c of the combined form over "
+                 "b^n + b^tau: [Bn; Bt] against blockdiag(Vn, Vt); published: 70)",
+    "delta_pga": "PGA tolerance: Benaceur et al.'s rule sup_mu beta / c of the combined form over "
                  "every fifth training mu (beta over span(blockdiag(Vn, Vt)) in whole V, a "
-                 "lower bound; seed: 0.072); null without PGA",
+                 "lower bound; published: 0.072); null without PGA",
     "beta": "inf-sup constants of the combined form b^n + b^tau per validation mu "
             "(rbbench.rb.friction.infsup.validation_constants): hf = whole V against the HF "
             "set R^m_+ x R^m (span value: a LOWER BOUND), dec = whole V against the reduced "
@@ -76,7 +78,7 @@ DEFINITIONS = {
             "set; 'value' of kind cone-exact / cone-upper (an upper estimate) / "
             "span-lower-bound, 'span' the span lower bound, 'is_zero' the exact LP test, 'c' "
             "the continuity constant on the same spaces; value_rel / span_rel = value / c_HF(mu) "
-            "(dimensionless; the seed's delta_PGA ratio). Raw values are in the units of "
+            "(dimensionless; Benaceur et al.'s delta_PGA ratio). Raw values are in the units of "
             "X and W (X: energy inner product, so beta ~ 1 / sqrt(E))",
     "lam_t_profiles": PROFILE_DEFINITION,
 }
@@ -98,7 +100,7 @@ class TangentialBasis:
 def tangential_pod(LAM_T: np.ndarray, W: Any, tol: float | None = None,
                    s_max: int | None = None) -> TangentialBasis:
     """The tangential compressor: POD of the lam_t snapshots in the W inner product
-    (seed 000, "Preliminaries" 1: ``X_S^tau = Span{v_s^tau}``), ``S`` = ``s_max`` modes or
+    (Benaceur et al., "Preliminaries" 1: ``X_S^tau = Span{v_s^tau}``), ``S`` = ``s_max`` modes or
     the energy tolerance ``tol`` (:func:`rbbench.rb.algorithms.pod.pod`)."""
     res = pod(LAM_T, W, tol=tol, n=s_max)
     return TangentialBasis(res.Z, "pod", {"singular_values": res.s.tolist(),

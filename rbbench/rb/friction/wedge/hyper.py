@@ -1,4 +1,4 @@
-"""The hyper-reduced wedge model: online work independent of the HF size (issue 14, item 3).
+"""The hyper-reduced wedge model: online work independent of the HF size.
 
 The plain wedge model (:mod:`rbbench.rb.friction.wedge.model`) projects the HF operators at mu.
 Here every online array comes from small dense data:

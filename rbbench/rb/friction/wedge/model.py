@@ -1,6 +1,7 @@
 """Coulomb wedge cones and De Saxce's modified gap: a reduced friction model whose friction
-cone holds at EVERY HF node by construction (issue 14; our alternative to the seed's
-``X_S`` + collocation model, :mod:`rbbench.rb.friction.collocation.model`).
+cone holds at EVERY HF node by construction (our alternative to the ``X_S`` + collocation
+model of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+variational inequalities" (talk), :mod:`rbbench.rb.friction.collocation.model`).
 
 In 2D the Coulomb cone ``K = {|lam_t| <= F lam_n}`` is a wedge, the image of the
 non-negative orthant under ``w+ = F lam_n + lam_t``, ``w- = F lam_n - lam_t``: every HF

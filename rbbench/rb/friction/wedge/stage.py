@@ -1,18 +1,20 @@
 """The wedge dual model in the friction offline skeleton (``friction_dual = "wedge"``).
 
 :class:`WedgeStage` replaces three steps of
-:class:`rbbench.rb.friction.collocation.stage.FrictionStage` (the seed's model): the dual spaces are
-the cones of ``w+ = F lam_n + lam_t`` and ``w- = F lam_n - lam_t`` (the registered dual compressor,
-``R`` generators for ``w+`` and ``S`` for ``w-``: ``R + S`` dual unknowns, as the seed's ``R``
-normal + ``S`` tangential), the stabiliser acts on the combined generators ``[Ln; Lt]`` (PGA on
-``b^n + b^tau``), and there is no GCNS (the cone holds at every HF node by construction); the online
-solve is De Saxce's fixed point (:mod:`rbbench.rb.friction.wedge.model`).
+:class:`rbbench.rb.friction.collocation.stage.FrictionStage` (the collocation model of Benaceur,
+Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric variational
+inequalities" (talk)): the dual spaces are the cones of ``w+ = F lam_n + lam_t`` and
+``w- = F lam_n - lam_t`` (the registered dual compressor, ``R`` generators for ``w+`` and ``S``
+for ``w-``: ``R + S`` dual unknowns, as the collocation model's ``R`` normal + ``S`` tangential),
+the stabiliser acts on the combined generators ``[Ln; Lt]`` (PGA on ``b^n + b^tau``), and there is
+no GCNS (the cone holds at every HF node by construction); the online solve is De Saxce's fixed
+point (:mod:`rbbench.rb.friction.wedge.model`).
 
 Measured on hertz_friction P1 (default mesh, 36910 dofs, 513 contact nodes, F = 0.2; 41
 training, 20 validation mu; N = 30, PGA capped at K = 40, mCPG), max over validation:
 
 =========================  ===========  ===========  ===========  =================
-model                      seed 20+20   wedge 20+20  wedge 10+10  wedge 20+20, no PGA
+model                      colloc 20+20 wedge 20+20  wedge 10+10  wedge 20+20, no PGA
 =========================  ===========  ===========  ===========  =================
 err_u (floor 1.6e-4)       1.5e-2       2.4e-4       3.7e-4       2.2e-4
 err_lam_n (floor 0.033)    0.147        0.063        0.074        0.58
@@ -23,7 +25,7 @@ online fixed-point its     13           6            6            94
 reduced solve (s)          0.020        0.020        0.056        0.077
 =========================  ===========  ===========  ===========  =================
 
-(seed with GCNS patience: S_q = 168, err_u 4.7e-3, err_lam_t 1.00.) Without PGA the
+(collocation with GCNS patience: S_q = 168, err_u 4.7e-3, err_lam_t 1.00.) Without PGA the
 displacement stays good but the multipliers are not controlled (inf-sup).
 
 ``hyper = "eim"`` (:mod:`rbbench.rb.friction.wedge.hyper`): no HF work online. Same case,
@@ -122,7 +124,7 @@ class WedgeStage(FrictionStage):
         check_finite(f"dual compressor {options.dual!r}: the wedge generators",
                      self.wedge.generators)
         self.Vn, self.Vt = self.wedge.Ln, self.wedge.Lt
-        self.R = int(self.wedge.Vp.shape[1])  # R + S dual unknowns, as the seed's
+        self.R = int(self.wedge.Vp.shape[1])  # R + S dual unknowns, as the collocation model's
         self.S = int(self.wedge.Vm.shape[1])
         self.histories = {**primal_histories(ctx.primal), **self.wedge.history}
         ctx.timings["dual_s"] = time.perf_counter() - t1
