@@ -49,7 +49,7 @@ class NitscheFormulation(Formulation):
         slave's Young's modulus and ``h`` the slave facet length at each point.
         ``theta = 1`` needs ``gamma0`` large enough for the Nitsche energy to be
         convex (the inverse trace constant of the mesh; about 1 on the Hertz
-        meshes, see ``tests/test_nitsche.py``); 10 by default.
+        meshes, see ``tests/hf/algebra/test_nitsche.py``); 10 by default.
     """
 
     name = "nitsche"

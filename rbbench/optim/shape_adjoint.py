@@ -11,7 +11,7 @@ of the projection) the branch convention of ``shape_state`` picks one of the lim
 make up Propositions 3 and 4, i.e. an element of the limiting coderivative, so ``xi`` is a
 subgradient in the sense the bundle method needs. Where the active sets are stable ``Theta``
 is differentiable and ``xi`` is its gradient (checked against central differences in
-``tests/test_shape_adjoint.py``).
+``tests/optim/test_shape_adjoint.py``).
 
 Design dependence: the stiffness through the moving mesh (``dA / d alpha`` exactly, by the
 complex step, :func:`~rbbench.optim.shape_mesh.stiffness_design_products`), the gap

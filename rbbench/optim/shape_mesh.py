@@ -8,7 +8,7 @@ points). Node ``(i, j)`` sits at ``x1 = a + i h`` and
 the design, the dof count does not. Column ``i`` of nodes depends on ``alpha_i`` only, so
 ``dA / d alpha_i`` touches the two element columns beside it; it is computed exactly by the
 complex step (Squire & Trapp 1998) on the element kernel, which is analytic in the nodal
-coordinates. The kernel is plain numpy; ``tests/test_shape_mesh.py`` checks it against
+coordinates. The kernel is plain numpy; ``tests/optim/test_shape_mesh.py`` checks it against
 scikit-fem's ``ElementQuad1`` assembly on the same nodes.
 """
 from __future__ import annotations

@@ -11,7 +11,7 @@ matrices with the coefficients ``theta = (d, s, 1, s^2 / d, s / d, 1 / d)``::
 
     A(alpha) = sum_c sum_g sum_k theta_k(d_cg, s_c) T_gk   (T_gk the same for every column)
 
-exactly (``tests/test_shape_reduced.py`` checks it against ``assemble_stiffness``), and
+exactly (``tests/optim/test_shape_reduced.py`` checks it against ``assemble_stiffness``), and
 ``d theta / d alpha`` is analytic. So a Galerkin projection costs no assembly online.
 
 **Reduced model.** The contact nonlinearity lives on the ``2 I - 1`` contact dofs ``u_c``;

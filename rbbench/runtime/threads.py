@@ -53,7 +53,7 @@ def limit_blas_threads(n: int) -> str:
     worker it is ``"threadpoolctl"`` when MKL is loaded: Intel's OpenMP runtime
     (``libiomp5``) comes back at its default count after a fork (2 here, the parent
     capped at 1), so that pool is set again (measured: 2-4 ms with the scan of the
-    loaded libraries; ``tests/test_threads_floor.py``).
+    loaded libraries; ``tests/runtime/test_threads.py``).
     """
     from threadpoolctl import ThreadpoolController
 

@@ -33,7 +33,7 @@ them); the cap is lifted at the end of that call (after the shutdown of a pool n
 also when the pool is kept. Held across a :func:`keep_workers` block, a process forked by
 another thread between two calls of the block got a pending Python exception in its
 ``threading`` fork hook (``SystemError`` in ``RLock()``) and hung at exit in
-``threading._shutdown`` (``tests/test_snapshots_scaling.py``, run after the other
+``threading._shutdown`` (``tests/studies/test_snapshot_workers.py``, run after the other
 ``tests/test_s*.py``; the cause inside the libraries was not found).
 """
 

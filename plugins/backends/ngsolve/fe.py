@@ -83,7 +83,7 @@ def sparse_cholesky(A: sp.spmatrix) -> Callable[[np.ndarray], np.ndarray]:
     columns are solved in blocks of NGSolve ``MultiVector``). NGSolve's sparse
     Cholesky reads the lower triangle only, so only ``tril(A)`` is copied into
     NGSolve (the copy goes through Python sequences: half the entries, half the
-    time; ``tests/test_backend_ngsolve.py`` checks the solves against SuperLU).
+    time; ``tests/plugins/backends/test_ngsolve.py`` checks the solves against SuperLU).
     """
     coo = sp.tril(A, format="coo")
     n = int(coo.shape[0])

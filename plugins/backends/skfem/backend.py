@@ -195,7 +195,7 @@ class SkfemBackend(common.HalfDiskContact, Backend):
         Each body moves by a similarity ``x = s x_hat + c`` (:class:`AffineMap`): strains
         scale by ``1 / s`` and areas by ``s^2``, so the stiffness on the mapped mesh is the
         one on the reference mesh (2D), and only ``E(mu)``, ``nu(mu)`` enter. Equal to the
-        assembly on the mapped mesh up to round-off (``tests/test_backend_skfem.py``)."""
+        assembly on the mapped mesh up to round-off (``tests/plugins/backends/test_skfem.py``)."""
         pattern, parts = self._reference_stiffness()
         data = np.concatenate([lam * k_div + mu_l * k_eps for (k_div, k_eps), (lam, mu_l) in
                                zip(parts, self._lame(mu), strict=True)])

@@ -2,7 +2,7 @@
 
 The wrappers reproduce the library functions exactly, the registry lists them, and the
 role contracts of :mod:`rbbench.testing` reject deliberately broken components.
-(Every registered component passing its contract is ``tests/test_contract.py``.)
+(Every registered component passing its contract is ``tests/testing/test_contract.py``.)
 """
 
 from __future__ import annotations

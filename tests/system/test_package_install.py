@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 #: what the build reads: the rest of the checkout (results, caches, .venv) stays out
 BUILD_INPUTS = ("pyproject.toml", "README.md", "rbbench", "plugins", "problems")
 #: pip's words when the index cannot be reached (then skip, not fail)

@@ -14,7 +14,7 @@ import pytest
 
 import rbbench  # noqa: F401 - installs the finder of the old paths
 
-API = json.loads((Path(__file__).parent / "data" / "api_0_1.json").read_text())
+API = json.loads((Path(__file__).resolve().parents[1] / "data" / "api_0_1.json").read_text())
 MOVED_SINCE = "the old path goes in rbbench 0.3"
 
 

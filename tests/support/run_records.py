@@ -1,5 +1,5 @@
 """Test helper: a run directory written from synthetic case records (shared by the report
-tests; imported as a plain module, pytest puts ``tests/`` on ``sys.path``)."""
+tests)."""
 
 from __future__ import annotations
 

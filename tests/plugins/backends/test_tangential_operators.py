@@ -20,7 +20,7 @@ from rbbench.registry import default_registry
 from rbbench.scene.loading import load_scene
 from rbbench.testing import HERTZ_COARSE
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[3]
 COARSE = list(HERTZ_COARSE)
 COULOMB = ['friction.law="coulomb"', "friction.coefficient=0.2"]
 SHEAR = ["load.tangential_displacement=0.002",
@@ -242,13 +242,13 @@ def test_load_steps_give_the_dirichlet_values_of_each_step():
 def test_skfem_and_ngsolve_agree_on_the_same_mesh(degree):
     pytest.importorskip("ngsolve", reason='NGSolve backend not installed')
     from rbbench_plugins.backends.ngsolve.backend import NGSolveBackend
-    from test_backend_ngsolve import _permutation
+    from support.fields import dof_permutation
 
     sc = load_scene("hertz_halfdisks", COARSE + COULOMB + SHEAR
                     + [f"discretization.degree={degree}"])
     bs = default_registry().create("backend", "skfem", scene=sc)
     bn = NGSolveBackend(sc, mesh="skfem")
-    p = _permutation(bs, bn)
+    p = dof_permutation(bs, bn)
     for mu in (sc.bounds[:, 0], sc.default_mu, sc.bounds[:, 1]):
         ds, dn = bs.discretize(mu), bn.discretize(mu)
         cs, cn = ds.contact, dn.contact

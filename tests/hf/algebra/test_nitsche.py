@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from rbbench_plugins.formulations.nitsche import NitscheFormulation
 from rbbench_plugins.solvers.newton import NewtonSolver
+from support.fields import affine_field
 
 from rbbench.cli import main
 from rbbench.hf.model import solve_hf
@@ -60,24 +61,6 @@ def _independent_residual(prob, u):
     return np.linalg.norm(R) / max(np.linalg.norm(prob.F), np.linalg.norm(prob.A @ u))
 
 
-# ---------------------------------------------------------------------------
-# the normal stress operator Snn
-# ---------------------------------------------------------------------------
-def _affine_field(b, d, mu, G):
-    """u = G x (physical coordinates) on the upper body, all Lagrange dofs."""
-    u = np.zeros(d.n_dofs)
-    body = b.upper
-    scale, shift = b._body_maps()["upper"].at(np.atleast_1d(mu))
-    x = scale * body.basis_hat.doflocs + shift[:, None]
-    for comp in range(2):
-        dofs = [body.basis_hat.nodal_dofs[comp]]
-        if body.degree == 2:
-            dofs.append(body.basis_hat.facet_dofs[comp])
-        dd = np.concatenate(dofs)
-        u[dd + body.offset] = (G @ x[:, dd])[comp]
-    return u
-
-
 @pytest.mark.parametrize("degree", [1, 2])
 def test_snn_is_exact_for_affine_fields_and_only_on_request(degree):
     sc = _scene(f"discretization.degree={degree}")
@@ -92,10 +75,10 @@ def test_snn_is_exact_for_affine_fields_and_only_on_request(degree):
     sig = lam * np.trace(eps) * np.eye(2) + 2 * mu_l * eps
     n = d.contact.normals
     want = np.einsum("qi,ij,qj->q", n, sig, n)
-    got = d.contact.Snn @ _affine_field(b, d, mu, G)
+    got = d.contact.Snn @ affine_field(b, d, mu, G)
     assert np.abs(got - want).max() <= 1e-10 * np.abs(want).max()
     # rigid motions of the slave body are stress free
-    rot = _affine_field(b, d, mu, np.array([[0.0, -1e-3], [1e-3, 0.0]]))
+    rot = affine_field(b, d, mu, np.array([[0.0, -1e-3], [1e-3, 0.0]]))
     assert np.abs(d.contact.Snn @ rot).max() <= 1e-10 * np.abs(want).max()
     # facet lengths: the mapped slave facets
     assert np.allclose(np.add.reduceat(d.contact.weights, np.arange(0, n.shape[0], degree + 1)),
@@ -114,7 +97,7 @@ def test_snn_is_the_same_on_ngsolve_and_skfem_on_one_mesh(degree):
     dn = bn.discretize(1.3, needs=frozenset({"stress"}))
     # the same affine field on both dof numberings: u = G x on the upper body
     G = np.array([[2e-3, -1e-3], [4e-4, 1e-3]])
-    us = _affine_field(bs, ds, 1.3, G)
+    us = affine_field(bs, ds, 1.3, G)
     t = bn.dof_table()
     scale, shift = bn._body_maps()["upper"].at(np.array([1.3]))
     x = scale * t["x_hat"] + shift

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PREFIXES = ("time_", "timeraw_", "peakmem_", "mem_", "track_")
 
 #: benchmarks the suites promise (module, name)

@@ -19,7 +19,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from matplotlib import colormaps
-from run_records import write_run_dir
+from support.run_records import write_run_dir
 
 from rbbench.bench import schema
 from rbbench.bench.execution import _fill

@@ -13,7 +13,7 @@ from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.friction.profiles import lam_t_profiles, profile_parameters
 from rbbench.scene.loading import load_scene
 
-#: n_free = 4090, m = 65 friction nodes (as tests/test_friction_eim_pga.py TINY)
+#: n_free = 4090, m = 65 friction nodes (as tests/rb/friction/test_eim.py TINY)
 TINY = ["discretization.degree=1", "discretization.h_contact=0.04", "discretization.h_max=0.4"]
 
 

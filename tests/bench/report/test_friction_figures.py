@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from run_records import write_run_dir
+from support.run_records import write_run_dir
 
 from rbbench.bench import schema
 from rbbench.bench.report import load_run, report

@@ -19,6 +19,7 @@ import ngsolve as ngs  # noqa: E402
 from rbbench_plugins.backends.ngsolve.backend import NGSolveBackend
 from rbbench_plugins.backends.ngsolve.fe import sparse_cholesky
 from rbbench_plugins.backends.skfem.meshes import graded_half_disk, unit_square  # noqa: E402
+from support.fields import dof_permutation
 
 from rbbench.cli import main  # noqa: E402
 from rbbench.hf.condensation.dense import condense
@@ -47,43 +48,6 @@ def _pair(key: str, degree: int = 1, extra=()):
             NGSolveBackend(sc, mesh="skfem"), sc)
 
 
-def _skfem_table(b) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(body, component, reference location) of every skfem dof (basis internals)."""
-    if b.kind == "unit_square":
-        bases = [b.basis]
-    else:
-        bases = [body.basis_hat for body in (b.upper, b.lower) if body is not None]
-    body, comp, loc = [], [], []
-    for i, basis in enumerate(bases):
-        c = np.zeros(basis.N, dtype=int)
-        if b.kind != "unit_square":
-            for k in range(2):
-                c[basis.nodal_dofs[k]] = k
-                if basis.facet_dofs.size:
-                    c[basis.facet_dofs[k]] = k
-        body.append(np.full(basis.N, i))
-        comp.append(c)
-        loc.append(basis.doflocs.T)
-    return np.concatenate(body), np.concatenate(comp), np.vstack(loc)
-
-
-def _permutation(bs, bn) -> np.ndarray:
-    """``p`` with NGSolve dof ``j`` = skfem dof ``p[j]`` (same body, component, node)."""
-    sb, sc, sl = _skfem_table(bs)
-    t = bn.dof_table()
-
-    def order(body, comp, loc):
-        r = np.round(loc, 10)
-        return np.lexsort((r[:, 1], r[:, 0], comp, body))
-
-    o_s, o_n = order(sb, sc, sl), order(t["body"], t["component"], t["x_hat"])
-    assert np.array_equal(sb[o_s], t["body"][o_n]) and np.array_equal(sc[o_s], t["component"][o_n])
-    assert np.allclose(sl[o_s], t["x_hat"][o_n], rtol=0, atol=1e-12)
-    p = np.empty(sb.size, dtype=int)
-    p[o_n] = o_s
-    return p
-
-
 def _mult_permutation(ds, dn, p) -> np.ndarray:
     """Rows of the skfem multipliers in NGSolve order (nodal: one per free dof)."""
     if ds.contact.multiplier != "nodal":
@@ -105,7 +69,7 @@ def _rel(a, b) -> float:
 @pytest.mark.parametrize("key", list(SCENES))
 def test_operators_match_skfem_on_the_same_mesh(key, degree):
     bs, bn, sc = _pair(key, degree)
-    p = _permutation(bs, bn)
+    p = dof_permutation(bs, bn)
     for mu in (sc.default_mu, sc.bounds[:, 1]):
         ds, dn = bs.discretize(mu), bn.discretize(mu)
         r = _mult_permutation(ds, dn, p)
@@ -129,7 +93,7 @@ def test_operators_match_skfem_on_the_same_mesh(key, degree):
                                          ("membrane", 1)])
 def test_hf_solutions_match_skfem_on_the_same_mesh(key, degree):
     bs, bn, sc = _pair(key, degree)
-    p = _permutation(bs, bn)
+    p = dof_permutation(bs, bn)
     reg = default_registry()
     mu = sc.bounds[:, 0] if key != "membrane" else sc.default_mu
     a, b = (solve_hf(sc, mu, components=(backend, reg.create("formulation", "mixed"),
@@ -207,7 +171,7 @@ def test_assembly_happens_on_the_mu_mapped_body():
 def test_material_follows_mu():
     """A mu-dependent Young's modulus scales the upper block exactly like scikit-fem's."""
     bs, bn, sc = _pair("rigid-flat", 1, ['material.upper.E="mu.mu"'])
-    p = _permutation(bs, bn)
+    p = dof_permutation(bs, bn)
     A7, A13 = bn.discretize(0.7).A, bn.discretize(1.3).A
     assert _rel(A13, A7 * (1.3 / 0.7)) < 1e-12
     assert _rel(A13, bs.discretize(1.3).A[p][:, p]) < 1e-10

@@ -81,7 +81,7 @@ def test_nan_data_stops_with_nan(cls, opts):
 
 @pytest.fixture(scope="module")
 def mindlin():
-    """mindlin_cylinders on the coarse contact mesh of tests/test_mindlin_scene.py (33
+    """mindlin_cylinders on the coarse contact mesh of tests/hf/references/test_mindlin_scene.py (33
     friction nodes): its discretisation and mixed formulation. Tresca is built through
     ``build(friction=...)``: the scene's ``coefficient`` key cannot be removed by an
     override, and ``law = "tresca"`` with it is refused."""

@@ -147,7 +147,8 @@ def test_ssn_on_hertz_gives_todays_solution(coarse_hertz, solver):
 
 
 def test_friction_ssn_over_load_steps_gives_todays_solution():
-    """Sheared Coulomb scene of tests/test_friction_hf.py (two load steps): u, lam_n, lam_t."""
+    """Sheared Coulomb scene of tests/hf/solvers/test_friction.py (two load steps): u, lam_n,
+    lam_t."""
     from rbbench.hf.components import friction_at, make_components
     from rbbench.scene.loading import load_scene
 

@@ -1,6 +1,6 @@
 """PETSc solver plugins (petsc-vi: SNES VI on the KKT system, petsc-tao: TAO on the dual).
 
-The solver contract itself runs in tests/test_contract.py (every registered solver);
+The solver contract itself runs in tests/testing/test_contract.py (every registered solver);
 here: agreement with ``ssn``, the sign convention, stop reasons, options, the CLI.
 """
 

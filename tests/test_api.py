@@ -16,7 +16,7 @@ import rbbench
 from rbbench import api
 from rbbench.scene.loading import PROBLEMS_DIR, Scene, load_scene
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[1]
 PUBLIC = ["load_results", "load_scene", "reduce", "run", "solve"]
 
 

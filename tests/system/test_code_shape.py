@@ -10,7 +10,10 @@
   ``rbbench.hf`` and ``rbbench.rb`` their folders too (:data:`SUBLAYERS`; every folder and
   module there has a place, so a new one must be placed here); the formulations of
   ``rbbench.rb`` are peers that never import each other (:data:`PEERS`);
-* no folder holds more than :data:`MAX_FOLDER_MODULES` modules (split it by concept).
+* no folder holds more than :data:`MAX_FOLDER_MODULES` modules (split it by concept);
+* ``tests/`` mirrors the package: every test folder is a folder of ``rbbench/`` (or of
+  ``plugins/`` under ``tests/plugins/``), except :data:`TEST_FOLDERS_OUTSIDE` (system-level
+  tests, shared helpers, data).
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 MAX_MODULE_LINES = 600
 MAX_FUNCTION_LINES = 80
 MAX_FOLDER_MODULES = 15
@@ -211,6 +214,25 @@ def test_folders_inside_a_layer_import_downwards():
             if other[2] > me[2] or (me[1] in peers and other[1] in peers):
                 bad.append(f"{mod} -> {d}")
     assert not bad, "imports against the flow of a layer: " + "; ".join(sorted(bad))
+
+
+TESTS = ROOT / "tests"
+#: test folders that mirror no package folder: CLI, fuzz, install, code shape, published
+#: figures, old paths (``system``); helpers shared by test files (``support``); reference data
+TEST_FOLDERS_OUTSIDE = {"system", "support", "data"}
+
+
+def test_tests_mirror_the_package():
+    stray = []
+    for d in sorted(p.parent for p in TESTS.rglob("test_*.py")):
+        rel = d.relative_to(TESTS)
+        if not rel.parts or rel.parts[0] in TEST_FOLDERS_OUTSIDE:
+            continue
+        source = (ROOT / "plugins").joinpath(*rel.parts[1:]) if rel.parts[0] == "plugins" \
+            else (ROOT / "rbbench").joinpath(*rel.parts)
+        if not source.is_dir():
+            stray.append(f"tests/{rel.as_posix()}/ (no {_rel(source)}/)")
+    assert not stray, "test folders that mirror no package folder: " + "; ".join(sorted(set(stray)))
 
 
 def test_folder_sizes():

@@ -14,7 +14,7 @@ import pytest
 from rbbench_plugins.formulations.nitsche import NitscheFormulation
 from rbbench_plugins.solvers.newton import NewtonSolver
 from rbbench_plugins.solvers.nitsche_friction_newton import at_step
-from test_nitsche import _affine_field
+from support.fields import affine_field
 
 from rbbench.hf.algebra import nitsche_friction as nf
 from rbbench.hf.components import make_components
@@ -95,7 +95,7 @@ def test_snt_is_exact_for_affine_fields_and_only_with_friction(degree):
     n = d.contact.normals
     t = np.stack([-n[:, 1], n[:, 0]], axis=1)
     want = np.einsum("qi,ij,qj->q", t, sig, n)
-    got = d.contact.Snt @ _affine_field(b, d, 0.8, G)
+    got = d.contact.Snt @ affine_field(b, d, 0.8, G)
     assert np.abs(got - want).max() <= 1e-10 * np.abs(want).max()
 
 

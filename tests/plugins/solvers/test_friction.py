@@ -77,7 +77,7 @@ def test_law_without_derivative_is_refused():
 
 def test_friction_ssn_newton_on_the_sheared_scene():
     """friction-ssn ``method="newton"`` on the sheared hertz_halfdisks model-B case of
-    tests/test_friction_hf.py equals the fixed point (``method="direct"``) to 1e-8 of max
+    tests/hf/solvers/test_friction.py equals the fixed point (``method="direct"``) to 1e-8 of max
     lam_n: both stop on a residual of 1e-10 relative to a force scale (max|q| / mean diag D
     = 3.7e11 Pa) 20 times max lam_n; measured 2.1e-9 apart. Measured: there ``F`` varies by
     7e-5 only, the fixed point needs 2 outer iterations per step (contraction 7e-8; 11
