@@ -1,13 +1,8 @@
-"""Nitsche formulation (seed 000, "Nitsche's method"): normal stress operator, Newton
-solver, agreement with the mixed formulation, Alart-Curnier residual, stability over
-gamma0, and the reduced Nitsche model (coarse meshes, fixed seeds)."""
+"""The HF Nitsche formulation (Benaceur et al.'s talk, slide "Nitsche's method"): normal
+stress operator, Newton solver, agreement with the mixed formulation, Alart-Curnier residual,
+stability over gamma0 (coarse meshes)."""
 
 from __future__ import annotations
-
-import contextlib
-import io
-import json
-import pickle
 
 import numpy as np
 import pytest
@@ -15,17 +10,7 @@ from rbbench_plugins.formulations.nitsche import NitscheFormulation
 from rbbench_plugins.solvers.newton import NewtonSolver
 from support.fields import affine_field
 
-from rbbench.cli import main
 from rbbench.hf.model import solve_hf
-from rbbench.rb.algorithms.eim import deim
-from rbbench.rb.config import make_config
-from rbbench.rb.nitsche.model import (
-    _plain_system,
-    full_points,
-    reduced_newton,
-    sparse_nnls,
-)
-from rbbench.rb.offline import reduce
 from rbbench.registry import default_registry
 from rbbench.scene.loading import load_scene
 from rbbench.testing import HERTZ_COARSE
@@ -256,146 +241,3 @@ def test_formulation_declares_its_needs_and_checks_them():
         b.discretize(1.0, needs=frozenset({"curvature"}))
 
 
-# ---------------------------------------------------------------------------
-# reduced Nitsche model
-# ---------------------------------------------------------------------------
-def test_plain_reduced_model_is_exact_when_the_basis_contains_the_snapshot():
-    sc = _scene()
-    reg = default_registry()
-    b = reg.create("backend", "skfem", scene=sc)
-    mu = np.array([0.9])
-    sol = _nitsche(sc, mu, backend=b)
-    prob = sol.problem
-    u = sol.result.u[prob.free]
-    other = _nitsche(sc, 1.2, backend=b).result.u[prob.free]
-    X = prob.X[prob.free][:, prob.free]
-    Z = np.linalg.qr(np.stack([other, u], axis=1))[0]
-    L = np.linalg.cholesky(Z.T @ (X @ Z))
-    Z = np.linalg.solve(L, Z.T).T  # X-orthonormal, spans u
-    Zfull = np.zeros((prob.u_lift.size, 2))
-    Zfull[prob.free] = Z
-    rp = full_points(b.contact_layout(), mu, Zfull, prob.u_lift, prob.gamma0)
-    A, F = Z.T @ (prob.A @ Z), Z.T @ prob.F
-    res = reduced_newton(_plain_system(A, F, rp, prob.theta), np.zeros(2))
-    assert res.stop_reason == "converged"
-    err = np.sqrt((u - Z @ res.c) @ (X @ (u - Z @ res.c)) / (u @ (X @ u)))
-    assert err < 1e-8
-
-
-def test_deim_is_exact_at_its_magic_points_and_nnls_meets_its_tolerance():
-    rng = np.random.default_rng(3)
-    S = rng.standard_normal((60, 6)) @ rng.standard_normal((6, 40))
-    eim = deim(S, tol=1e-12)
-    new = rng.standard_normal(60)
-    approx = eim.interpolate(new[eim.magic])
-    assert np.allclose(approx[eim.magic], new[eim.magic], atol=1e-12)
-    assert np.allclose(eim.approximate(S), S, atol=1e-9 * np.abs(S).max())
-    # empirical cubature of smooth integrands: a few positive weights reproduce the sums
-    x = np.linspace(0.0, 1.0, 200)
-    G = np.stack([np.cos(k * x) for k in range(8)])  # (8 "snapshots", 200 points)
-    bvec = G @ np.full(200, 1.0 / 200)
-    w, errors = sparse_nnls(G.T @ G, G.T @ bvec, float(bvec @ bvec), tol=1e-8)
-    assert np.all(w >= 0) and errors[-1] <= 1e-8 and np.count_nonzero(w) <= 10
-    assert np.linalg.norm(G @ w - bvec) <= 1.01e-8 * np.linalg.norm(bvec)
-
-
-@pytest.fixture(scope="module")
-def nitsche_reductions(tmp_path_factory):
-    cache = str(tmp_path_factory.mktemp("nitsche_cache"))
-    sc = _scene()
-    out = {}
-    for N in (2, 4, 8):
-        out[N] = reduce(sc, make_config(formulation="nitsche", N=N, n_train=9, n_valid=5,
-                                         online_repeats=2, cache_dir=cache, n_jobs=1))
-    out["deim"] = reduce(sc, make_config(formulation="nitsche", N=4, hyper="eim", n_train=9,
-                                          n_valid=5, online_repeats=1, cache_dir=cache,
-                                          n_jobs=1))
-    return sc, out
-
-
-def test_reduced_errors_decrease_with_N_and_meet_the_target(nitsche_reductions):
-    _, out = nitsche_reductions
-    errs = [out[N].summary()["err_u_max"] for N in (2, 4, 8)]
-    assert errs[0] > errs[1] > errs[2], errs
-    s = out[8].summary()
-    assert s["err_u_max"] <= 1e-3
-    assert s["hyper"] == "ecsw" and s["online_stops"] == {"converged": 5}
-    assert s["speedup"] > 10
-    eim = s["histories"]["eim"]
-    assert eim["rows"] < out[8].n_contact  # fewer points than the HF contact quadrature
-    assert eim["e_eim_cv_valid"] < 1e-2 and eim["e_eim_valid"] < 1e-2
-    # the cubature is at most as good as the plain model: same V_N
-    assert s["err_u_max"] <= 2 * max(s["histories"]["err_u_plain"]) + 1e-6
-    for k in ("beta_hf_min", "beta_off_min"):
-        assert s.get(k) is None
-
-
-def test_reduced_model_is_small_and_evaluates_its_points_exactly(nitsche_reductions):
-    sc, out = nitsche_reductions
-    res = out[4]
-    model = pickle.loads(pickle.dumps(res.model))
-    assert len(pickle.dumps(model)) < 2e6
-    b = default_registry().create("backend", "skfem", scene=sc)
-    mu = res.valid_mus[0]
-    p = model.points(mu)
-    layout = b.contact_layout()
-    Zfull = np.zeros((layout.n_dofs, model.N))
-    Zfull[model.evaluator.local_dofs] = model.Z_loc
-    lift = np.zeros(layout.n_dofs)
-    lift[model.evaluator.local_dofs] = model.lift_loc
-    full = full_points(layout, mu, Zfull, lift, model.gamma0).take(model.evaluator.points)
-    for f in ("UZ", "SZ", "u0", "s0", "gap", "w", "gamma"):
-        a, c = getattr(p, f), getattr(full, f)
-        assert np.allclose(a, c, rtol=1e-12, atol=1e-12 * max(np.abs(c).max(), 1e-300)), f
-    r = model.solve(mu)
-    assert r.stop_reason == "converged" and r.c.shape == (model.N,)
-
-
-def test_deim_variant_runs_and_reports_the_seed_errors(nitsche_reductions):
-    _, out = nitsche_reductions
-    s = out["deim"].summary()
-    assert s["hyper"] == "deim"
-    eim = s["histories"]["eim"]
-    assert eim["method"] == "deim" and len(eim["e_eim_valid_by_iteration"]) >= 1
-    assert all(np.isfinite(v) for v in (eim["e_eim_valid"], eim["e_eim_cv_valid"]))
-
-
-# ---------------------------------------------------------------------------
-# CLI
-# ---------------------------------------------------------------------------
-def _run(argv):
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
-        code = main(argv)
-    return code, out.getvalue()
-
-
-def test_cli_solve_nitsche_picks_newton_and_writes_e_ac(tmp_path):
-    args = ["solve", "hertz_halfdisks", "--formulation", "nitsche", "--mu", "0.7", "--no-plot",
-            "--quiet", "--out", str(tmp_path)]
-    for s in COARSE:
-        args += ["--set", s]
-    code, text = _run(args)
-    assert code == 0, text
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["solver"] == "newton" and summary["formulation"] == "nitsche"
-    assert 0.0 < summary["e_ac"] < 1.0 and summary["converged"]
-    assert "e_ac" in text
-
-
-def test_renamed_study_names_still_import_with_a_deprecation_warning():
-    import rbbench.studies as studies
-    from rbbench.studies.nitsche_eac import PUBLISHED_H, published_h_overrides
-
-    with pytest.warns(DeprecationWarning, match="SEED_H is now PUBLISHED_H"):
-        assert studies.SEED_H == PUBLISHED_H
-    with pytest.warns(DeprecationWarning, match="seed_h_overrides is now published_h_overrides"):
-        assert studies.seed_h_overrides is published_h_overrides
-
-
-def test_cli_nitsche_table(tmp_path):
-    code, text = _run(["nitsche-table", "--h", "10", "5", "--mu", "1.0", "--quiet",
-                       "--degree", "1", "--set", "discretization.h_max=0.2"])
-    assert code == 0, text
-    assert "| 1 | 10 |" in text and "published e_AC" in text and "| 1 | 5 |" in text
-    assert "e_AC nodal" in text and "e_AC L2" in text and "e_AC quad:" in text
