@@ -77,8 +77,10 @@ _AC_SETTING = ("load.displacement=0.09", "discretization.degree=2",
 
 
 class NitscheAlartCurnier:
-    """The seed's relative Alart-Curnier residual e_AC^n of the Nitsche HF solve on two
-    non-matching bodies (mu = 0.7), at the seed's h = 5 and 2.5 mm (``h_contact = 4 h``,
+    """The relative Alart-Curnier residual e_AC^n of the Nitsche HF solve on two non-matching
+    bodies (mu = 0.7), at h = 5 and 2.5 mm as published by Benaceur, Drouet, Ehrlacher, Ern &
+    Niakh, "Model order reduction methods: parametric variational inequalities" (talk), slide
+    "Relative error on the Alart-Curnier reformulation" (``h_contact = 4 h``,
     coarse far field ``h_max = 0.2``), in the e_AC table's setting (P2, smooth normals,
     segment-to-segment quadrature, theta = 1, gamma0 = 10).
 
@@ -142,7 +144,7 @@ class ContactPairing:
 
 
 class HFFloor:
-    """The HF contact solve against its floor (issue 17): ``hertz_halfdisks`` at mu = 1 on
+    """The HF contact solve against its floor: ``hertz_halfdisks`` at mu = 1 on
     the default mesh refined ``level`` times (36910 / 75226 / 159k dofs at levels 0 / 1 / 2),
     per direct solver of the condensation (``linear_solver`` of ``ssn``: the Schur
     complement of the KKT matrix by SuperLU or PARDISO, :mod:`rbbench.hf.condensation.schur`;
@@ -210,7 +212,7 @@ class SnapshotWorkers:
     at mu = 1: the timed calls reuse them (serial; with 2 jobs two ``fork`` workers
     inherit them), as ``rbbench reduce``'s validation snapshots do after its training
     ones. The time of 2 processes against 1 is the scaling
-    of the solves (issue 17 goal: >= 1.85x).
+    of the solves (goal: >= 1.85x).
     """
 
     params = ([1, 2],)

@@ -1,6 +1,6 @@
 """asv and a side-by-side run: the condensation of the HF contact solve against its floor.
 
-Issue 17, item 2. ``hertz_halfdisks`` at mu = 1 on the default mesh refined ``level``
+``hertz_halfdisks`` at mu = 1 on the default mesh refined ``level``
 times; the contact problem is built once per level (assembly excluded) and each timed call
 is one ``ssn`` solve (condensation, PDAS, recovery of u) with one BLAS thread:
 

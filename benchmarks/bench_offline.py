@@ -94,7 +94,7 @@ class _Stage:
         return Z, Vg
 
     def stabilise(self, stabilizer, Z, Vg, problems):
-        """The stabiliser stage of ``reduce()``: default delta (seed's rule), offline()."""
+        """The stabiliser stage of ``reduce()``: default delta (Benaceur et al.'s), offline()."""
         delta = pga_delta(self.cfg, problems, self.x_solve, Vg)
         return stabilizer.offline(Z, Vg, self.X, self.x_solve, (p.B for p in problems),
                                   delta)[0]
@@ -165,8 +165,10 @@ class DualCompressor(_Stage):
 class PGA(_Stage):
     """Stabiliser stage of ``reduce()`` with the default ``pga`` plugin (stage 4).
 
-    Timed: the default tolerance (seed's rule, ``pga_default_delta`` over every fifth
-    training mu) and the plugin's ``offline``: the supremizers ``X^-1 B(mu)^T Vg`` at
+    Timed: the default tolerance (the rule of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model
+    order reduction methods: parametric variational inequalities" (talk), slide "Projected
+    Greedy Algorithm (PGA)": ``pga_default_delta`` over every fifth training mu) and the
+    plugin's ``offline``: the supremizers ``X^-1 B(mu)^T Vg`` at
     every training mu and the greedy :func:`rbbench.rb.algorithms.pga.pga`. Not timed (setup): the
     HF operators at the training mus, the factorisation of X, the POD and mCPG bases.
     Unit: seconds.
