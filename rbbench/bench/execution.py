@@ -145,7 +145,7 @@ def execute_case(case: Case, run_id: str, cache_dir: str, executor: str = "seria
     missing); ``timeout`` (:class:`CaseTimeout`); ``error`` (any other exception,
     with its traceback).
     """
-    from rbbench.hf.snapshots.compute import SnapshotError
+    from rbbench.hf.snapshots.cache import SnapshotError
     from rbbench.rb.offline import DivergedError
     from rbbench.scene.loading import load_scene
 

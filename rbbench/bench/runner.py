@@ -40,7 +40,7 @@ from rbbench.bench.execution import (
 )
 from rbbench.bench.guard import RunLock, Watchdog
 from rbbench.bench.matrix import Case, Matrix
-from rbbench.hf.snapshots.compute import atomic_write
+from rbbench.hf.snapshots.cache import atomic_write
 from rbbench.provenance import _jsonable
 from rbbench.registry import Registry, default_registry
 from rbbench.runtime.workers import die_with_parent

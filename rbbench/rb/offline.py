@@ -24,7 +24,8 @@ import numpy as np
 from rbbench._compat import deprecated_names
 from rbbench.hf.components import default_solver, make_components
 from rbbench.hf.model import ProblemCache, ProblemSource
-from rbbench.hf.snapshots.compute import SnapshotSet, compute_snapshots
+from rbbench.hf.snapshots.cache import SnapshotSet
+from rbbench.hf.snapshots.compute import compute_snapshots
 from rbbench.rb.config import ReduceConfig, parse_options, reduction_steps
 from rbbench.rb.validation import ReducedStage, ReduceResult, validate
 from rbbench.registry import Registry, default_registry

@@ -220,7 +220,7 @@ repeats = 2
 def test_component_options_are_matrix_parameters(tmp_path):
     """Backend / formulation constructor options: a parameter grid, part of the case id and
     of the HF snapshot cache key (empty options keep the old keys)."""
-    from rbbench.hf.snapshots.compute import snapshot_key
+    from rbbench.hf.snapshots.key import snapshot_key
     from rbbench.scene.loading import load_scene
 
     p = tmp_path / "opt.toml"

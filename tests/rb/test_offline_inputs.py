@@ -14,7 +14,8 @@ import scipy.sparse as sp
 from rbbench.cli import main
 from rbbench.hf.components import make_components
 from rbbench.hf.model import ProblemCache
-from rbbench.hf.snapshots.compute import cache_path, load_snapshot, snapshot_key
+from rbbench.hf.snapshots.cache import cache_path, load_snapshot
+from rbbench.hf.snapshots.key import snapshot_key
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.config import make_config
 from rbbench.rb.offline import reduce

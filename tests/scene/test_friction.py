@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rbbench.hf.algebra.friction import COEFFICIENT_LAWS
-from rbbench.hf.snapshots.compute import snapshot_key
+from rbbench.hf.snapshots.key import snapshot_key
 from rbbench.scene.friction import (
     COEFFICIENT_LAW_NAMES,
     Friction,

@@ -27,14 +27,14 @@ import scipy.sparse as sp
 
 from rbbench.hf.condensation.dense import factorize
 from rbbench.hf.model import HFSolution, hf_vectors
-from rbbench.hf.snapshots.compute import (
+from rbbench.hf.snapshots.cache import (
     Snapshot,
     SnapshotSet,
     cache_path,
     load_snapshot,
     save_snapshot,
-    snapshot_key,
 )
+from rbbench.hf.snapshots.key import snapshot_key
 from rbbench.interfaces import Discretization, Factorize, HFVectors, SolveResult
 from rbbench.interfaces.problems import _FreeDofs
 from rbbench.registry import Registry, default_registry

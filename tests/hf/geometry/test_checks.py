@@ -13,7 +13,8 @@ from rbbench.cli import main
 from rbbench.hf.geometry.checks import GAP_RTOL, gap_edge_half_width
 from rbbench.hf.model import solve_hf
 from rbbench.hf.output import write_summary
-from rbbench.hf.snapshots.compute import SnapshotError, compute_snapshots
+from rbbench.hf.snapshots.cache import SnapshotError
+from rbbench.hf.snapshots.compute import compute_snapshots
 from rbbench.scene.loading import load_scene
 
 #: the coarsest mesh of the issue: one or two LAC patches over the whole potential zone

@@ -182,7 +182,7 @@ def test_master_vertex_hits_across_a_gap_in_the_master_chain():
 def test_key_neutral_defaults_keep_cache_keys():
     """The options at their defaults leave scene fingerprints and snapshot keys as they
     were before the options existed; other values change them."""
-    from rbbench.hf.snapshots.compute import snapshot_key
+    from rbbench.hf.snapshots.key import snapshot_key
     from rbbench.scene.loading import load_scene
 
     base = load_scene("hertz_halfdisks")

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 import rbbench.hf.snapshots.compute as snapshots
-from rbbench.hf.snapshots.compute import SnapshotError, compute_snapshots, snapshot_key
+from rbbench.hf.snapshots.cache import SnapshotError
+from rbbench.hf.snapshots.compute import compute_snapshots
+from rbbench.hf.snapshots.key import snapshot_key
 from rbbench.scene.loading import load_scene
 from rbbench.scene.sampling import parameter_set
 

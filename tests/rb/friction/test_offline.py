@@ -12,7 +12,9 @@ import pickle
 import numpy as np
 import pytest
 
-from rbbench.hf.snapshots.compute import cache_path, compute_snapshots, snapshot_key
+from rbbench.hf.snapshots.cache import cache_path
+from rbbench.hf.snapshots.compute import compute_snapshots
+from rbbench.hf.snapshots.key import snapshot_key
 from rbbench.hf.solvers import friction as fs
 from rbbench.rb.algorithms.gcns import gcns, tangential_violation
 from rbbench.rb.config import make_config
