@@ -56,12 +56,17 @@ from pathlib import Path
 from typing import Any
 
 from rbbench.bench import matrix_checks as checks
+from rbbench.bench.applicability import (
+    REGISTRY_ROLES,
+    applicable_roles,
+    compatibility,
+    reduced_model_check,
+)
 from rbbench.bench.matrix_checks import MatrixError
 from rbbench.rb.hyper.reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.registry import Registry
 from rbbench.scene import limits
-from rbbench.scene.friction import friction_of
-from rbbench.scene.loading import PROBLEMS_DIR, Scene, load_scene, tomllib
+from rbbench.scene.loading import PROBLEMS_DIR, load_scene, tomllib
 
 __all__ = ["COMPONENT_ROLES", "MODEL_AXES", "Case", "Matrix", "MatrixError", "compatibility",
            "load_matrix", "reduced_model_check"]
@@ -73,7 +78,6 @@ COMPONENT_ROLES = {"backend": "skfem", "formulation": "mixed", "solver": "ssn",
 #: and ``[params.AXIS.VALUE]`` grids), and their valid values; the value is a case parameter.
 MODEL_AXES: dict[str, tuple[str, ...]] = {"friction_dual": checks.FRICTION_DUALS}
 #: Axes that name registered components (their registry role has the same name).
-_REGISTRY_ROLES = ("backend", "formulation", "solver", "primal", "dual", "stabilizer")
 _HYPER = ("auto", *BUILTIN_HYPER)  # "auto" and the built-in hyper-reducers (role "hyper")
 _TOP = {"matrix", "components", "sizes", "reduce", "scene_overrides", "params", "hf"}
 _MATRIX_KEYS = {"name", "description", "scenes", "repetitions", "timeout_s", "seed", "mode"}
@@ -343,7 +347,7 @@ def _check_names(axes: dict[str, list[str]], mode: str, registry: Registry | Non
         if h not in _HYPER and not (mode == "hf" and h == ""):
             raise MatrixError(f"{where}: [components] hyper: {h!r}; valid: {', '.join(_HYPER)}")
     if registry is not None:
-        for role in _REGISTRY_ROLES:
+        for role in REGISTRY_ROLES:
             valid = registry.names(role)
             for n in axes[role]:
                 if n not in valid and not (mode == "hf" and role not in _HF_ROLES):
@@ -439,7 +443,7 @@ def _scene_cases(plan: _Plan, sname: str, sel: dict[str, list[str]],
             continue
         comp = {r: values[r] for r in COMPONENT_ROLES}
         model = {a: values[a] for a in MODEL_AXES if a in values}
-        used = _applicable(registry, comp)
+        used = applicable_roles(registry, comp)
         if used != comp:  # roles its formulation does not use, emptied: one case for them
             key = (tuple(used.items()), tuple(model.items()))
             if key in seen:
@@ -464,18 +468,6 @@ def _scene_cases(plan: _Plan, sname: str, sel: dict[str, list[str]],
                                fingerprint, plan.mode, st, why)
                           for rep in range(plan.repetitions)]
     return cases
-
-
-def _applicable(registry: Registry | None, comp: dict[str, str]) -> dict[str, str]:
-    """``comp`` with the roles its formulation declares unused emptied (``""``: not
-    applicable; the formulation's ``capabilities["roles"]``, e.g. the linear formulation:
-    no solver, dual nor stabiliser)."""
-    if registry is None or comp["formulation"] not in registry.names("formulation"):
-        return comp
-    roles = registry.get("formulation", comp["formulation"]).capabilities.get("roles")
-    if roles is None:
-        return comp
-    return {r: (v if r in (*roles, "formulation") else "") for r, v in comp.items()}
 
 
 def _case_params(plan: _Plan, opts: tuple[dict, ...]) -> dict[str, Any]:
@@ -517,71 +509,3 @@ def _find_matrix(path: str | Path) -> Path:
                       f"{PROBLEMS_DIR / 'matrices'}: {', '.join(avail) or 'none'})")
 
 
-def compatibility(scene: Scene, comp: dict[str, str],
-                  registry: Registry | None) -> tuple[str, str]:
-    """``("run" | "skip" | "not_installed", reason)`` from declared capabilities only.
-
-    Nothing is imported: the physics a backend and a formulation declare, the
-    formulations a solver declares, online stabilisers against HF-free hyper-reducers,
-    and whether each component's modules are importable (``find_spec``).
-    """
-    stab_online = comp["stabilizer"] == "supremizer"
-    roles = [r for r in _REGISTRY_ROLES if comp[r]]  # "" = not applicable
-    if registry is not None:
-        caps = {r: registry.get(r, comp[r]).capabilities for r in roles}
-        physics = scene.data["scene"]["physics"]
-        for r in ("backend", "formulation"):
-            ok = caps[r].get("physics")
-            ok = ok if ok is None else (*ok, *caps[r].get("linear_physics", ()))
-            if ok is not None and physics not in ok:
-                return "skip", f"{r} {comp[r]!r} does not support {physics} (supports {ok})"
-        law = friction_of(scene).law
-        for r in ("formulation", "solver"):
-            laws = caps[r].get("friction", ("none",)) if r in caps else (law,)
-            if law not in laws:
-                return "skip", (f"{r} {comp[r]!r} does not support the friction law "
-                                f"{law!r} (supports {tuple(laws)})")
-        forms = caps["solver"].get("formulations") if "solver" in caps else None
-        if forms is not None and comp["formulation"] not in forms:
-            return "skip", (f"solver {comp['solver']!r} does not solve the "
-                            f"{comp['formulation']!r} formulation (solves {forms})")
-        if "stabilizer" in caps:
-            stab_online = bool(caps["stabilizer"].get("online_hf", stab_online))
-    hyper = comp["hyper"]
-    if registry is not None and hyper not in ("", "auto") and hyper in registry.names("hyper"):
-        forms = registry.get("hyper", hyper).capabilities.get("formulations")
-        if forms is not None and comp["formulation"] not in forms:
-            return "skip", (f"hyper {hyper!r} does not apply to the {comp['formulation']!r} "
-                            f"formulation (applies to {forms})")
-    if stab_online and comp["hyper"] in ("affine", "eim"):
-        return "skip", (f"stabilizer {comp['stabilizer']!r} needs the HF B(mu) online: "
-                        f"incompatible with hyper {comp['hyper']!r}")
-    if registry is not None:
-        for r in roles:
-            ok, why = registry.availability(registry.get(r, comp[r]))
-            if not ok:
-                return "not_installed", f"{r} {comp[r]!r}: {why}"
-    return "run", ""
-
-
-
-def reduced_model_check(scene: Scene, comp: dict[str, str], params: dict[str, Any],
-                        registry: Registry | None, R: int | None = None) -> tuple[str, str]:
-    """``("run", "")``, or ``("skip", reason)`` when the formulation's reduced model refuses
-    the case before any HF work: the friction laws its offline steps declare, its options
-    (an option of another formulation, e.g. ``S`` on a frictionless scene, or ``R`` for a
-    formulation without a dual space) and its early checks (``prepare``, e.g. the
-    collocation friction model takes no ``hyper = "eim"``); the reason is their message.
-    Without a registry nothing is checked here (the case records any failure itself)."""
-    from rbbench.rb.config import make_config
-    from rbbench.rb.offline import prepare_config
-    from rbbench.scene.loading import SceneError
-
-    if registry is None:
-        return "run", ""
-    try:
-        prepare_config(scene, make_config(**{k: v for k, v in comp.items() if v}, R=R,
-                                          **params), registry)
-    except (SceneError, ValueError) as exc:
-        return "skip", str(exc)
-    return "run", ""
