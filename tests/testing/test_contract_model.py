@@ -69,11 +69,12 @@ def _wedge_eim(tmp):
 
 
 def _linear(tmp):
-    from rbbench.api import linear_config
+    from rbbench.rb.config import make_config
     from rbbench.rb.linear.offline import reduce_linear
 
     sc = load_scene("thermal_block", MEMBRANE)
-    cfg = linear_config(sc, N=4, n_train=8, n_valid=2, cache_dir=str(tmp), online_repeats=1)
+    cfg = make_config(formulation="linear", N=4, n_train=8, n_valid=2, cache_dir=str(tmp),
+                      online_repeats=1)
     return reduce_linear(sc, cfg).model, _mid(sc)
 
 
