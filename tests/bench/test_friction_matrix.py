@@ -1,4 +1,4 @@
-"""Run matrices of the reduced friction models (issue 14, item 6): the ``friction_dual`` axis,
+"""Run matrices of the reduced friction models: the ``friction_dual`` axis,
 the combinations the reduced model refuses as skip rows, the friction columns of a row and
 the case details, and (slow) ``problems/matrices/friction_rb.toml`` on a coarse P1 mesh
 through the runner and the report."""

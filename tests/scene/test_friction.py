@@ -1,4 +1,4 @@
-"""Scene section ``[friction]`` and the friction loads of ``[load]`` (issue 13, step 1):
+"""Scene section ``[friction]`` and the friction loads of ``[load]``:
 valid input, the value at mu, cache keys of frictionless scenes, bad input naming the key."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""``rbbench report`` on runs with reduced friction rows (issue 14, item 6): the GCNS curves,
+"""``rbbench report`` on runs with reduced friction rows: the GCNS curves,
 lam_t HF against RB, the friction table of the summary, and quiet skips without the data.
 
 The run directories are synthetic, written by the runner's own writers

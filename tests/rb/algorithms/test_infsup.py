@@ -297,7 +297,7 @@ def test_cone_value_with_dependent_generators():
 
 def test_span_value_below_round_off_is_zero():
     """A pencil whose smallest eigenvalue is round-off of the largest (ratio 3e-16, the
-    membrane's beta_dec in issue 16) gives 0, not a positive 'lower bound'; a small but
+    membrane's beta_dec) gives 0, not a positive 'lower bound'; a small but
     resolved one (ratio 1e-8) keeps its value."""
     from rbbench.rb.algorithms.infsup import infsup_span
 

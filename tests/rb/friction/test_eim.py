@@ -1,4 +1,4 @@
-"""Friction hyper-reduction and stabilisation (issue 14, items 2 and 3): the P1 row evaluator
+"""Friction hyper-reduction and stabilisation: the P1 row evaluator
 against the HF tangential operators, the friction EIM (exact on its training set, at its
 magic entries, HF-size independent), the combined inf-sup of ``b^n + b^tau`` (mixed cone
 against brute force, reduced with the full dual space = HF), PGA on the combined form."""

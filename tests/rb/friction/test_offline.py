@@ -1,4 +1,4 @@
-"""Reduced friction model (issue 14, stage 1): the small Coulomb solve against the HF friction
+"""Reduced friction model: the small Coulomb solve against the HF friction
 solver, GCNS and its stopping rule, the plain reduced model on hertz_friction (coarse P1)
 against the HF snapshots, friction snapshots with lam_t, ``rbbench reduce`` on a friction
 scene, pickling."""
