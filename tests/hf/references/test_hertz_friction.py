@@ -1,5 +1,6 @@
-"""Seed 000's friction case ``hertz_friction`` and the friction outputs of ``rbbench solve``
-and of HF-mode rows (issue 13, steps 4-6).
+"""The friction case ``hertz_friction`` of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order
+reduction methods: parametric variational inequalities" (talk), and the friction outputs of
+``rbbench solve`` and of HF-mode rows.
 
 Coarse meshes (P1, h_contact = 0.02): about 9k dofs and 130 friction nodes, a few seconds.
 """

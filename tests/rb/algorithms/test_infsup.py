@@ -232,7 +232,9 @@ def test_whole_space_basis_equals_hf_formula():
 
 @pytest.mark.parametrize("seed", [5, 6, 7])
 def test_supremizer_enrichment_recovers_hf(seed):
-    """Seed slide "Parameter-dependent context": beta_on >= beta_HF. With the online
+    """Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+    variational inequalities" (talk), slide "Parameter-dependent context": beta_on >= beta_HF.
+    With the online
     supremizers the sup over V_N + S_R(mu) equals the sup over V (the supremizer T y of
     eta = Vg y lies in S_R(mu)), so beta_on equals the HF value over the same cone and is
     >= the HF value over all multipliers; without them (beta_dec) it is smaller."""

@@ -1,4 +1,6 @@
-"""Projected Greedy Algorithm (seed 000, slides "Approximation of S_R" to "Some details")."""
+"""Projected Greedy Algorithm (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction
+methods: parametric variational inequalities" (talk), slides "Approximation of S_R" to
+"Some details")."""
 
 import numpy as np
 import pytest
@@ -157,7 +159,7 @@ def _constants(B, X, solve, W, Vg, Zs):
 @settings(derandomize=True, max_examples=8, deadline=None)
 @given(seed=st.integers(0, 10**5))
 def test_main_result(seed):
-    """Seed "Main result": sigma_S(mu) < beta_on / c_HF  =>  beta_off(mu) >=
+    """Benaceur et al.'s "Main result": sigma_S(mu) < beta_on / c_HF  =>  beta_off(mu) >=
     (beta_on - c_HF sigma) / (1 + sigma), for every PGA prefix S^i, on training and
     validation parameters (the bound holds for any mu), cone and span values alike."""
     X, Bs, W, Vg, Z, T, solve = _instance(seed, n=50, m=6, R=3, N=3, P=6)

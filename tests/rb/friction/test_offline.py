@@ -47,8 +47,10 @@ def _random_problem(seed: int, n: int = 14, m: int = 5) -> FrictionArrays:
 # ---------------------------------------------------------------------------
 def test_identity_bases_equal_hf_coulomb_and_tresca():
     """With identity bases and every node collocated, the reduced problem IS the HF one:
-    the seed's fixed point on daqp Tresca QPs equals the semismooth Newton on the wedge
-    (coulomb_direct) and the Tresca PDAS, on problems with open, stick and slip nodes."""
+    the fixed point of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+    parametric variational inequalities" (talk), on daqp Tresca QPs, equals the semismooth
+    Newton on the wedge (coulomb_direct) and the Tresca PDAS, on problems with open, stick and
+    slip nodes."""
     states = set()
     for seed in range(6):
         arr = _random_problem(seed)
@@ -315,8 +317,9 @@ def test_wedge_full_bases_reproduce_the_training_snapshots():
 
 def test_wedge_model_against_the_seed_on_validation():
     """Same (N, R + S) on the coarse mesh: the wedge model's raw reduced multipliers are in
-    the Coulomb cone at EVERY HF node (the seed's are not off its collocation nodes), and its
-    lam_t error is far below the seed's (measured 0.19 against 3.6), above its floor."""
+    the Coulomb cone at EVERY HF node (the collocation model's are not off its collocation
+    nodes), and its lam_t error is far below the collocation model's (measured 0.19 against
+    3.6), above its floor."""
     res = {d: validate(_offline(dual=d).context, _offline(dual=d).stage).summary()
            for d in ("collocation", "wedge")}
     w, s = res["wedge"], res["collocation"]
