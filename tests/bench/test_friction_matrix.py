@@ -49,9 +49,9 @@ def _key(case) -> tuple:
 
 
 # --------------------------------------------------------------------------- the matrix
-def test_friction_rb_matrix_expands_and_skips_seed_with_eim():
-    """friction_rb.toml: seed (patience 1, 10) and wedge, hyper none and eim; the seed model
-    with eim is a skip row whose reason is the reduced model's own refusal."""
+def test_friction_rb_matrix_expands_and_skips_collocation_with_eim():
+    """friction_rb.toml: collocation (patience 1, 10) and wedge, hyper none and eim; the
+    collocation model with eim is a skip row whose reason is the reduced model's own refusal."""
     m = load_matrix("friction_rb", registry=default_registry())
     by = {_key(c): c for c in m.cases}
     assert set(by) == {("collocation", "none", 1), ("collocation", "none", 10),

@@ -23,7 +23,7 @@ def solution():
     return solve_hf(load_scene("hertz_friction", COARSE), [0.7])
 
 
-def test_scene_is_the_seeds_friction_case():
+def test_scene_is_the_published_friction_case():
     sc = load_scene("hertz_friction")
     assert sc.param_names == ["mu"]
     assert sc.parameters[0].low == 0.7 and sc.parameters[0].high == 1.3

@@ -188,7 +188,7 @@ def test_main_result(seed):
     assert hits > 0
 
 
-def test_seed_tolerance_gives_stable_training_set():
+def test_main_result_tolerance_gives_stable_training_set():
     """delta_PGA < min_train beta_on / c_HF  =>  beta_off > 0 on every training mu."""
     X, Bs, W, Vg, Z, T, solve = _instance(7, n=50, m=6, R=3, N=3, P=5)
     ratios = []

@@ -105,7 +105,7 @@ def _fake_solve(errors: list[float], m: int = 12):
     return solve_all, lam_t
 
 
-def test_gcns_stops_by_the_seed_rule_and_keeps_the_previous_set():
+def test_gcns_stops_by_the_published_rule_and_keeps_the_previous_set():
     solve_all, lam_t = _fake_solve([0.5, 0.3, 0.2, 0.25, 0.1, 0.05, 0.07])
     W = [np.eye(lam_t.shape[0])]
     res = gcns(solve_all, lam_t, W, per_iteration=2)
@@ -315,7 +315,7 @@ def test_wedge_full_bases_reproduce_the_training_snapshots():
             assert np.sqrt(d @ (p.W @ d) / (lam[:, j] @ (p.W @ lam[:, j]))) < 1e-7
 
 
-def test_wedge_model_against_the_seed_on_validation():
+def test_wedge_model_against_the_collocation_model_on_validation():
     """Same (N, R + S) on the coarse mesh: the wedge model's raw reduced multipliers are in
     the Coulomb cone at EVERY HF node (the collocation model's are not off its collocation
     nodes), and its lam_t error is far below the collocation model's (measured 0.19 against
