@@ -524,8 +524,9 @@ def check_friction_solver(factory: Callable[..., Any], options: dict | None = No
 def _check_registered(obj: Any, spec: ComponentSpec, registry: Registry, name: str) -> None:
     """A solver declares the formulations it solves; the mixed contract is the default.
     A mixed solver declaring friction laws also passes the (mixed) friction contract; a
-    Nitsche solver's friction is checked by its own tests (``tests/plugins/solvers/test_nitsche_friction_newton.py``:
-    the friction problem is the formulation's, built from a backend's operators)."""
+    Nitsche solver's friction is checked by its own tests
+    (``tests/plugins/solvers/test_nitsche_friction_newton.py``: the friction problem is the
+    formulation's, built from a backend's operators)."""
     forms = tuple(spec.capabilities.get("formulations", ("mixed",)))
     mixed = "mixed" in forms or "nitsche" not in forms
     if "nitsche" in forms:
