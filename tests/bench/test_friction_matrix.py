@@ -1,4 +1,4 @@
-"""Run matrices of the reduced friction models (issue 14, item 6): the ``friction_dual`` axis,
+"""Run matrices of the reduced friction models: the ``friction_dual`` axis,
 the combinations the reduced model refuses as skip rows, the friction columns of a row and
 the case details, and (slow) ``problems/matrices/friction_rb.toml`` on a coarse P1 mesh
 through the runner and the report."""
@@ -49,9 +49,9 @@ def _key(case) -> tuple:
 
 
 # --------------------------------------------------------------------------- the matrix
-def test_friction_rb_matrix_expands_and_skips_seed_with_eim():
-    """friction_rb.toml: seed (patience 1, 10) and wedge, hyper none and eim; the seed model
-    with eim is a skip row whose reason is the reduced model's own refusal."""
+def test_friction_rb_matrix_expands_and_skips_collocation_with_eim():
+    """friction_rb.toml: collocation (patience 1, 10) and wedge, hyper none and eim; the
+    collocation model with eim is a skip row whose reason is the reduced model's own refusal."""
     m = load_matrix("friction_rb", registry=default_registry())
     by = {_key(c): c for c in m.cases}
     assert set(by) == {("collocation", "none", 1), ("collocation", "none", 10),
@@ -107,7 +107,7 @@ def test_reduced_model_check_only_on_friction_scenes():
     assert reduced_model_check(load_scene("hertz_halfdisks"), comp, {}, reg) == ("run", "")
     fr = load_scene("hertz_friction")
     assert reduced_model_check(fr, comp, {"friction_dual": "wedge"}, reg) == ("run", "")
-    assert reduced_model_check(fr, comp, {}, reg)[0] == "skip"  # default seed model
+    assert reduced_model_check(fr, comp, {}, reg)[0] == "skip"  # default collocation model
     status, reason = reduced_model_check(fr, {**comp, "stabilizer": "supremizer",
                                               "hyper": "none"}, {}, reg)
     assert status == "skip" and "supremizer" in reason

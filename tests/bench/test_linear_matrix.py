@@ -1,4 +1,4 @@
-"""The linear scenes in run matrices, rows and the report (issue 18), and the side-by-side
+"""The linear scenes in run matrices, rows and the report, and the side-by-side
 study with pyMOR (optional: its column is ``not_installed`` without it)."""
 
 from __future__ import annotations
@@ -140,7 +140,7 @@ def test_pymor_study_small_run_agrees():
 @pytest.mark.slow
 @pytest.mark.skipif(not HAS_PYMOR, reason="pyMOR not installed (pip install pymor)")
 def test_done_when_thermal_block_n10_side_by_side():
-    """Issue 18: at N = 10 (64 x 64, 100 training, 20 validation) rbbench's max error is
+    """At N = 10 (64 x 64, 100 training, 20 validation) rbbench's max error is
     within 2x of pyMOR's and its online median not slower."""
     from rbbench.studies.pymor_thermal_block import side_by_side
 

@@ -23,7 +23,7 @@ def _hertz(overrides, mu=1.0, **kw):
 
 
 def test_hertz_default_mesh_within_five_percent():
-    """The issue's acceptance check: default scene and mesh, mu = 1.0."""
+    """The acceptance check against Hertz: default scene and mesh, mu = 1.0."""
     sol = _hertz([])
     h = sol.metrics["hertz"]
     assert sol.result.converged

@@ -1,4 +1,4 @@
-"""One model interface (issue 12): ``solve(mu)`` checks mu against D in the HF model and in
+"""One model interface: ``solve(mu)`` checks mu against D in the HF model and in
 both reduced models; a reduced model is built without validation, pickles, and solves the
 same as the validated one; the formulations are peers over one offline skeleton."""
 
@@ -172,7 +172,7 @@ def test_matrix_skips_a_frictionless_solver_and_reduce_refuses_a_friction_scene(
     status, reason = compatibility(sc, comp, default_registry())
     assert status == "skip" and reason.startswith("solver 'ssn' does not support the friction")
     assert compatibility(sc, {**comp, "solver": "friction-ssn"}, default_registry())[0] == "run"
-    # the mixed formulation reduces friction (issue 14); Nitsche's reduced model does not
+    # the mixed formulation reduces friction; Nitsche's reduced model does not
     with pytest.raises(SceneError, match="reduced 'nitsche' model supports 'none'"):
         offline(sc, _config(str(tmp_path), formulation="nitsche", solver="newton"))
     assert not any(tmp_path.iterdir())  # refused before any snapshot

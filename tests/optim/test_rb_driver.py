@@ -1,4 +1,4 @@
-"""Trust-region reduced-basis optimisation of shape_coulomb (issue 15 item 4) on a coarse
+"""Trust-region reduced-basis optimisation of shape_coulomb on a coarse
 scene: HF-verified monotone decrease on accepted steps, feasibility of the raw design,
 the reported HF objective against an independent HF evaluation, option validation."""
 import numpy as np

@@ -1,5 +1,7 @@
 """The adjoint subgradient of Theta(alpha) = ||lam||_6^6 against central finite differences at
-designs where the active sets are stable (issue 15: 1e-5 relative), and the seed's partition."""
+designs where the active sets are stable (1e-5 relative), and the partition of ``gph Q``
+(model B table) of the talk "On coupling of complementarity with friction in contact shape
+optimization"."""
 import numpy as np
 import pytest
 

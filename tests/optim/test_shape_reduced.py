@@ -1,4 +1,4 @@
-"""Reduced state model of shape_coulomb (issue 15 item 4): the affine decomposition against the
+"""Reduced state model of shape_coulomb: the affine decomposition against the
 moving-mesh assembly, the reduced model with the full interior basis against the HF solver,
 exactness at the centre of an HF interior space, the Galerkin bound S_N >= S, and the
 reduced subgradient against central differences of the reduced objective."""

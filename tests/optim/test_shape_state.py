@@ -47,7 +47,8 @@ def test_signorini_and_coulomb_laws_hold_on_raw_values(state):
     bound = F * st.lam[1:]
     assert (np.abs(st.tau) - bound).max() <= 1e-10 * scale
     slip = np.abs(st.u_t) > 1e-12 * np.abs(st.u_t).max()
-    # sliding nodes: tau = -F(|u_t|) lam sign(u_t) (seed 001, Q~ of model B)
+    # sliding nodes: tau = -F(|u_t|) lam sign(u_t) (Q~ of model B of the talk "On coupling of
+    # complementarity with friction in contact shape optimization")
     np.testing.assert_allclose(st.tau[slip], -bound[slip] * np.sign(st.u_t[slip]),
                                atol=1e-10 * scale)
     assert slip.any() and (~slip & (st.lam[1:] > 0)).any()     # both sliding and sticking

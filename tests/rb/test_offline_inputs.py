@@ -1,4 +1,4 @@
-"""Issue 16 hardening of ``rbbench reduce`` on the cheap membrane scene (seconds): the
+"""Hardening of ``rbbench reduce`` on the cheap membrane scene (seconds): the
 dimensionless inf-sup constants beside the raw ones, progress during validation, the HF
 snapshot time, ``-N`` beyond the training set."""
 

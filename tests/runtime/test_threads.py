@@ -1,5 +1,4 @@
-"""One BLAS thread per HF solve and per online validation loop; the floor of ``rbbench solve``
-(issue 17, items 2 and 3)."""
+"""One BLAS thread per HF solve and per online validation loop; the floor of ``rbbench solve``."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Scene section ``[friction]`` and the friction loads of ``[load]`` (issue 13, step 1):
+"""Scene section ``[friction]`` and the friction loads of ``[load]``:
 valid input, the value at mu, cache keys of frictionless scenes, bad input naming the key."""
 
 from __future__ import annotations
@@ -96,7 +96,8 @@ def test_tresca_threshold_and_load_steps():
 
 
 def test_old_coefficient_law_name_still_loads_with_a_deprecation_warning():
-    """``"seed001"``, the former name of ``"model_b"``, loads as ``"model_b"`` and warns."""
+    """``"seed001"`` (the deprecated alias), the former name of ``"model_b"``, loads as
+    ``"model_b"`` and warns."""
     with pytest.warns(DeprecationWarning, match="'seed001' is now 'model_b'"):
         sc = load_scene(HERTZ, ['friction.law="coulomb"', 'friction.coefficient="seed001"'])
     assert friction_of(sc).coefficient_law == "model_b"

@@ -1,4 +1,4 @@
-"""The linear scenes without contact (issue 18): scenes, HF solves on two backends, the
+"""The linear scenes without contact: scenes, HF solves on two backends, the
 reduced models, the exact affine decomposition and the a posteriori error bound, each
 against something independent (an analytic value, a second backend, a conservation law,
 dense residual norms computed from the HF operators)."""

@@ -1,4 +1,4 @@
-"""Snapshots that scale (issue 17, item 4): components built once per process (reused by the
+"""Snapshots that scale: components built once per process (reused by the
 next call, inherited by ``fork`` workers), one task per parameter taken by an idle worker,
 results in parameter order and equal to the serial ones."""
 

@@ -1,5 +1,5 @@
 """Bad command-line options exit 2 with a message naming the option, before any solve
-(issue 16: the cases that ended in a traceback or in a model of size 0)."""
+(the cases that used to end in a traceback or in a model of size 0)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""``rbbench solve`` / ``rbbench reduce`` / ``rbbench studies`` on the linear scenes (issue
-18), through :func:`rbbench.cli.main` and the Python face, against independent values: the
+"""``rbbench solve`` / ``rbbench reduce`` / ``rbbench studies`` on the linear scenes,
+through :func:`rbbench.cli.main` and the Python face, against independent values: the
 series solution of -Laplace u = 1 on the unit square, the discrete heat balance tested with
 v = 1 (computed from the mesh), and the Galerkin compliance identity."""
 

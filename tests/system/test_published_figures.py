@@ -1,4 +1,5 @@
-"""The seed's claims (seed 000), measured on Hertz data, and the beta_dec study.
+"""The claims of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+parametric variational inequalities" (talk), measured on Hertz data, and the beta_dec study.
 
 * mCPG vs CPG (slides "mCPG algorithm (3/4)", "(4/4)": "Accuracy ↗", "Cone aperture ↗",
   "avoid ill-conditioning issues"): at every equal ``R``, ``e_proj`` of mCPG is at most

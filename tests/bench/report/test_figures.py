@@ -1,4 +1,4 @@
-"""``rbbench report`` read as a researcher would (issue 16): the Pareto figure names the sizes
+"""``rbbench report`` read as a researcher would: the Pareto figure names the sizes
 N, R and draws the HF solve time, every dual compressor stays visible where two of them
 give the same numbers, the offline cost is drawn, and the best-per-level table tells the
 levels apart.

@@ -1,4 +1,4 @@
-"""``rbbench report`` on runs with reduced friction rows (issue 14, item 6): the GCNS curves,
+"""``rbbench report`` on runs with reduced friction rows: the GCNS curves,
 lam_t HF against RB, the friction table of the summary, and quiet skips without the data.
 
 The run directories are synthetic, written by the runner's own writers
@@ -90,7 +90,7 @@ def run_dir(tmp_path: Path) -> Path:
 
 
 # ------------------------------------------------------------------------------ figures
-def test_gcns_figure_draws_each_seed_history_and_circles_the_kept_q(run_dir):
+def test_gcns_figure_draws_each_collocation_history_and_circles_the_kept_q(run_dir):
     """One curve per collocation-model case in each panel (e_GCNS left, e_nt_rel right), values as
     stored (0 drawn at the 1e-12 floor), the kept q circled at its own value."""
     ctx = _context(load_run(run_dir))

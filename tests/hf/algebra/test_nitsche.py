@@ -1,4 +1,5 @@
-"""The HF Nitsche formulation (Benaceur et al.'s talk, slide "Nitsche's method"): normal
+"""The HF Nitsche formulation (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction
+methods: parametric variational inequalities" (talk), slide "Nitsche's method"): normal
 stress operator, Newton solver, agreement with the mixed formulation, Alart-Curnier residual,
 stability over gamma0 (coarse meshes)."""
 
@@ -16,12 +17,13 @@ from rbbench.scene.loading import load_scene
 from rbbench.testing import HERTZ_COARSE
 
 COARSE = list(HERTZ_COARSE)
-#: The e_AC study's former setting (GPTS): the seed's load, P1, one point per facet.
+#: The e_AC study's former setting (GPTS): Benaceur et al.'s load, P1, one point per facet.
 TABLE = ["load.displacement=0.09", "discretization.quadrature=1", "discretization.h_max=0.2"]
 #: The e_AC table's setting (README "The e_AC^n table"): P2, smooth slave normals,
 #: segment-to-segment contact quadrature.
-SEED_TABLE = ["load.displacement=0.09", "discretization.degree=2", "discretization.h_max=0.2",
-              "discretization.normals=smooth", "discretization.contact_integration=segmented"]
+PUBLISHED_TABLE = ["load.displacement=0.09", "discretization.degree=2",
+                   "discretization.h_max=0.2", "discretization.normals=smooth",
+                   "discretization.contact_integration=segmented"]
 
 
 def _scene(*extra):
@@ -36,7 +38,8 @@ def _nitsche(sc, mu, theta=1.0, gamma0=10.0, backend=None):
 
 
 def _independent_residual(prob, u):
-    """The Nitsche equations written out from the seed's slide (not rbbench.hf.algebra.nitsche)."""
+    """The Nitsche equations written out from Benaceur et al.'s slide (not
+    rbbench.hf.algebra.nitsche)."""
     s = prob.Snn @ u + prob.snn_lift
     P = s - prob.gamma * (prob.Un @ u - prob.gap)
     neg = np.minimum(P, 0.0)
@@ -134,7 +137,7 @@ def test_ac_residual_decreases_under_refinement():
         assert sol.result.converged
         e.append(sol.metrics["e_ac"])
     assert e[0] > e[1] > e[2], e
-    assert np.log(e[0] / e[2]) / np.log(4.0) > 0.5  # observed order (seed: 1)
+    assert np.log(e[0] / e[2]) / np.log(4.0) > 0.5  # observed order (published: 1)
 
 
 def _e_ac_order(setting, mu, hcs=(0.02, 0.01)):
@@ -151,10 +154,10 @@ def _e_ac_order(setting, mu, hcs=(0.02, 0.01)):
 
 @pytest.mark.parametrize("mu", [0.7, 1.3])
 def test_ac_residual_converges_at_order_one_on_non_matching_meshes(mu):
-    """The seed's order 1 (README "The e_AC^n table"): two bodies, non-matching contact
+    """The published order 1 (README "The e_AC^n table"): two bodies, non-matching contact
     meshes, P2, smooth normals and segment-to-segment quadrature; GPTS with facet
     normals (the former setting) stagnates on the same meshes."""
-    order, e = _e_ac_order(SEED_TABLE, mu)
+    order, e = _e_ac_order(PUBLISHED_TABLE, mu)
     assert 0.7 < order < 1.6, (order, e)
     assert e[1] < 0.015
     if mu == 1.3:

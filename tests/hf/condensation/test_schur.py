@@ -1,4 +1,4 @@
-"""The Delassus operator as the Schur complement of the KKT matrix (issue 17, item 2).
+"""The Delassus operator as the Schur complement of the KKT matrix.
 
 The new path (:func:`rbbench.hf.condensation.schur.condense_schur`, SuperLU or PARDISO) against
 today's dense ``A^{-1} B^T`` (:func:`rbbench.hf.condensation.dense.condense`,

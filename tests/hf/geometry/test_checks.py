@@ -1,4 +1,4 @@
-"""Issue 16 hardening of the HF solve: multiplier supports coarser than the contact zone are
+"""Hardening of the HF solve: multiplier supports coarser than the contact zone are
 flagged (not "converged" with zero force), and the contact half-width from the pointwise gap
 is reported beside the one quantised to multiplier supports."""
 
@@ -17,7 +17,7 @@ from rbbench.hf.snapshots.cache import SnapshotError
 from rbbench.hf.snapshots.compute import compute_snapshots
 from rbbench.scene.loading import load_scene
 
-#: the coarsest mesh of the issue: one or two LAC patches over the whole potential zone
+#: the coarsest mesh: one or two LAC patches over the whole potential zone
 COARSEST = ["discretization.h_contact=0.5", "discretization.h_max=1", "discretization.grading=2"]
 
 

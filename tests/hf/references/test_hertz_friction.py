@@ -1,5 +1,6 @@
-"""Seed 000's friction case ``hertz_friction`` and the friction outputs of ``rbbench solve``
-and of HF-mode rows (issue 13, steps 4-6).
+"""The friction case ``hertz_friction`` of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order
+reduction methods: parametric variational inequalities" (talk), and the friction outputs of
+``rbbench solve`` and of HF-mode rows.
 
 Coarse meshes (P1, h_contact = 0.02): about 9k dofs and 130 friction nodes, a few seconds.
 """
@@ -22,7 +23,7 @@ def solution():
     return solve_hf(load_scene("hertz_friction", COARSE), [0.7])
 
 
-def test_scene_is_the_seeds_friction_case():
+def test_scene_is_the_published_friction_case():
     sc = load_scene("hertz_friction")
     assert sc.param_names == ["mu"]
     assert sc.parameters[0].low == 0.7 and sc.parameters[0].high == 1.3

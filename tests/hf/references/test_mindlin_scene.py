@@ -1,4 +1,4 @@
-"""The ``mindlin_cylinders`` scene and the ``mindlin`` block of a friction solve (issue 13)."""
+"""The ``mindlin_cylinders`` scene and the ``mindlin`` block of a friction solve."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Friction, high fidelity (issue 13, step 3): the mixed formulation's FrictionProblem, the
+"""Friction, high fidelity: the mixed formulation's FrictionProblem, the
 ``friction-ssn`` / ``friction-uzawa`` solvers over the load steps, the friction metrics.
 
 Small meshes (hertz_halfdisks, level 0, h_contact = 0.04, P1 multipliers so that the
@@ -198,7 +198,7 @@ def test_friction_solvers_solve_frictionless_problems_as_their_frictionless_kin(
 
 @pytest.mark.parametrize("method", ["direct", "fixed_point"])
 def test_coulomb_extremes_converge_or_stop_with_a_reason(shear, method):
-    """nu_F in {0, 1e-3, 0.2, 1, 10} (issue 13): each converges (and then satisfies the
+    """nu_F in {0, 1e-3, 0.2, 1, 10}: each converges (and then satisfies the
     conditions) or stops with a reason; more friction, fewer slipping nodes."""
     _, disc, _ = shear
     slipping = []

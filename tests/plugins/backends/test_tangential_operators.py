@@ -1,4 +1,4 @@
-"""Tangential contact operators of friction scenes (issue 13, step 2): ``Bt = Mt^T diag(w) Ut``
+"""Tangential contact operators of friction scenes: ``Bt = Mt^T diag(w) Ut``
 with P1 friction multipliers ``Mt`` and the collocation nodes ``C(mu)``; built only for
 friction scenes; frictionless operators bitwise as before; scikit-fem = NGSolve on one mesh;
 rigid translations; Dirichlet values of the load steps."""

@@ -1,4 +1,5 @@
-"""Model B (seed 001, ``F = f(|u_t|)``) by a semismooth Newton with ``f'`` (issue 13, item 3):
+"""Model B (the talk "On coupling of complementarity with friction in contact shape
+optimization", ``F = f(|u_t|)``) by a semismooth Newton with ``f'``:
 :func:`rbbench.hf.solvers.friction.model_b_newton` against the fixed point on the
 coefficient (:func:`rbbench.hf.solvers.friction.coulomb_model_b`), an independent iteration
 with the same solution.

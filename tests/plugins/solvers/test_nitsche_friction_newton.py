@@ -1,4 +1,4 @@
-"""Nitsche friction (issue 13, step 3, last item): the shear stress operator ``Snt``, the
+"""Nitsche friction: the shear stress operator ``Snt``, the
 Chouly-Hild-Renard tangential term (:mod:`rbbench.hf.algebra.nitsche_friction`) and the generalised
 Newton over the load steps, checked against the frictionless Nitsche solve, the mixed
 friction solve (``friction-ssn``), the other backend, and the algebra written out here.

@@ -1,5 +1,6 @@
-"""PETSc friction (issue 13, item 3): SNES VI and TAO on the condensed Tresca box QP,
-Coulomb and model B by the seed's fixed point around them.
+"""PETSc friction: SNES VI and TAO on the condensed Tresca box QP, Coulomb and model B by the
+fixed point of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+parametric variational inequalities" (talk) around them.
 
 Every PETSc solution is checked against the primal-dual active set
 (:func:`rbbench.hf.solvers.friction.pdas_tresca`, an independent algorithm) or against
@@ -157,7 +158,7 @@ def test_mindlin_tresca_extremes_converge_or_stop_with_a_reason(mindlin, cls, op
 
 @pytest.mark.parametrize("cls", [PetscVISolver, PetscTaoSolver], ids=["vi", "tao"])
 def test_mindlin_coulomb_and_model_b_by_the_fixed_point_on_petsc_tresca(mindlin, cls):
-    """Coulomb (nu_F = 0.2) and model B: the seed's fixed point with SNES VI / TAO inside
+    """Coulomb (nu_F = 0.2) and model B: Benaceur et al.'s fixed point with SNES VI / TAO inside
     equals friction-ssn's fixed point on PDAS (1e-9) and reports its contraction and the
     last inner PETSc reason."""
     for law in (FrictionLaw("coulomb", coefficient=0.2),

@@ -232,7 +232,9 @@ def test_whole_space_basis_equals_hf_formula():
 
 @pytest.mark.parametrize("seed", [5, 6, 7])
 def test_supremizer_enrichment_recovers_hf(seed):
-    """Seed slide "Parameter-dependent context": beta_on >= beta_HF. With the online
+    """Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods: parametric
+    variational inequalities" (talk), slide "Parameter-dependent context": beta_on >= beta_HF.
+    With the online
     supremizers the sup over V_N + S_R(mu) equals the sup over V (the supremizer T y of
     eta = Vg y lies in S_R(mu)), so beta_on equals the HF value over the same cone and is
     >= the HF value over all multipliers; without them (beta_dec) it is smaller."""
@@ -297,7 +299,7 @@ def test_cone_value_with_dependent_generators():
 
 def test_span_value_below_round_off_is_zero():
     """A pencil whose smallest eigenvalue is round-off of the largest (ratio 3e-16, the
-    membrane's beta_dec in issue 16) gives 0, not a positive 'lower bound'; a small but
+    membrane's beta_dec) gives 0, not a positive 'lower bound'; a small but
     resolved one (ratio 1e-8) keeps its value."""
     from rbbench.rb.algorithms.infsup import infsup_span
 

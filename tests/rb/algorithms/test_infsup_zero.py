@@ -1,4 +1,4 @@
-"""Issue 16: the beta = 0 test never fails the reduction. An SVD bound decides full-rank
+"""The beta = 0 test never fails the reduction. An SVD bound decides full-rank
 couplings without an LP; an LP that returns no point ("HiGHS Status 0: Not Set") is retried
 with other HiGHS methods, and when none decides the row says undecided (None) and why."""
 

@@ -1,4 +1,6 @@
-"""Projected Greedy Algorithm (seed 000, slides "Approximation of S_R" to "Some details")."""
+"""Projected Greedy Algorithm (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction
+methods: parametric variational inequalities" (talk), slides "Approximation of S_R" to
+"Some details")."""
 
 import numpy as np
 import pytest
@@ -157,7 +159,7 @@ def _constants(B, X, solve, W, Vg, Zs):
 @settings(derandomize=True, max_examples=8, deadline=None)
 @given(seed=st.integers(0, 10**5))
 def test_main_result(seed):
-    """Seed "Main result": sigma_S(mu) < beta_on / c_HF  =>  beta_off(mu) >=
+    """Benaceur et al.'s "Main result": sigma_S(mu) < beta_on / c_HF  =>  beta_off(mu) >=
     (beta_on - c_HF sigma) / (1 + sigma), for every PGA prefix S^i, on training and
     validation parameters (the bound holds for any mu), cone and span values alike."""
     X, Bs, W, Vg, Z, T, solve = _instance(seed, n=50, m=6, R=3, N=3, P=6)
@@ -186,7 +188,7 @@ def test_main_result(seed):
     assert hits > 0
 
 
-def test_seed_tolerance_gives_stable_training_set():
+def test_main_result_tolerance_gives_stable_training_set():
     """delta_PGA < min_train beta_on / c_HF  =>  beta_off > 0 on every training mu."""
     X, Bs, W, Vg, Z, T, solve = _instance(7, n=50, m=6, R=3, N=3, P=5)
     ratios = []

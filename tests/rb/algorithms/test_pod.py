@@ -83,7 +83,8 @@ def test_ideal_greedy_properties():
     U, X = _low_rank(r=6), _laplace_mass(60)
     g = weak_greedy(U, X, tol=1e-12)
     assert g.ideal and g.N == 6 and len(g.sigma) == g.N + 1
-    # first pick: the largest snapshot (seed: mu_1 in argmax ||u(mu)||_V)
+    # first pick: the largest snapshot (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order
+    # reduction methods: parametric variational inequalities" (talk): mu_1 in argmax ||u(mu)||_V)
     norms = np.sqrt(np.einsum("ij,ij->j", U, X @ U))
     assert g.picks[0] == int(np.argmax(norms))
     assert g.sigma[0] == pytest.approx(norms.max())

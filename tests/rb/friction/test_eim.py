@@ -1,4 +1,4 @@
-"""Friction hyper-reduction and stabilisation (issue 14, items 2 and 3): the P1 row evaluator
+"""Friction hyper-reduction and stabilisation: the P1 row evaluator
 against the HF tangential operators, the friction EIM (exact on its training set, at its
 magic entries, HF-size independent), the combined inf-sup of ``b^n + b^tau`` (mixed cone
 against brute force, reduced with the full dual space = HF), PGA on the combined form."""
@@ -286,7 +286,9 @@ def test_pga_on_the_combined_form_reaches_delta_and_stabilises():
         Sm = T.T @ (combined_b(p.Bn, p.Bt).T @ combined_generators(Vn, Vt))
         Mm = inf._gram(combined_w(p.W), combined_generators(Vn, Vt))
         ratios.append(inf.infsup_span(Sm, Mm) / inf.boundedness_constant(Sm, Mm))
-    delta = max(ratios)  # the seed's rule (sup over training), as pga_delta computes it
+    # the rule of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+    # parametric variational inequalities" (talk): the sup over training, as pga_delta computes it
+    delta = max(ratios)
     res = combined_pga(probs, Z, X, xs, Vn, Vt, delta)
     assert res.stop_reason in ("tolerance", "exhausted") and res.sigma_max[-1] <= delta
     assert np.all(np.diff(res.sigma_max) <= 1e-12)

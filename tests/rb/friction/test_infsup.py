@@ -1,5 +1,6 @@
-"""The combined inf-sup rows of the friction validation (issue 14, item 6) and the contact
-profiles of the seed's figure "RB solutions": each against an independent computation."""
+"""The combined inf-sup rows of the friction validation and the contact profiles of the figure
+"RB solutions" of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+parametric variational inequalities" (talk): each against an independent computation."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Reduced friction model (issue 14, stage 1): the small Coulomb solve against the HF friction
+"""Reduced friction model: the small Coulomb solve against the HF friction
 solver, GCNS and its stopping rule, the plain reduced model on hertz_friction (coarse P1)
 against the HF snapshots, friction snapshots with lam_t, ``rbbench reduce`` on a friction
 scene, pickling."""
@@ -49,8 +49,10 @@ def _random_problem(seed: int, n: int = 14, m: int = 5) -> FrictionArrays:
 # ---------------------------------------------------------------------------
 def test_identity_bases_equal_hf_coulomb_and_tresca():
     """With identity bases and every node collocated, the reduced problem IS the HF one:
-    the seed's fixed point on daqp Tresca QPs equals the semismooth Newton on the wedge
-    (coulomb_direct) and the Tresca PDAS, on problems with open, stick and slip nodes."""
+    the fixed point of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
+    parametric variational inequalities" (talk), on daqp Tresca QPs, equals the semismooth
+    Newton on the wedge (coulomb_direct) and the Tresca PDAS, on problems with open, stick and
+    slip nodes."""
     states = set()
     for seed in range(6):
         arr = _random_problem(seed)
@@ -105,7 +107,7 @@ def _fake_solve(errors: list[float], m: int = 12):
     return solve_all, lam_t
 
 
-def test_gcns_stops_by_the_seed_rule_and_keeps_the_previous_set():
+def test_gcns_stops_by_the_published_rule_and_keeps_the_previous_set():
     solve_all, lam_t = _fake_solve([0.5, 0.3, 0.2, 0.25, 0.1, 0.05, 0.07])
     W = [np.eye(lam_t.shape[0])]
     res = gcns(solve_all, lam_t, W, per_iteration=2)
@@ -315,10 +317,11 @@ def test_wedge_full_bases_reproduce_the_training_snapshots():
             assert np.sqrt(d @ (p.W @ d) / (lam[:, j] @ (p.W @ lam[:, j]))) < 1e-7
 
 
-def test_wedge_model_against_the_seed_on_validation():
+def test_wedge_model_against_the_collocation_model_on_validation():
     """Same (N, R + S) on the coarse mesh: the wedge model's raw reduced multipliers are in
-    the Coulomb cone at EVERY HF node (the seed's are not off its collocation nodes), and its
-    lam_t error is far below the seed's (measured 0.19 against 3.6), above its floor."""
+    the Coulomb cone at EVERY HF node (the collocation model's are not off its collocation
+    nodes), and its lam_t error is far below the collocation model's (measured 0.19 against
+    3.6), above its floor."""
     res = {d: validate(_offline(dual=d).context, _offline(dual=d).stage).summary()
            for d in ("collocation", "wedge")}
     w, s = res["wedge"], res["collocation"]

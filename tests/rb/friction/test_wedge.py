@@ -95,7 +95,7 @@ def test_wedge_snapshots_reconstruct_and_refuse_outside_the_cone():
 
 
 def test_friction_dual_choice_and_table():
-    """The dual model is an option (default: collocation; the old name 'seed' deprecated);
+    """The dual model is an option (default: collocation; 'seed', the deprecated alias);
     unknown names refused; the comparison table puts summaries side by side."""
     from rbbench.rb.friction.options import FrictionOptions
     from rbbench.rb.friction.wedge.stage import comparison_table

@@ -125,7 +125,7 @@ def _arrays(obj, seen=None):
         yield from _arrays(vars(obj), seen)
 
 
-def test_slip_deim_interpolates_at_its_nodes_and_refuses_hyper_with_seed():
+def test_slip_deim_interpolates_at_its_nodes_and_refuses_hyper_with_collocation():
     """Slip DEIM: exact on its snapshots at full size and exact when there is no slip; hyper
     'eim' needs the wedge dual model."""
     from rbbench.registry import default_registry

@@ -57,8 +57,10 @@ def test_reduced_equals_hf_when_bases_contain_the_snapshot(membrane):
 
 
 def test_supremizers_make_the_multiplier_exact(membrane):
-    """With Z enriched by the supremizers X^{-1} B^T Vg (seed: "Enhancement by
-    supremizers") the reduced problem is inf-sup stable, so lam_R = lam exactly."""
+    """With Z enriched by the supremizers X^{-1} B^T Vg (Benaceur, Drouet, Ehrlacher,
+    Ern & Niakh, "Model order reduction methods: parametric variational inequalities"
+    (talk), "Enhancement by supremizers") the reduced problem is inf-sup stable, so
+    lam_R = lam exactly."""
     import scipy.sparse.linalg as spla
 
     sc, comps, mus, sols, Z, Vg, _ = membrane

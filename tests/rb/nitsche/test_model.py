@@ -130,7 +130,7 @@ def test_reduced_model_is_small_and_evaluates_its_points_exactly(nitsche_reducti
     assert r.stop_reason == "converged" and r.c.shape == (model.N,)
 
 
-def test_deim_variant_runs_and_reports_the_seed_errors(nitsche_reductions):
+def test_deim_variant_runs_and_reports_the_published_errors(nitsche_reductions):
     _, out = nitsche_reductions
     s = out["deim"].summary()
     assert s["hyper"] == "deim"
