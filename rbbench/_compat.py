@@ -182,6 +182,8 @@ NAMES: dict[str, dict[str, str]] = {
         "run": f"rbbench.cli.studies:cmd_{new}"} for old, new in _STUDY_CLI.items()},
     # names of documents replaced by names of methods or by "published"
     "rbbench.hf.algebra.friction": {"SEED001": "rbbench.hf.algebra.friction:MODEL_B"},
+    "rbbench.optim.run": {"SEED_J0": "rbbench.optim.run:PUBLISHED_J0",
+                          "SEED_J_OPT": "rbbench.optim.run:PUBLISHED_J_OPT"},
     "rbbench.studies.nitsche_eac": {
         "SEED_EAC": "rbbench.studies.nitsche_eac:PUBLISHED_EAC",
         "SEED_H": "rbbench.studies.nitsche_eac:PUBLISHED_H",

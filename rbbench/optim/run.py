@@ -168,3 +168,8 @@ def _pictures(sc: ShapeScene, res, rows: list[dict], summary: dict, out: Path) -
     plot_pressure(sc, states, out / "pressure.png")
     plot_history([r for r in rows if r.get("serious")], out / "history.png",
                  summary["J_uniform_bound"])
+
+
+from rbbench._compat import deprecated_names  # noqa: E402 - after the module's own names
+
+__getattr__ = deprecated_names(__name__)  # renamed names (rbbench._compat)
