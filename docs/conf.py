@@ -78,6 +78,8 @@ sphinx_gallery_conf = {
     "show_memory": False,
     "show_signature": False,
     "reset_modules": ("matplotlib",),
+    # RBBENCH_DOCS_PLOT=False: pages only, the examples not run (a quick check of the text)
+    "plot_gallery": os.environ.get("RBBENCH_DOCS_PLOT", "True"),
 }
 
 # -- HTML -----------------------------------------------------------------------------------
