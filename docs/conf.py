@@ -40,7 +40,7 @@ extensions = [
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
-exclude_patterns = ["_build", "**/*.ipynb", "**/*.py.md5", "**/*.zip", "**/*.json",
+exclude_patterns = ["_build", "_generated", "**/*.ipynb", "**/*.py.md5", "**/*.zip", "**/*.json",
                     "**/sg_execution_times.rst"]
 templates_path = ["_templates"]
 

@@ -10,12 +10,6 @@ the primal-dual active-set solver), and its pressure against 2D Hertz theory at 
 the solver computed.
 """
 
-# sphinx_gallery_start_ignore
-import os
-import tempfile
-
-os.chdir(os.environ.get("RBBENCH_DOCS_WORK") or tempfile.mkdtemp(prefix="rbbench-"))
-# sphinx_gallery_end_ignore
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
