@@ -9,6 +9,7 @@ reformulation".
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 
@@ -23,6 +24,19 @@ __all__ = ["NITSCHE_COLUMNS", "PUBLISHED_EAC", "PUBLISHED_H", "nitsche_markdown"
 #: at h = 5, 2.5, 1.25 mm for mu = 0.7, 1, 1.3 m.
 PUBLISHED_EAC = {0.7: (1.0, 0.52, 0.28), 1.0: (1.45, 0.72, 0.33), 1.3: (1.17, 1.1, 0.43)}
 PUBLISHED_H = (0.005, 0.0025, 0.00125)
+#: the published setting (load d = 0.09 m, P2 displacements) with the two contact options
+#: that give the published order (smooth slave normals, segment-to-segment quadrature):
+#: scene overrides, ``key -> value``
+PUBLISHED_SETTING = {"load.displacement": 0.09, "discretization.degree": 2,
+                     "discretization.quadrature": 0, "discretization.normals": "smooth",
+                     "discretization.contact_integration": "segmented"}
+
+
+def published_overrides(**changes: Any) -> list[str]:
+    """:data:`PUBLISHED_SETTING` as ``--set`` overrides, with ``changes`` (keys with ``__``
+    for ``.``: ``discretization__degree=1``) applied."""
+    setting = {**PUBLISHED_SETTING, **{k.replace("__", "."): v for k, v in changes.items()}}
+    return [f"{k}={v!r}" if isinstance(v, str) else f"{k}={v}" for k, v in setting.items()]
 
 #: Column definitions printed under ``rbbench nitsche-table`` (README "Nitsche").
 NITSCHE_COLUMNS = (
