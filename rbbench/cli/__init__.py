@@ -22,6 +22,7 @@ import argparse
 import sys
 
 from rbbench._compat import deprecated_names
+from rbbench._version import __version__
 from rbbench.bench.errors import ResultsError
 from rbbench.cli.optimize import add_parser as _add_optimize_parser
 from rbbench.cli.reduce import _add_online_scaling_parser, _add_reduce_parser
@@ -39,6 +40,8 @@ from rbbench.scene.loading import SceneError
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rbbench", description=__doc__.splitlines()[0])
+    p.add_argument("--version", action="version", version=f"rbbench {__version__}",
+                   help="print the version (rbbench VERSION) and exit")
     sub = p.add_subparsers(dest="command", required=True)
     _add_solve_parser(sub)
     pl = sub.add_parser("plugins", help="registered components and whether they are importable")

@@ -316,6 +316,27 @@ def test_no_command_is_a_usage_error(capsys):
 
 
 # ---------------------------------------------------------------------------
+# rbbench --version
+# ---------------------------------------------------------------------------
+def test_version_prints_the_package_version(capsys):
+    import rbbench
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out == f"rbbench {rbbench.__version__}\n"
+
+
+def test_console_script_version():
+    import rbbench
+
+    proc = subprocess.run([str(RBBENCH), "--version"], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"rbbench {rbbench.__version__}"
+
+
+# ---------------------------------------------------------------------------
 # rbbench plugins / scenes
 # ---------------------------------------------------------------------------
 BUILTINS = [("backend", "skfem"), ("formulation", "mixed"), ("solver", "ssn"),
