@@ -133,7 +133,8 @@ def _add_solve_parser(sub) -> None:
                        "warnings)")
     s.add_argument("scene", help="scene name in problems/ or path to a .toml file")
     s.add_argument("--mu", type=float, nargs="+", help="parameter value(s) (default: scene's)")
-    s.add_argument("--backend", default="skfem")
+    s.add_argument("--backend", default="skfem",
+                   help="HF backend (registered: rbbench plugins, role backend)")
     _add_option_args(s)
     s.add_argument("--formulation", default="mixed", help="mixed or nitsche")
     s.add_argument("--solver", default=None,
