@@ -27,7 +27,37 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def print_summary(m: dict, mu: dict) -> None:
+def _unit(key: str, units: dict) -> str:
+    """The unit printed after the number ``key``: ``units[key]`` (``summary.json`` ``units``,
+    :data:`rbbench.hf.metrics.SI_UNITS`), seconds for a time (the ``_s`` suffix); nothing
+    for a count, a ratio or a nondimensional scene's number (``"1"``)."""
+    unit = units.get(key) or ("s" if key.endswith("_s") else "")
+    return "" if unit == "1" else unit
+
+
+def _valued(key: str, value, units: dict) -> str:
+    """``value`` formatted, then its unit."""
+    unit = _unit(key, units)
+    return f"{_fmt(value)} {unit}" if unit else _fmt(value)
+
+
+def _mu_line(mu: dict, mu_units: dict | None = None) -> str:
+    """``mu: name = value [unit], ...`` (``mu_units``: the scene's parameter units)."""
+    units = mu_units or {}
+    return "mu: " + ", ".join(f"{k} = {v:g}" + (f" {units[k]}" if units.get(k) else "")
+                              for k, v in mu.items())
+
+
+def _nondimensional_note(units: dict) -> None:
+    """A line saying so when every number of ``units`` is nondimensional (the scalar
+    scenes)."""
+    if units and set(units.values()) == {"1"}:
+        print("  (nondimensional scene: its numbers carry no unit; times in s)")
+
+
+def print_summary(m: dict, mu: dict, mu_units: dict | None = None) -> None:
+    """The summary lines of an HF solve (``m``: its metrics, units from ``m["units"]``;
+    ``mu``: the parameter values, ``mu_units`` their units)."""
     keys = ["n_dofs", "n_contact", "n_active", "iterations", "stop_reason", "final_residual",
             "solver_stop_reason", "solve_time_s", "floor_s", "solve_over_floor",
             "contact_force", "contact_half_width",
@@ -35,7 +65,8 @@ def print_summary(m: dict, mu: dict) -> None:
             "complementarity", "penetration_max", "zone_saturated", "e_ac",
             "tangential_force", "n_stick", "n_slip", "n_open", "stick_half_width",
             "friction_residual"]
-    print("mu: " + ", ".join(f"{k} = {v:g}" for k, v in mu.items()))
+    units = m.get("units") or {}
+    print(_mu_line(mu, mu_units))
     notes = {"floor_s": "  (one factorisation + one solve of A, this run)",
              "solve_over_floor": "  (solver time times_s.solve_s / floor_s)",
              "contact_half_width": "  (quantised to whole multiplier supports)",
@@ -43,18 +74,11 @@ def print_summary(m: dict, mu: dict) -> None:
                                        "edges interpolated)"}
     for k in keys:
         if k in m and m[k] is not None:
-            print(f"  {k:<26} {_fmt(m[k])}{notes.get(k, '')}")
+            print(f"  {k:<26} {_valued(k, m[k], units)}{notes.get(k, '')}")
+    _nondimensional_note(units)
     if "hertz" in m:
-        h = m["hertz"]
-        print("  2D Hertz at the computed force P:")
-        print(f"    a   = {h['a']:.6g} m   computed {m['contact_half_width']:.6g} m   "
-              f"rel. error {100 * h['a_rel_error']:+.2f} % (quantised)")
-        if h.get("a_gap_rel_error") is not None:
-            print(f"    a   = {h['a']:.6g} m   gap edge {m['contact_half_width_gap']:.6g} m   "
-                  f"rel. error {100 * h['a_gap_rel_error']:+.2f} %")
-        print(f"    p0  = {h['p0']:.6g} Pa  computed {m['max_pressure']:.6g} Pa  "
-              f"rel. error {100 * h['p0_rel_error']:+.2f} %")
-    _print_mindlin(m.get("mindlin"))
+        _print_hertz(m, units)
+    _print_mindlin(m.get("mindlin"), units)
     reason = (m.get("solver_info") or {}).get("reason")
     if reason and m.get("stop_reason") != "converged":
         print(f"  reason: {reason}")
@@ -64,23 +88,45 @@ def print_summary(m: dict, mu: dict) -> None:
         print("  WARNING: the contact patch reaches the edge of the potential contact zone")
 
 
-def _print_mindlin(b: dict | None) -> None:
+def _print_hertz(m: dict, units: dict) -> None:
+    """The 2D Hertz lines of an HF solve (``summary.json`` ``hertz``)."""
+    h = m["hertz"]
+
+    def a(v):
+        return _valued("contact_half_width", v, units)
+
+    print("  2D Hertz at the computed force P:")
+    print(f"    a   = {a(h['a'])}   computed {a(m['contact_half_width'])}   "
+          f"rel. error {100 * h['a_rel_error']:+.2f} % (quantised)")
+    if h.get("a_gap_rel_error") is not None:
+        print(f"    a   = {a(h['a'])}   gap edge {a(m['contact_half_width_gap'])}   "
+              f"rel. error {100 * h['a_gap_rel_error']:+.2f} %")
+    print(f"    p0  = {_valued('max_pressure', h['p0'], units)}  computed "
+          f"{_valued('max_pressure', m['max_pressure'], units)}  "
+          f"rel. error {100 * h['p0_rel_error']:+.2f} %")
+
+
+def _print_mindlin(b: dict | None, units: dict) -> None:
     """The Cattaneo-Mindlin lines of a friction solve (``summary.json`` ``mindlin``)."""
     if not b:
         return
     if b.get("c_theory") is None:
         print(f"  Cattaneo-Mindlin: not applicable ({b.get('reason')})")
         return
-    print(f"  Cattaneo-Mindlin at the computed P = {b['P']:.6g} N/m, Q = {b['Q']:.6g} N/m "
+    print(f"  Cattaneo-Mindlin at the computed P = {_valued('contact_force', b['P'], units)}, "
+          f"Q = {_valued('tangential_force', b['Q'], units)} "
           f"(Q / F P = {b['Q_over_FP']:.3f}):")
-    print(f"    c   = {b['c_theory']:.6g} m   computed {b['c']:.6g} m   "
+    print(f"    c   = {_valued('stick_half_width', b['c_theory'], units)}   computed "
+          f"{_valued('stick_half_width', b['c'], units)}   "
           f"rel. error {100 * b['c_rel_error']:+.2f} %")
     print(f"    shear traction: relative L2(-a, a) error {100 * b['traction_l2_rel_error']:.2f} "
           f"% (even part {100 * b['traction_l2_rel_error_even']:.2f} %)")
 
 
-def _print_reduce_summary(s: dict, formulation: str) -> None:
-    """The main numbers of ``rbbench reduce`` (``s``: the reduction's summary)."""
+def _print_reduce_summary(s: dict, formulation: str, units: dict | None = None) -> None:
+    """The main numbers of ``rbbench reduce`` (``s``: the reduction's summary; ``units``: the
+    scene's, :func:`rbbench.hf.metrics.units_of`)."""
+    units = units or {}
     keys = ["N", "R", "K_pga", "hyper", "M_eim", "n_train", "n_valid", "n_hf_dofs", "err_u_max",
             "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
             "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min", "beta_kind",
@@ -91,7 +137,8 @@ def _print_reduce_summary(s: dict, formulation: str) -> None:
             "friction_residual_max"]
     for k in keys:
         if k in s:
-            print(f"  {k:<20} {_fmt(s[k])}")
+            print(f"  {k:<20} {_valued(k, s[k], units)}")
+    _nondimensional_note(units)
     for w in s.get("warnings", ()):
         print(f"  WARNING: {w}")
     if formulation == "nitsche":
@@ -118,16 +165,16 @@ _REDUCE_KEYS = ("N", "hyper", "n_train", "n_valid", "n_hf_dofs", "err_u_max", "e
                 "t_online_median_s", "t_hf_median_s", "speedup")
 
 
-def print_linear_summary(m: dict, mu: dict) -> None:
+def print_linear_summary(m: dict, mu: dict, mu_units: dict | None = None) -> None:
     """The lines of a linear HF solve (``m``: :func:`rbbench.hf.linear.solve.linear_metrics`)."""
-    print("mu: " + ", ".join(f"{k} = {v:g}" for k, v in mu.items()))
+    print(_mu_line(mu, mu_units))
     at_t = " (at T)" if "steps" in m else ""
     for k in _SOLVE_KEYS:
         if k in m:
             tail = at_t if k in ("u_max", "u_min", "u_integral", "u_norm_X") else ""
-            print(f"  {k:<14} {_fmt(m[k])}{tail}")
-    print("  (linear scene, no contact: residual_rel recomputed from the assembled operators; "
-          "see summary.json definitions)")
+            print(f"  {k:<14} {_valued(k, m[k], {})}{tail}")
+    print("  (linear scene, no contact, nondimensional (no unit but the times'): residual_rel "
+          "recomputed from the assembled operators; see summary.json definitions)")
 
 
 def print_linear_reduce(s: dict, parabolic: bool, inner: str) -> None:
@@ -136,7 +183,7 @@ def print_linear_reduce(s: dict, parabolic: bool, inner: str) -> None:
     ``inner_product``)."""
     for k in _REDUCE_KEYS:
         if k in s and s[k] is not None:
-            print(f"  {k:<20} {_fmt(s[k])}")
+            print(f"  {k:<20} {_valued(k, s[k], {})}")
     for w in s.get("warnings", ()):
         print(f"  WARNING: {w}")
     x = {"h1_semi": "H1_0 seminorm |.|_1", "h1": "H1"}.get(inner, inner)

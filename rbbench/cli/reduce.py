@@ -73,7 +73,9 @@ def cmd_reduce(args: argparse.Namespace) -> int:
     if c["formulation"] == "linear":
         print_linear_reduce(s, is_parabolic(scene), scene.data["discretization"]["inner_product"])
     else:
-        _print_reduce_summary(s, c["formulation"])
+        from rbbench.hf.metrics import units_of
+
+        _print_reduce_summary(s, c["formulation"], units_of(scene.data["scene"]["physics"]))
     print(f"wrote: {path}")
     return 0
 

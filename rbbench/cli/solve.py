@@ -56,9 +56,14 @@ def cmd_solve(args) -> int:
     out = _solve_out(args, scene, mu)
     progress(f"writing {out}")
     paths = write_all(sol, out, plot=not args.no_plot)
-    print_summary(sol.metrics, scene.mu_dict(mu))
+    print_summary(sol.metrics, scene.mu_dict(mu), _mu_units(scene))
     print("wrote: " + ", ".join(str(p) for p in paths))
     return 0 if sol.result.converged else 1
+
+
+def _mu_units(scene) -> dict[str, str]:
+    """The units of the scene's parameters (``[parameters.NAME] unit``; empty: none)."""
+    return {p.name: p.unit for p in scene.parameters}
 
 
 def _solve_out(args, scene, mu) -> Path:
@@ -76,7 +81,7 @@ def _solve_linear(scene, mu, args, options: dict, progress) -> int:
     out = _solve_out(args, scene, mu)
     progress(f"writing {out}")
     paths = write_linear(sol, out, plot=not args.no_plot)
-    print_linear_summary(sol.metrics, scene.mu_dict(mu))
+    print_linear_summary(sol.metrics, scene.mu_dict(mu), _mu_units(scene))
     print("wrote: " + ", ".join(str(p) for p in paths))
     return 0
 
@@ -121,7 +126,8 @@ def _print_plugin_table(rows: list[dict]) -> None:
 def cmd_scenes(args) -> int:
     for path in sorted(PROBLEMS_DIR.glob("*.toml")):
         sc = load_scene(path)
-        params = ", ".join(f"{p.name} in [{p.low:g}, {p.high:g}]" for p in sc.parameters)
+        params = ", ".join(f"{p.name} in [{p.low:g}, {p.high:g}]" + (f" {p.unit}" if p.unit else "")
+                           for p in sc.parameters)
         print(f"{sc.name:<22}{params:<44}{sc.data['scene']['description']}")
     return 0
 

@@ -191,6 +191,53 @@ def test_hertz_summary(hertz_run):
     assert "2D Hertz at the computed force P" in stdout
 
 
+def test_hertz_console_and_summary_carry_the_units(hertz_run):
+    """Each dimensional number of the summary lines ends with its unit, read from
+    summary.json's ``units`` (rbbench.hf.metrics.SI_UNITS); the parameter with the scene's."""
+    from rbbench.hf.metrics import SI_UNITS
+
+    stdout, out = hertz_run[1], hertz_run[3]
+    s = json.loads((out / "summary.json").read_text())
+    assert s["units"] == SI_UNITS and "units" in s["definitions"]
+    assert "(N/m)" in s["definitions"]["contact_force"]  # the definitions say the same unit
+    assert re.search(r"^mu: mu = 0\.9 m$", stdout, re.M)
+    for key, unit in (("contact_force", "N/m"), ("max_pressure", "Pa"),
+                      ("contact_half_width", "m"), ("penetration_max", "m"),
+                      ("solve_time_s", "s"), ("floor_s", "s")):
+        assert re.search(rf"^  {key}\s+\S+ {re.escape(unit)}(  \(.*\))?$", stdout, re.M), key
+    assert re.search(r"^  complementarity\s+\S+$", stdout, re.M)  # dimensionless: no unit
+    assert re.search(r"^    p0  = \S+ Pa  computed \S+ Pa", stdout, re.M)
+    assert "nondimensional" not in stdout
+
+
+def test_membrane_is_nondimensional(membrane_run):
+    stdout, out = membrane_run[1], membrane_run[3]
+    s = json.loads((out / "summary.json").read_text())
+    assert set(s["units"].values()) == {"1"} and "contact_force" in s["units"]
+    assert re.search(r"^  contact_force\s+\S+$", stdout, re.M)  # no unit
+    assert re.search(r"^  solve_time_s\s+\S+ s$", stdout, re.M)
+    assert "(nondimensional scene: its numbers carry no unit; times in s)" in stdout
+
+
+def test_reduce_summary_units(capsys):
+    """``rbbench reduce``'s lines: penetration_max in the scene's unit, times in s."""
+    from rbbench.cli.console import _print_reduce_summary
+    from rbbench.hf.metrics import units_of
+
+    s = {"N": 5, "err_u_max": 0.01, "penetration_max": 1e-6, "t_offline_s": 2.5,
+         "speedup": 10.0, "histories": {}}
+    _print_reduce_summary(s, "mixed", units_of("elasticity"))
+    out = capsys.readouterr().out
+    assert re.search(r"^  penetration_max\s+1e-06 m$", out, re.M)
+    assert re.search(r"^  t_offline_s\s+2\.5 s$", out, re.M)
+    for key in ("N", "err_u_max", "speedup"):
+        assert re.search(rf"^  {key}\s+\S+$", out, re.M), key
+    _print_reduce_summary(s, "mixed", units_of("poisson"))
+    out = capsys.readouterr().out
+    assert re.search(r"^  penetration_max\s+1e-06$", out, re.M)
+    assert "nondimensional scene" in out
+
+
 def test_hertz_contact_csv(hertz_run):
     out = hertz_run[3]
     n_contact = json.loads((out / "summary.json").read_text())["n_contact"]
@@ -370,7 +417,7 @@ def test_plugins_json(capsys):
 def test_scenes(capsys):
     assert main(["scenes"]) == 0
     out = capsys.readouterr().out
-    assert re.search(r"^hertz_halfdisks\s+mu in \[0\.7, 1\.3\]", out, re.M)
+    assert re.search(r"^hertz_halfdisks\s+mu in \[0\.7, 1\.3\] m\s", out, re.M)  # its unit
     assert re.search(r"^membrane_obstacle\s+height in \[0\.1, 0\.4\], curvature in \[2, 6\]",
                      out, re.M)
 
