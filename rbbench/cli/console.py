@@ -4,7 +4,9 @@ No imports beyond the standard library (the shared base of the package)."""
 
 from __future__ import annotations
 
+import shutil
 import sys
+import textwrap
 import time
 
 
@@ -19,6 +21,79 @@ class _Progress:
         if not self.quiet:
             print(f"[{time.perf_counter() - self.t0:7.2f} s] {stage}", file=sys.stderr,
                   flush=True)
+
+
+def terminal_width() -> int | None:
+    """The width the tables fit: ``COLUMNS``, else the terminal's; ``None`` (no limit: one
+    line per row, for grep) when standard output is not a terminal and ``COLUMNS`` is unset."""
+    return shutil.get_terminal_size(fallback=(0, 0)).columns or None
+
+
+#: a wrapped column is never narrower than this (a narrow terminal: the line overflows)
+MIN_WRAP_WIDTH = 16
+
+
+def _column_widths(natural: list[int], wrap: set[int], width: int | None, gap: int) -> list[int]:
+    """Each column's width: its widest cell, the columns in ``wrap`` narrowed, the narrowest
+    first, to share what the others leave of ``width`` (none below :data:`MIN_WRAP_WIDTH`)."""
+    if width is None or sum(natural) + gap * (len(natural) - 1) <= width:
+        return list(natural)
+    widths = list(natural)
+    avail = width - gap * (len(natural) - 1) - sum(n for i, n in enumerate(natural)
+                                                   if i not in wrap)
+    order = sorted(wrap, key=lambda i: natural[i])
+    for k, i in enumerate(order):
+        share = avail // (len(order) - k)
+        widths[i] = min(natural[i], max(share, MIN_WRAP_WIDTH))
+        avail -= widths[i]
+    return widths
+
+
+def _wrap_cell(cell: str | list[str], width: int) -> list[str]:
+    """The lines of one cell ``width`` wide: a text wraps at spaces, a list of items (joined
+    by ", ") between items; a word or item wider than ``width`` stays whole (never cut)."""
+    if isinstance(cell, str):
+        return textwrap.wrap(cell, width, break_long_words=False, break_on_hyphens=False) or [""]
+    lines = [""]
+    for k, item in enumerate(cell):
+        piece = item + ("," if k < len(cell) - 1 else "")
+        if lines[-1] and len(lines[-1]) + 1 + len(piece) > width:
+            lines.append(piece)
+        else:
+            lines[-1] = f"{lines[-1]} {piece}" if lines[-1] else piece
+    return lines
+
+
+#: a last column that would wrap narrower than this goes under its row instead
+STACK_WIDTH = 24
+#: the indent of a column under its row
+STACK_INDENT = 4
+
+
+def format_table(rows: list[list], wrap: set[int] = frozenset(), width: int | None = None,
+                 gap: int = 2) -> list[list[str]]:
+    """``rows`` (the header first, if any) as aligned columns that fit ``width``
+    (:func:`terminal_width`): the lines of each row, the columns in ``wrap`` wrapped onto more
+    lines (:func:`_wrap_cell`), the others as wide as their widest cell; nothing is cut. A
+    last column in ``wrap`` that would be narrower than :data:`STACK_WIDTH` goes under its
+    row, indented, wrapped to the full width."""
+    natural = [max(len(", ".join(c) if isinstance(c, list) else c) for c in col)
+               for col in zip(*rows, strict=True)]
+    widths = _column_widths(natural, set(wrap), width, gap)
+    last = len(natural) - 1
+    if width is not None and last in wrap and widths[last] < min(STACK_WIDTH, natural[last]):
+        head = format_table([r[:-1] for r in rows], set(wrap) - {last}, width, gap)
+        return [block + [" " * STACK_INDENT + line
+                         for line in _wrap_cell(row[-1], width - STACK_INDENT)]
+                for block, row in zip(head, rows, strict=True)]
+    blocks = []
+    for row in rows:
+        cells = [_wrap_cell(c, w) if i in wrap else [c if isinstance(c, str) else ", ".join(c)]
+                 for i, (c, w) in enumerate(zip(row, widths, strict=True))]
+        blocks.append([(" " * gap).join((cell[k] if k < len(cell) else "").ljust(w)
+                                        for cell, w in zip(cells, widths, strict=True)).rstrip()
+                       for k in range(max(map(len, cells)))])
+    return blocks
 
 
 def _fmt(v) -> str:

@@ -422,6 +422,86 @@ def test_scenes(capsys):
                      out, re.M)
 
 
+def _columns(lines: list[str], header: list[str]) -> list[dict[str, str]]:
+    """The rows of a wrapped side-by-side table: each column's text over the row's lines
+    (cut at the header's column starts; a row starts where a line does not begin with a
+    space), whitespace normalised."""
+    starts = [lines[0].index(h) for h in header] + [None]
+    rows: list[dict[str, list[str]]] = []
+    for line in lines[1:]:
+        if not line.startswith(" "):
+            rows.append({h: [] for h in header})
+        for h, a, b in zip(header, starts, starts[1:], strict=False):
+            rows[-1][h].append(line[a:b])
+    return [{h: " ".join(" ".join(parts).split()) for h, parts in r.items()} for r in rows]
+
+
+@pytest.mark.parametrize("columns", [80, 100])
+def test_scenes_table_fits_the_terminal_and_keeps_every_word(columns, monkeypatch, capsys):
+    monkeypatch.setenv("COLUMNS", str(columns))
+    assert main(["scenes"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert max(map(len, lines)) <= columns
+    rows = _columns(lines, ["scene", "parameters", "description"])
+    from rbbench.scene.loading import PROBLEMS_DIR
+
+    scenes = [load_scene(p) for p in sorted(PROBLEMS_DIR.glob("*.toml"))]
+    assert [r["scene"] for r in rows] == [s.name for s in scenes]
+    for r, sc in zip(rows, scenes, strict=True):
+        assert r["description"] == " ".join(sc.data["scene"]["description"].split())
+        assert r["parameters"].count(" in [") == len(sc.parameters)  # nothing cut
+
+
+@pytest.mark.parametrize("columns", [80, 100])
+def test_plugins_table_fits_the_terminal_and_keeps_every_word(columns, monkeypatch, capsys):
+    from rbbench.cli.solve import _plugin_rows
+    from rbbench.registry import default_registry
+
+    monkeypatch.setenv("COLUMNS", str(columns))
+    assert main(["plugins"]) == 0
+    out = capsys.readouterr().out
+    assert max(map(len, out.splitlines())) <= columns
+    flat = " ".join(out.split())
+    for r in _plugin_rows(default_registry()):
+        assert " ".join(r["description"].split()) in flat, r["name"]  # wrapped, not cut
+        assert re.search(rf"^{r['role']}\s+{re.escape(r['name'])}\s", out, re.M)
+
+
+def test_tables_are_not_wrapped_off_a_terminal(monkeypatch, capsys):
+    """Piped, with COLUMNS unset: one line per row (for grep)."""
+    import os
+
+    from rbbench.cli.console import terminal_width
+
+    def no_terminal(*args):
+        raise OSError("not a terminal")
+
+    monkeypatch.delenv("COLUMNS", raising=False)
+    monkeypatch.setattr(os, "get_terminal_size", no_terminal)
+    assert terminal_width() is None
+    assert main(["scenes"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert not any(line.startswith(" ") for line in lines)
+    assert any("mu_1 in [0.1, 1], mu_2 in [0.1, 1], mu_3 in [0.1, 1], mu_4 in [0.1, 1]" in line
+               for line in lines)
+
+
+def test_cells_wrap_between_items_and_are_never_cut():
+    from rbbench.cli.console import _wrap_cell, format_table
+
+    items = ["alpha in [1, 2]", "beta in [3, 4]", "gamma in [5, 6]"]
+    assert _wrap_cell(items, 34) == ["alpha in [1, 2], beta in [3, 4],", "gamma in [5, 6]"]
+    assert _wrap_cell(items, 5) == ["alpha in [1, 2],", "beta in [3, 4],", "gamma in [5, 6]"]
+    assert _wrap_cell("a long_unbreakable_word", 6) == ["a", "long_unbreakable_word"]
+    rows = [["name", "text"], ["x", "a b c d e f g h i j k l m n o p q r s t u v w x y z"]]
+    assert format_table(rows, wrap={1}, width=None)[1] == ["x     " + rows[1][1]]
+    wrapped = format_table(rows, wrap={1}, width=30)  # text 24 wide, beside the name
+    assert wrapped[1][0].startswith("x     a b c") and wrapped[1][1].startswith("      ")
+    stacked = format_table(rows, wrap={1}, width=20)  # text under 24: under its row
+    assert stacked[0] == ["name", "    text"] and stacked[1][0] == "x"
+    assert " ".join(" ".join(stacked[1][1:]).split()) == rows[1][1]
+
+
 @pytest.mark.parametrize("argv", [["report", "{missing}"], ["report", "{garbage}"],
                                   ["compare", "{missing}", "{garbage}"]])
 def test_report_and_compare_on_a_bad_directory_exit_2_naming_it(tmp_path, capsys, argv):
