@@ -1,5 +1,6 @@
 """What the ``rbbench`` commands print on the console: progress lines, the summary of
-``rbbench solve`` (with the Hertz and Cattaneo-Mindlin lines) and of ``rbbench reduce``.
+``rbbench solve`` (with the Hertz and Cattaneo-Mindlin lines) and of ``rbbench reduce``, each
+number with its unit, and tables fitted to the terminal (``rbbench plugins``, ``scenes``).
 No imports beyond the standard library (the shared base of the package)."""
 
 from __future__ import annotations
