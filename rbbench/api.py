@@ -117,9 +117,9 @@ def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None 
         The fields every formulation shares (:class:`rbbench.rb.config.ReduceConfig`:
         ``formulation``, ``backend``, ``solver``, ``primal``, ``hyper``, ``N``, ``n_train``,
         ``n_valid``, ``online_repeats``, ...) and the formulation's own options (mixed:
-        ``dual``, ``R``, ``stabilizer``, ... :class:`rbbench.rb.mixed.offline.MixedOptions`;
+        ``dual``, ``R``, ``stabilizer``, ... :class:`rbbench.rb.mixed.options.MixedOptions`;
         on a friction scene :class:`rbbench.rb.friction.options.FrictionOptions`; Nitsche:
-        :class:`rbbench.rb.nitsche.offline.NitscheOptions`; a linear scene takes none).
+        :class:`rbbench.rb.nitsche.options.NitscheOptions`; a linear scene takes none).
         ``formulation`` defaults to ``linear`` on a linear scene, ``mixed`` otherwise;
         ``solver`` to the formulation's own for the scene's friction law.
 

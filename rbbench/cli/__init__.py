@@ -22,7 +22,9 @@ import argparse
 import sys
 
 from rbbench._compat import deprecated_names
+from rbbench._version import __version__
 from rbbench.bench.errors import ResultsError
+from rbbench.cli.common import Parser
 from rbbench.cli.optimize import add_parser as _add_optimize_parser
 from rbbench.cli.reduce import _add_online_scaling_parser, _add_reduce_parser
 from rbbench.cli.run import _add_run_parsers
@@ -38,11 +40,16 @@ from rbbench.scene.loading import SceneError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="rbbench", description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="command", required=True)
+    p = Parser(prog="rbbench", description=__doc__.splitlines()[0].replace("``", ""))
+    p.add_argument("--version", action="version", version=f"rbbench {__version__}",
+                   help="print the version (rbbench VERSION) and exit")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                           help="the command (rbbench COMMAND --help: its arguments)")
     _add_solve_parser(sub)
     pl = sub.add_parser("plugins", help="registered components and whether they are importable")
-    pl.add_argument("--json", action="store_true")
+    pl.add_argument("--json", action="store_true",
+                    help="print every field of every component as JSON (package, version, "
+                         "extras, install hint, capabilities)")
     pl.set_defaults(func=cmd_plugins)
     _add_reduce_parser(sub)
     _add_hertz_table_parser(sub)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import Any
+
 from rbbench.runtime import openblas_env as _openblas_env  # noqa: F401  (first: before numpy loads OpenBLAS)
 from rbbench.scene.loading import SceneError, tomllib
 
@@ -41,3 +44,44 @@ def _add_option_args(p) -> None:
     p.add_argument("--formulation-option", action="append", metavar="KEY=VALUE",
                    help="formulation constructor option (repeatable), e.g. gamma0=1.0 "
                         "(nitsche)")
+
+
+def shown_default(value: Any) -> str:
+    """A default as typed on the command line (a list: its items separated by spaces),
+    ``%`` escaped for argparse's help formatting."""
+    text = " ".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
+    return text.replace("%", "%%")
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Every argument's help ends with its default when it has one: a value (not ``None``,
+    ``False``, an empty list or ``argparse.SUPPRESS``; those say in words what happens) on an
+    option or an optional positional, unless the help places it with ``%(default)s``."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        value = action.default
+        if ("%(default)" in text or value is None or value is False or value == []
+                or value is argparse.SUPPRESS
+                or (not action.option_strings and action.nargs not in ("?", "*"))):
+            return text
+        return f"{text} (default: {shown_default(value)})"
+
+
+class _SubParsers(argparse._SubParsersAction):
+    """Subcommands whose ``--help`` opens with the line that lists them (their ``help``)."""
+
+    def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser:
+        if kwargs.get("help"):
+            kwargs.setdefault("description", kwargs["help"])
+        return super().add_parser(name, **kwargs)
+
+
+class Parser(argparse.ArgumentParser):
+    """The parser of ``rbbench`` and of each of its (sub)commands: :class:`HelpFormatter`,
+    and a subcommand's description is its help line."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+        self.register("action", "parsers", _SubParsers)

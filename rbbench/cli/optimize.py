@@ -7,6 +7,17 @@ from pathlib import Path
 
 from rbbench.optim.shape_scene import parse_overrides
 
+#: the help of the optimiser's arguments (``rbbench optimize``, ``rbbench studies
+#: shape-side-by-side``)
+HELP = {
+    "scene": "a shape scene in problems/optimize/ or a path",
+    "max_iter": "iterations at most",
+    "max_evals": "objective evaluations at most",
+    "metric": "bundle subproblem metric: identity (Schramm-Zowe BT) or bfgs (damped BFGS at "
+              "serious steps, rbbench.optim.bundle_metric)",
+    "eps": "stopping tolerance on the predicted decrease, relative to J0",
+}
+
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``optimize`` on the CLI's subparsers."""
@@ -14,25 +25,21 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "optimize", help="contact shape optimisation with slip-dependent Coulomb friction "
         "(model B of the shape-optimisation talk): bundle trust region, HF- or RB-driven; "
         "history.csv, summary.json, PNGs")
-    p.add_argument("scene", nargs="?", default="shape_coulomb",
-                   help="a shape scene in problems/optimize/ (default shape_coulomb) or a path")
+    p.add_argument("scene", nargs="?", default="shape_coulomb", help=HELP["scene"])
     p.add_argument("--driver", choices=("hf", "rb"), default="hf",
                    help="state solver along the path: the HF model or the reduced model "
-                        "enriched in a trust region (default hf)")
+                        "enriched in a trust region")
     p.add_argument("--method", choices=("bundle", "slsqp"), default="bundle",
-                   help="bundle trust region (default) or scipy's SLSQP as a smooth baseline")
-    p.add_argument("--max-iter", type=int, default=100, help="iterations (default 100)")
-    p.add_argument("--max-evals", type=int, default=300,
-                   help="objective evaluations at most (default 300)")
+                   help="bundle trust region or scipy's SLSQP as a smooth baseline")
+    p.add_argument("--max-iter", type=int, default=100, help=HELP["max_iter"])
+    p.add_argument("--max-evals", type=int, default=300, help=HELP["max_evals"])
     p.add_argument("--metric", choices=("identity", "bfgs"), default="identity",
-                   help="bundle subproblem metric: identity (Schramm-Zowe BT, default) or "
-                        "bfgs (damped BFGS at serious steps, rbbench.optim.bundle_metric)")
-    p.add_argument("--eps", type=float, default=1e-6,
-                   help="stopping tolerance on the predicted decrease, relative to J0")
+                   help=HELP["metric"])
+    p.add_argument("--eps", type=float, default=1e-6, help=HELP["eps"])
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override a scene field, e.g. --set geometry.ny=20")
     p.add_argument("--out", type=Path, default=None,
-                   help="output directory (default results/optimize/<scene>_<driver>)")
+                   help="output directory (default results/optimize/<scene>_<driver>_<method>)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
     return p

@@ -10,13 +10,17 @@ names the flag as typed (:func:`flag`).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 from typing import Any
 
-from rbbench.cli.common import _add_option_args, _backend_options
+from rbbench.cli.common import _add_option_args, _backend_options, shown_default
 from rbbench.cli.console import _print_reduce_summary, _Progress, print_linear_reduce
-from rbbench.rb.config import OptionError
+from rbbench.rb.config import OptionError, ReduceConfig
+from rbbench.rb.friction.options import FrictionOptions
+from rbbench.rb.mixed.options import MixedOptions
+from rbbench.rb.nitsche.options import NitscheOptions
 from rbbench.scene.loading import SceneError, load_scene
 
 #: flags that are not ``--`` + the field's name with dashes
@@ -69,7 +73,9 @@ def cmd_reduce(args: argparse.Namespace) -> int:
     if c["formulation"] == "linear":
         print_linear_reduce(s, is_parabolic(scene), scene.data["discretization"]["inner_product"])
     else:
-        _print_reduce_summary(s, c["formulation"])
+        from rbbench.hf.metrics import units_of
+
+        _print_reduce_summary(s, c["formulation"], units_of(scene.data["scene"]["physics"]))
     print(f"wrote: {path}")
     return 0
 
@@ -113,71 +119,120 @@ def cmd_online_scaling(args: argparse.Namespace) -> int:
 
 def _add_reduce_args(rd: argparse.ArgumentParser) -> None:
     """The reduction flags: the shared fields, then each formulation's options (the help
-    says whose); none has a default here (the formulation's own applies)."""
+    says whose); none has a default here (the formulation's own applies, shown in the help by
+    :func:`state_defaults`)."""
     rd.argument_default = argparse.SUPPRESS
     _add_option_args(rd)
-    g = rd.add_argument_group("shared by every formulation")
+    _add_shared_args(rd.add_argument_group("shared by every formulation"))
+    _add_mixed_args(rd.add_argument_group("mixed formulation (frictionless and friction "
+                                          "scenes)"))
+    _add_friction_args(rd.add_argument_group("mixed formulation on friction scenes"))
+    e = rd.add_argument_group("hyper-reduction (mixed, friction wedge, nitsche)")
+    e.add_argument("--tol-eim", type=float,
+                   help="EIM / DEIM / ECSW tolerance (relative training error)")
+    e.add_argument("--m-eim", type=int,
+                   help="cap on the number of EIM terms or cubature points (default: the "
+                   "tolerance decides; nitsche's ECSW: at most "
+                   "rbbench.rb.nitsche.offline.ECSW_POINTS_PER_MODE x N points)")
+    e.add_argument("--n-eim-train", type=int, help="EIM training grid size (default: a "
+                   "multiple of --n-train)")
+    rd.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE", default=None,
+                    help="override a scene value (repeatable)")
+
+
+def _add_shared_args(g: Any) -> None:
+    """The fields of :class:`rbbench.rb.config.ReduceConfig` (argument group ``g``)."""
     g.add_argument("--formulation", help="mixed (default; linear on a linear scene), nitsche")
-    g.add_argument("--backend", help="skfem (default), ngsolve")
+    g.add_argument("--backend", help="HF backend: skfem, ngsolve")
     g.add_argument("--solver", help="the HF solver of the snapshots (default: the "
                    "formulation's own: ssn for mixed, friction-ssn on a friction scene, "
                    "newton for nitsche; a linear scene has none)")
-    g.add_argument("--primal", help="primal compressor: pod (default), greedy")
-    g.add_argument("--hyper", help="auto (default: the formulation's rule), affine (exact), "
+    g.add_argument("--primal", help="primal compressor: pod, greedy")
+    g.add_argument("--hyper", help="auto (the formulation's rule), affine (exact), "
                    "eim (mixed: EIM of B(mu) Z and G(mu); nitsche: DEIM; friction: the wedge "
                    "model's EIM of its B, g and DEIM of the slip), ecsw / deim (nitsche), "
                    "none (plain: HF assembly projected online)")
     g.add_argument("-N", type=int, help="primal size (default: POD tolerance --tol-pod); "
                    "clipped to the number of training snapshots and to their numerical rank, "
                    "with a warning in result.json 'warnings' (N there: the size built)")
-    g.add_argument("--tol-pod", type=float, help="POD energy tolerance (default 1e-4)")
+    g.add_argument("--tol-pod", type=float, help="POD energy tolerance")
     g.add_argument("--n-train", type=int, help="training parameters (default: the scene's)")
     g.add_argument("--n-valid", type=int, help="validation parameters (default: the scene's)")
     g.add_argument("--online-repeats", type=int,
-                   help="timed online solves per validation parameter (default 20)")
+                   help="timed online solves per validation parameter")
     g.add_argument("--jobs", type=int, dest="n_jobs",
                    help="processes for the HF snapshots (default: the CPUs)")
-    g.add_argument("--cache-dir", help="HF snapshot cache (default .rbbench_cache)")
-    m = rd.add_argument_group("mixed formulation (frictionless and friction scenes)")
+    g.add_argument("--cache-dir", help="HF snapshot cache")
+
+
+def _add_mixed_args(m: Any) -> None:
+    """The options of the mixed formulation (argument group ``m``)."""
     m.add_argument("--dual", help="dual compressor of the multiplier cone (registered: "
-                   "rbbench plugins, role dual; default mcpg)")
-    m.add_argument("-R", type=int, help="maximal dual size (default: --tol-dual)")
-    m.add_argument("--tol-dual", type=float, help="dual compressor tolerance on e_proj "
-                   "(default 1e-3)")
-    m.add_argument("--stabilizer", help="none, supremizer (frictionless only), pga "
-                   "(default)")
+                   "rbbench plugins, role dual)")
+    m.add_argument("-R", type=int, help="maximal dual size (default: as many generators as "
+                   "--tol-dual needs)")
+    m.add_argument("--tol-dual", type=float, help="dual compressor tolerance on e_proj")
+    m.add_argument("--stabilizer", help="none, supremizer (frictionless only), pga")
     m.add_argument("--delta-pga", type=float,
-                   help="PGA tolerance on sigma_max (default: see result.json pga_delta)")
+                   help="PGA tolerance on sigma_max (default: the rule of "
+                   "rbbench.rb.compressors.pga_delta, written as result.json pga_delta)")
     m.add_argument("--k-max", type=int, dest="k_pga_max",
-                   help="cap on the PGA dimension K (online primal size N + K)")
+                   help="cap on the PGA dimension K (online primal size N + K; default: no "
+                   "cap)")
     m.add_argument("--exact-max-r", type=int, help="largest cone whose inf-sup constant is "
-                   "computed exactly (default 10; larger: bounds)")
-    m.add_argument("--online-method", help="frictionless: reduced solver auto (default), "
-                   "nnls, pdas (condensed LCP), daqp (primal QP)")
-    f = rd.add_argument_group("mixed formulation on friction scenes")
+                   "computed exactly (larger: bounds)")
+    m.add_argument("--online-method", help="frictionless: reduced solver auto, nnls, pdas "
+                   "(condensed LCP), daqp (primal QP)")
+
+
+def _add_friction_args(f: Any) -> None:
+    """The options of the mixed formulation on friction scenes (argument group ``f``)."""
     f.add_argument("--friction-dual", choices=("collocation", "wedge", "seed"),
-                   help="the dual model: collocation (default: normal cone, POD of lam_t, "
-                   "Coulomb collocated at GCNS nodes) or wedge (cones of F lam_n +- lam_t, "
-                   "De Saxce's fixed point: the Coulomb cone at every node); 'seed': old "
-                   "name of collocation (deprecated)")
+                   help="the dual model: collocation (normal cone, POD of lam_t, Coulomb "
+                   "collocated at GCNS nodes) or wedge (cones of F lam_n +- lam_t, De Saxce's "
+                   "fixed point: the Coulomb cone at every node); 'seed': old name of "
+                   "collocation (deprecated)")
     f.add_argument("-S", type=int, help="tangential size (collocation: POD of lam_t; wedge: "
                    "generators of the F lam_n - lam_t cone; default R)")
     f.add_argument("--gcns-per-iteration", type=int,
-                   help="collocation: GCNS nodes added per iteration (default 2)")
-    f.add_argument("--gcns-max", type=int, help="collocation: GCNS iterations at most")
+                   help="collocation: GCNS nodes added per iteration")
+    f.add_argument("--gcns-max", type=int, help="collocation: GCNS iterations at most "
+                   "(default: no cap; GCNS stops when no node is violated or all are in)")
     f.add_argument("--gcns-patience", type=int,
                    help="collocation: GCNS stops after this many increases of e_GCNS, keeping "
-                   "the best set (default 1: stop at the first increase)")
-    e = rd.add_argument_group("hyper-reduction (mixed, friction wedge, nitsche)")
-    e.add_argument("--tol-eim", type=float,
-                   help="EIM / DEIM / ECSW tolerance (relative training error; default 1e-4)")
-    e.add_argument("--m-eim", type=int,
-                   help="cap on the number of EIM terms or cubature points (default: the "
-                   "tolerance decides)")
-    e.add_argument("--n-eim-train", type=int, help="EIM training grid size (default: a "
-                   "multiple of --n-train)")
-    rd.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE", default=None,
-                    help="override a scene value (repeatable)")
+                   "the best set (1: stop at the first increase)")
+
+
+#: the dataclasses declaring the reduction fields, and whose fields they are (``--help``)
+DECLARED = ((ReduceConfig, "every formulation"), (MixedOptions, "mixed"),
+            (FrictionOptions, "mixed on friction scenes"), (NitscheOptions, "nitsche"))
+
+
+def field_defaults(name: str) -> dict[str, Any]:
+    """``{whose: default}`` of the reduction field ``name`` in the dataclasses of
+    :data:`DECLARED` that declare it with a default value (``None``: a rule, said in the
+    help's words, is left out)."""
+    out = {}
+    for cls, whose in DECLARED:
+        for f in dataclasses.fields(cls):
+            if f.name == name and f.default is not dataclasses.MISSING \
+                    and f.default is not None:
+                out[whose] = f.default
+    return out
+
+
+def state_defaults(parser: argparse.ArgumentParser) -> None:
+    """End the help of every flag without a default of its own (``argparse.SUPPRESS``) with
+    the default of its field, read from :data:`DECLARED` (per formulation where they differ),
+    so that the default is written once, in the dataclass."""
+    for action in parser._actions:
+        defaults = field_defaults(action.dest)
+        if action.default is not argparse.SUPPRESS or not defaults:
+            continue
+        values = {repr(v) for v in defaults.values()}
+        text = (shown_default(next(iter(defaults.values()))) if len(values) == 1 else
+                "; ".join(f"{whose} {shown_default(v)}" for whose, v in defaults.items()))
+        action.help = f"{action.help} (default: {text})"
 
 
 def _add_reduce_parser(sub) -> None:
@@ -190,15 +245,21 @@ def _add_reduce_parser(sub) -> None:
                     help="output directory (default results/reduce/<scene>_<choices>)")
     rd.add_argument("--quiet", action="store_true", default=False, help="no progress lines")
     rd.set_defaults(func=cmd_reduce)
+    state_defaults(rd)
 
 
 def _add_online_scaling_parser(sub) -> None:
     osc = sub.add_parser("online-scaling",
                          help="online time of one reduction at several mesh levels, timed "
                               "side by side (is it flat in the HF size?)")
-    osc.add_argument("scene")
+    osc.add_argument("scene", help="scene name in problems/ or path to a .toml file")
     _add_reduce_args(osc)
-    osc.add_argument("--levels", type=int, nargs="+", default=[0, 1])
-    osc.add_argument("--repeats", type=int, default=30)
-    osc.add_argument("--quiet", action="store_true", default=False)
+    osc.add_argument("--levels", type=int, nargs="+", default=[0, 1],
+                     help="mesh levels (discretization.level: sizes divided by 2**level), "
+                          "one reduction each")
+    osc.add_argument("--repeats", type=int, default=30,
+                     help="online solves of every validation parameter per level, the "
+                          "levels interleaved")
+    osc.add_argument("--quiet", action="store_true", default=False, help="no progress lines")
     osc.set_defaults(func=cmd_online_scaling, hyper="eim")
+    state_defaults(osc)

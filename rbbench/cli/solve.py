@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import json
+import textwrap
 from pathlib import Path
 
 from rbbench.cli.common import _add_option_args, _backend_options, _resolve_solver
-from rbbench.cli.console import _Progress, print_summary
+from rbbench.cli.console import _Progress, format_table, print_summary, terminal_width
 from rbbench.registry import default_registry
 from rbbench.runtime import openblas_env as _openblas_env  # noqa: F401  (first: before numpy loads OpenBLAS)
 from rbbench.scene.linear import is_linear
@@ -56,9 +57,14 @@ def cmd_solve(args) -> int:
     out = _solve_out(args, scene, mu)
     progress(f"writing {out}")
     paths = write_all(sol, out, plot=not args.no_plot)
-    print_summary(sol.metrics, scene.mu_dict(mu))
+    print_summary(sol.metrics, scene.mu_dict(mu), _mu_units(scene))
     print("wrote: " + ", ".join(str(p) for p in paths))
     return 0 if sol.result.converged else 1
+
+
+def _mu_units(scene) -> dict[str, str]:
+    """The units of the scene's parameters (``[parameters.NAME] unit``; empty: none)."""
+    return {p.name: p.unit for p in scene.parameters}
 
 
 def _solve_out(args, scene, mu) -> Path:
@@ -76,7 +82,7 @@ def _solve_linear(scene, mu, args, options: dict, progress) -> int:
     out = _solve_out(args, scene, mu)
     progress(f"writing {out}")
     paths = write_linear(sol, out, plot=not args.no_plot)
-    print_linear_summary(sol.metrics, scene.mu_dict(mu))
+    print_linear_summary(sol.metrics, scene.mu_dict(mu), _mu_units(scene))
     print("wrote: " + ", ".join(str(p) for p in paths))
     return 0
 
@@ -107,22 +113,35 @@ def _plugin_rows(reg) -> list[dict]:
 
 
 def _print_plugin_table(rows: list[dict]) -> None:
-    """The rows of :func:`_plugin_rows` as a table, with a hint under each unimportable one."""
-    w = max([len(r["name"]) for r in rows] + [4]) + 2
-    print(f"{'role':<12}{'name':<{w}}{'package':<22}{'extras':<10}{'importable':<11}description")
-    for r in rows:
-        pkg = f"{r['package']} {r['version']}".strip()
-        print(f"{r['role']:<12}{r['name']:<{w}}{pkg:<22}{','.join(r['extras']) or '-':<10}"
-              f"{'yes' if r['importable'] else 'NO':<11}{r['description']}")
+    """The rows of :func:`_plugin_rows` as a table fitting the terminal (the descriptions
+    wrapped), with a hint under each unimportable one."""
+    width = terminal_width()
+    table = [["role", "name", "package", "extras", "importable", "description"]]
+    table += [[r["role"], r["name"], f"{r['package']} {r['version']}".strip(),
+               ",".join(r["extras"]) or "-", "yes" if r["importable"] else "NO",
+               r["description"]] for r in rows]
+    header, *blocks = format_table(table, wrap={5}, width=width)
+    print("\n".join(header))
+    indent = " " * (max(len(r["role"]) for r in rows) + 2)
+    for r, block in zip(rows, blocks, strict=True):
+        print("\n".join(block))
         if not r["importable"]:
-            print(f"{'':<12}-> {r['hint']}")
+            print(textwrap.fill(f"-> {r['hint']}", width or 10**9, initial_indent=indent,
+                                subsequent_indent=indent + "   ", break_long_words=False,
+                                break_on_hyphens=False))
 
 
 def cmd_scenes(args) -> int:
+    """The scenes of problems/: name, parameter ranges (with their units), description, as
+    a table fitting the terminal (parameters and descriptions wrapped)."""
+    table = [["scene", "parameters", "description"]]
     for path in sorted(PROBLEMS_DIR.glob("*.toml")):
         sc = load_scene(path)
-        params = ", ".join(f"{p.name} in [{p.low:g}, {p.high:g}]" for p in sc.parameters)
-        print(f"{sc.name:<22}{params:<44}{sc.data['scene']['description']}")
+        params = [f"{p.name} in [{p.low:g}, {p.high:g}]" + (f" {p.unit}" if p.unit else "")
+                  for p in sc.parameters]
+        table.append([sc.name, params, sc.data["scene"]["description"]])
+    for block in format_table(table, wrap={1, 2}, width=terminal_width()):
+        print("\n".join(block))
     return 0
 
 
@@ -133,7 +152,8 @@ def _add_solve_parser(sub) -> None:
                        "warnings)")
     s.add_argument("scene", help="scene name in problems/ or path to a .toml file")
     s.add_argument("--mu", type=float, nargs="+", help="parameter value(s) (default: scene's)")
-    s.add_argument("--backend", default="skfem")
+    s.add_argument("--backend", default="skfem",
+                   help="HF backend (registered: rbbench plugins, role backend)")
     _add_option_args(s)
     s.add_argument("--formulation", default="mixed", help="mixed or nitsche")
     s.add_argument("--solver", default=None,

@@ -15,15 +15,20 @@ from pathlib import Path
 from typing import Any
 
 from rbbench.cli.console import _Progress
+from rbbench.cli.optimize import HELP as OPTIMIZE_HELP
 from rbbench.scene.loading import SceneError
 from rbbench.studies.formatting import print_and_dump
+
+#: the scene argument of the Hertz studies
+HERTZ_SCENE = "a Hertz scene: name in problems/ or path to a .toml file"
 
 
 def add_parser(sub) -> None:
     """Register ``studies`` and one subcommand per study on the CLI's subparsers."""
     st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-robin, "
                         "shape-side-by-side, snapshot-workers)")
-    group = st.add_subparsers(dest="study", required=True, metavar="STUDY")
+    group = st.add_subparsers(dest="study", required=True, metavar="STUDY",
+                              help="the study (rbbench studies STUDY --help: its arguments)")
     for add, run in ((_add_pymor_thermal_block_parser, cmd_pymor_thermal_block),
                      (_add_heat_robin_parser, cmd_heat_robin),
                      (_add_shape_side_by_side_parser, cmd_shape_side_by_side),
@@ -75,20 +80,22 @@ def cmd_nitsche_compare(args) -> int:
 
 def _add_study_tail(p, func) -> None:
     """The last arguments of a study command (``--set``, ``--quiet``) and its function."""
-    p.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE",
+                   help="override a scene value (repeatable), e.g. discretization.degree=1")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=func)
 
 
 def _add_hertz_table_parser(sub) -> None:
     ht = sub.add_parser("hertz-table",
                         help="2D Hertz errors against load and mesh level (Markdown table)")
-    ht.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    ht.add_argument("scene", nargs="?", default="hertz_halfdisks", help=HERTZ_SCENE)
     ht.add_argument("--loads", type=float, nargs="+", default=[0.05, 0.01],
                     help="imposed displacements d (m)")
     ht.add_argument("--levels", type=int, nargs="+", default=[0, 1, 2],
                     help="uniform refinement levels (sizes divided by 2**level)")
-    ht.add_argument("--mu", type=float, default=1.0)
+    ht.add_argument("--mu", type=float, default=1.0,
+                    help="the scene's parameter (hertz_halfdisks: the radius R1, m)")
     _add_study_tail(ht, cmd_hertz_table)
 
 
@@ -97,16 +104,21 @@ def _add_nitsche_table_parser(sub) -> None:
                         help="the relative Alart-Curnier residual e_AC^n of the Nitsche solve "
                              "against h and mu, side by side with Benaceur et al.'s published "
                              "table (Markdown table)")
-    nt.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    nt.add_argument("scene", nargs="?", default="hertz_halfdisks", help=HERTZ_SCENE)
     nt.add_argument("--h", type=float, nargs="+", default=[5.0, 2.5, 1.25],
                     help="the published mesh sizes (mm), mapped to discretization.h_contact "
                          "by rbbench.studies.nitsche_eac.published_h_overrides")
-    nt.add_argument("--mu", type=float, nargs="+", default=[0.7, 1.0, 1.3])
-    nt.add_argument("--backend", default="skfem")
-    nt.add_argument("--theta", type=float, default=1.0)
-    nt.add_argument("--gamma0", type=float, default=None, help="default: the formulation's")
+    nt.add_argument("--mu", type=float, nargs="+", default=[0.7, 1.0, 1.3],
+                    help="the scene's parameter values (hertz_halfdisks: the radius R1, m)")
+    nt.add_argument("--backend", default="skfem",
+                    help="HF backend (registered: rbbench plugins, role backend)")
+    nt.add_argument("--theta", type=float, default=1.0,
+                    help="Nitsche variant: 1 symmetric (the talk's), 0, -1 skew-symmetric")
+    nt.add_argument("--gamma0", type=float, default=None,
+                    help="Nitsche parameter, gamma = gamma0 E / h (default: the nitsche "
+                         "formulation's)")
     nt.add_argument("--load", type=float, default=0.09,
-                    help="imposed displacement d (m); the talk's 0.09 by default")
+                    help="imposed displacement d (m) (default: %(default)s, the talk's)")
     nt.add_argument("--degree", type=int, choices=(1, 2), default=2,
                     help="displacement degree (the talk's Hertz setting: P2)")
     nt.add_argument("--quadrature", type=int, default=0,
@@ -124,11 +136,13 @@ def _add_nitsche_compare_parser(sub) -> None:
     nc = sub.add_parser("nitsche-compare",
                         help="Nitsche against mixed: HF energies over D_train and reduced "
                              "errors for several R (Markdown tables)")
-    nc.add_argument("scene", nargs="?", default="hertz_halfdisks")
-    nc.add_argument("-N", type=int, default=20)
-    nc.add_argument("-R", type=int, nargs="+", default=[10, 30, 40])
-    nc.add_argument("--n-train", type=int, default=61, help="|D_train| (the talk: 61)")
-    nc.add_argument("--n-valid", type=int, default=10)
+    nc.add_argument("scene", nargs="?", default="hertz_halfdisks", help=HERTZ_SCENE)
+    nc.add_argument("-N", type=int, default=20, help="primal RB size of both reductions")
+    nc.add_argument("-R", type=int, nargs="+", default=[10, 30, 40],
+                    help="dual sizes of the mixed reductions (one reduction each)")
+    nc.add_argument("--n-train", type=int, default=61,
+                    help="training parameters |D_train| (default: %(default)s, the talk's)")
+    nc.add_argument("--n-valid", type=int, default=10, help="validation parameters")
     _add_study_tail(nc, cmd_nitsche_compare)
 
 
@@ -136,11 +150,11 @@ def _add_pymor_thermal_block_parser(sub: Any) -> argparse.ArgumentParser:
     """``rbbench studies pymor-thermal-block`` (``sub``: argparse subparsers)."""
     p = sub.add_parser("pymor-thermal-block", help="rbbench and pyMOR side by side on the "
                        "thermal block (pyMOR: optional, pip install pymor)")
-    p.add_argument("--n-cells", type=int, default=64, help="squares per side (default 64)")
+    p.add_argument("--n-cells", type=int, default=64, help="squares per side")
     p.add_argument("--blocks", type=int, default=2, choices=(2, 3), help="b x b blocks")
-    p.add_argument("-N", type=int, default=10, help="reduced basis size (default 10)")
-    p.add_argument("--n-train", type=int, default=100)
-    p.add_argument("--n-valid", type=int, default=20)
+    p.add_argument("-N", type=int, default=10, help="reduced basis size")
+    p.add_argument("--n-train", type=int, default=100, help="training parameters")
+    p.add_argument("--n-valid", type=int, default=20, help="validation parameters")
     p.add_argument("--repeats", type=int, default=20, help="online repeats per mu")
     p.add_argument("--backend", default="skfem", help="rbbench backend (skfem, ngsolve)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
@@ -161,10 +175,11 @@ def _add_heat_robin_parser(sub: Any) -> argparse.ArgumentParser:
                        help="Benaceur et al.'s heat equation (N = 25) beside their published "
                        "valve figures: HF / RB times, L2(0, T; H1) error (alias heat-seed: "
                        "deprecated)")
-    p.add_argument("--n-cells", type=int, default=64, help="squares per side (default 64)")
-    p.add_argument("-N", type=int, default=25)
+    p.add_argument("--n-cells", type=int, default=64, help="squares per side")
+    p.add_argument("-N", type=int, default=25,
+                   help="reduced basis size (default: %(default)s, the talk's)")
     p.add_argument("--repeats", type=int, default=20, help="online repeats per mu")
-    p.add_argument("--backend", default="skfem")
+    p.add_argument("--backend", default="skfem", help="rbbench backend (skfem, ngsolve)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     return p
 
@@ -180,11 +195,12 @@ def _add_shape_side_by_side_parser(sub: Any) -> argparse.ArgumentParser:
     p = sub.add_parser("shape-side-by-side", help="shape optimisation (model B of the "
                        "shape-optimisation talk), HF- and RB-driven in one process: J, HF "
                        "solves, wall time")
-    p.add_argument("--scene", default="shape_coulomb")
-    p.add_argument("--metric", choices=("identity", "bfgs"), default="identity")
-    p.add_argument("--max-iter", type=int, default=100)
-    p.add_argument("--max-evals", type=int, default=300)
-    p.add_argument("--eps", type=float, default=1e-6)
+    p.add_argument("--scene", default="shape_coulomb", help=OPTIMIZE_HELP["scene"])
+    p.add_argument("--metric", choices=("identity", "bfgs"), default="identity",
+                   help=OPTIMIZE_HELP["metric"])
+    p.add_argument("--max-iter", type=int, default=100, help=OPTIMIZE_HELP["max_iter"])
+    p.add_argument("--max-evals", type=int, default=300, help=OPTIMIZE_HELP["max_evals"])
+    p.add_argument("--eps", type=float, default=1e-6, help=OPTIMIZE_HELP["eps"])
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override a scene field, e.g. --set design.initial_height=0.005")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
@@ -203,16 +219,17 @@ def _add_snapshot_workers_parser(sub: Any) -> argparse.ArgumentParser:
     """``rbbench studies snapshot-workers`` (``sub``: argparse subparsers)."""
     p = sub.add_parser("snapshot-workers", help="HF snapshots with 1 and n worker "
                        "processes, interleaved: a fresh pool and a kept one")
-    p.add_argument("scene", nargs="?", default="hertz_halfdisks")
+    p.add_argument("scene", nargs="?", default="hertz_halfdisks",
+                   help="scene name in problems/ or path to a .toml file")
     p.add_argument("--set", dest="overrides", action="append", default=[],
                    metavar="KEY=VALUE", help="scene override (repeatable)")
-    p.add_argument("-P", type=int, default=8, help="parameters per call (default 8, "
-                   "a Latin hypercube of the domain)")
-    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
-    p.add_argument("--rounds", type=int, default=15, help="interleaved rounds (default 15)")
+    p.add_argument("-P", type=int, default=8, help="parameters per call (a Latin "
+                   "hypercube of the domain)")
+    p.add_argument("--jobs", type=int, default=2, help="worker processes")
+    p.add_argument("--rounds", type=int, default=15, help="interleaved rounds")
     p.add_argument("--pause", type=float, default=0.5, help="seconds waited, untimed, "
-                   "after the serial call, the fresh call and the kept block (default 0.5: "
-                   "the threads a call leaves spinning stop)")
+                   "after the serial call, the fresh call and the kept block (long enough "
+                   "for the threads a call leaves spinning to stop)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     return p
 

@@ -95,6 +95,7 @@ def contact_metrics(sol: Any) -> dict[str, Any]:
     if sol.scene.data["reference"].get("mindlin") and isinstance(
             prob, (FrictionProblem, NitscheFrictionProblem)):
         m["mindlin"] = _mindlin_block(sol, m)
+    m["units"] = units_of(disc.physics)
     m["definitions"] = DEFINITIONS
     return m
 
@@ -217,26 +218,52 @@ def _nitsche_metrics(prob: NitscheProblem, res: SolveResult, c: Any) -> dict[str
                         "n_active_points": int(np.sum(p > 0))}}
 
 
+#: The unit of each dimensional number of an HF summary on an elasticity scene (SI, plane
+#: strain: forces and energies per unit thickness). The scalar scenes (physics ``poisson``:
+#: the membrane) are nondimensional (unit ``"1"``); times carry theirs in the name (``_s``:
+#: seconds). :data:`DEFINITIONS`, ``summary.json`` ``units`` (:func:`units_of`) and the
+#: console read the units here.
+SI_UNITS = {
+    "contact_force": "N/m", "tangential_force": "N/m", "energy": "J/m",
+    "max_pressure": "Pa", "max_pressure_quadrature": "Pa",
+    "contact_half_width": "m", "contact_half_width_gap": "m", "contact_half_width_gap_tol": "m",
+    "stick_half_width": "m", "penetration_max": "m", "penetration_pointwise_max": "m",
+}
+_U = SI_UNITS
+
+
+def units_of(physics: str) -> dict[str, str]:
+    """``{number: unit}`` of the dimensional numbers of an HF summary for a scene of
+    ``physics``: :data:`SI_UNITS` on elasticity, ``"1"`` (nondimensional) on the scalar
+    scenes."""
+    return dict(SI_UNITS) if physics == "elasticity" else dict.fromkeys(SI_UNITS, "1")
+
+
 DEFINITIONS = {
-    "contact_force": "total normal contact force per unit thickness (N/m): vertical resultant "
-                     "int lam (-n_y) over the slave zone (obstacle: int lam); Nitsche: "
-                     "int p (-n_y) with the point pressures p = -[P_gamma(u)]_-",
+    "contact_force": "total normal contact force per unit thickness "
+                     f"({_U['contact_force']}): vertical resultant int lam (-n_y) over the "
+                     "slave zone (obstacle: int lam); Nitsche: int p (-n_y) with the point "
+                     "pressures p = -[P_gamma(u)]_-",
     "e_ac": "Nitsche only: relative Alart-Curnier residual (Benaceur et al.) "
             "||sigma_nn(u) - [P_gamma(u)]_-|| / ||sigma_nn(u)||, L2(Gamma_c) norms by the "
             "contact quadrature, a fraction (not %)",
-    "max_pressure_quadrature": "Nitsche only: largest point pressure -[P_gamma(u)]_- (Pa)",
+    "max_pressure_quadrature": "Nitsche only: largest point pressure -[P_gamma(u)]_- "
+                               f"({_U['max_pressure_quadrature']})",
     "contact_half_width": "half the horizontal extent of the supports of the active multipliers "
-                          "(m): QUANTISED to whole multiplier supports (LAC patches, facets, "
-                          "hats), so it moves in steps of one support and may stay constant "
-                          "under refinement; overestimates the true half-width by at most "
-                          "one support (contact_half_width_gap: the pointwise edge)",
+                          f"({_U['contact_half_width']}): QUANTISED to whole multiplier "
+                          "supports (LAC patches, facets, hats), so it moves in steps of one "
+                          "support and may stay constant under refinement; overestimates the "
+                          "true half-width by at most one support (contact_half_width_gap: "
+                          "the pointwise edge)",
     "contact_half_width_gap": "half the horizontal extent of the set where the pointwise gap "
                               "g = gap - Un u at the contact quadrature points is <= "
                               "contact_half_width_gap_tol, its edges linearly interpolated "
-                              "between the last closed and the first open point (m); None "
-                              "without a contact curve along x (membrane)",
+                              "between the last closed and the first open point "
+                              f"({_U['contact_half_width_gap']}); None without a contact "
+                              "curve along x (membrane)",
     "contact_half_width_gap_tol": "the gap tolerance of contact_half_width_gap and of the "
-                                  "under-resolution check (m): 1e-3 max_q |Un u|_q "
+                                  "under-resolution check "
+                                  f"({_U['contact_half_width_gap_tol']}): 1e-3 max_q |Un u|_q "
                                   "(rbbench.hf.geometry.checks.GAP_RTOL)",
     "warnings": "what makes the result doubtful, in words: penetration beyond "
                 "contact_half_width_gap_tol at contact points that no active multiplier's "
@@ -248,24 +275,26 @@ DEFINITIONS = {
                    "contact_half_width_gap_tol (zero contact force on an overlapping "
                    "solution, see warnings); a flagged solve counts as not converged "
                    "(rbbench solve exits 1, snapshots refuse it)",
-    "max_pressure": "largest multiplier value (Pa): the peak of the discrete pressure (Nitsche: "
-                    "of its L2 projection on the multiplier space)",
+    "max_pressure": f"largest multiplier value ({_U['max_pressure']}): the peak of the "
+                    "discrete pressure (Nitsche: of its L2 projection on the multiplier space)",
     "complementarity": "|lam . (G - B u)| / (||lam||_2 ||G||_2), dimensionless; 0 at an exact "
                        "solution",
-    "penetration_max": "largest mean penetration over one multiplier's support (m): "
-                       "max_i (B u - G)_i / int phi_i, clipped at 0",
+    "penetration_max": "largest mean penetration over one multiplier's support "
+                       f"({_U['penetration_max']}): max_i (B u - G)_i / int phi_i, clipped at 0",
     "penetration_pointwise_max": "largest penetration (Un u - gap) at a contact quadrature "
-                                 "point (m), clipped at 0; LAC only constrains patch means",
+                                 f"point ({_U['penetration_pointwise_max']}), clipped at 0; "
+                                 "LAC only constrains patch means",
     "final_residual": "relative natural residual ||min(lam, c s)|| / ||c q|| of the condensed "
                       "LCP at the last iterate (friction: the largest relative residual of "
                       "friction_residuals at the last iterate of the last load step; Nitsche: "
                       "the relative Newton residual ||R(u)|| of the last load step)",
-    "energy": "J(u) = 1/2 u^T A u - F^T u on all dofs (J/m)",
+    "energy": f"J(u) = 1/2 u^T A u - F^T u on all dofs ({_U['energy']})",
     "tangential_force": "friction only: horizontal resultant int lam_t t_x over the slave zone "
-                        "(N/m), t = (-n_y, n_x) = +x under the upper body; lam_t enters A u + "
-                        "Bt^T lam_t = F as lam_n does, so this is the force the slave body "
-                        "exerts on the master, > 0 for a shear of the upper body along +x "
-                        "(the friction on the slave is its opposite); Nitsche: lam_t = "
+                        f"({_U['tangential_force']}), t = (-n_y, n_x) = +x under the upper "
+                        "body; lam_t enters A u + Bt^T lam_t = F as lam_n does, so this is "
+                        "the force the slave body exerts on the master, > 0 for a shear of the "
+                        "upper body along +x (the friction on the slave is its opposite); "
+                        "Nitsche: lam_t = "
                         "-[sigma_nt(u) - gamma (u_t - ut_prev)]_S at the contact points",
     "n_stick": "friction only: collocation nodes in contact with |lam_t| < s at the last load "
                "step (s = threshold, or nu_F lam_n); Nitsche: contact points with "
@@ -275,7 +304,8 @@ DEFINITIONS = {
     "n_open": "friction only: collocation nodes with lam_n = 0 (last load step); Nitsche: "
               "contact points with P_n >= 0",
     "stick_half_width": "friction only: half the horizontal extent of the stick nodes' "
-                        "collocation points C(mu) (m); 0 without stick nodes (Nitsche: of "
+                        "collocation points C(mu) "
+                        f"({_U['stick_half_width']}); 0 without stick nodes (Nitsche: of "
                         "the stick contact points)",
     "friction_residual": "friction only: max of the relative stick and slip residuals of the "
                          "condensed problem at the last load step (friction_residuals: "
@@ -297,6 +327,10 @@ DEFINITIONS = {
                         "contact iterations, recovery of u; no assembly, no meshing) over "
                         "the floor; 1 is one factorisation + one solve (target: <= 1.5)",
     "blas_threads": BLAS_THREADS_DEFINITION,
+    "units": "the unit of each dimensional number on this scene: SI on the elasticity "
+             "scenes (per unit thickness, plane strain), the units these definitions give; "
+             "'1' (nondimensional) on the scalar scenes (membrane); times: the _s suffix, "
+             "seconds",
     "zone_saturated": "true if the first or last multiplier of the potential zone is active: "
                       "the contact patch reaches the edge of the potential zone",
 }

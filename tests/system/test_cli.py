@@ -191,6 +191,53 @@ def test_hertz_summary(hertz_run):
     assert "2D Hertz at the computed force P" in stdout
 
 
+def test_hertz_console_and_summary_carry_the_units(hertz_run):
+    """Each dimensional number of the summary lines ends with its unit, read from
+    summary.json's ``units`` (rbbench.hf.metrics.SI_UNITS); the parameter with the scene's."""
+    from rbbench.hf.metrics import SI_UNITS
+
+    stdout, out = hertz_run[1], hertz_run[3]
+    s = json.loads((out / "summary.json").read_text())
+    assert s["units"] == SI_UNITS and "units" in s["definitions"]
+    assert "(N/m)" in s["definitions"]["contact_force"]  # the definitions say the same unit
+    assert re.search(r"^mu: mu = 0\.9 m$", stdout, re.M)
+    for key, unit in (("contact_force", "N/m"), ("max_pressure", "Pa"),
+                      ("contact_half_width", "m"), ("penetration_max", "m"),
+                      ("solve_time_s", "s"), ("floor_s", "s")):
+        assert re.search(rf"^  {key}\s+\S+ {re.escape(unit)}(  \(.*\))?$", stdout, re.M), key
+    assert re.search(r"^  complementarity\s+\S+$", stdout, re.M)  # dimensionless: no unit
+    assert re.search(r"^    p0  = \S+ Pa  computed \S+ Pa", stdout, re.M)
+    assert "nondimensional" not in stdout
+
+
+def test_membrane_is_nondimensional(membrane_run):
+    stdout, out = membrane_run[1], membrane_run[3]
+    s = json.loads((out / "summary.json").read_text())
+    assert set(s["units"].values()) == {"1"} and "contact_force" in s["units"]
+    assert re.search(r"^  contact_force\s+\S+$", stdout, re.M)  # no unit
+    assert re.search(r"^  solve_time_s\s+\S+ s$", stdout, re.M)
+    assert "(nondimensional scene: its numbers carry no unit; times in s)" in stdout
+
+
+def test_reduce_summary_units(capsys):
+    """``rbbench reduce``'s lines: penetration_max in the scene's unit, times in s."""
+    from rbbench.cli.console import _print_reduce_summary
+    from rbbench.hf.metrics import units_of
+
+    s = {"N": 5, "err_u_max": 0.01, "penetration_max": 1e-6, "t_offline_s": 2.5,
+         "speedup": 10.0, "histories": {}}
+    _print_reduce_summary(s, "mixed", units_of("elasticity"))
+    out = capsys.readouterr().out
+    assert re.search(r"^  penetration_max\s+1e-06 m$", out, re.M)
+    assert re.search(r"^  t_offline_s\s+2\.5 s$", out, re.M)
+    for key in ("N", "err_u_max", "speedup"):
+        assert re.search(rf"^  {key}\s+\S+$", out, re.M), key
+    _print_reduce_summary(s, "mixed", units_of("poisson"))
+    out = capsys.readouterr().out
+    assert re.search(r"^  penetration_max\s+1e-06$", out, re.M)
+    assert "nondimensional scene" in out
+
+
 def test_hertz_contact_csv(hertz_run):
     out = hertz_run[3]
     n_contact = json.loads((out / "summary.json").read_text())["n_contact"]
@@ -316,6 +363,27 @@ def test_no_command_is_a_usage_error(capsys):
 
 
 # ---------------------------------------------------------------------------
+# rbbench --version
+# ---------------------------------------------------------------------------
+def test_version_prints_the_package_version(capsys):
+    import rbbench
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out == f"rbbench {rbbench.__version__}\n"
+
+
+def test_console_script_version():
+    import rbbench
+
+    proc = subprocess.run([str(RBBENCH), "--version"], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"rbbench {rbbench.__version__}"
+
+
+# ---------------------------------------------------------------------------
 # rbbench plugins / scenes
 # ---------------------------------------------------------------------------
 BUILTINS = [("backend", "skfem"), ("formulation", "mixed"), ("solver", "ssn"),
@@ -349,9 +417,89 @@ def test_plugins_json(capsys):
 def test_scenes(capsys):
     assert main(["scenes"]) == 0
     out = capsys.readouterr().out
-    assert re.search(r"^hertz_halfdisks\s+mu in \[0\.7, 1\.3\]", out, re.M)
+    assert re.search(r"^hertz_halfdisks\s+mu in \[0\.7, 1\.3\] m\s", out, re.M)  # its unit
     assert re.search(r"^membrane_obstacle\s+height in \[0\.1, 0\.4\], curvature in \[2, 6\]",
                      out, re.M)
+
+
+def _columns(lines: list[str], header: list[str]) -> list[dict[str, str]]:
+    """The rows of a wrapped side-by-side table: each column's text over the row's lines
+    (cut at the header's column starts; a row starts where a line does not begin with a
+    space), whitespace normalised."""
+    starts = [lines[0].index(h) for h in header] + [None]
+    rows: list[dict[str, list[str]]] = []
+    for line in lines[1:]:
+        if not line.startswith(" "):
+            rows.append({h: [] for h in header})
+        for h, a, b in zip(header, starts, starts[1:], strict=False):
+            rows[-1][h].append(line[a:b])
+    return [{h: " ".join(" ".join(parts).split()) for h, parts in r.items()} for r in rows]
+
+
+@pytest.mark.parametrize("columns", [80, 100])
+def test_scenes_table_fits_the_terminal_and_keeps_every_word(columns, monkeypatch, capsys):
+    monkeypatch.setenv("COLUMNS", str(columns))
+    assert main(["scenes"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert max(map(len, lines)) <= columns
+    rows = _columns(lines, ["scene", "parameters", "description"])
+    from rbbench.scene.loading import PROBLEMS_DIR
+
+    scenes = [load_scene(p) for p in sorted(PROBLEMS_DIR.glob("*.toml"))]
+    assert [r["scene"] for r in rows] == [s.name for s in scenes]
+    for r, sc in zip(rows, scenes, strict=True):
+        assert r["description"] == " ".join(sc.data["scene"]["description"].split())
+        assert r["parameters"].count(" in [") == len(sc.parameters)  # nothing cut
+
+
+@pytest.mark.parametrize("columns", [80, 100])
+def test_plugins_table_fits_the_terminal_and_keeps_every_word(columns, monkeypatch, capsys):
+    from rbbench.cli.solve import _plugin_rows
+    from rbbench.registry import default_registry
+
+    monkeypatch.setenv("COLUMNS", str(columns))
+    assert main(["plugins"]) == 0
+    out = capsys.readouterr().out
+    assert max(map(len, out.splitlines())) <= columns
+    flat = " ".join(out.split())
+    for r in _plugin_rows(default_registry()):
+        assert " ".join(r["description"].split()) in flat, r["name"]  # wrapped, not cut
+        assert re.search(rf"^{r['role']}\s+{re.escape(r['name'])}\s", out, re.M)
+
+
+def test_tables_are_not_wrapped_off_a_terminal(monkeypatch, capsys):
+    """Piped, with COLUMNS unset: one line per row (for grep)."""
+    import os
+
+    from rbbench.cli.console import terminal_width
+
+    def no_terminal(*args):
+        raise OSError("not a terminal")
+
+    monkeypatch.delenv("COLUMNS", raising=False)
+    monkeypatch.setattr(os, "get_terminal_size", no_terminal)
+    assert terminal_width() is None
+    assert main(["scenes"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert not any(line.startswith(" ") for line in lines)
+    assert any("mu_1 in [0.1, 1], mu_2 in [0.1, 1], mu_3 in [0.1, 1], mu_4 in [0.1, 1]" in line
+               for line in lines)
+
+
+def test_cells_wrap_between_items_and_are_never_cut():
+    from rbbench.cli.console import _wrap_cell, format_table
+
+    items = ["alpha in [1, 2]", "beta in [3, 4]", "gamma in [5, 6]"]
+    assert _wrap_cell(items, 34) == ["alpha in [1, 2], beta in [3, 4],", "gamma in [5, 6]"]
+    assert _wrap_cell(items, 5) == ["alpha in [1, 2],", "beta in [3, 4],", "gamma in [5, 6]"]
+    assert _wrap_cell("a long_unbreakable_word", 6) == ["a", "long_unbreakable_word"]
+    rows = [["name", "text"], ["x", "a b c d e f g h i j k l m n o p q r s t u v w x y z"]]
+    assert format_table(rows, wrap={1}, width=None)[1] == ["x     " + rows[1][1]]
+    wrapped = format_table(rows, wrap={1}, width=30)  # text 24 wide, beside the name
+    assert wrapped[1][0].startswith("x     a b c") and wrapped[1][1].startswith("      ")
+    stacked = format_table(rows, wrap={1}, width=20)  # text under 24: under its row
+    assert stacked[0] == ["name", "    text"] and stacked[1][0] == "x"
+    assert " ".join(" ".join(stacked[1][1:]).split()) == rows[1][1]
 
 
 @pytest.mark.parametrize("argv", [["report", "{missing}"], ["report", "{garbage}"],

@@ -20,7 +20,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 #: what the build reads: the rest of the checkout (results, caches, .venv) stays out
-BUILD_INPUTS = ("pyproject.toml", "README.md", "rbbench", "plugins", "problems")
+BUILD_INPUTS = ("pyproject.toml", "README.md", "LICENSE", "rbbench", "plugins", "problems")
 #: pip's words when the index cannot be reached (then skip, not fail)
 OFFLINE = ("Failed to establish a new connection", "Temporary failure in name resolution",
            "Name or service not known", "Network is unreachable", "Max retries exceeded",
@@ -79,6 +79,9 @@ def test_wheel_ships_every_module_and_the_scenes(wheel):
     assert not missing, f"not in the wheel (pyproject.toml packages / package-data): {missing}"
     assert {"rbbench/problems/membrane_obstacle.toml",
             "rbbench/problems/matrices/quick.toml"} <= names
+    assert "rbbench/py.typed" in names  # package data: the typing marker
+    assert any(n.endswith(".dist-info/licenses/LICENSE") or n.endswith(".dist-info/LICENSE")
+               for n in names), "the licence is not in the wheel's metadata"
 
 
 def _bin(venv: Path, name: str) -> Path:
@@ -99,7 +102,9 @@ def test_installed_wheel_lists_scenes_and_solves_membrane(wheel, tmp_path):
 
     scenes = _run([_bin(venv, "rbbench"), "scenes"], "rbbench scenes", timeout=300,
                   cwd=elsewhere).stdout
-    listed = [line.split()[0] for line in scenes.splitlines() if line.strip()]
+    # the header, then one row per scene (a line starting with a space: a row's wrapped cells)
+    listed = [line.split()[0] for line in scenes.splitlines()[1:]
+              if line.strip() and not line[0].isspace()]
     shipped = sorted(s.stem for s in (ROOT / "problems").glob("*.toml"))
     assert {"hertz_halfdisks", "membrane_obstacle"} <= set(shipped)
     assert listed == shipped, scenes  # every scene of the source tree, from the wheel

@@ -38,6 +38,7 @@ from rbbench.rb.algorithms.affine import (
     affine_decomposition,
 )
 from rbbench.rb.algorithms.saddle import condense_dense
+from rbbench.rb.mixed.options import ONLINE_METHODS
 from rbbench.rb.online import ReducedBasis, require_basis
 from rbbench.scene.parameters import ParameterSpace
 
@@ -81,13 +82,6 @@ class OnlineResult:
 
 #: Online paths of :meth:`ReducedModel.solve`: "auto" (compiled where available)
 ONLINE_PATHS = ("auto", "compiled", "python")
-
-
-#: Online solvers of the reduced saddle point (``ReducedModel.solve(method=...)``; the
-#: first is the default): ``auto`` (:meth:`ReducedModel.resolve_method`), the condensed LCP
-#: by Lawson-Hanson's active set, the primal QP by daqp, the condensed LCP by the
-#: primal-dual active set.
-ONLINE_METHODS = ("auto", "nnls", "daqp", "pdas")
 
 
 def _solve_daqp(A: np.ndarray, F: np.ndarray, B: np.ndarray,
@@ -222,7 +216,8 @@ class ReducedModel:
     parameters : ParameterSpace or None
         The domain D that :meth:`solve` checks mu against (set by the offline skeleton).
     online_method : str
-        The online method :meth:`solve` uses by default (:data:`ONLINE_METHODS`).
+        The online method :meth:`solve` uses by default
+        (:data:`rbbench.rb.mixed.options.ONLINE_METHODS`).
     basis : ReducedBasis or None
         ``Z`` and the cone generators ``V`` (HF size), for :meth:`reconstruct` only.
     """

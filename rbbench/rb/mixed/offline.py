@@ -15,7 +15,6 @@ and the inf-sup constants beta_HF, beta_dec, beta_on, beta_off per validation mu
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -24,7 +23,8 @@ from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.affine import NotAffineError
 from rbbench.rb.compressors import make_stabilizer, pga_delta
 from rbbench.rb.config import ReduceConfig, config_dict
-from rbbench.rb.mixed.model import ONLINE_METHODS, build_affine_model, projector
+from rbbench.rb.mixed.model import build_affine_model, projector
+from rbbench.rb.mixed.options import MixedOptions
 from rbbench.rb.mixed.plain import PlainProjection, PlainReducedModel
 from rbbench.rb.offline import (
     check_finite,
@@ -92,38 +92,6 @@ DEFINITIONS = {
                  "eim.e_eim_valid_BN / _GN: the resulting error of B_N, G_N over the validation "
                  "set; eim_entrywise: Benaceur et al.'s entrywise EIM of B(mu) for comparison",
 }
-
-
-@dataclass
-class MixedOptions:
-    """The options of the mixed formulation's reduced model (frictionless scenes).
-
-    ``dual``: the registered dual compressor of the multiplier cone, ``R`` its maximal size
-    (default: the tolerance ``tol_dual`` on ``e_proj``); ``stabilizer``: ``none``,
-    ``supremizer`` (online) or ``pga`` (offline: tolerance ``delta_pga``, default the rule
-    of :func:`rbbench.rb.compressors.pga_delta`; at most ``k_pga_max`` vectors);
-    ``online_method``: the reduced solver (:data:`rbbench.rb.mixed.model.ONLINE_METHODS`);
-    ``exact_max_r``: the largest cone whose inf-sup constant is computed exactly (larger:
-    bounds); ``tol_eim``, ``m_eim``, ``n_eim_train``: the contact EIM's tolerance, size cap
-    and training grid (hyper ``eim``).
-    """
-
-    dual: str = "mcpg"
-    R: int | None = None
-    tol_dual: float = 1e-3
-    stabilizer: str = "pga"
-    delta_pga: float | None = None
-    k_pga_max: int | None = None
-    online_method: str = "auto"
-    exact_max_r: int = 10
-    tol_eim: float = 1e-4
-    m_eim: int | None = None
-    n_eim_train: int | None = None
-
-    def __post_init__(self) -> None:
-        if self.online_method not in ONLINE_METHODS:
-            raise ValueError(f"online method {self.online_method!r}: valid: "
-                             f"{', '.join(ONLINE_METHODS)}")
 
 
 class MixedReduction:

@@ -12,7 +12,7 @@ inequalities" (talk), slide "EIM errors", along the online iterates.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -36,6 +36,7 @@ from rbbench.rb.nitsche.model import (
     reduced_newton,
     sparse_nnls,
 )
+from rbbench.rb.nitsche.options import NitscheOptions
 from rbbench.rb.offline import (
     DivergedError,
     check_finite,
@@ -82,19 +83,6 @@ DEFINITIONS = {
 #: plain model's floor; with 6 N = 120 points err_u_max is 1.0e-4 / 1.4e-4 at levels 0 / 1
 #: (plain: 8.9e-5 / 5.6e-5) and the online time stays flat (measured, README "Nitsche").
 ECSW_POINTS_PER_MODE = 6
-
-
-@dataclass
-class NitscheOptions:
-    """The options of the Nitsche formulation's reduced model: the hyper-reduction's
-    tolerance ``tol_eim`` (ECSW: on the relative residual of the training sums; DEIM: its
-    relative max-norm training error), its size cap ``m_eim`` (ECSW default:
-    :data:`ECSW_POINTS_PER_MODE` ``* N``) and training grid ``n_eim_train`` (default
-    ``2 (n_train - 1) + 1`` points)."""
-
-    tol_eim: float = 1e-4
-    m_eim: int | None = None
-    n_eim_train: int | None = None
 
 
 class NitscheReduction:

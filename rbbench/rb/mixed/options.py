@@ -1,0 +1,47 @@
+"""The options of the mixed formulation's reduced model (frictionless scenes): standard
+library only, so that the command line reads their defaults without loading the numerics."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["ONLINE_METHODS", "MixedOptions"]
+
+#: Online solvers of the reduced saddle point
+#: (:meth:`rbbench.rb.mixed.model.ReducedModel.solve` ``method``; the first is the default):
+#: ``auto`` (:meth:`rbbench.rb.mixed.model.ReducedModel.resolve_method`), the condensed LCP by
+#: Lawson-Hanson's active set, the primal QP by daqp, the condensed LCP by the primal-dual
+#: active set.
+ONLINE_METHODS = ("auto", "nnls", "daqp", "pdas")
+
+
+@dataclass
+class MixedOptions:
+    """The options of the mixed formulation's reduced model (frictionless scenes).
+
+    ``dual``: the registered dual compressor of the multiplier cone, ``R`` its maximal size
+    (default: the tolerance ``tol_dual`` on ``e_proj``); ``stabilizer``: ``none``,
+    ``supremizer`` (online) or ``pga`` (offline: tolerance ``delta_pga``, default the rule
+    of :func:`rbbench.rb.compressors.pga_delta`; at most ``k_pga_max`` vectors);
+    ``online_method``: the reduced solver (:data:`ONLINE_METHODS`);
+    ``exact_max_r``: the largest cone whose inf-sup constant is computed exactly (larger:
+    bounds); ``tol_eim``, ``m_eim``, ``n_eim_train``: the contact EIM's tolerance, size cap
+    and training grid (hyper ``eim``).
+    """
+
+    dual: str = "mcpg"
+    R: int | None = None
+    tol_dual: float = 1e-3
+    stabilizer: str = "pga"
+    delta_pga: float | None = None
+    k_pga_max: int | None = None
+    online_method: str = "auto"
+    exact_max_r: int = 10
+    tol_eim: float = 1e-4
+    m_eim: int | None = None
+    n_eim_train: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.online_method not in ONLINE_METHODS:
+            raise ValueError(f"online method {self.online_method!r}: valid: "
+                             f"{', '.join(ONLINE_METHODS)}")
