@@ -36,6 +36,7 @@ extensions = [
     "sphinx_copybutton",
     "sphinx_design",
     "rbbench_docs",
+    "rbbench_xref",
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}

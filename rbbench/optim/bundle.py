@@ -3,13 +3,13 @@
 The method of Schramm and Zowe (1992, SIAM J. Optim. 2:121-152), the "BT" algorithm of
 Outrata, Kocvara, Zowe (1998, *Nonsmooth approach to optimization problems with
 equilibrium constraints*), on plain arrays. The oracle returns ``(f(x), g)``, ``g`` one
-(Clarke) subgradient. What is implemented (deviations from the papers marked *):
+(Clarke) subgradient. What is implemented (deviations from the papers marked [dev]):
 
 * **Model.** Each evaluated ``y_j`` gives the cut ``f(x_k) - alpha_j + g_j.d`` at the centre
   ``x_k`` with the distance-measure error (Schramm-Zowe; Lemarechal-Strodiot-Bihain)
   ``alpha_j = max(|f(x_k) - f_j - g_j.(x_k - y_j)|, gamma s_j^2)``, ``s_j = |x_k - y_j|``
   exactly (an aggregated cut: the convex combination of its members' ``s_j`` plus the
-  length of every later serious step, an upper bound). *Optional lower bound: the cut
+  length of every later serious step, an upper bound). [dev] Optional lower bound: the cut
   ``v >= f_lower - f(x_k)`` (``J >= 0``: ``f_lower = 0``).
 * **Subproblem.** ``min v + d'Md/(2t)`` s.t. ``v >= g_j.d - alpha_j``, ``x_k + d`` in the
   polyhedron (``M = I``: ``metric="identity"``, BT itself; ``metric="bfgs"``: ``M`` a damped
@@ -24,11 +24,11 @@ equilibrium constraints*), on plain arrays. The oracle returns ``(f(x), g)``, ``
   ``nu`` in the normal cone.
 * **Trust-parameter loop** (BT's inner iteration). Trial ``y = x_k + d``, model decrease
   ``v < 0``. Descent, ``f(y) - f(x_k) <= m_L v``: if ``g(y).d < m_R v`` (still steep at
-  ``y``) keep ``y`` as candidate, ``t *= t_increase`` and retry (*no new trial when the
+  ``y``) keep ``y`` as candidate, ``t *= t_increase`` and retry ([dev] no new trial when the
   step no longer changes, within 1e-3), else a serious step to the best candidate. No
   descent: a pending candidate becomes the serious step; else a null step (the cut of
   ``y`` changes the model, ``g(y).d - alpha_y >= m_R v``, or ``t = t_min``) or
-  ``t *= t_decrease`` and retry. *Every evaluated cut enters the bundle.
+  ``t *= t_decrease`` and retry. [dev] Every evaluated cut enters the bundle.
 * **Stopping rule.** ``-v = d'Md/t + nu.d + alpha_p <= eps`` (nonnegative terms), tested
   at ``max(t, t0)``: the model decrease grows with ``t``, so a ``t`` shrunk by failures
   cannot fake convergence. In a metric, ``d'Md/t = t |p + nu|^2_{M^-1}`` is the predicted
@@ -42,7 +42,7 @@ equilibrium constraints*), on plain arrays. The oracle returns ``(f(x), g)``, ``
   ``x -> c x`` (``c > 0``); ``eps`` is relative to ``|f(x0)|``. History ``f``, ``pred``,
   ``agg_norm`` are in the oracle's units, ``t`` in the options' units.
 * **Bundle size.** Above ``max_bundle`` cuts with zero multiplier go (oldest first), then
-  the active ones except the centre's are aggregated (Kiwiel 1985). *If
+  the active ones except the centre's are aggregated (Kiwiel 1985). [dev] If
   daqp fails (nearly parallel cuts), the bundle is reset once to the centre, the newer
   cuts and the last aggregate.
 """

@@ -64,8 +64,8 @@ def partition(sc: ShapeScene, st: ShapeState, tol: float = 1e-9) -> dict[str, in
 
     Contact: ``no`` (gap > 0, lam = 0), ``weak`` (both 0 to ``tol``), ``strong``
     (lam > 0); friction on contact nodes: ``sliding`` (u_t != 0), ``weak sticking``
-    (u_t = 0, |tau| = F(0) lam), ``strong sticking`` (|tau| < F(0) lam). ``tol`` is relative
-    to the largest force / gap; the raw values are in the state.
+    (``u_t = 0``, ``|tau| = F(0) lam``), ``strong sticking`` (``|tau| < F(0) lam``). ``tol``
+    is relative to the largest force / gap; the raw values are in the state.
     """
     gap = st.u_n + st.alpha
     lam_s = max(float(np.max(np.abs(st.lam))), 1e-300)

@@ -1,4 +1,4 @@
 """Reduced basis: POD, cones, PGA, inf-sup constants, EIM and the contact hyper-reducers, the
-offline skeleton (:mod:`.offline`), the reduced models (small dense arrays, picklable) and the
-shared validation step.
+offline skeleton (:mod:`rbbench.rb.offline`), the reduced models (small dense arrays,
+picklable) and the shared validation step.
 """

@@ -13,17 +13,17 @@ point (:mod:`rbbench.rb.friction.wedge.model`).
 Measured on hertz_friction P1 (default mesh, 36910 dofs, 513 contact nodes, F = 0.2; 41
 training, 20 validation mu; N = 30, PGA capped at K = 40, mCPG), max over validation:
 
-=========================  ===========  ===========  ===========  =================
-model                      colloc 20+20 wedge 20+20  wedge 10+10  wedge 20+20, no PGA
-=========================  ===========  ===========  ===========  =================
-err_u (floor 1.6e-4)       1.5e-2       2.4e-4       3.7e-4       2.2e-4
-err_lam_n (floor 0.033)    0.147        0.063        0.074        0.58
-err_lam_t                  6.35         0.187        0.221        1.73
-lam_t floor (span)         0.090        0.091        0.120        0.091
-friction residual          1.49         6e-17        8e-17        8e-17
-online fixed-point its     13           6            6            94
-reduced solve (s)          0.020        0.020        0.056        0.077
-=========================  ===========  ===========  ===========  =================
+=========================  ============  ============  ============  ==================
+model                      colloc 20+20  wedge 20+20   wedge 10+10   wedge 20+20, no PGA
+=========================  ============  ============  ============  ==================
+err_u (floor 1.6e-4)       1.5e-2        2.4e-4        3.7e-4        2.2e-4
+err_lam_n (floor 0.033)    0.147         0.063         0.074         0.58
+err_lam_t                  6.35          0.187         0.221         1.73
+lam_t floor (span)         0.090         0.091         0.120         0.091
+friction residual          1.49          6e-17         8e-17         8e-17
+online fixed-point its     13            6             6             94
+reduced solve (s)          0.020         0.020         0.056         0.077
+=========================  ============  ============  ============  ==================
 
 (collocation with GCNS patience: S_q = 168, err_u 4.7e-3, err_lam_t 1.00.) Without PGA the
 displacement stays good but the multipliers are not controlled (inf-sup).
