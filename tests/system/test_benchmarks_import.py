@@ -161,3 +161,23 @@ def test_tracked_values_fail_instead_of_recording_nan(modules):
             acc.track_err_u_max(cache, "c")
     cache = {"c": {"summary": {"beta_off_min": 0.0}}}
     assert acc.track_neg_log10_beta_off(cache, "c") == modules["bench_online"].NEG_LOG10_CAP
+
+
+def test_stage_suites_get_the_names_reduce_would_resolve(modules):
+    """The stage suites call the stage functions directly: their configuration carries the
+    formulation and solver ``reduce()`` resolves for the scene (never None)."""
+    from benchmarks._common import RB_CASES, reduce_config
+    from rbbench.registry import default_registry
+
+    reg = default_registry()
+    for case in RB_CASES:
+        cfg = reduce_config(case)
+        reg.get("formulation", cfg.formulation)
+        reg.get("solver", cfg.solver)
+
+
+def test_snapshot_stage_runs_on_the_membrane(modules):
+    bench = modules["bench_offline"].Snapshots()
+    bench.setup("membrane_obstacle")
+    bench.mus = bench.mus[:2]
+    bench.time_snapshots("membrane_obstacle")
