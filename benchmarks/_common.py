@@ -50,18 +50,23 @@ def scene(case: str) -> Scene:
 
 
 def reduce_config(case: str, cache_dir: str | None = None, **changes):
-    """The :class:`~rbbench.rb.offline.ReduceConfig` of ``case``.
+    """The :class:`~rbbench.rb.config.ReduceConfig` of ``case``, resolved for its scene.
 
     Snapshots in ``cache_dir`` (give a temporary directory whenever snapshots are
     computed) and in this process (``n_jobs = 1``: no process pool inside a benchmark);
     ``changes`` override any field (the tests use tiny sets).
     """
     from rbbench.rb.config import make_config
+    from rbbench.rb.offline import prepare_config
+    from rbbench.registry import default_registry
 
     opts = {"n_jobs": 1, "online_repeats": 3, **RB_OPTIONS[case]}
     if cache_dir is not None:
         opts["cache_dir"] = str(cache_dir)
-    return make_config(**{**opts, **changes})
+    # resolved as reduce() resolves it (formulation, solver and options from the scene), so
+    # the stage suites call the stage functions with the names reduce() would give them
+    return prepare_config(scene(case), make_config(**{**opts, **changes}),
+                          default_registry())[1]
 
 
 def reduced_case(case: str, cache_dir: str, **changes) -> dict:

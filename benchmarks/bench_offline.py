@@ -57,7 +57,7 @@ def offline_inputs():
     st.setup(out, "hertz_coarse")
     Z, Vg = st.bases()
     problems = [st.problem_at(mu) for mu in st.data["mus"]]
-    Z_off = st.stabilise(make_stabilizer(st.registry, st.cfg), Z, Vg, problems)
+    Z_off = st.stabilise(make_stabilizer(st.registry, st.opts), Z, Vg, problems)
     st.data.update(Vg=Vg, Z_off=Z_off)
     return out
 
@@ -75,6 +75,7 @@ class _Stage:
     def setup(self, data, case):
         self.data = data[case]
         self.cfg = reduce_config(case)
+        self.opts = self.cfg.options  # the mixed formulation's options (dual, PGA, EIM)
         self.scene = scene(case)
         self.registry = default_registry()
         b, f, _ = make_components(self.scene, self.cfg.backend, self.cfg.formulation,
@@ -87,15 +88,15 @@ class _Stage:
 
     def bases(self):
         """``Z`` (primal plugin) and ``Vg`` (dual plugin) as ``reduce()`` builds them."""
-        cfg, reg = self.cfg, self.registry
+        cfg, opts, reg = self.cfg, self.opts, self.registry
         Z = primal_basis(reg, cfg, self.data["U"], self.X).Z
-        Vg = reg.create("dual", cfg.dual)(self.data["LAM"], self.W_ref, tol=cfg.tol_dual,
-                                          r_max=cfg.R).generators
+        Vg = reg.create("dual", opts.dual)(self.data["LAM"], self.W_ref, tol=opts.tol_dual,
+                                           r_max=opts.R).generators
         return Z, Vg
 
     def stabilise(self, stabilizer, Z, Vg, problems):
         """The stabiliser stage of ``reduce()``: default delta (Benaceur et al.'s), offline()."""
-        delta = pga_delta(self.cfg, problems, self.x_solve, Vg)
+        delta = pga_delta(self.opts, problems, self.x_solve, Vg)
         return stabilizer.offline(Z, Vg, self.X, self.x_solve, (p.B for p in problems),
                                   delta)[0]
 
@@ -159,7 +160,7 @@ class DualCompressor(_Stage):
 
     def time_dual_compressor(self, data, case, dual):
         """Wall time (s) of the greedy cone construction (all generators)."""
-        self.dual(self.data["LAM"], self.W_ref, tol=self.cfg.tol_dual, r_max=self.cfg.R)
+        self.dual(self.data["LAM"], self.W_ref, tol=self.opts.tol_dual, r_max=self.opts.R)
 
 
 class PGA(_Stage):
@@ -181,7 +182,7 @@ class PGA(_Stage):
         super().setup(data, case)
         self.problems = [self.problem_at(mu) for mu in self.data["mus"]]
         self.Z, self.Vg = self.bases()
-        self.stabilizer = make_stabilizer(self.registry, self.cfg)
+        self.stabilizer = make_stabilizer(self.registry, self.opts)
 
     def time_pga(self, data, case):
         """Wall time (s) of default delta + supremizers + PGA greedy."""
@@ -203,7 +204,7 @@ class EIM(_Stage):
         super().setup(data, "hertz_coarse")
         self.layout = self.backend.contact_layout()
         mus = self.data["mus"]
-        self.mus_eim = eim_training_set(self.scene, self.cfg, mus)
+        self.mus_eim = eim_training_set(self.scene, self.opts, mus)
         self.free = self.problem_at(mus[0]).free
         self.B_eim, G = self._operators()
         self.G_eim = np.stack(G, axis=1)
@@ -223,4 +224,4 @@ class EIM(_Stage):
     def time_eim_build(self, data):
         """Wall time (s) of the contact EIM construction (greedy EIMs + row evaluator)."""
         contact_eim(self.layout, self.B_eim, self.G_eim, self.data["Z_off"], self.data["Vg"],
-                    self.free, self.mus_eim, tol=self.cfg.tol_eim, m_max=self.cfg.m_eim)
+                    self.free, self.mus_eim, tol=self.opts.tol_eim, m_max=self.opts.m_eim)

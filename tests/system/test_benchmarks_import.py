@@ -161,3 +161,42 @@ def test_tracked_values_fail_instead_of_recording_nan(modules):
             acc.track_err_u_max(cache, "c")
     cache = {"c": {"summary": {"beta_off_min": 0.0}}}
     assert acc.track_neg_log10_beta_off(cache, "c") == modules["bench_online"].NEG_LOG10_CAP
+
+
+def test_stage_suites_get_the_names_reduce_would_resolve(modules):
+    """The stage suites call the stage functions directly: their configuration carries the
+    formulation and solver ``reduce()`` resolves for the scene (never None)."""
+    from benchmarks._common import RB_CASES, reduce_config
+    from rbbench.registry import default_registry
+
+    reg = default_registry()
+    for case in RB_CASES:
+        cfg = reduce_config(case)
+        reg.get("formulation", cfg.formulation)
+        reg.get("solver", cfg.solver)
+
+
+def test_offline_stages_run_on_the_membrane(modules, tmp_path):
+    """Every stage suite of ``bench_offline`` on the membrane, with the inputs its
+    ``setup_cache`` computes, on 4 training parameters (EIM is coarse Hertz only)."""
+    from dataclasses import replace
+
+    off = modules["bench_offline"]
+    case = "membrane_obstacle"
+    bench = off.Snapshots()
+    bench.setup(case)
+    bench.mus = bench.mus[:2]
+    bench.time_snapshots(case)
+    sc, cfg, mus = off._training(case, str(tmp_path))
+    snaps = off._snapshots(sc, replace(cfg, n_jobs=1), mus[:4])
+    data = {case: {"mus": snaps.mus, "U": snaps.U, "LAM": snaps.LAM}}
+    pod = off.PrimalPOD()
+    pod.setup(data, case)
+    pod.time_primal_pod(data, case)
+    for dual in off.DUALS:
+        stage = off.DualCompressor()
+        stage.setup(data, case, dual)
+        stage.time_dual_compressor(data, case, dual)
+    pga = off.PGA()
+    pga.setup(data, case)
+    pga.time_pga(data, case)
