@@ -404,12 +404,28 @@ def make_stabilizer(reg: Any, config: Any) -> Any:
     return reg.create("stabilizer", config.stabilizer, **opts)
 
 
+def takes_delta(reg: Any, name: str) -> bool:
+    """Whether the registered stabiliser ``name`` is given the tolerance ``delta``: it declares
+    the guarantee ``capabilities["inf_sup"] == "training set"``, which is stated in ``delta``
+    (``pga``, or a plugin's offline stabiliser)."""
+    return reg.get("stabilizer", name).capabilities.get("inf_sup") == "training set"
+
+
+def is_online(reg: Any, name: str) -> bool:
+    """Whether the registered stabiliser ``name`` needs the HF ``B(mu)`` online (its
+    ``capabilities["online_hf"]``, as ``supremizer``)."""
+    return bool(reg.get("stabilizer", name).capabilities.get("online_hf", False))
+
+
 def pga_delta(config: Any, problems: list, x_solve: Any,
-              Vg: np.ndarray) -> float | None:
-    """The PGA tolerance: ``config.delta_pga``, else Benaceur et al.'s rule (friction example:
-    ``delta_PGA = sup beta_HF / c_HF = 0.072``) with beta the span value over the reduced
-    cone (a lower bound), over every fifth training problem. ``None`` unless PGA."""
-    if config.stabilizer != "pga":
+              Vg: np.ndarray, reg: Any = None) -> float | None:
+    """The stabiliser's tolerance ``delta``: ``config.delta_pga``, else Benaceur et al.'s PGA
+    rule (friction example: ``delta_PGA = sup beta_HF / c_HF = 0.072``) with beta the span
+    value over the reduced cone (a lower bound), over every fifth training problem. ``None``
+    unless the stabiliser takes one (:func:`takes_delta` with the registry ``reg``; without
+    it, PGA only)."""
+    if not (takes_delta(reg, config.stabilizer) if reg is not None
+            else config.stabilizer == "pga"):
         return None
     if config.delta_pga is not None:
         return config.delta_pga
