@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from rbbench.cli.choices import component_arg
 from rbbench.cli.common import _add_option_args, _backend_options
 from rbbench.cli.console import _print_reduce_summary, _Progress, print_linear_reduce
 from rbbench.rb.config import OptionError
@@ -117,16 +118,16 @@ def _add_reduce_args(rd: argparse.ArgumentParser) -> None:
     rd.argument_default = argparse.SUPPRESS
     _add_option_args(rd)
     g = rd.add_argument_group("shared by every formulation")
-    g.add_argument("--formulation", help="mixed (default; linear on a linear scene), nitsche")
-    g.add_argument("--backend", help="skfem (default), ngsolve")
-    g.add_argument("--solver", help="the HF solver of the snapshots (default: the "
-                   "formulation's own: ssn for mixed, friction-ssn on a friction scene, "
-                   "newton for nitsche; a linear scene has none)")
-    g.add_argument("--primal", help="primal compressor: pod (default), greedy")
-    g.add_argument("--hyper", help="auto (default: the formulation's rule), affine (exact), "
-                   "eim (mixed: EIM of B(mu) Z and G(mu); nitsche: DEIM; friction: the wedge "
-                   "model's EIM of its B, g and DEIM of the slip), ecsw / deim (nitsche), "
-                   "none (plain: HF assembly projected online)")
+    component_arg(g, "--formulation", "formulation",
+                  "formulation (default mixed; linear on a linear scene)")
+    component_arg(g, "--backend", "backend", "HF backend (default skfem)")
+    component_arg(g, "--solver", "solver", "the HF solver of the snapshots (default: the "
+                  "formulation's own: ssn for mixed, friction-ssn on a friction scene, "
+                  "newton for nitsche; a linear scene has none)")
+    component_arg(g, "--primal", "primal", "primal compressor (default pod)")
+    component_arg(g, "--hyper", "hyper", "hyper-reducer (default auto; eim on friction "
+                  "scenes: the wedge model's EIM of its B, g and DEIM of the slip)",
+                  extra={"auto": "the formulation's rule"})
     g.add_argument("-N", type=int, help="primal size (default: POD tolerance --tol-pod); "
                    "clipped to the number of training snapshots and to their numerical rank, "
                    "with a warning in result.json 'warnings' (N there: the size built)")
@@ -139,13 +140,12 @@ def _add_reduce_args(rd: argparse.ArgumentParser) -> None:
                    help="processes for the HF snapshots (default: the CPUs)")
     g.add_argument("--cache-dir", help="HF snapshot cache (default .rbbench_cache)")
     m = rd.add_argument_group("mixed formulation (frictionless and friction scenes)")
-    m.add_argument("--dual", help="dual compressor of the multiplier cone (registered: "
-                   "rbbench plugins, role dual; default mcpg)")
+    component_arg(m, "--dual", "dual", "dual compressor of the multiplier cone (default mcpg)")
     m.add_argument("-R", type=int, help="maximal dual size (default: --tol-dual)")
     m.add_argument("--tol-dual", type=float, help="dual compressor tolerance on e_proj "
                    "(default 1e-3)")
-    m.add_argument("--stabilizer", help="none, supremizer (frictionless only), pga "
-                   "(default)")
+    component_arg(m, "--stabilizer", "stabilizer", "stabiliser of the primal space (default "
+                  "pga; one building its space online, as supremizer: frictionless only)")
     m.add_argument("--delta-pga", type=float,
                    help="PGA tolerance on sigma_max (default: see result.json pga_delta)")
     m.add_argument("--k-max", type=int, dest="k_pga_max",

@@ -69,8 +69,11 @@ def test_reduce_cli_writes_result_json(tmp_path, capsys, monkeypatch):
 
 
 def test_reduce_cli_rejects_unknown_compressor(capsys):
-    assert main(["reduce", "membrane_obstacle", "--dual", "nope", "--quiet"]) == 2
-    assert "valid" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:  # argparse choices: the registered names
+        main(["reduce", "membrane_obstacle", "--dual", "nope", "--quiet"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "argument --dual: invalid choice:" in err
+    assert "nope" in err and "cpg" in err and "mcpg" in err
 
 
 # ---------------------------------------------------------------------------

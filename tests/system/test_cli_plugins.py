@@ -95,3 +95,52 @@ def test_the_listing_takes_the_same_selection(env):
     assert out.returncode == 0, out.stderr
     assert sorted(r["name"] for r in json.loads(out.stdout)) == ["check-demo-cpg",
                                                                  "check-demo-rescaled"]
+
+
+# ---------------------------------------------------------------------------
+# the component options read their choices and help from the registry
+# ---------------------------------------------------------------------------
+def test_a_plugins_component_is_a_choice_with_its_description(env):
+    help_ = subprocess.run([sys.executable, "-m", "rbbench.cli", "reduce", "--help"],
+                           capture_output=True, text=True, env=env, timeout=120)
+    assert help_.returncode == 0, help_.stderr
+    text = " ".join(help_.stdout.split()).replace("- ", "-")  # argparse wraps the lines
+    assert "--dual DUAL dual compressor of the multiplier cone (default mcpg). Registered " \
+           "(rbbench plugins --role dual): check-demo-cpg: demo; check-demo-rescaled: demo; " \
+           "cpg: Cone Projected Greedy;" in text
+    bad = subprocess.run([sys.executable, "-m", "rbbench.cli", "reduce", "membrane_obstacle",
+                          "--dual", "nope"], capture_output=True, text=True, env=env, timeout=120)
+    assert bad.returncode == 2
+    err = " ".join(bad.stderr.split()).replace("- ", "-").replace("'", "")
+    assert "argument --dual: invalid choice: nope (choose from check-demo-cpg, " \
+           "check-demo-rescaled, cpg" in err
+
+
+def test_building_the_parser_imports_no_component():
+    code = textwrap.dedent("""
+        import sys
+        from rbbench.cli import build_parser
+        from rbbench.registry import default_registry
+        build_parser()
+        targets = {s.target.split(":")[0] for s in default_registry().specs()
+                   if s.role != "hyper"}  # the hyper declarations module is imported by config
+        print(sorted(m for m in targets | {"skfem", "ngsolve", "petsc4py", "dask"}
+                     if m in sys.modules))
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("argv, flag, valid", [
+    (["solve", "membrane_obstacle", "--backend", "fenics"], "--backend", "ngsolve, skfem"),
+    (["run", "quick", "--executor", "slurm"], "--executor", "dask, processes, serial"),
+    (["reduce", "membrane_obstacle", "--hyper", "pod"], "--hyper", "auto, affine"),
+])
+def test_bad_component_names_exit_2_naming_the_flag_and_the_choices(argv, flag, valid, capsys):
+    from rbbench.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    err = " ".join(capsys.readouterr().err.split()).replace("'", "")  # quoted or not
+    assert exc.value.code == 2 and f"argument {flag}: invalid choice" in err and valid in err
