@@ -133,7 +133,7 @@ def run_contracts(registry: Registry | None = None, package: str | None = None,
 def format_result(r: ContractResult) -> str:
     """One result as a report line, and the message indented under it when there is one."""
     pkg = f"{r.package} {r.version}".strip() or "?"
-    head = f"{r.status.upper():<8}{r.role:<11}{r.name:<22}{pkg:<32}{r.seconds:6.1f} s"
+    head = f"{r.status.upper():<8}{r.role:<12}{r.name:<22}{pkg:<32}{r.seconds:6.1f} s"
     return head + (f"\n        {r.message}" if r.message else "")
 
 
