@@ -27,6 +27,11 @@ class LumpedMixed(Formulation):
         lumped = sp.diags(abs(problem.W).sum(axis=1).A1).tocsr()
         return dataclasses.replace(problem, W=lumped)
 
+    def reduction(self, friction: str = "none") -> Any:
+        """The offline steps of the mixed formulation's reduced model: its problems are
+        ContactProblems too, so the same steps reduce them."""
+        return self.mixed.reduction(friction)
+
 
 @hookimpl
 def rbbench_register(registry):
