@@ -17,6 +17,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE / "_ext"))
 
 import rbbench  # noqa: E402
+import rbbench.plugin  # noqa: E402
 
 project = "rbbench"
 author = "the rbbench developers"
@@ -57,6 +58,9 @@ autodoc_typehints = "none"  # numpydoc's parameter lists say the types
 numpydoc_show_class_members = False
 numpydoc_xref_param_type = False
 numpydoc_validation_checks: set[str] = set()
+# a module gathering names defined elsewhere (template autosummary/public_names.rst) lists
+# its __all__, each documented under the gathering module's path
+autosummary_context = {"public_names": {"rbbench.plugin": rbbench.plugin.__all__}}
 
 # no network at build time: intersphinx reads nothing remote (the mapping stays empty)
 intersphinx_mapping: dict[str, tuple[str, str | None]] = {}

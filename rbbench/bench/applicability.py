@@ -52,7 +52,9 @@ def compatibility(scene: Scene, comp: dict[str, str],
                 return "skip", (f"{r} {comp[r]!r} does not support the friction law "
                                 f"{law!r} (supports {tuple(laws)})")
         forms = caps["solver"].get("formulations") if "solver" in caps else None
-        if forms is not None and comp["formulation"] not in forms:
+        declared = caps["formulation"].get("solvers") or ()  # the formulation's own list
+        if forms is not None and comp["formulation"] not in forms \
+                and comp["solver"] not in declared:
             return "skip", (f"solver {comp['solver']!r} does not solve the "
                             f"{comp['formulation']!r} formulation (solves {forms})")
         if "stabilizer" in caps:

@@ -28,7 +28,7 @@ import numpy as np
 from rbbench.bench import schema
 from rbbench.bench.matrix import Case
 from rbbench.provenance import _jsonable
-from rbbench.registry import NotInstalledError, Registry
+from rbbench.registry import NotInstalledError, Registry, default_registry
 
 __all__ = ["CaseTimeout", "alarm", "base_row", "decided_row", "execute_case", "failed_row",
            "run_provenance"]
@@ -99,14 +99,16 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
 
 
-def _fill(row: dict, s: dict) -> None:
+def _fill(row: dict, s: dict, online_stabilizer: bool = False) -> None:
+    """The row's columns from the summary ``s``; ``S``: the enrichment size, ``R`` for an
+    online stabiliser (its ``capabilities["online_hf"]``), else the offline ``K``."""
     for k in _COPIED:
         row[k] = s.get(k)
     for col, key in _TIMINGS.items():
         row[col] = s["timings"].get(key)
     row["t_online_hf_assembly_s"] = s["timings"].get("t_online_hf_assembly_s")
     row["hyper_used"] = s["hyper"]
-    row["S"] = s["K_pga"] if s["config"].get("stabilizer") != "supremizer" else s["R"]
+    row["S"] = s["R"] if online_stabilizer else s["K_pga"]
     for b in ("hf", "dec", "on", "off"):
         row[f"beta_{b}_min"] = s.get(f"beta_{b}_min")
         row[f"beta_{b}_kind"] = (s.get("beta_kind") or {}).get(b)
@@ -187,7 +189,9 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
     res = reduce(scene, case.reduce_config(cache_dir), progress=progress or _quiet,
                  registry=registry)
     s = res.summary()
-    _fill(row, s)
+    reg, stab = registry or default_registry(), s["config"].get("stabilizer")
+    _fill(row, s, bool(stab in reg.names("stabilizer")
+                       and reg.get("stabilizer", stab).capabilities.get("online_hf")))
     stops = s.get("online_stops", {})
     bad_stops = {k: v for k, v in stops.items() if not k.startswith("converged")}
     if not _finite(s):

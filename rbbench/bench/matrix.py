@@ -63,7 +63,6 @@ from rbbench.bench.applicability import (
     reduced_model_check,
 )
 from rbbench.bench.matrix_checks import MatrixError
-from rbbench.rb.hyper.reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.registry import Registry
 from rbbench.scene import limits
 from rbbench.scene.loading import PROBLEMS_DIR, load_scene, tomllib
@@ -78,7 +77,6 @@ COMPONENT_ROLES = {"backend": "skfem", "formulation": "mixed", "solver": "ssn",
 #: and ``[params.AXIS.VALUE]`` grids), and their valid values; the value is a case parameter.
 MODEL_AXES: dict[str, tuple[str, ...]] = {"friction_dual": checks.FRICTION_DUALS}
 #: Axes that name registered components (their registry role has the same name).
-_HYPER = ("auto", *BUILTIN_HYPER)  # "auto" and the built-in hyper-reducers (role "hyper")
 _TOP = {"matrix", "components", "sizes", "reduce", "scene_overrides", "params", "hf"}
 _MATRIX_KEYS = {"name", "description", "scenes", "repetitions", "timeout_s", "seed", "mode"}
 MODES = ("rb", "hf")
@@ -342,11 +340,14 @@ def _component_axes(data: dict, mode: str, registry: Registry | None,
 
 def _check_names(axes: dict[str, list[str]], mode: str, registry: Registry | None,
                  where: str) -> None:
-    """Hyper-reducer names, and the registered components' names with a registry."""
-    for h in axes["hyper"]:
-        if h not in _HYPER and not (mode == "hf" and h == ""):
-            raise MatrixError(f"{where}: [components] hyper: {h!r}; valid: {', '.join(_HYPER)}")
+    """The registered components' names with a registry (hyper: ``"auto"`` or a registered
+    hyper-reducer)."""
     if registry is not None:
+        hypers = ("auto", *registry.names("hyper"))
+        for h in axes["hyper"]:
+            if h not in hypers and not (mode == "hf" and h == ""):
+                raise MatrixError(f"{where}: [components] hyper: {h!r}; valid: "
+                                  f"{', '.join(hypers)}")
         for role in REGISTRY_ROLES:
             valid = registry.names(role)
             for n in axes[role]:

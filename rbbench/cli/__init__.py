@@ -4,7 +4,8 @@
 ``rbbench nitsche-table``: the relative Alart-Curnier residual table of the Nitsche solve beside
 the published one (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
 parametric variational inequalities" (talk));
-``rbbench plugins``: every registered component and whether it is importable;
+``rbbench plugins``: every registered component and whether it is importable (``--check``: their
+contract suite, without pytest);
 ``rbbench scenes``: the scenes in ``problems/``;
 ``rbbench run MATRIX``: a run matrix, one results row per case;
 ``rbbench studies STUDY``: the linear scenes beside pyMOR and the published figures, the shape
@@ -26,6 +27,7 @@ from rbbench._version import __version__
 from rbbench.bench.errors import ResultsError
 from rbbench.cli.common import Parser
 from rbbench.cli.optimize import add_parser as _add_optimize_parser
+from rbbench.cli.plugins import add_plugin_args
 from rbbench.cli.reduce import _add_online_scaling_parser, _add_reduce_parser
 from rbbench.cli.run import _add_run_parsers
 from rbbench.cli.solve import _add_solve_parser, cmd_plugins, cmd_scenes
@@ -51,6 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="print every field of every component as JSON (package, version, "
                          "extras, install hint, capabilities)")
     pl.set_defaults(func=cmd_plugins)
+    add_plugin_args(pl)  # --check, --package, --role
     _add_reduce_parser(sub)
     _add_hertz_table_parser(sub)
     _add_nitsche_table_parser(sub)

@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from rbbench.cli.choices import component_arg
 from rbbench.cli.common import _add_option_args, _backend_options, shown_default
 from rbbench.cli.console import _print_reduce_summary, _Progress, print_linear_reduce
 from rbbench.rb.config import OptionError, ReduceConfig
@@ -142,16 +143,16 @@ def _add_reduce_args(rd: argparse.ArgumentParser) -> None:
 
 def _add_shared_args(g: Any) -> None:
     """The fields of :class:`rbbench.rb.config.ReduceConfig` (argument group ``g``)."""
-    g.add_argument("--formulation", help="mixed (default; linear on a linear scene), nitsche")
-    g.add_argument("--backend", help="HF backend: skfem, ngsolve")
-    g.add_argument("--solver", help="the HF solver of the snapshots (default: the "
-                   "formulation's own: ssn for mixed, friction-ssn on a friction scene, "
-                   "newton for nitsche; a linear scene has none)")
-    g.add_argument("--primal", help="primal compressor: pod, greedy")
-    g.add_argument("--hyper", help="auto (the formulation's rule), affine (exact), "
-                   "eim (mixed: EIM of B(mu) Z and G(mu); nitsche: DEIM; friction: the wedge "
-                   "model's EIM of its B, g and DEIM of the slip), ecsw / deim (nitsche), "
-                   "none (plain: HF assembly projected online)")
+    component_arg(g, "--formulation", "formulation",
+                  "formulation (default mixed; linear on a linear scene)")
+    component_arg(g, "--backend", "backend", "HF backend")
+    component_arg(g, "--solver", "solver", "the HF solver of the snapshots (default: the "
+                  "formulation's own: ssn for mixed, friction-ssn on a friction scene, "
+                  "newton for nitsche; a linear scene has none)")
+    component_arg(g, "--primal", "primal", "primal compressor")
+    component_arg(g, "--hyper", "hyper", "hyper-reducer (eim on friction scenes: the wedge "
+                  "model's EIM of its B, g and DEIM of the slip)",
+                  extra={"auto": "the formulation's rule"})
     g.add_argument("-N", type=int, help="primal size (default: POD tolerance --tol-pod); "
                    "clipped to the number of training snapshots and to their numerical rank, "
                    "with a warning in result.json 'warnings' (N there: the size built)")
@@ -167,12 +168,12 @@ def _add_shared_args(g: Any) -> None:
 
 def _add_mixed_args(m: Any) -> None:
     """The options of the mixed formulation (argument group ``m``)."""
-    m.add_argument("--dual", help="dual compressor of the multiplier cone (registered: "
-                   "rbbench plugins, role dual)")
+    component_arg(m, "--dual", "dual", "dual compressor of the multiplier cone")
     m.add_argument("-R", type=int, help="maximal dual size (default: as many generators as "
                    "--tol-dual needs)")
     m.add_argument("--tol-dual", type=float, help="dual compressor tolerance on e_proj")
-    m.add_argument("--stabilizer", help="none, supremizer (frictionless only), pga")
+    component_arg(m, "--stabilizer", "stabilizer", "stabiliser of the primal space (one "
+                  "building its space online, as supremizer: frictionless only)")
     m.add_argument("--delta-pga", type=float,
                    help="PGA tolerance on sigma_max (default: the rule of "
                    "rbbench.rb.compressors.pga_delta, written as result.json pga_delta)")

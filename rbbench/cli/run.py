@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from rbbench.cli.choices import component_arg
 from rbbench.registry import default_registry
 from rbbench.runtime import openblas_env as _openblas_env  # noqa: F401  (first: before numpy loads OpenBLAS)
 from rbbench.scene.loading import SceneError
@@ -83,7 +84,7 @@ def _add_run_parsers(sub) -> None:
     r.add_argument("--set", action="append", metavar="FIELD=VALUE",
                    help="override a [reduce] field for every case (repeatable)")
     r.add_argument("--dry-run", action="store_true", help="list the cases and exit")
-    r.add_argument("--executor", default="processes", help="serial, processes, dask")
+    component_arg(r, "--executor", "executor", "where the cases run", default="processes")
     r.add_argument("--jobs", type=int, default=None,
                    help="concurrent cases (default: the CPUs)")
     r.add_argument("--scheduler", help="dask scheduler address (executor dask)")

@@ -6,6 +6,7 @@ import json
 import textwrap
 from pathlib import Path
 
+from rbbench.cli.choices import component_arg
 from rbbench.cli.common import _add_option_args, _backend_options, _resolve_solver
 from rbbench.cli.console import _Progress, format_table, print_summary, terminal_width
 from rbbench.registry import default_registry
@@ -152,12 +153,12 @@ def _add_solve_parser(sub) -> None:
                        "warnings)")
     s.add_argument("scene", help="scene name in problems/ or path to a .toml file")
     s.add_argument("--mu", type=float, nargs="+", help="parameter value(s) (default: scene's)")
-    s.add_argument("--backend", default="skfem",
-                   help="HF backend (registered: rbbench plugins, role backend)")
+    component_arg(s, "--backend", "backend", "HF backend", default="skfem")
     _add_option_args(s)
-    s.add_argument("--formulation", default="mixed", help="mixed or nitsche")
-    s.add_argument("--solver", default=None,
-                   help="default: the formulation's (ssn for mixed, newton for nitsche)")
+    component_arg(s, "--formulation", "formulation", "formulation",
+                  default="mixed")
+    component_arg(s, "--solver", "solver", "algebraic solver (default: the formulation's: "
+                  "ssn for mixed, newton for nitsche)", default=None)
     s.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE",
                    help="override a scene value (repeatable), e.g. load.displacement=0.01")
     s.add_argument("--out", help="output directory (default results/solve/<scene>_<mu>)")

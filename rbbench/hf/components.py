@@ -54,7 +54,7 @@ def check_names(scene: Scene, registry: Registry, backend: str, formulation: str
     for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):
         registry.get(role, name)
     forms = registry.get("solver", solver).capabilities.get("formulations")
-    if forms is not None and formulation not in forms:
+    if not solves(registry, solver, formulation):
         raise SceneError(f"solver {solver!r} solves the {', '.join(map(repr, forms))} "
                          f"formulation(s), not {formulation!r}; solvers of {formulation!r}: "
                          + ", ".join(map(repr, _declared_solvers(formulation, registry))))
@@ -79,6 +79,16 @@ def check_friction_support(scene: Scene, spec: Any, formulation: str | None = No
         msg += (f"; solvers of the {formulation!r} formulation for this law: "
                 + (", ".join(map(repr, ok)) or "none"))
     raise SceneError(msg)
+
+
+def solves(registry: Registry, solver: str, formulation: str) -> bool:
+    """Whether ``solver`` takes the problems of ``formulation``: the solver declares the
+    formulation (``capabilities["formulations"]``; none declared: any), or the formulation
+    declares the solver (``capabilities["solvers"]``, so a plugin's formulation whose
+    problems are, e.g., ``ContactProblem`` names the built-in solvers that take them)."""
+    forms = registry.get("solver", solver).capabilities.get("formulations")
+    declared = registry.get("formulation", formulation).capabilities.get("solvers") or ()
+    return forms is None or formulation in forms or solver in declared
 
 
 def _solvers_for(formulation: str, registry: Registry, law: str) -> list[str]:

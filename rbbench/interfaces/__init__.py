@@ -12,7 +12,7 @@ Solution``, ``reconstruct(solution) -> HFVectors``.
 Everything here is plain numpy / scipy: no backend type crosses a role boundary, so
 formulations and solvers are backend-agnostic. The names live in :mod:`.operators` (what a
 backend assembles), :mod:`.problems` (the algebraic problems and a solve's result),
-:mod:`.roles` (the abstract HF roles) and :mod:`.model` (the model interface).
+:mod:`.roles` (the abstract HF roles and the executor) and :mod:`.model` (the model interface).
 """
 
 from rbbench.interfaces.model import HFVectors, Model, ReducedSolution, Solution
@@ -28,9 +28,10 @@ from rbbench.interfaces.problems import (
     NitscheStep,
     SolveResult,
 )
-from rbbench.interfaces.roles import Backend, Formulation, Solver
+from rbbench.interfaces.roles import Backend, Executor, Formulation, Solver
 
 __all__ = ["STOP_REASONS", "Backend", "BodyMesh", "ContactOperators", "ContactProblem",
-           "Discretization", "Factorize", "Formulation", "FrictionLaw", "FrictionProblem",
+           "Discretization", "Executor", "Factorize", "Formulation", "FrictionLaw",
+           "FrictionProblem",
            "HFVectors", "LoadStep", "Model", "NitscheFrictionProblem", "NitscheProblem",
            "NitscheStep", "ReducedSolution", "Solution", "SolveResult", "Solver"]

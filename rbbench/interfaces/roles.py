@@ -1,9 +1,15 @@
-"""The abstract HF roles filled by plugins: backend, formulation, solver."""
+"""The abstract roles filled by plugins: backend, formulation, solver (HF) and executor.
+
+The RB roles (primal, dual, stabilizer, hyper) are defined beside the pipeline that calls
+them: :mod:`rbbench.rb.compressors` and :mod:`rbbench.rb.hyper.reducers`. Every role's base
+class or protocol is gathered for plugin authors in :mod:`rbbench.plugin`.
+"""
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import Any
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -71,3 +77,37 @@ class Solver(ABC):
     def solve(self, problem: ContactProblem | NitscheProblem | FrictionProblem,
               warm_start: np.ndarray | None = None) -> SolveResult:
         """Solve; never hang: every return carries a stop reason."""
+
+
+@runtime_checkable
+class Executor(Protocol):
+    """Executor role: where the cases of a run matrix run.
+
+    Built by the runner as ``factory(jobs=jobs, **options)`` (``jobs``: concurrent cases,
+    ``None`` for the CPUs; ``options``: e.g. the Dask scheduler ``address``), then
+    :meth:`run` once per run.
+    """
+
+    name: str
+
+    def run(self, cases: list[Any], run_id: str, cache_dir: str, registry: Any,
+            on_result: Callable[[Any, dict], None], on_stage: Callable[[str], None]) -> None:
+        """Run every case and report each exactly once.
+
+        Parameters
+        ----------
+        cases : list of rbbench.bench.matrix.Case
+            The cases to run (those the matrix decided to run).
+        run_id : str
+            The run's identifier, written into every row.
+        cache_dir : str
+            The HF snapshot cache shared by the cases.
+        registry : rbbench.registry.Registry
+            The registry the cases take their components from.
+        on_result : callable
+            ``on_result(case, record)`` once per case, whatever happened: the record of
+            :func:`rbbench.bench.execution.execute_case`, or a ``timeout`` / ``error`` row
+            of :func:`rbbench.bench.execution.failed_row`.
+        on_stage : callable
+            ``on_stage(message)``: a string saying what a running case does now.
+        """

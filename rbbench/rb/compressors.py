@@ -167,25 +167,56 @@ class GreedyPrimal:
 
 # ----------------------------------------------------------------------------- dual
 class DualCompressor:
-    """``(LAM, W, *, tol=1e-3, r_max=None) -> DualBasis``: one of ``cones.DUAL_COMPRESSORS``.
+    """Base class of the dual compressors: ``(LAM, W, *, tol=1e-3, r_max=None) -> DualBasis``.
 
     ``LAM`` (m x Q) holds the multiplier snapshots (non-negative for the cone methods),
     ``W`` the multiplier Gram matrix (sparse, dense or diagonal weights, see
     :func:`rbbench.rb.algorithms.cones.as_metric`). ``tol`` bounds ``e_proj(R)`` (Benaceur
-    et al., slide "mCPG algorithm (4/4)"), ``r_max`` caps ``R``. Constructor keyword options are
-    passed on to the wrapped function (e.g. ``sweeps`` for ENG, ``seed`` / ``max_iter`` for NNMF).
-    Subclasses set :attr:`name`, the key in ``DUAL_COMPRESSORS`` (so command-line names are
-    those keys).
+    et al., slide "mCPG algorithm (4/4)"), ``r_max`` caps ``R``. Constructor keyword options
+    are kept in :attr:`options` and passed on to :meth:`compress` (e.g. ``sweeps`` for ENG,
+    ``seed`` / ``max_iter`` for NNMF).
+
+    A subclass, built-in or from another package, sets :attr:`name` (its registered name)
+    and implements :meth:`compress`; nothing else has to know about it. Registering it is a
+    :class:`~rbbench.registry.ComponentSpec` with ``role="dual"`` and the capabilities
+    ``cone`` and ``nested`` (see :func:`rbbench.testing.check_dual`).
     """
 
-    name: ClassVar[str]
+    name: ClassVar[str] = ""
 
     def __init__(self, **options: Any) -> None:
         self.options = options
 
     def __call__(self, LAM: np.ndarray, W: Any, *, tol: float = 1e-3,
                  r_max: int | None = None) -> DualBasis:
-        return cones.DUAL_COMPRESSORS[self.name](LAM, W, tol=tol, r_max=r_max, **self.options)
+        return self.compress(LAM, W, tol=tol, r_max=r_max, **self.options)
+
+    def compress(self, LAM: np.ndarray, W: Any, *, tol: float = 1e-3, r_max: int | None = None,
+                 **options: Any) -> DualBasis:
+        """Build the reduced cone (or span) from the snapshots ``LAM``.
+
+        Parameters
+        ----------
+        LAM : (m, Q) ndarray
+            Multiplier snapshots, one per column.
+        W : sparse matrix, ndarray or WMetric
+            The multiplier Gram matrix (:func:`rbbench.rb.algorithms.cones.as_metric`).
+        tol : float
+            Stop at the first size ``R`` with ``e_proj(R) <= tol``.
+        r_max : int, optional
+            At most ``r_max`` generators.
+        **options
+            The constructor's keyword options.
+
+        Returns
+        -------
+        DualBasis
+            Generators of unit W-norm (non-negative for a cone), ``e_proj`` and ``e_orth``
+            per generator.
+        """
+        raise NotImplementedError(f"dual compressor {type(self).__name__} "
+                                  f"({self.name or 'no name'}): implement "
+                                  "compress(LAM, W, *, tol, r_max, **options) -> DualBasis")
 
 
 class PODLam(DualCompressor):
@@ -197,6 +228,7 @@ class PODLam(DualCompressor):
     """
 
     name = "pod"
+    compress = staticmethod(cones.pod_dual)
 
 
 class CPG(DualCompressor):
@@ -204,6 +236,7 @@ class CPG(DualCompressor):
     "CPG algorithm")."""
 
     name = "cpg"
+    compress = staticmethod(cones.cpg)
 
 
 class MCPG(DualCompressor):
@@ -211,6 +244,7 @@ class MCPG(DualCompressor):
     algorithm (2/4)")."""
 
     name = "mcpg"
+    compress = staticmethod(cones.mcpg)
 
 
 class ENG(DualCompressor):
@@ -218,6 +252,7 @@ class ENG(DualCompressor):
     (Benaceur et al., slide "mCPG algorithm (3/4)": named only)."""
 
     name = "eng"
+    compress = staticmethod(cones.eng)
 
 
 class NNMF(DualCompressor):
@@ -228,6 +263,7 @@ class NNMF(DualCompressor):
     """
 
     name = "nnmf"
+    compress = staticmethod(cones.nnmf_compressor)
 
 
 # ----------------------------------------------------------------------- stabilisers
@@ -368,12 +404,28 @@ def make_stabilizer(reg: Any, config: Any) -> Any:
     return reg.create("stabilizer", config.stabilizer, **opts)
 
 
+def takes_delta(reg: Any, name: str) -> bool:
+    """Whether the registered stabiliser ``name`` is given the tolerance ``delta``: it declares
+    the guarantee ``capabilities["inf_sup"] == "training set"``, which is stated in ``delta``
+    (``pga``, or a plugin's offline stabiliser)."""
+    return reg.get("stabilizer", name).capabilities.get("inf_sup") == "training set"
+
+
+def is_online(reg: Any, name: str) -> bool:
+    """Whether the registered stabiliser ``name`` needs the HF ``B(mu)`` online (its
+    ``capabilities["online_hf"]``, as ``supremizer``)."""
+    return bool(reg.get("stabilizer", name).capabilities.get("online_hf", False))
+
+
 def pga_delta(config: Any, problems: list, x_solve: Any,
-              Vg: np.ndarray) -> float | None:
-    """The PGA tolerance: ``config.delta_pga``, else Benaceur et al.'s rule (friction example:
-    ``delta_PGA = sup beta_HF / c_HF = 0.072``) with beta the span value over the reduced
-    cone (a lower bound), over every fifth training problem. ``None`` unless PGA."""
-    if config.stabilizer != "pga":
+              Vg: np.ndarray, reg: Any = None) -> float | None:
+    """The stabiliser's tolerance ``delta``: ``config.delta_pga``, else Benaceur et al.'s PGA
+    rule (friction example: ``delta_PGA = sup beta_HF / c_HF = 0.072``) with beta the span
+    value over the reduced cone (a lower bound), over every fifth training problem. ``None``
+    unless the stabiliser takes one (:func:`takes_delta` with the registry ``reg``; without
+    it, PGA only)."""
+    if not (takes_delta(reg, config.stabilizer) if reg is not None
+            else config.stabilizer == "pga"):
         return None
     if config.delta_pga is not None:
         return config.delta_pga

@@ -28,7 +28,7 @@ from rbbench.hf.snapshots.cache import SnapshotSet
 from rbbench.hf.snapshots.compute import compute_snapshots
 from rbbench.rb.config import ReduceConfig, parse_options, reduction_steps
 from rbbench.rb.validation import ReducedStage, ReduceResult, validate
-from rbbench.registry import Registry, default_registry
+from rbbench.registry import Registry, UnknownComponentError, default_registry
 from rbbench.runtime.workers import keep_workers
 from rbbench.scene.friction import friction_of
 from rbbench.scene.linear import is_linear
@@ -114,11 +114,28 @@ class Offline:
         return self.stage.model
 
 
-def check_hyper(config: ReduceConfig, registry: Registry) -> None:
+def check_hyper(config: ReduceConfig, registry: Registry, steps: Any = None) -> None:
     """The hyper-reducer ``config.hyper`` is registered and declares the formulation
-    (``"auto"``: the formulation's own rule)."""
-    if config.hyper != "auto":
-        registry.create("hyper", config.hyper).check(config.formulation)
+    (``"auto"``: the formulation's own rule), and the formulation's offline ``steps`` carry
+    it out when they list the ones they do (``steps.hypers``): a plugin's hyper-reducer goes
+    with a formulation whose steps read ``config.hyper``."""
+    if config.hyper == "auto":
+        return
+    registry.create("hyper", config.hyper).check(config.formulation)
+    carried = getattr(steps, "hypers", None)
+    if carried is not None and config.hyper not in carried:
+        raise SceneError(f"hyper {config.hyper!r}: {getattr(steps, 'label', steps.name)} "
+                         f"carries out {', '.join(map(repr, carried))} or 'auto', not "
+                         f"{config.hyper!r}")
+
+
+def check_hyper_name(config: ReduceConfig, registry: Registry) -> None:
+    """``config.hyper`` is ``"auto"`` or a registered hyper-reducer (an
+    :class:`~rbbench.registry.UnknownComponentError` listing the valid names otherwise)."""
+    valid = ("auto", *registry.names("hyper"))
+    if config.hyper not in valid:
+        raise UnknownComponentError(f"unknown hyper {config.hyper!r}; valid hypers: "
+                                    f"{', '.join(valid)}")
 
 
 def prepare_config(scene: Scene, config: ReduceConfig, registry: Registry
@@ -144,8 +161,9 @@ def prepare_config(scene: Scene, config: ReduceConfig, registry: Registry
     if config.solver is None and getattr(steps, "takes_solver", True):
         config = replace(config, solver=default_solver(config.formulation, registry, law))
     config = replace(config, options=parse_options(steps, config.options, registry))
+    check_hyper_name(config, registry)
     config = steps.prepare(scene, config, registry)  # the steps' checks, before any HF work
-    check_hyper(config, registry)
+    check_hyper(config, registry, steps)
     return steps, config
 
 

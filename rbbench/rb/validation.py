@@ -60,8 +60,8 @@ class ReduceResult:
         t_hf = float(np.median(self.t_hf))
         out = {
             "scene": self.scene, "N": self.N, "R": self.R, "K_pga": self.K_pga,
-            "dim_primal_online": self.N + (self.K_pga if self.config.get("stabilizer") == "pga"
-                                           else 0),
+            # K: the offline enrichment (PGA's, or a plugin's offline stabiliser's; 0 otherwise)
+            "dim_primal_online": self.N + (self.K_pga or 0),
             "hyper": self.hyper, "M_eim": self.histories.get("eim", {}).get("rows"),
             "n_train": self.n_train, "n_valid": self.n_valid,
             "n_hf_dofs": self.n_hf_dofs, "n_contact": self.n_contact,

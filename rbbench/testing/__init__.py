@@ -22,8 +22,14 @@ and an author of a reduced model checks it against the model interface
     from rbbench.testing import check_reduced_model
     check_reduced_model(model, [mu_1, mu_2])
 
+Without pytest (it is not in the base install), ``rbbench plugins --check --package NAME``
+runs the same contracts on one package's components and exits 1 on a failure; in Python,
+:func:`run_contracts` returns one :class:`ContractResult` per component and
+:func:`run_contract` checks one.
+
 Every check raises :class:`ContractViolation` (an ``AssertionError``) naming the
-component and the property that failed. The checks assert mathematical
+component and the property that failed; a check that cannot run here (not installed, no
+backend for a formulation's physics) raises :class:`ContractSkipped`. The checks assert mathematical
 properties of the role (symmetry, definiteness, KKT conditions, shapes), never
 the output of a particular implementation.
 
@@ -32,25 +38,28 @@ Reference scenes: ``membrane_obstacle`` (scalar, cheap) for every backend, and
 ``capabilities["physics"]``.
 
 ``pytest`` is imported only by the helpers that need it (:func:`component_params`,
-:func:`check_component`), so importing this module stays cheap.
+:func:`check_component`), so importing this module stays cheap and works without pytest.
 
 The package gathers the public names; the code lives in one module per role
 (``rbbench.testing.contract_backend``, ``_formulation``, ``_solver``, ``_primal``,
 ``_dual``, ``_stabilizer``, ``_executor``, ``_hyper``), the model interface's in
 :mod:`rbbench.testing.contract_model`, the shared helpers in
 :mod:`rbbench.testing.contract_base` and the registry-wide suite (:func:`check_spec`,
-:func:`component_params`, :func:`check_component`) in :mod:`rbbench.testing.contract_suite`.
+:func:`component_params`, :func:`check_component`, :func:`run_contract`) in
+:mod:`rbbench.testing.contract_suite` and the report without pytest in
+:mod:`rbbench.testing.contract_runner`.
 :mod:`rbbench.testing.faulty` holds deliberately failing components (runner tests).
 """
 
 
 from rbbench.testing.contract_backend import backend_scenes, check_backend
-from rbbench.testing.contract_base import HERTZ_COARSE, ContractViolation
+from rbbench.testing.contract_base import HERTZ_COARSE, ContractSkipped, ContractViolation
 from rbbench.testing.contract_dual import check_dual, dual_test_data
 from rbbench.testing.contract_executor import check_executor
 from rbbench.testing.contract_formulation import check_formulation, reference_discretization
 from rbbench.testing.contract_model import check_reduced_model
 from rbbench.testing.contract_primal import PRIMAL_TOL_KINDS, check_primal, primal_test_data
+from rbbench.testing.contract_runner import ContractResult, run_contracts
 from rbbench.testing.contract_solver import (
     check_nitsche_solver,
     check_solver,
@@ -69,9 +78,12 @@ from rbbench.testing.contract_suite import (
     check_component,
     check_spec,
     component_params,
+    run_contract,
 )
 
 __all__ = [
+    "ContractResult",
+    "ContractSkipped",
     "ContractViolation",
     "HERTZ_COARSE",
     "PRIMAL_TOL_KINDS",
@@ -97,5 +109,7 @@ __all__ = [
     "random_nitsche_problem",
     "redundant_contact_problem",
     "reference_discretization",
+    "run_contract",
+    "run_contracts",
     "stabilizer_test_data",
 ]

@@ -38,6 +38,12 @@ class ContractViolation(AssertionError):
     """A component breaks its role's contract; the message says which property."""
 
 
+class ContractSkipped(Exception):
+    """A component's contract cannot run here (not installed, or no installed backend gives
+    the discretization it needs); the message says why. :func:`check_component` turns it
+    into ``pytest.skip``, ``rbbench plugins --check`` into a ``skipped`` line."""
+
+
 def require(cond: Any, what: str) -> None:
     """Raise :class:`ContractViolation` with message ``what`` unless ``cond`` holds."""
     if not cond:
@@ -56,7 +62,7 @@ class RoleContract:
         The method a class registered for the role must define (checked by ``check_spec``).
     check : callable
         ``check(obj, spec, registry, name)`` runs the role's contract on a registered,
-        loaded component (``obj`` is its target); may call ``pytest.skip``.
+        loaded component (``obj`` is its target); may raise :class:`ContractSkipped`.
     """
 
     role: str

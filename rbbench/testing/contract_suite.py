@@ -15,6 +15,7 @@ from rbbench.registry import ROLES, ComponentSpec, Registry, default_registry
 from rbbench.testing.contract_backend import CONTRACT as BACKEND
 from rbbench.testing.contract_base import (
     KNOWN_PHYSICS,
+    ContractSkipped,
     ContractViolation,
     RoleContract,
     require,
@@ -120,21 +121,31 @@ def component_params(registry: Registry | None = None, roles: tuple[str, ...] | 
     return params
 
 
-def check_component(spec: ComponentSpec, registry: Registry | None = None) -> None:
-    """Declaration check plus the role-specific contract of one registered component.
+def run_contract(spec: ComponentSpec, registry: Registry | None = None) -> None:
+    """Declaration check plus the role-specific contract of one registered component, without
+    pytest.
 
-    Calls ``pytest.skip`` when the component is not installed (reason: the
-    install hint), when its role has no specific contract yet, or when no
-    installed backend can produce the discretizations a formulation needs.
+    Raises :class:`~rbbench.testing.contract_base.ContractViolation` naming the property that
+    fails, and :class:`~rbbench.testing.contract_base.ContractSkipped` when the component is
+    not installed (reason: the install hint), when its role has no specific contract yet,
+    or when no installed backend can produce the discretizations a formulation needs.
     """
-    import pytest
-
     reg = registry or default_registry()
     ok, why = reg.availability(spec)
     obj = check_spec(reg, spec)
     if not ok:
-        pytest.skip(why)
+        raise ContractSkipped(why)
     if spec.role not in ROLE_CHECKS:
-        pytest.skip("no role-specific contract yet")
+        raise ContractSkipped("no role-specific contract yet")
     name = f"{spec.name} ({spec.package or '?'})"
     ROLE_CONTRACTS[spec.role].check(obj, spec, reg, name)
+
+
+def check_component(spec: ComponentSpec, registry: Registry | None = None) -> None:
+    """:func:`run_contract` in a pytest test: a skip becomes ``pytest.skip`` with its reason."""
+    import pytest
+
+    try:
+        run_contract(spec, registry)
+    except ContractSkipped as exc:
+        pytest.skip(str(exc))

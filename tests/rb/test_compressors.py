@@ -344,3 +344,48 @@ def test_the_contract_data_needs_a_stabiliser():
         assert inf.infsup_span(S, M) < 1e-6
         S, M = inf.quotient_matrices(B, d["x_solve"], d["Vg"], d["W"])
         assert inf.infsup_span(S, M) > 1.0
+
+
+# ---------------------------------------------------------------------------
+# a dual compressor from another package: a subclass, no internal table
+# ---------------------------------------------------------------------------
+class _NormOrderCone(comp.DualCompressor):
+    """The snapshots in decreasing W-norm, normalised: a cone no table of rbbench names."""
+
+    name = "outside-norm-order"
+
+    def compress(self, LAM, W, *, tol=1e-3, r_max=None, **options):
+        from rbbench.rb.algorithms.cones import as_metric, cone_projection
+        from rbbench.rb.algorithms.cones.greedy import DualBasis
+
+        M = as_metric(W)
+        norms = M.norm(LAM)
+        V, e_proj, e_orth = np.zeros((LAM.shape[0], 0)), [], []
+        for q in np.argsort(-norms):
+            if (e_proj and e_proj[-1] <= tol) or len(e_proj) == (r_max or LAM.shape[1]):
+                break
+            v = LAM[:, q] / norms[q]
+            if V.shape[1] and cone_projection(v, V, W)[2] <= 1e-12:
+                continue  # already in the cone
+            e_orth.append(1.0 if not V.shape[1] else cone_projection(v, V, W)[2])
+            V = np.column_stack([V, v])
+            e_proj.append(float(np.max(cone_projection(LAM, V, W)[2]) / norms.max()))
+        return DualBasis(V, self.name, True, [], e_proj, e_orth, dict(options))
+
+
+def test_a_dual_compressor_subclass_from_outside_needs_no_table():
+    assert _NormOrderCone.name not in DUAL_COMPRESSORS
+    T, W = dual_test_data(4)
+    basis = _NormOrderCone(seed=7)(T, W, tol=0.2)
+    assert basis.name == "outside-norm-order" and basis.info == {"seed": 7}
+    # e_proj recomputed here by the contract (NNLS on the cone), nested, tolerance honoured
+    check_dual(_NormOrderCone, CONE_CAPS, name="outside-norm-order")
+
+
+def test_a_dual_compressor_without_compress_says_what_to_implement():
+    class Empty(comp.DualCompressor):
+        name = "empty"
+
+    T, W = dual_test_data(0)
+    with pytest.raises(NotImplementedError, match=r"Empty \(empty\): implement compress"):
+        Empty()(T, W)

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from rbbench.cli import main
+from rbbench.registry import default_registry
 from rbbench.scene.loading import load_scene
 
 RBBENCH = Path(sys.executable).parent / "rbbench"
@@ -308,13 +309,17 @@ def test_solve_mu_not_a_number(capsys):
     ("--formulation", "formulation", ["mixed"]),
 ])
 def test_solve_unknown_component(capsys, tmp_path, option, role, valid):
+    """The choices of a component option are the registered names of its role: an unknown
+    one exits 2 before any work, naming the option and the valid names."""
     out = tmp_path / "out"
-    rc = main(["solve", "membrane_obstacle", option, "nope", "--out", str(out), "--quiet"])
-    err = capsys.readouterr().err
-    assert rc == 2
-    assert f"unknown {role} 'nope'" in err
+    with pytest.raises(SystemExit) as info:
+        main(["solve", "membrane_obstacle", option, "nope", "--out", str(out), "--quiet"])
+    err = " ".join(capsys.readouterr().err.split()).replace("'", "")  # quoted or not
+    assert info.value.code == 2
+    assert f"argument {option}: invalid choice: nope" in err
     for name in valid:
-        assert name in err.split("valid")[1], err
+        assert name in err.split("choose from")[1], err
+    assert set(valid) <= set(default_registry().names(role))
     assert not out.exists()
 
 

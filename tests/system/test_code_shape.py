@@ -31,9 +31,10 @@ SOURCES = sorted([*(ROOT / "rbbench").rglob("*.py"), *(ROOT / "plugins").rglob("
 OUTSIDE_GRAPH = {"rbbench", "rbbench._compat"}
 
 #: a module of layer k may import modules of layers <= k only (top-level modules such as
-#: registry, interfaces, hookspecs, provenance are layer 0: the shared vocabulary)
+#: registry, interfaces, hookspecs, provenance are layer 0: the shared vocabulary; ``plugin``
+#: gathers the names plugin authors use from every layer below the Python face)
 LAYERS = {"scene": 1, "hf": 2, "rb": 3, "bench": 4, "optim": 4, "studies": 5, "testing": 5,
-          "api": 6, "cli": 7}
+          "api": 6, "plugin": 6, "cli": 7}
 
 #: inside a layer, its folders and modules in import order: a module may import those of a
 #: lower or equal rank only (the data flow: geometry -> condensed problem -> solvers -> one HF

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from rbbench.rb.compressors import is_online
 from rbbench.rb.config import ReduceConfig
 from rbbench.rb.friction.collocation.stage import FrictionStage
 from rbbench.rb.friction.options import FrictionOptions
@@ -65,9 +66,11 @@ class FrictionReduction:
                              "wedge dual model (friction_dual = 'wedge')")
         if config.hyper == "eim":
             fixed_contact_points(scene, "eim")
-        if options.stabilizer not in ("none", "pga"):
-            raise SceneError(f"{scene.path}: stabilizer {options.stabilizer!r}: the reduced "
-                             "friction model takes 'none' or 'pga'")
+        if is_online(registry, options.stabilizer):
+            raise SceneError(f"{scene.path}: stabilizer {options.stabilizer!r} builds its "
+                             "space online from the HF B(mu): the reduced friction model takes "
+                             "an offline stabiliser ('none', 'pga', or a plugin's declaring "
+                             "online_hf = False)")
         if scene.data.get("friction", {}).get("coefficient_law"):
             raise SceneError(f"{scene.path}: a slip-dependent friction coefficient (model B) "
                              "has no reduced model")

@@ -21,7 +21,7 @@ import numpy as np
 
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.affine import NotAffineError
-from rbbench.rb.compressors import make_stabilizer, pga_delta
+from rbbench.rb.compressors import is_online, make_stabilizer, pga_delta, takes_delta
 from rbbench.rb.config import ReduceConfig, config_dict
 from rbbench.rb.mixed.model import build_affine_model, projector
 from rbbench.rb.mixed.options import MixedOptions
@@ -99,6 +99,8 @@ class MixedReduction:
 
     name = "mixed"
     label = "the mixed formulation (frictionless scenes)"
+    #: the hyper-reducers these steps carry out (besides "auto")
+    hypers = ("affine", "eim", "none")
     Options = MixedOptions
 
     def prepare(self, scene: Scene, config: ReduceConfig, registry: Registry) -> ReduceConfig:
@@ -109,9 +111,9 @@ class MixedReduction:
         registry.get("primal", config.primal)  # unknown names fail before HF work
         registry.get("dual", options.dual)
         registry.get("stabilizer", options.stabilizer)
-        if options.stabilizer == "supremizer" and config.hyper in ("affine", "eim"):
-            raise SceneError(f"stabilizer 'supremizer' builds V_N + S_R(mu) online from the HF "
-                             f"B(mu): use hyper 'none' or 'auto', not {config.hyper!r}")
+        if is_online(registry, options.stabilizer) and config.hyper in ("affine", "eim"):
+            raise SceneError(f"stabilizer {options.stabilizer!r} builds its space online from "
+                             f"the HF B(mu): use hyper 'none' or 'auto', not {config.hyper!r}")
         self.fixed_points = fixed_contact_points(scene, config.hyper)
         return config
 
@@ -164,10 +166,10 @@ class MixedStage(ReducedStage):
         self.histories = {**primal_histories(primal), "e_proj": list(self.dual.e_proj),
                           "e_orth": list(self.dual.e_orth)}
         delta = None
-        if options.stabilizer == "pga":
-            ctx.progress("PGA (supremizers on the training set)")
+        if takes_delta(ctx.registry, options.stabilizer):
+            ctx.progress(f"{options.stabilizer.upper()} (supremizers on the training set)")
             delta = pga_delta(options, [ctx.problem_at(mu) for mu in ctx.mus_train],
-                              self.x_solve, self.Vg)
+                              self.x_solve, self.Vg, ctx.registry)
         self.Z_off, stab_hist = stabilizer.offline(
             self.Z, self.Vg, ctx.X, self.x_solve,
             (ctx.problem_at(mu).B for mu in ctx.mus_train), delta)

@@ -98,6 +98,8 @@ class NitscheReduction:
 
     name = "nitsche"
     label = "the nitsche formulation"
+    #: the hyper-reducers these steps carry out (besides "auto")
+    hypers = ("eim", "ecsw", "deim", "none")
     Options = NitscheOptions
 
     def prepare(self, scene: Scene, config: ReduceConfig, registry: Registry) -> ReduceConfig:

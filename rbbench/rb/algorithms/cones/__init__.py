@@ -30,7 +30,9 @@ Functions work on plain arrays. ``W`` may be a dense or scipy sparse
 The numerics live in :mod:`rbbench.rb.algorithms.cones.metric` (metric, exact projections),
 :mod:`rbbench.rb.algorithms.cones.split` (the mCPG QP), :mod:`rbbench.rb.algorithms.cones.greedy`
 (CPG, mCPG, ENG, :class:`DualBasis`) and :mod:`rbbench.rb.algorithms.cones.baselines` (POD, NNMF);
-this module re-exports them and holds the registry :data:`DUAL_COMPRESSORS`.
+this module re-exports them and holds :data:`DUAL_COMPRESSORS`, the built-in functions by
+name (a lookup table for scripts and tests; the registry's dual compressors are the classes of
+:mod:`rbbench.rb.compressors`, and a plugin's never appears here).
 """
 
 from __future__ import annotations

@@ -47,7 +47,7 @@ class DualBasis:
     generators : (n, R) array
         Generators ``v_r``, each of unit W-norm; non-negative for cone methods.
     name : str
-        Compressor name (key of :data:`DUAL_COMPRESSORS`).
+        Name of the compressor that built it (its registered name).
     is_cone : bool
         True: the reduced set is ``Span^+(generators)``; False: a linear span.
     selected : list of int

@@ -22,7 +22,7 @@ from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.cones.metric import span_projection
 from rbbench.rb.algorithms.gcns import gcns, tangential_violation
 from rbbench.rb.algorithms.pod import pod
-from rbbench.rb.compressors import make_stabilizer, pga_delta
+from rbbench.rb.compressors import make_stabilizer, pga_delta, takes_delta
 from rbbench.rb.config import config_dict
 from rbbench.rb.friction.collocation.model import (
     FrictionReducedModel,
@@ -178,9 +178,10 @@ class FrictionStage(ReducedStage):
                                     W=sla.block_diag(*(2 * [ctx.problem_at(mu).W.toarray()])))
                     for mu in ctx.mus_train]
         delta = None
-        if options.stabilizer == "pga":
-            ctx.progress("PGA on b^n + b^tau (supremizers on the training set)")
-            delta = pga_delta(options, combined, self.x_solve, Vg)
+        if takes_delta(ctx.registry, options.stabilizer):
+            ctx.progress(f"{options.stabilizer.upper()} on b^n + b^tau (supremizers on the "
+                         "training set)")
+            delta = pga_delta(options, combined, self.x_solve, Vg, ctx.registry)
         self.Z_off, hist = make_stabilizer(ctx.registry, options).offline(
             self.Z, Vg, ctx.X, self.x_solve, (c.B for c in combined), delta)
         check_finite(f"stabilizer {options.stabilizer!r}: the offline basis", self.Z_off)
