@@ -175,7 +175,7 @@ def _executors(add):
     add(ComponentSpec(
         name="processes", role="executor", target="rbbench_plugins.executors:ProcessExecutor",
         capabilities={"isolation": True, "timeout": "kill"},
-        description="local processes, one per case, jobs at a time (default)",
+        description="local processes, one per case, jobs at a time",
     ))
     add(ComponentSpec(
         name="dask", role="executor", target="rbbench_plugins.executors:DaskExecutor",

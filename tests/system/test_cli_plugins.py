@@ -105,7 +105,7 @@ def test_a_plugins_component_is_a_choice_with_its_description(env):
                            capture_output=True, text=True, env=env, timeout=120)
     assert help_.returncode == 0, help_.stderr
     text = " ".join(help_.stdout.split()).replace("- ", "-")  # argparse wraps the lines
-    assert "--dual DUAL dual compressor of the multiplier cone (default mcpg). Registered " \
+    assert "--dual DUAL dual compressor of the multiplier cone. Registered " \
            "(rbbench plugins --role dual): check-demo-cpg: demo; check-demo-rescaled: demo; " \
            "cpg: Cone Projected Greedy;" in text
     bad = subprocess.run([sys.executable, "-m", "rbbench.cli", "reduce", "membrane_obstacle",
