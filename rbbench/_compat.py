@@ -185,8 +185,8 @@ NAMES: dict[str, dict[str, str]] = {
     "rbbench.optim.run": {"SEED_J0": "rbbench.optim.run:PUBLISHED_J0",
                           "SEED_J_OPT": "rbbench.optim.run:PUBLISHED_J_OPT"},
     "rbbench.studies.nitsche_eac": {
-        "SEED_EAC": "rbbench.studies.nitsche_eac:PUBLISHED_EAC",
-        "SEED_H": "rbbench.studies.nitsche_eac:PUBLISHED_H",
+        "SEED_EAC": "rbbench.studies.published:PUBLISHED_EAC",
+        "SEED_H": "rbbench.studies.published:PUBLISHED_H",
         "seed_h_overrides": "rbbench.studies.nitsche_eac:published_h_overrides"},
 }
 NAMES["rbbench.studies.heat_seed"].update({

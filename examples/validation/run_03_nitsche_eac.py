@@ -24,7 +24,8 @@ import numpy as np
 import pandas as pd
 
 from rbbench.provenance import machine_statement
-from rbbench.studies.nitsche_eac import PUBLISHED_H, nitsche_table, published_overrides
+from rbbench.studies.nitsche_eac import nitsche_table, published_overrides
+from rbbench.studies.published import PUBLISHED_H
 
 hs = PUBLISHED_H if os.environ.get("RBBENCH_DOCS_FULL") == "1" else PUBLISHED_H[:2]
 rows = nitsche_table(hs=hs, overrides=published_overrides(), progress=lambda m: None)

@@ -2,8 +2,8 @@
 Contact shape optimisation with Coulomb friction: HF- and RB-driven
 ===================================================================
 
-Model B of Beremlijski, Haslinger, Outrata et al.'s "On coupling of complementarity with
-friction in contact shape optimization" (talk): an elastic body on a rigid line, its
+Model B of the talk "On coupling of complementarity with friction in contact shape
+optimization" (see :doc:`/methods/references`): an elastic body on a rigid line, its
 bottom the design alpha at I = 81 contact nodes, slip-dependent Coulomb friction
 F(t) = 0.25 / (t^2 + 1), J = ||lam||_6^6, implicit programming with one adjoint
 subgradient per design and the bundle trust-region method. The talk reports J(alpha_0) =

@@ -18,6 +18,7 @@ from rbbench.cli.console import _Progress
 from rbbench.cli.optimize import HELP as OPTIMIZE_HELP
 from rbbench.scene.loading import SceneError
 from rbbench.studies.formatting import print_and_dump
+from rbbench.studies.published import PUBLISHED_SETTING
 
 #: the scene argument of the Hertz studies
 HERTZ_SCENE = "a Hertz scene: name in problems/ or path to a .toml file"
@@ -104,6 +105,8 @@ def _add_nitsche_table_parser(sub) -> None:
                         help="the relative Alart-Curnier residual e_AC^n of the Nitsche solve "
                              "against h and mu, side by side with Benaceur et al.'s published "
                              "table (Markdown table)")
+    # the defaults are the published setting (rbbench.studies.published.PUBLISHED_SETTING)
+    pub = PUBLISHED_SETTING
     nt.add_argument("scene", nargs="?", default="hertz_halfdisks", help=HERTZ_SCENE)
     nt.add_argument("--h", type=float, nargs="+", default=[5.0, 2.5, 1.25],
                     help="the published mesh sizes (mm), mapped to discretization.h_contact "
@@ -117,16 +120,17 @@ def _add_nitsche_table_parser(sub) -> None:
     nt.add_argument("--gamma0", type=float, default=None,
                     help="Nitsche parameter, gamma = gamma0 E / h (default: the nitsche "
                          "formulation's)")
-    nt.add_argument("--load", type=float, default=0.09,
+    nt.add_argument("--load", type=float, default=pub["load.displacement"],
                     help="imposed displacement d (m) (default: %(default)s, the talk's)")
-    nt.add_argument("--degree", type=int, choices=(1, 2), default=2,
+    nt.add_argument("--degree", type=int, choices=(1, 2), default=pub["discretization.degree"],
                     help="displacement degree (the talk's Hertz setting: P2)")
-    nt.add_argument("--quadrature", type=int, default=0,
+    nt.add_argument("--quadrature", type=int, default=pub["discretization.quadrature"],
                     help="Gauss points per contact facet or piece (0: degree + 1)")
-    nt.add_argument("--normals", choices=("facet", "smooth"), default="smooth",
-                    help="slave normals: per facet, or continuous (vertex-averaged); "
-                         "README 'The e_AC table'")
-    nt.add_argument("--integration", choices=("gauss", "segmented"), default="segmented",
+    nt.add_argument("--normals", choices=("facet", "smooth"),
+                    default=pub["discretization.normals"],
+                    help="slave normals: per facet, or continuous (vertex-averaged)")
+    nt.add_argument("--integration", choices=("gauss", "segmented"),
+                    default=pub["discretization.contact_integration"],
                     help="contact quadrature per slave facet (GPTS) or per piece between "
                          "master-vertex rays (segment-to-segment)")
     _add_study_tail(nt, cmd_nitsche_table)

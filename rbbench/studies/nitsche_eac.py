@@ -16,20 +16,10 @@ import numpy as np
 from rbbench.hf.model import solve_hf
 from rbbench.scene.loading import load_scene
 from rbbench.studies.formatting import markdown_table, observed_order, percent
+from rbbench.studies.published import PUBLISHED_EAC, PUBLISHED_H, PUBLISHED_SETTING
 
-__all__ = ["NITSCHE_COLUMNS", "PUBLISHED_EAC", "PUBLISHED_H", "nitsche_markdown",
-           "nitsche_table", "published_h_overrides"]
-
-#: Benaceur et al., slide "Relative error on the Alart-Curnier reformulation": e_AC^n in %
-#: at h = 5, 2.5, 1.25 mm for mu = 0.7, 1, 1.3 m.
-PUBLISHED_EAC = {0.7: (1.0, 0.52, 0.28), 1.0: (1.45, 0.72, 0.33), 1.3: (1.17, 1.1, 0.43)}
-PUBLISHED_H = (0.005, 0.0025, 0.00125)
-#: the published setting (load d = 0.09 m, P2 displacements) with the two contact options
-#: that give the published order (smooth slave normals, segment-to-segment quadrature):
-#: scene overrides, ``key -> value``
-PUBLISHED_SETTING = {"load.displacement": 0.09, "discretization.degree": 2,
-                     "discretization.quadrature": 0, "discretization.normals": "smooth",
-                     "discretization.contact_integration": "segmented"}
+__all__ = ["NITSCHE_COLUMNS", "nitsche_markdown", "nitsche_table", "published_h_overrides",
+           "published_overrides"]
 
 
 def published_overrides(**changes: Any) -> list[str]:

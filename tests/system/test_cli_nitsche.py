@@ -36,7 +36,8 @@ def test_cli_solve_nitsche_picks_newton_and_writes_e_ac(tmp_path):
 
 def test_renamed_study_names_still_import_with_a_deprecation_warning():
     import rbbench.studies as studies
-    from rbbench.studies.nitsche_eac import PUBLISHED_H, published_h_overrides
+    from rbbench.studies.nitsche_eac import published_h_overrides
+    from rbbench.studies.published import PUBLISHED_H
 
     with pytest.warns(DeprecationWarning, match="SEED_H is now PUBLISHED_H"):
         assert studies.SEED_H == PUBLISHED_H
