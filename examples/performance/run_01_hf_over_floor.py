@@ -26,6 +26,7 @@ import pandas as pd
 
 import rbbench
 from rbbench.provenance import machine_statement
+from rbbench.studies.formatting import significant
 
 sys.path.insert(0, str(Path(rbbench.__file__).resolve().parents[1]))  # the checkout's root
 from benchmarks.bench_hf_condensation import side_by_side  # noqa: E402
@@ -43,11 +44,11 @@ for r in runs:
                                           / r["median_s"]["floor_pardiso"])
     rows.append(row)
 table = pd.DataFrame(rows).set_index("level")
-table.T
+significant(table.T)
 
 # %%
 # The three condensations give the same solution: the largest difference of u to the
-# columns path, relative to max |u|, per level:
+# columns path, relative to ``max |u|``, per level:
 print({r["level"]: r["u_rel_diff"] for r in runs})
 
 # %%

@@ -25,6 +25,7 @@ import pandas as pd
 
 from rbbench.provenance import machine_statement
 from rbbench.rb.config import make_config
+from rbbench.studies.formatting import significant
 from rbbench.studies.scaling import online_scaling
 
 full = os.environ.get("RBBENCH_DOCS_FULL") == "1"
@@ -37,9 +38,9 @@ table = pd.DataFrame(rows)
 table["online median (us)"] = 1e6 * table["t_online_median_s"]
 table["IQR (us)"] = 1e6 * table["t_online_iqr_s"]
 table["speed-up"] = table["t_hf_median_s"] / table["t_online_median_s"]
-table[["level", "n_hf_dofs", "n_contact", "N", "K_pga", "R", "M_eim", "err_u_max",
+significant(table[["level", "n_hf_dofs", "n_contact", "N", "K_pga", "R", "M_eim", "err_u_max",
        "err_lam_max", "online median (us)", "IQR (us)", "ratio_to_first", "t_hf_median_s",
-       "speed-up", "online_method", "online_path"]].set_index("level").T
+       "speed-up", "online_method", "online_path"]].set_index("level").T)
 
 # %%
 fig, ax = plt.subplots(figsize=(6, 3.5))

@@ -25,6 +25,7 @@ import pandas as pd
 
 import rbbench
 from rbbench.provenance import machine_statement
+from rbbench.studies.formatting import significant
 
 full = os.environ.get("RBBENCH_DOCS_FULL") == "1"
 coarse = [] if full else ["discretization.h_contact=0.01", "discretization.h_max=0.2"]
@@ -67,7 +68,7 @@ for space in ("hf", "dec", "off", "on"):
                  "cone value / c_HF (upper estimate), min": s[f"beta_{space}_rel_min"],
                  "span value / c_HF (lower bound), min": s[f"beta_{space}_span_rel_min"],
                  "zero at some mu (LP test)": s[f"beta_{space}_zero_any"]})
-pd.DataFrame(rows)
+significant(pd.DataFrame(rows))
 
 # %%
 assert s["beta_off_span_rel_min"] > 0 and not s["beta_off_zero_any"]
@@ -79,10 +80,10 @@ print("beta_off > 0 at every validation parameter: proved by the span lower boun
 # Relative errors, u in the X (energy) norm and lam in the W norm, max and mean over the
 # validation set; the floor of the multiplier error is the W-projection of the validation
 # multipliers onto the reduced cone, which no reduced model on that cone can beat.
-pd.DataFrame({
+significant(pd.DataFrame({
     "max": [s["err_u_max"], s["err_lam_max"], s["lam_best_max"]],
     "mean": [s["err_u_mean"], s["err_lam_mean"], np.mean(h["lam_best_valid"])],
-}, index=["err_u (X)", "err_lam (W)", "lam floor (W)"])
+}, index=["err_u (X)", "err_lam (W)", "lam floor (W)"]))
 
 # %%
 # The cost: the online median and the HF median, each with one BLAS thread, and their

@@ -30,6 +30,7 @@ import pandas as pd
 
 import rbbench
 from rbbench.provenance import machine_statement
+from rbbench.studies.formatting import significant
 
 full = os.environ.get("RBBENCH_DOCS_FULL") == "1"
 small = ["discretization.degree=1", "discretization.h_contact=0.02",
@@ -66,7 +67,7 @@ rows = {"err_u max (X)": ("err_u_max", None),
 table = {"Benaceur et al.": [pub for _, pub in rows.values()]}
 for name, s in summaries.items():
     table[name] = [s.get(key) for key, _ in rows.values()]
-pd.DataFrame(table, index=list(rows))
+significant(pd.DataFrame(table, index=list(rows)))
 
 # %%
 # GCNS
@@ -81,7 +82,7 @@ fig, ax = plt.subplots(figsize=(6, 3.5))
 ax.semilogy(gcns["q"], gcns["e_gcns"], "o-")
 ax.set(xlabel="GCNS iteration q", ylabel="e_GCNS")
 fig.tight_layout()
-gcns[["q", "S_q", "e_gcns"]]
+significant(gcns[["q", "S_q", "e_gcns"]])
 
 # %%
 # What the rows say: with the published stop, the collocation model keeps few nodes here

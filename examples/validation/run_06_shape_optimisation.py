@@ -32,6 +32,7 @@ import pandas as pd
 from rbbench.optim.run import PUBLISHED_J0, PUBLISHED_J_OPT
 from rbbench.optim.shape_scene import load_shape_scene
 from rbbench.provenance import machine_statement
+from rbbench.studies.formatting import significant
 from rbbench.studies.shape_side_by_side import shape_side_by_side
 
 full = os.environ.get("RBBENCH_DOCS_FULL") == "1"
@@ -39,7 +40,7 @@ overrides = {"design.initial_height": 0.005} if full else {}
 r = shape_side_by_side(overrides=overrides, metric="bfgs", max_iter=200 if full else 100,
                        max_evals=400 if full else 300)
 bound = r["J_uniform_bound"]
-pd.DataFrame({
+significant(pd.DataFrame({
     "published": [PUBLISHED_J0, PUBLISHED_J_OPT, PUBLISHED_J_OPT / PUBLISHED_J0, None, None,
                   None, None, None],
     "HF-driven": [r["J0"], r["hf_J"], r["hf_J"] / r["J0"], r["hf_J"] / bound,
@@ -50,7 +51,7 @@ pd.DataFrame({
                   r["rb_stop"]],
 }, index=["J0", "J at the returned design (HF)", "J / J0", "J / uniform-pressure bound",
           "HF solves (state + adjoint)", "wall time (s)",
-          "largest constraint violation (raw, <= 0 satisfied)", "stop"])
+          "largest constraint violation (raw, <= 0 satisfied)", "stop"]))
 
 # %%
 # ``J / uniform-pressure bound`` is the honest figure of merit: 1 would be the best any

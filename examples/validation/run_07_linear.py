@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 
 from rbbench.provenance import machine_statement
+from rbbench.studies.formatting import significant
 from rbbench.studies.heat_robin import PUBLISHED, heat_robin_study
 from rbbench.studies.pymor_thermal_block import side_by_side
 
@@ -40,7 +41,7 @@ for tool in ("rbbench", "pymor"):
     cols[tool if tool == "rbbench" else f"pyMOR {col.get('version', '')}"] = [
         col[k] if col["status"] == "ok" else col.get("reason", col["status"])
         for k in rows.values()]
-pd.DataFrame(cols, index=list(rows))
+significant(pd.DataFrame(cols, index=list(rows)))
 
 # %%
 # The ratios rbbench / pyMOR (max error: the same discrete problem should give 1 up to the
@@ -67,19 +68,19 @@ ax.plot([PUBLISHED["N"]], [1e-2], "kv", label="published: < 1 % at N = 25")
 ax.set(xlabel="N", ylabel="relative error, L2(0, T; H1)")
 ax.legend(fontsize=8)
 fig.tight_layout()
-hr
+significant(hr)
 
 # %%
 # At N = 25, beside the published column (times are of different problems: ours has
 # 4,225 nodes and one parameter):
 r = study[25]
-pd.DataFrame({"published (valve)": [PUBLISHED["n_hf_dofs"], PUBLISHED["steps"],
+significant(pd.DataFrame({"published (valve)": [PUBLISHED["n_hf_dofs"], PUBLISHED["steps"],
                                     PUBLISHED["t_hf_s"], PUBLISHED["t_online_s"],
                                     PUBLISHED["err_max"]],
               "rbbench heat_robin": [r["n_hf_dofs"], r["steps"], r["t_hf_s"],
                                      r["t_online_s"], r["err_max"]]},
              index=["HF nodes", "time steps", "HF solve, one trajectory (s)",
-                    "reduced solve, one trajectory (s)", "max relative error"])
+                    "reduced solve, one trajectory (s)", "max relative error"]))
 
 # %%
 # Computed on:

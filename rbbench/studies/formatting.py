@@ -40,3 +40,18 @@ def print_and_dump(text: str, figures: dict[str, Any], path: str | None) -> int:
         with open(path, "w") as fh:
             json.dump(figures, fh, indent=1, default=float)
     return 0
+
+
+def significant(table: Any, digits: int = 3) -> Any:
+    """A copy of the pandas DataFrame ``table`` for display: every float with ``digits``
+    significant digits (``1.23e-04``, ``0.0123``, ``1.23e+06``), a missing value (None, NaN)
+    as an empty cell, other cells as they are. The figures are unchanged in ``table``."""
+
+    def cell(v: Any) -> Any:
+        if v is None or (isinstance(v, float) and np.isnan(v)):
+            return ""
+        if isinstance(v, (float, np.floating)) and not float(v).is_integer():
+            return f"{float(v):.{digits}g}"
+        return v
+
+    return table.astype(object).apply(lambda col: col.map(cell))
