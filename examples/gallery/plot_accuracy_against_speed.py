@@ -8,7 +8,8 @@ PGA, exact affine decomposition), each validated against HF solves at the same 1
 parameters; the HF snapshots are shared through one cache. The errors are relative, max
 over the validation set (u in the X norm, lam in the W norm); the online time is the median
 of the timed online solves with one BLAS thread. ``rbbench run`` does the same sweep from a
-run matrix (``[params] N = [...]``), and its report draws this figure for every case.
+run matrix (``[params] N = [...]``), and its report draws the same trade for every scene
+(error against online time, the Pareto front marked).
 """
 
 import tempfile

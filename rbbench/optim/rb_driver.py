@@ -268,7 +268,7 @@ def side_by_side(sc: ShapeScene, rb_options: RBOptions | None = None,
                J_rel_diff=(rb.J_hf - hf.f) / hf.f, eval_hf_s=times["hf"],
                eval_rb_s=times["rb"], eval_speedup=times["hf"] / times["rb"],
                rb_history=rb.history, rb_residuals=sc.residuals(rb.x),
-               hf_x=np.asarray(hf.x), rb_x=np.asarray(rb.x),
+               hf_x=np.asarray(hf.x).tolist(), rb_x=np.asarray(rb.x).tolist(),
                hf_J_history=[h["f"] for h in hf.history],
                hf_residuals=sc.residuals(hf.x))
     return out
