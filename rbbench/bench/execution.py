@@ -112,6 +112,7 @@ def _fill(row: dict, s: dict, online_stabilizer: bool = False) -> None:
     for b in ("hf", "dec", "on", "off"):
         row[f"beta_{b}_min"] = s.get(f"beta_{b}_min")
         row[f"beta_{b}_kind"] = (s.get("beta_kind") or {}).get(b)
+        row[f"beta_{b}_rel_min"] = s.get(f"beta_{b}_rel_min")  # beta / c_HF(mu), min
     row["beta_dec_zero_any"] = s.get("beta_dec_zero_any")
     row.update({k: s.get(k) for k in _ESTIMATOR})
     if _is_friction(s):
@@ -119,10 +120,11 @@ def _fill(row: dict, s: dict, online_stabilizer: bool = False) -> None:
         row["S_tau"] = s.get("S")
         row["friction_dual"] = s.get("friction_dual") or s["config"].get("friction_dual")
         beta = (s.get("per_mu") or {}).get("beta") or {}
-        for b in ("hf", "dec", "off"):
+        for b in ("hf", "dec", "off"):  # from the per-mu rows where the summary has none
             rel = [float(v) for v in (e.get("value_rel") for e in beta.get(b) or [])
                    if isinstance(v, (int, float)) and np.isfinite(v)]
-            row[f"beta_{b}_rel_min"] = min(rel) if rel else None
+            if row[f"beta_{b}_rel_min"] is None:
+                row[f"beta_{b}_rel_min"] = min(rel) if rel else None
 
 
 def _is_friction(s: dict) -> bool:

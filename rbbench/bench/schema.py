@@ -160,13 +160,16 @@ COLUMNS: tuple[Column, ...] = (
     _c("beta_on_kind", "str", "stability", "", "kind of beta_on_min"),
     _c("beta_off_min", "float", "stability", "", _BETA + "; V_N + S_PGA (offline)"),
     _c("beta_off_kind", "str", "stability", "", "kind of beta_off_min"),
-    *(_c(f"beta_{b}_rel_min", "float", "stability", "1", "friction scenes, mode rb: "
-         f"beta_{b} of the combined form b^n + b^tau divided by c_HF(mu), the HF "
-         "continuity constant (dimensionless: Benaceur et al.'s beta / c ratio; " + what + "), min "
-         + _VALID + " (the per-mu values are of the kinds of beta_" + b + "_min)")
-      for b, what in (("hf", "whole V against R^m_+ x R^m, span lower bound; only up to "
-                             "2m = 400 multiplier rows"),
-                      ("dec", "whole V against the reduced dual set"),
+    *(_c(f"beta_{b}_rel_min", "float", "stability", "1", "mode rb: beta_" + b
+         + " divided by c_HF(mu), the continuity constant of the same form on V x W "
+         "(friction scenes: the combined form b^n + b^tau); dimensionless, Benaceur et al.'s "
+         "beta / c ratio; " + what + "; min " + _VALID + " (the per-mu values are of the "
+         "kinds of beta_" + b + "_min; empty where the reduction computes no c_HF)")
+      for b, what in (("hf", "whole V against the HF cone (friction: R^m_+ x R^m, span lower "
+                             "bound; only up to 2m = 400 multiplier rows)"),
+                      ("dec", "V_N (friction: whole V) against the reduced dual set"),
+                      ("on", "V_N + S_R(mu), the online supremizer space, against the reduced "
+                             "cone (frictionless)"),
                       ("off", "span Z_off, the online primal space, against the reduced "
                               "dual set"))),
     _c("delta_pga", "float", "stability", "1", "friction scenes, mode rb: PGA tolerance, "

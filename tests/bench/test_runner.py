@@ -255,3 +255,25 @@ def test_a_hung_hf_solver_cannot_stall_the_run(tmp_path, faulty_registry):
     df = pd.read_parquet(tmp_path / "run" / "results.parquet").set_index("solver")
     assert df.loc["faulty-hang", "status"] == "timeout"
     assert df.loc["ssn", "status"] == "ok"
+
+
+def test_frictionless_rows_carry_beta_over_c_hf(tmp_path):
+    """Every stability column of a frictionless reduction row is filled: beta / c_HF(mu) of
+    the HF, decoupled, online and offline pairs, equal to what ``reduce`` reports for the
+    same case (they were empty outside friction scenes)."""
+    import math
+
+    import rbbench
+
+    run = rbbench.run("quick", out=str(tmp_path / "r"), executor="serial",
+                      sets=["n_train=7", "n_valid=2"],
+                      select=["scene=membrane_obstacle", "dual=cpg", "stabilizer=pga", "N=6"])
+    row = rbbench.load_results(run.out_dir).iloc[0]
+    assert row["status"] == "ok", row["reason"]
+    s = rbbench.reduce(rbbench.load_scene("membrane_obstacle"), N=6, R=int(row["R"]),
+                       n_train=7, n_valid=2, dual="cpg", stabilizer="pga",
+                       cache_dir=str(tmp_path / "cache")).summary()
+    for b in ("hf", "dec", "on", "off"):
+        value = row[f"beta_{b}_rel_min"]
+        assert math.isfinite(value) and value > 0, b
+        assert value == pytest.approx(s[f"beta_{b}_rel_min"], rel=1e-9), b
