@@ -36,6 +36,9 @@ _INFSUP_CAPTION = (
     "constants whose values agree to 3 significant digits at every mu are drawn "
     "once, joined by '=' (equal) or '≈' (equal to 3 digits). "
     "x: the validation parameter when it is scalar, else its index. "
+    "y: beta / c_HF(mu), the continuity constant of the same form at that mu "
+    "(dimensionless, Benaceur et al.'s ratio), for every case that recorded c_HF; raw "
+    "beta (X the V inner product) otherwise, as the axis label says. "
     "Markers give the kind of each value as stored: filled circle = exact cone "
     "value, open circle = cone upper estimate (best local minimum), triangle = "
     "span lower bound; x on the axis = the exact LP test found beta = 0. "
@@ -142,7 +145,10 @@ def _draw_beta(ax, parts: list[dict[str, Any]], case_labels: set[str],
     rows, name = first["rows"], first["name"]
     x, xlab = _curve_x(ax, first)
     o = np.argsort(x, kind="stable")
-    v = np.array([_num(e.get("value")) for e in rows])[o]
+    # beta / c_HF(mu) (dimensionless) when the case recorded it at every mu, else raw
+    rel = all(np.isfinite(_num(e.get("value_rel"))) for e in rows)
+    seen["raw"] = seen.get("raw", False) or not rel
+    v = np.array([_num(e.get("value_rel" if rel else "value")) for e in rows])[o]
     kinds = [e.get("kind") for e in rows]
     kk = np.array([str(k) for k in kinds], dtype=object)[o]
     zero = np.array([bool(e.get("is_zero")) for e in rows])[o]
@@ -175,7 +181,7 @@ def _infsup_panel(ax, ctx: _Ctx, sc: str, dual: str, group: list[tuple[dict, dic
     """One scene and dual compressor: the beta curves at the largest size asked."""
     size, group = _panel_cases(group)
     case_labels = {ctx.combos.label(r, without="dual") for r, _ in group}
-    seen["plotted"] = False
+    seen["plotted"], seen["raw"] = False, False
     used_styles: dict[str, int] = {}
     for parts in _merged_curves(ctx, group):
         xlab = _draw_beta(ax, parts, case_labels, used_styles, seen)
@@ -186,7 +192,8 @@ def _infsup_panel(ax, ctx: _Ctx, sc: str, dual: str, group: list[tuple[dict, dic
     ax.grid(True, which="major", alpha=0.3)
     ax.set_title(f"{sc} / dual {dual}: N={size[0]}, R={size[1]} (asked)", fontsize=9)
     ax.set_xlabel(xlab, fontsize=8)
-    ax.set_ylabel("inf-sup constant beta (X = V inner product)", fontsize=8)
+    ax.set_ylabel("beta / c_HF(mu)" if not seen.get("raw") else
+                  "beta (raw: X = V inner product) or beta / c_HF(mu)", fontsize=8)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), fontsize=7, frameon=False)
 
 

@@ -364,3 +364,28 @@ def test_run_without_results_file_reads_case_rows(run_a, tmp_path):
         load_results(tmp_path / "nothing-here")
     with pytest.raises(ValueError):
         report(run_a, tmp_path / "r", formats=("bogus",))
+
+
+def test_infsup_figure_plots_beta_over_c_hf_when_recorded(tmp_path):
+    """The inf-sup figure plots beta / c_HF(mu) (dimensionless) where the case recorded it,
+    not the raw values (about 1e-7 on Hertz, meaningless without the norm of X)."""
+    import matplotlib.pyplot as plt
+
+    from rbbench.bench.report.analysis import _context
+    from rbbench.bench.report.detail_figures import _fig_infsup
+    from rbbench.bench.report.loading import load_run
+
+    row, det = _rows()[0]
+    rel = {}
+    for name, entries in det["per_mu"]["beta"].items():
+        for j, e in enumerate(entries):
+            e["value_rel"] = 0.1 + 0.01 * j + 0.001 * len(name)
+        rel[name] = sorted(e["value_rel"] for e in entries)
+    ctx = _context(load_run(write_run(tmp_path / "run", [(row, det)])))
+    fig, _caption = _fig_infsup(ctx)
+    ax = fig.axes[0]
+    plotted = sorted(sorted(line.get_ydata().tolist()) for line in ax.get_lines()
+                     if len(line.get_ydata()) == len(VALID_MUS))
+    assert all(sorted(v) in plotted for v in rel.values() if v[0] > 0)
+    assert ax.get_ylabel() == "beta / c_HF(mu)"
+    plt.close(fig)
