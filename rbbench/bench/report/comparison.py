@@ -8,12 +8,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from rbbench.bench.report.analysis import _text, _varying
 from rbbench.bench.report.common import (
     _ABS_FLOOR,
     _BETAS,
+    _CASE_KEY,
     _ERRORS,
     _TIMES,
     IDENTITY,
@@ -41,11 +43,14 @@ class CompareResult:
         ``<col>_rel`` (relative change (B - A) / |A|), and ``regressions`` /
         ``improvements`` (the quantities flagged, comma separated).
     regressions : list of str
-        Human-readable regressions (one per quantity and case, and per missing case).
+        Human-readable regressions (one per quantity and case).
+    missing : list of str
+        Cases of A that B does not have, listed apart from the regressions (a smaller
+        matrix or a selection is not a regression of the code).
     improvements : list of str
         Human-readable improvements.
     records : list of dict
-        The same as structured records: ``kind`` (regression / improvement / new),
+        The same as structured records: ``kind`` (regression / improvement / missing / new),
         ``case``, ``quantity``, ``a``, ``b``, ``change``.
     notes : list of str
         Cases new in B, other status changes, duplicates, reading notes.
@@ -59,6 +64,7 @@ class CompareResult:
     regressions: list[str]
     improvements: list[str]
     records: list[dict[str, Any]] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     a_label: str = "A"
     b_label: str = "B"
@@ -71,6 +77,11 @@ class CompareResult:
     def n_regressions(self) -> int:
         """Number of regressions (the ``rbbench compare`` exit code is 1 when > 0)."""
         return len(self.regressions)
+
+    @property
+    def n_missing(self) -> int:
+        """Number of cases of A missing in B (not regressions)."""
+        return len(self.missing)
 
 
 def _rel(a: float, b: float) -> float:
@@ -117,8 +128,10 @@ class _Comparison:
     def __init__(self, rows: list[dict[str, Any]], threshold: float, time_threshold: float,
                  notes: list[str]):
         self.vary = _varying(rows, _NAMED_IF_VARYING)
+        # times are judged per case over its repetitions (:meth:`times`), not per row
         self.thresholds = ((_ERRORS, True, threshold), (_BETAS, False, threshold),
-                           (_TIMES, True, time_threshold))
+                           (_TIMES, True, None))
+        self.time_threshold = time_threshold
         self.notes = notes
         self.records: list[dict[str, Any]] = []
 
@@ -167,7 +180,7 @@ class _Comparison:
         va, vb = _num(ra.get(c)), _num(rb.get(c))
         rel = _rel(va, vb) if math.isfinite(va) and math.isfinite(vb) else math.nan
         row[f"{c}_a"], row[f"{c}_b"], row[f"{c}_rel"] = ra.get(c), rb.get(c), rel
-        if not both:
+        if not both or thr is None:
             return
         if math.isfinite(va) and not math.isfinite(vb) and c in _ERRORS + _BETAS:
             reg.append(c)
@@ -184,6 +197,34 @@ class _Comparison:
         elif better and abs(vb - va) > floor:
             imp.append(c)
             self.flag("improvement", ra, c, va, vb, _pct(rel))
+
+    def times(self, rows_a: list[dict], rows_b: list[dict]) -> int:
+        """Judge the times of one case from its ok repetitions in A and in B: a regression
+        (improvement) when the median grew (fell) by more than the time threshold and the
+        ranges of the repetitions do not overlap. With one repetition on a side a time is
+        not judged (a single timing on a loaded machine says nothing); returns how many
+        such times changed beyond the threshold."""
+        unjudged = 0
+        for c in _TIMES:
+            va = [v for v in (_num(r.get(c)) for r in rows_a) if math.isfinite(v)]
+            vb = [v for v in (_num(r.get(c)) for r in rows_b) if math.isfinite(v)]
+            if not va or not vb:
+                continue
+            ma, mb = float(np.median(va)), float(np.median(vb))
+            rel = _rel(ma, mb)
+            if abs(rel) <= self.time_threshold:
+                continue
+            if min(len(va), len(vb)) < 2:
+                unjudged += 1
+                continue
+            spread = f"{_pct(rel)}, medians of {len(va)} and {len(vb)} repetitions, " \
+                     "ranges disjoint"
+            case = {**rows_a[0], "repetition": "all"}
+            if rel > 0 and min(vb) > max(va):
+                self.flag("regression", case, c, ma, mb, spread)
+            elif rel < 0 and max(vb) < min(va):
+                self.flag("improvement", case, c, ma, mb, spread)
+        return unjudged
 
     def pair(self, ra: dict, rb: dict) -> dict[str, Any]:
         """The table row of a matched case (its flags recorded on the way)."""
@@ -213,16 +254,19 @@ def compare(a: str | Path, b: str | Path, threshold: float = 0.1,
     Rows are matched on :data:`IDENTITY` (scene and overrides, components, parameters,
     sizes asked, repetition; not ``run_id`` nor ``case_id``). Flagged as regressions:
 
-    * a case of A missing in B;
     * status ``ok`` in A and not ``ok`` in B;
     * both ok: ``err_u_max`` / ``err_lam_max`` grew by more than ``threshold`` relative
       and by more than 1e-12 absolute (or is no longer reported);
       ``beta_*_min`` dropped by more than ``threshold`` relative (or became 0 by the
-      exact test, ``beta_dec_zero_any``); ``t_online_median_s`` / ``t_offline_s`` /
-      ``t_hf_median_s`` grew by more than ``time_threshold`` relative.
+      exact test, ``beta_dec_zero_any``);
+    * per case, over its ok repetitions: the median of ``t_online_median_s`` /
+      ``t_offline_s`` / ``t_hf_median_s`` grew by more than ``time_threshold`` relative
+      and the ranges of the repetitions do not overlap. A time measured in one repetition
+      on a side is not judged (a note counts those beyond the threshold).
 
-    The mirror images (non-ok -> ok, errors and times down, beta up by more than the
-    thresholds) are listed as improvements.
+    The mirror images (non-ok -> ok, errors down, beta up, times down by the same rules)
+    are listed as improvements. Cases of A missing in B are listed apart (``missing``),
+    not as regressions.
 
     Parameters
     ----------
@@ -247,10 +291,20 @@ def compare(a: str | Path, b: str | Path, threshold: float = 0.1,
     for k, ra in ia.items():
         rb = ib.get(k)
         if rb is None:
-            cmp.flag("regression", ra, "missing in B", ra.get("status"), None,
+            cmp.flag("missing", ra, "missing in B", ra.get("status"), None,
                      "case not in B")
         else:
             table_rows.append(cmp.pair(ra, rb))
+    unjudged = 0
+    groups_a, groups_b = _ok_groups(ia.values()), _ok_groups(ib.values())
+    for key, rows in groups_a.items():
+        if key in groups_b:
+            unjudged += cmp.times(rows, groups_b[key])
+    if unjudged:
+        notes.append(f"{unjudged} time(s) changed by more than +-{100 * time_threshold:g} % "
+                     "but were measured in one repetition on a side: not judged (run both "
+                     "with repetitions >= 2; a time is flagged when the medians differ "
+                     "beyond the threshold and the ranges do not overlap)")
     for k, rb in ib.items():
         if k not in ia:
             cmp.records.append({"kind": "new", "case": cmp.name(rb), "quantity": "new in B",
@@ -259,8 +313,18 @@ def compare(a: str | Path, b: str | Path, threshold: float = 0.1,
     table = pd.DataFrame(table_rows, columns=_table_columns(), dtype=object)
     regs = [_message(r) for r in cmp.records if r["kind"] == "regression"]
     imps = [_message(r) for r in cmp.records if r["kind"] == "improvement"]
-    return CompareResult(table, regs, imps, cmp.records, notes, str(a), str(b), threshold,
-                         time_threshold, len(rows_a), len(rows_b))
+    missing = [_message(r) for r in cmp.records if r["kind"] == "missing"]
+    return CompareResult(table, regs, imps, cmp.records, missing, notes, str(a), str(b),
+                         threshold, time_threshold, len(rows_a), len(rows_b))
+
+
+def _ok_groups(rows) -> dict[tuple[str, ...], list[dict]]:
+    """The ok rows by case (the identity without the repetition)."""
+    out: dict[tuple[str, ...], list[dict]] = {}
+    for r in rows:
+        if r.get("status") == "ok":
+            out.setdefault(tuple(str(r.get(c)) for c in _CASE_KEY), []).append(r)
+    return out
 
 
 def format_compare(result: CompareResult) -> str:
@@ -285,7 +349,8 @@ def format_compare(result: CompareResult) -> str:
              f"thresholds: errors +{100 * r.threshold:g} % (and > {_ABS_FLOOR:g} absolute), "
              f"beta -{100 * r.threshold:g} %, times +{100 * r.time_threshold:g} %",
              ""]
-    for kind, title in (("regression", "Regressions"), ("improvement", "Improvements")):
+    for kind, title in (("regression", "Regressions"), ("improvement", "Improvements"),
+                        ("missing", "Missing in B")):
         recs = [x for x in r.records if x["kind"] == kind]
         lines += [f"## {title} ({len(recs)})", ""]
         if not recs:
@@ -300,5 +365,5 @@ def format_compare(result: CompareResult) -> str:
         lines += ["## Notes", ""]
         lines += [f"* {n}" for n in r.notes]
         lines.append("")
-    lines.append(f"{r.n_regressions} regression(s).")
+    lines.append(f"{r.n_regressions} regression(s), {r.n_missing} case(s) missing in B.")
     return "\n".join(lines)

@@ -299,32 +299,66 @@ def test_compare_flags_injected_regressions(run_a, tmp_path):
     del rows[by_id["c004"]]                                                  # missing in B
     b = write_run(tmp_path / "run-b", rows)
     res = compare(run_a, b)
-    assert res.n_regressions == 3, res.regressions
+    assert res.n_regressions == 2, res.regressions
     text = "\n".join(res.regressions)
     assert "err_u_max" in text and "+50 %" in text
     assert "status ok -> error (RuntimeError: injected)" in text
-    assert "missing in B" in text
-    assert {x["quantity"] for x in res.records if x["kind"] == "improvement"} == \
-        {"err_u_max", "t_online_median_s"}
-    assert len(res.improvements) == 2
+    # a missing case is listed apart, not as a regression
+    assert res.n_missing == 1 and "missing in B" in res.missing[0]
+    # one repetition per side: the 4x faster online time is not judged, only noted
+    assert {x["quantity"] for x in res.records if x["kind"] == "improvement"} == {"err_u_max"}
+    assert any("not judged" in n for n in res.notes)
+    assert len(res.improvements) == 1
     tab = res.table.set_index("case_id_a")
     assert tab.loc["c000", "regressions"] == "err_u_max"
     assert tab.loc["c000", "err_u_max_rel"] == pytest.approx(0.5)
+    assert tab.loc["c002", "t_online_median_s_rel"] == pytest.approx(-0.75)
     out = format_compare(res)
-    assert "## Regressions (3)" in out and "## Improvements (2)" in out
-    assert "3 regression(s)." in out
+    assert "## Regressions (2)" in out and "## Improvements (1)" in out
+    assert "## Missing in B (1)" in out
+    assert "2 regression(s), 1 case(s) missing in B." in out
     # the other direction: B as baseline, A new; c004 is new, c001 error -> ok
     back = compare(b, run_a)
     assert any("status error -> ok" in s for s in back.improvements)
     assert any(n.startswith("new in B") for n in back.notes)
-    # a drop of beta and a slower HF solve beyond the thresholds are regressions
+    # a drop of beta beyond the threshold is a regression
     rows2 = _rows("run-c")
     r, det = rows2[0]
-    rows2[0] = ({**r, "beta_dec_min": r["beta_dec_min"] * 0.5,
-                 "t_hf_median_s": r["t_hf_median_s"] * 2}, det)
+    rows2[0] = ({**r, "beta_dec_min": r["beta_dec_min"] * 0.5}, det)
     res2 = compare(run_a, write_run(tmp_path / "run-c", rows2))
     assert {x["quantity"] for x in res2.records if x["kind"] == "regression"} == \
-        {"beta_dec_min", "t_hf_median_s"}
+        {"beta_dec_min"}
+
+
+def _repeated(run_id: str, factors: tuple[float, ...]) -> list[tuple[dict, dict]]:
+    """The ok rows of the synthetic run, one repetition per factor, every time of the
+    first case multiplied by that repetition's factor."""
+    out = []
+    for rep, f in enumerate(factors):
+        for n, (r, det) in enumerate(x for x in _rows(run_id) if x[0]["status"] == "ok"):
+            row = {**r, "repetition": rep, "case_id": f"{r['case_id']}-{rep}"}
+            if n == 0:
+                row.update({c: r[c] * f for c in ("t_online_median_s", "t_offline_s",
+                                                  "t_hf_median_s")})
+            out.append((row, det))
+    return out
+
+
+def test_compare_judges_times_over_repetitions(tmp_path):
+    """Times are flagged when the medians over the repetitions differ beyond the threshold
+    and the ranges do not overlap; overlapping ranges are not flagged."""
+    a = write_run(tmp_path / "a", _repeated("a", (1.0, 1.1, 0.95)))
+    slow = compare(a, write_run(tmp_path / "b", _repeated("b", (3.0, 2.8, 3.2))))
+    assert {x["quantity"] for x in slow.records if x["kind"] == "regression"} == \
+        {"t_online_median_s", "t_offline_s", "t_hf_median_s"}
+    assert "medians of 3 and 3 repetitions" in slow.regressions[0]
+    fast = compare(a, write_run(tmp_path / "c", _repeated("c", (0.3, 0.32, 0.29))))
+    assert fast.n_regressions == 0
+    assert {x["quantity"] for x in fast.records if x["kind"] == "improvement"} == \
+        {"t_online_median_s", "t_offline_s", "t_hf_median_s"}
+    # a median 2x larger, but one repetition as fast as A's slowest: ranges overlap
+    noisy = compare(a, write_run(tmp_path / "d", _repeated("d", (2.0, 2.2, 1.05))))
+    assert noisy.n_regressions == 0 and not noisy.improvements
 
 
 def test_all_none_columns_do_not_crash(tmp_path):
