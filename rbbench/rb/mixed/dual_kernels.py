@@ -26,6 +26,9 @@ import numpy as np
 from numba import njit
 
 from rbbench.rb.mixed import kernels as K
+from rbbench.runtime.numba_cache import use_user_cache
+
+use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
 #: statuses of :func:`nnls_gram` (anything but NNLS_OK: the caller reruns the Python path)
 NNLS_OK, NNLS_DEPENDENT, NNLS_MAX_ITER, NNLS_RESIDUAL = 0, 3, 4, 5

@@ -20,6 +20,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rbbench.runtime.numba_cache import use_user_cache
+
+use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
+
 #: float arrays of the plan, in buffer order (shapes: see ``compiled_online.plan_arrays``)
 FLOATS = ("mu_lo", "mu_hi", "s_scale", "s_shift", "m_scale", "m_shift", "x_hat", "n_hat",
           "w_hat", "m_a", "m_b", "m_v", "zt_m", "slave_b", "vals_b", "vals_g", "w_b", "w_g",
