@@ -25,6 +25,23 @@ from rbbench.runtime.threads import BLAS_THREADS_DEFINITION
 ACTIVE_THRESHOLD = 1e-8
 
 
+#: Poisson's ratio from which P1 displacements are flagged for volumetric locking
+NU_LOCKING = 0.45
+
+
+def locking_warnings(degree: int, nus: dict[str, float]) -> list[str]:
+    """A warning per body whose Poisson's ratio is at least :data:`NU_LOCKING` when the
+    displacements are P1: linear triangles lock as nu -> 1/2 (the discrete divergence-free
+    space is too small; Brenner & Scott, ch. 11), so stresses and contact pressures are
+    wrong without any solver failure."""
+    if degree != 1:
+        return []
+    return [f"body {name!r}: nu = {nu:g} >= {NU_LOCKING:g} with P1 displacements "
+            "(discretization.degree = 1): volumetric locking makes stresses and contact "
+            "pressures unreliable; use discretization.degree = 2 (P2) or a mixed u-p element"
+            for name, nu in nus.items() if nu >= NU_LOCKING]
+
+
 def contact_metrics(sol: Any) -> dict[str, Any]:
     """Labelled contact quantities of an HF solution (:class:`rbbench.hf.model.HFSolution`;
     see ``definitions`` in the output)."""
@@ -89,6 +106,8 @@ def contact_metrics(sol: Any) -> dict[str, Any]:
         m["material"] = {b.name: {"E": b.E, "nu": b.nu} for b in disc.bodies}
         m["material"]["plane_strain"] = True
         m["radii"] = {"R1": geo["R1"], "R2": geo["R2"]}
+        m["warnings"] += locking_warnings(sol.scene.data["discretization"].get("degree", 1),
+                                          {b.name: b.nu for b in disc.bodies})
         if sol.scene.data["reference"]["hertz"] and force > 0:
             m["hertz"] = _hertz_block(hertz_of_bodies(force, geo, disc.bodies), m)
     m.update(extra)
@@ -268,7 +287,8 @@ DEFINITIONS = {
     "warnings": "what makes the result doubtful, in words: penetration beyond "
                 "contact_half_width_gap_tol at contact points that no active multiplier's "
                 "support covers (supports coarser than the contact zone; mixed "
-                "formulations only)",
+                "formulations only); P1 displacements with nu >= 0.45 (volumetric "
+                "locking)",
     "stop_reason": "the solver's stop reason (converged, max_iterations, stagnation, nan, "
                    "diverged), or 'flagged': the solver converged (solver_stop_reason) but "
                    "every multiplier is 0 while the bodies penetrate beyond "
