@@ -68,6 +68,50 @@ class ReduceConfig:
         if not isinstance(self.hyper, str) or not self.hyper.strip():
             raise ValueError(f"hyper {self.hyper!r}: give 'auto' (the formulation's rule) or "
                              "the name of a registered hyper-reducer (rbbench plugins)")
+        check_values(self, "reduce")
+
+
+#: counts and sizes: an integer >= 1 (``None`` where the field allows it: the default rule)
+POSITIVE_INTS = frozenset({"N", "R", "S", "n_train", "n_valid", "n_jobs", "online_repeats",
+                           "k_pga_max", "m_eim", "n_eim_train", "gcns_per_iteration",
+                           "gcns_max", "gcns_patience"})
+#: integers that may be 0
+NONNEGATIVE_INTS = frozenset({"exact_max_r"})
+
+
+def check_values(obj: Any, where: str) -> None:
+    """Refuse a field value of the dataclass ``obj`` that its type or meaning excludes,
+    naming the field and what is valid: an integer field given a bool, a float or a
+    string (``N = 3.7``); a count or size below 1 (:data:`POSITIVE_INTS`); a non-finite
+    float; a tolerance ``tol*`` not > 0; ``delta_pga`` outside (0, 1] (it bounds the PGA
+    defect sigma, which lies in [0, 1]). Every formulation's options and
+    :class:`ReduceConfig` go through it before any HF work, on the command line and in the
+    Python API alike."""
+    import math
+    import numbers
+    import typing
+
+    hints = typing.get_type_hints(type(obj))
+    for f in fields(obj):
+        v, hint = getattr(obj, f.name), str(hints.get(f.name, ""))
+        if v is None:
+            continue
+        name = f"{where}: {f.name} = {v!r}"
+        if "int" in hint and "float" not in hint:
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral):
+                raise ValueError(f"{name}: give an integer")
+            low = 0 if f.name in NONNEGATIVE_INTS else 1 if f.name in POSITIVE_INTS else None
+            if low is not None and v < low:
+                raise ValueError(f"{name}: give an integer >= {low}")
+        elif "float" in hint:
+            if (isinstance(v, bool) or not isinstance(v, numbers.Real)
+                    or not math.isfinite(v)):
+                raise ValueError(f"{name}: give a finite number")
+            if f.name.startswith("tol") and v <= 0:
+                raise ValueError(f"{name}: give a tolerance > 0")
+            if f.name == "delta_pga" and not 0 < v <= 1:
+                raise ValueError(f"{name}: give a value in (0, 1] (the PGA defect sigma "
+                                 "lies in [0, 1])")
 
 
 #: the fields of :class:`ReduceConfig` a caller may give (``options`` is built from the rest)
@@ -164,7 +208,14 @@ def parse_options(steps: Any, options: Any, registry: Registry) -> Any:
         if key not in valid:
             raise OptionError(key, getattr(steps, "label", steps.name), valid,
                               option_owners(key, registry))
+    where = getattr(steps, "label", steps.name)
     try:
-        return cls(**values)
+        out = cls(**values)
     except (TypeError, ValueError) as exc:
-        raise SceneError(f"{getattr(steps, 'label', steps.name)}: {exc}") from None
+        raise SceneError(f"{where}: {exc}") from None
+    if is_dataclass(out):
+        try:
+            check_values(out, where)
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
+    return out

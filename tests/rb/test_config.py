@@ -84,3 +84,33 @@ def test_a_matrix_case_whose_formulation_refuses_an_option_is_a_skip_row(tmp_pat
 
     with pytest.raises(MatrixError, match="unknown field 'tol_dul'"):
         load_matrix(bad, registry=default_registry())
+
+
+BAD_VALUES = [
+    ("N", 0, "give an integer >= 1"), ("N", 3.7, "give an integer"),
+    ("N", True, "give an integer"), ("n_valid", "5", "give an integer"),
+    ("tol_pod", 0.0, "tolerance > 0"), ("tol_pod", float("nan"), "finite number"),
+    ("R", -1, "integer >= 1"), ("k_pga_max", 0, "integer >= 1"),
+    ("tol_eim", float("nan"), "finite number"), ("tol_dual", -1e-3, "tolerance > 0"),
+    ("delta_pga", -1.0, r"in \(0, 1\]"), ("delta_pga", float("inf"), "finite number"),
+    ("exact_max_r", -1, "integer >= 0"), ("m_eim", 2.5, "give an integer"),
+]
+
+
+@pytest.mark.parametrize("field, value, match", BAD_VALUES)
+def test_the_python_api_refuses_bad_values_before_hf_work(no_hf_work, field, value, match):
+    """What the command line refuses, the Python API refuses too, naming the field and what
+    is valid, before any snapshot."""
+    with pytest.raises(ValueError, match=f"{field} = .*{match}"):
+        rbbench.reduce("membrane_obstacle", **{field: value})
+
+
+@pytest.mark.parametrize("field, value", [("gcns_patience", 0), ("gcns_per_iteration", 0),
+                                          ("S", 0), ("gcns_max", -2)])
+def test_friction_counts_are_refused(no_hf_work, field, value):
+    with pytest.raises(ValueError, match=f"{field} = {value}: give an integer >= 1"):
+        rbbench.reduce("hertz_friction", **{field: value})
+
+
+def test_zero_exact_cones_is_valid():
+    assert make_config(exact_max_r=0).options == {"exact_max_r": 0}
