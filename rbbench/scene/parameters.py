@@ -41,6 +41,30 @@ class ParameterSpace:
         """``(p, 2)`` array of ``[low, high]`` rows."""
         return np.array([self.low, self.high], dtype=float).T.reshape(self.dim, 2)
 
+    def _domains(self) -> str:
+        return ", ".join(f"{n} in [{lo:g}, {hi:g}]"
+                         for n, lo, hi in zip(self.names, self.low, self.high, strict=True))
+
+    def _as_array(self, mu: Any) -> np.ndarray:
+        """``mu`` (numbers, or a dict by parameter name) as a flat float array, or
+        :class:`SceneError` saying what to give."""
+        if isinstance(mu, dict):
+            unknown = sorted(map(str, set(mu) - set(self.names)))
+            missing = [n for n in self.names if n not in mu]
+            if unknown or missing:
+                raise SceneError(f"{self.where}: mu given by name needs exactly the "
+                                 f"parameters of scene {self.scene!r} ({self._domains()}); "
+                                 f"unknown: {unknown or 'none'}, missing: {missing or 'none'}")
+            mu = [mu[n] for n in self.names]
+        try:
+            if isinstance(mu, (str, bytes)) or (isinstance(mu, (list, tuple)) and any(
+                    isinstance(x, (str, bytes, bool)) for x in mu)) or isinstance(mu, bool):
+                raise TypeError("not numbers")
+            return np.atleast_1d(np.asarray(mu, dtype=float)).ravel()
+        except (TypeError, ValueError):
+            raise SceneError(f"{self.where}: mu = {mu!r}: give {self.dim} number(s) "
+                             f"({self._domains()}), or a dict of them by name") from None
+
     def check(self, mu: Any) -> np.ndarray:
         """``mu`` as a float array of length :attr:`dim`, or :class:`SceneError` naming the
         parameter and its domain (wrong count, non-finite, or outside D).
@@ -51,7 +75,7 @@ class ParameterSpace:
         if type(mu) is np.ndarray and mu.dtype == np.float64 and mu.ndim == 1:
             arr = mu
         else:
-            arr = np.atleast_1d(np.asarray(mu, dtype=float)).ravel()
+            arr = self._as_array(mu)
         if arr.size == len(self.low):
             for x, lo, hi in zip(arr.tolist(), self.low, self.high, strict=True):
                 if not lo <= x <= hi:  # NaN fails too: the messages below name it
@@ -59,11 +83,9 @@ class ParameterSpace:
             else:
                 return arr
         if arr.size != self.dim:
-            domains = ", ".join(f"{n} in [{lo:g}, {hi:g}]"
-                                for n, lo, hi in zip(self.names, self.low, self.high, strict=True))
             raise SceneError(
                 f"{self.where}: scene {self.scene!r} has {self.dim} parameter(s) "
-                f"({domains}); got {arr.size} value(s): {arr.tolist()}"
+                f"({self._domains()}); got {arr.size} value(s): {arr.tolist()}"
             )
         units = self.units or ("",) * self.dim
         for value, name, lo, hi, unit in zip(arr, self.names, self.low, self.high, units,
