@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -69,6 +70,12 @@ def cmd_report(args) -> int:
 def cmd_compare(args) -> int:
     from rbbench.bench.report import compare, format_compare
 
+    for flag, value in (("--threshold", args.threshold),
+                        ("--time-threshold", args.time_threshold)):
+        if not (math.isfinite(value) and value >= 0):
+            print(f"rbbench: error: {flag} {value:g}: give a finite number >= 0 (a relative "
+                  "change, e.g. 0.1 for 10 %)", file=sys.stderr)
+            return 2
     res = compare(args.a, args.b, threshold=args.threshold, time_threshold=args.time_threshold)
     print(format_compare(res))
     return 1 if res.n_regressions else 0

@@ -281,8 +281,10 @@ def compare(a: str | Path, b: str | Path, threshold: float = 0.1,
     -------
     CompareResult
     """
-    if threshold < 0 or time_threshold < 0:
-        raise ValueError("compare: thresholds must be >= 0")
+    for name, value in (("threshold", threshold), ("time_threshold", time_threshold)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            raise ValueError(f"compare: {name} = {value!r}: give a finite number >= 0 (a "
+                             "relative change, e.g. 0.1 for 10 %)")
     notes: list[str] = []
     rows_a, rows_b = load_results(a, notes), load_results(b, notes)
     cmp = _Comparison(records(rows_a) + records(rows_b), threshold, time_threshold, notes)

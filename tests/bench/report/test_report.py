@@ -423,3 +423,13 @@ def test_infsup_figure_plots_beta_over_c_hf_when_recorded(tmp_path):
     assert all(sorted(v) in plotted for v in rel.values() if v[0] > 0)
     assert ax.get_ylabel() == "beta / c_HF(mu)"
     plt.close(fig)
+
+
+@pytest.mark.parametrize("bad", [float("nan"), -1.0, float("inf")])
+def test_compare_refuses_bad_thresholds(run_a, bad, capsys):
+    from rbbench.cli import main
+
+    with pytest.raises(ValueError, match="give a finite number >= 0"):
+        compare(run_a, run_a, threshold=bad)
+    assert main(["compare", str(run_a), str(run_a), "--time-threshold", str(bad)]) == 2
+    assert "--time-threshold" in capsys.readouterr().err
