@@ -60,7 +60,15 @@ class RunLock:
         """Take the lock, or raise :class:`RunLockedError` naming the holder."""
         import fcntl
 
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:  # never through a symbolic link: it could truncate a file outside the run
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+        except OSError as exc:
+            if self.path.is_symlink():
+                raise RunLockedError(f"{self.path}: the lock file is a symbolic link; rbbench "
+                                     "does not write through links in a run directory "
+                                     "(remove it)") from None
+            raise RunLockedError(f"{self.path}: cannot open the lock file ({exc.strerror})"
+                                 ) from None
         deadline = time.monotonic() + 10.0
         while True:
             try:

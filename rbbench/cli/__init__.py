@@ -25,6 +25,7 @@ import sys
 from rbbench._compat import deprecated_names
 from rbbench._version import __version__
 from rbbench.bench.errors import ResultsError
+from rbbench.bench.guard import RunLockedError
 from rbbench.cli.common import Parser
 from rbbench.cli.optimize import add_parser as _add_optimize_parser
 from rbbench.cli.plugins import add_plugin_args
@@ -72,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (SceneError, UnknownComponentError, NotInstalledError, ResultsError) as exc:
+    except (SceneError, UnknownComponentError, NotInstalledError, ResultsError,
+            RunLockedError) as exc:
         print(f"rbbench: error: {exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `rbbench plugins --json | head`

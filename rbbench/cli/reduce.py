@@ -10,8 +10,10 @@ names the flag as typed (:func:`flag`).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -60,17 +62,26 @@ def _flagged(exc: OptionError) -> SceneError:
 
 def cmd_reduce(args: argparse.Namespace) -> int:
     from rbbench.api import reduce
+    from rbbench.bench.guard import RunLock
     from rbbench.scene.linear import is_parabolic
 
     scene = load_scene(args.scene, overrides=args.set or [])
+    lock = None
+    if args.out:  # one writer per output directory, for the whole reduction
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        lock = RunLock(Path(args.out)).acquire()
     try:
-        res = reduce(scene, progress=_Progress(args.quiet), snapshot_progress=not args.quiet,
-                     **reduce_fields(args))
-    except OptionError as exc:
-        raise _flagged(exc) from None
-    s = res.summary()
-    c = s["config"]
-    path = _write_result(args, scene, _tag(c, res.hyper), s)
+        try:
+            res = reduce(scene, progress=_Progress(args.quiet),
+                         snapshot_progress=not args.quiet, **reduce_fields(args))
+        except OptionError as exc:
+            raise _flagged(exc) from None
+        s = res.summary()
+        c = s["config"]
+        path = _write_result(args, scene, _tag(c, res.hyper), s)
+    finally:
+        if lock is not None:
+            lock.release()
     if c["formulation"] == "linear":
         print_linear_reduce(s, is_parabolic(scene), scene.data["discretization"]["inner_product"])
     else:
@@ -93,12 +104,18 @@ def _tag(c: dict[str, Any], hyper: str) -> str:
 
 def _write_result(args, scene, tag: str, s: dict) -> Path:
     """``result.json`` of ``rbbench reduce`` (``--out``, default results/reduce/<scene>_<tag>)."""
+    from rbbench.bench.guard import RunLock
     from rbbench.provenance import _jsonable, provenance
 
     out = Path(args.out) if args.out else Path("results") / "reduce" / f"{scene.name}_{tag}"
     out.mkdir(parents=True, exist_ok=True)
-    (out / "result.json").write_text(json.dumps(_jsonable({**s, "provenance": provenance()}),
-                                                indent=2) + "\n")
+    text = json.dumps(_jsonable({**s, "provenance": provenance()}), indent=2) + "\n"
+    # written whole and renamed into place: a link named result.json is replaced, never
+    # followed; without --out the default directory is locked for the write
+    tmp = out / f".result.{os.getpid()}.tmp"
+    with contextlib.nullcontext() if args.out else RunLock(out):
+        tmp.write_text(text)
+        os.replace(tmp, out / "result.json")
     return out / "result.json"
 
 

@@ -34,6 +34,7 @@ from rbbench.bench.report.friction_figures import FIGURE_GROUPS, friction_table,
 from rbbench.bench.report.loading import load_run
 from rbbench.bench.report.plotting import _NotApplicable, _Skip
 from rbbench.bench.results import records
+from rbbench.hf.snapshots.cache import atomic_write
 
 _ROW_COLUMNS = ("scene", "backend", "formulation", "solver", "primal", "dual",
                 "friction_dual", "stabilizer", "hyper_used", "params", "n_hf_dofs",
@@ -126,7 +127,8 @@ class _Drawn:
         self.figures[name] = []
         for f in fmts:
             p = out / f"{name}.{f}"
-            fig.savefig(p, dpi=120)
+            # a new file renamed into place: a link of that name is replaced, not followed
+            atomic_write(p, lambda fh, f=f: fig.savefig(fh, format=f, dpi=120))
             self.figures[name].append(p)
         self.captions[name] = caption
 
@@ -189,8 +191,8 @@ def report(run_dir: str | Path, out_dir: str | Path | None = None,
     img_fmt = next((f for f in ("png", "svg") if f in fmts), fmts[0])
     md, doc = _summary(ctx, drawn, img_fmt)
     md_path, html_path = out / "summary.md", out / "summary.html"
-    md_path.write_text(md, encoding="utf-8")
-    html_path.write_text(doc, encoding="utf-8")
+    atomic_write(md_path, lambda fh: fh.write(md.encode("utf-8")))
+    atomic_write(html_path, lambda fh: fh.write(doc.encode("utf-8")))
     return ReportOutput(out, drawn.figures, md_path, html_path, drawn.skipped)
 
 

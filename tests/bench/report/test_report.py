@@ -433,3 +433,19 @@ def test_compare_refuses_bad_thresholds(run_a, bad, capsys):
         compare(run_a, run_a, threshold=bad)
     assert main(["compare", str(run_a), str(run_a), "--time-threshold", str(bad)]) == 2
     assert "--time-threshold" in capsys.readouterr().err
+
+
+def test_report_replaces_links_instead_of_writing_through_them(run_a, tmp_path):
+    """A file of the report directory that is a link to a file outside is replaced by the
+    report's own file; the outside file is untouched."""
+    outside = tmp_path / "outside.html"
+    outside.write_text("precious")
+    out = tmp_path / "rep"
+    out.mkdir()
+    (out / "summary.html").symlink_to(outside)
+    (out / "status.png").symlink_to(outside)
+    res = report(run_a, out_dir=out, formats=("png",))
+    assert outside.read_text() == "precious"
+    assert not (out / "summary.html").is_symlink() and not (out / "status.png").is_symlink()
+    assert "<html" in (out / "summary.html").read_text().lower()
+    assert (out / "status.png") in res.figures["status"]
