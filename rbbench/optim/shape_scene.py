@@ -13,12 +13,14 @@ piecewise-linear boundary), so it is imposed exactly, not linearised.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from rbbench.optim.shape_mesh import Grid, area, area_weights, elasticity_matrix
+from rbbench.scene.limits import NAME_PATTERN, check_name
 from rbbench.scene.loading import PROBLEMS_DIR, tomllib
 from rbbench.scene.parameters import ParameterSpace, SceneError
 
@@ -112,6 +114,8 @@ _FIELDS = {
     "objective": {"power": int},
 }
 _RENAME = {"contact_nodes": "n_contact", "coefficient": "friction0"}
+#: bounds that keep a run finite in memory and in floating point
+MAX_POWER, MAX_NODES, MAX_CELLS = 32, 10_001, 1_000_000
 
 
 def load_shape_scene(name_or_path: str | Path = "shape_coulomb",
@@ -123,26 +127,55 @@ def load_shape_scene(name_or_path: str | Path = "shape_coulomb",
     if not path.is_file():
         avail = sorted(p.stem for p in SHAPE_DIR.glob("*.toml"))
         raise SceneError(f"shape scene {name_or_path!r}: no file {path}; available: {avail}")
-    with open(path, "rb") as fh:
-        data = tomllib.load(fh)
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{path}: not a TOML shape scene ({exc})") from None
     for key, value in (overrides or {}).items():
         sec, _, k = key.partition(".")
         data.setdefault(sec, {})[k] = value
+    _check_keys(path, data)
     kw: dict[str, object] = {"source": str(path)}
     for sec, keys in _FIELDS.items():
         for k, typ in keys.items():
             if k in data.get(sec, {}):
                 kw[_RENAME.get(k, k)] = _typed(path, f"{sec}.{k}", data[sec][k], typ)
-    sc = replace(ShapeScene(), name=data.get("scene", {}).get("name", path.stem), **kw)
+    name = data.get("scene", {}).get("name", path.stem)
+    if not check_name(name):
+        raise SceneError(f"{path}: scene.name = {name!r}: give a name matching "
+                         f"{NAME_PATTERN} (it names the output folder)")
+    sc = replace(ShapeScene(), name=name, **kw)
     validate(sc, path)
     return sc
+
+
+#: the keys of the [scene] table (besides the numbered fields of _FIELDS)
+_SCENE_KEYS = ("name", "description", "reference")
+
+
+def _check_keys(path: Path, data: dict) -> None:
+    """Refuse an unknown section or key (a typo would be silently ignored), naming the
+    valid ones."""
+    valid = {"scene": _SCENE_KEYS, **{sec: tuple(keys) for sec, keys in _FIELDS.items()}}
+    for sec, table in data.items():
+        if sec not in valid:
+            raise SceneError(f"{path}: unknown section [{sec}]; a shape scene has "
+                             f"{', '.join(f'[{k}]' for k in valid)}")
+        if not isinstance(table, dict):
+            raise SceneError(f"{path}: [{sec}] must be a table of keys")
+        for key in table:
+            if key not in valid[sec]:
+                raise SceneError(f"{path}: unknown key {sec}.{key}; [{sec}] takes "
+                                 f"{', '.join(valid[sec])}")
 
 
 def _typed(path: Path, key: str, value: object, typ: type) -> object:
     if typ is int and (isinstance(value, bool) or not isinstance(value, int)):
         raise SceneError(f"{path}: {key} = {value!r}: expected an integer")
-    if typ is float and (isinstance(value, bool) or not isinstance(value, (int, float))):
-        raise SceneError(f"{path}: {key} = {value!r}: expected a number")
+    if typ is float and (isinstance(value, bool) or not isinstance(value, (int, float))
+                         or not math.isfinite(value)):
+        raise SceneError(f"{path}: {key} = {value!r}: expected a finite number")
     if typ is str and not isinstance(value, str):
         raise SceneError(f"{path}: {key} = {value!r}: expected a string")
     return typ(value)
@@ -163,7 +196,12 @@ def validate(sc: ShapeScene, where: Path | str) -> None:
         ("design.C2", sc.C2 <= sc.C3, f"{sc.C2} > C3 = {sc.C3}: need C2 <= C3"),
         ("design.initial", sc.initial in ("parabola", "vee", "flat"),
          f"{sc.initial!r}: valid are 'parabola', 'vee', 'flat'"),
-        ("objective.power", sc.power >= 2, f"{sc.power}: need an integer >= 2"),
+        ("objective.power", 2 <= sc.power <= MAX_POWER,
+         f"{sc.power}: need an integer in [2, {MAX_POWER}] (J = sum lam^p overflows beyond)"),
+        ("geometry.contact_nodes", sc.n_contact <= MAX_NODES,
+         f"{sc.n_contact}: need I <= {MAX_NODES}"),
+        ("geometry.ny", sc.n_contact * sc.ny <= MAX_CELLS,
+         f"{sc.ny}: need (I - 1) x ny <= {MAX_CELLS} cells (I = {sc.n_contact})"),
     ]
     for key, ok, msg in checks:
         if not ok:
