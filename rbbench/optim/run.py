@@ -20,6 +20,7 @@ from rbbench.optim.shape_adjoint import evaluate
 from rbbench.optim.shape_scene import ShapeScene
 from rbbench.optim.shape_state import solve_state
 from rbbench.runtime.threads import one_blas_thread
+from rbbench.scene.parameters import SceneError
 
 #: the values published in the talk "On coupling of complementarity with friction in contact
 #: shape optimization" (model B, Example 1, its own data): J(alpha_0), J(alpha_opt)
@@ -37,6 +38,22 @@ class OptimizeConfig:
     eps: float = 1e-6
     quiet: bool = False
     metric: str = "identity"
+
+    def __post_init__(self) -> None:
+        choices = {"driver": ("hf", "rb"), "method": ("bundle", "slsqp"),
+                   "metric": ("identity", "bfgs")}
+        for name, valid in choices.items():
+            if getattr(self, name) not in valid:
+                raise SceneError(f"optimize: {name} = {getattr(self, name)!r}: valid are "
+                                 f"{', '.join(valid)}")
+        for name in ("max_iter", "max_evals"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise SceneError(f"optimize: {name} = {v!r}: give an integer >= 1")
+        if (isinstance(self.eps, bool) or not isinstance(self.eps, (int, float))
+                or not math.isfinite(self.eps) or self.eps <= 0):
+            raise SceneError(f"optimize: eps = {self.eps!r}: give a finite number > 0 (the "
+                             "stopping tolerance on the predicted decrease)")
 
 
 class HFOracle:
@@ -130,9 +147,28 @@ def summary_of(sc: ShapeScene, cfg: OptimizeConfig, res, J0: float, wall_s: floa
     }
 
 
+#: the files of a run; a rerun into the same folder removes the previous run's first
+OUTPUTS = ("history.csv", "summary.json", "designs.png", "pressure.png", "history.png")
+
+
 def run_optimization(sc: ShapeScene, cfg: OptimizeConfig, out: Path) -> dict:
-    """Run, write ``history.csv``, ``summary.json`` and the PNGs into ``out``."""
+    """Run, write ``history.csv``, ``summary.json`` and the PNGs into ``out``.
+
+    One writer per folder (its run lock, as ``rbbench run``: a second run into ``out``
+    raises :class:`~rbbench.bench.guard.RunLockedError`); the previous run's files
+    (:data:`OUTPUTS`) are removed before the first new row, so a killed rerun never leaves
+    its history beside an older summary, and a file of that name that is a symbolic link is
+    removed, never written through."""
+    from rbbench.bench.guard import RunLock
+
     out.mkdir(parents=True, exist_ok=True)
+    with RunLock(out):
+        for name in OUTPUTS:
+            (out / name).unlink(missing_ok=True)
+        return _run(sc, cfg, out)
+
+
+def _run(sc: ShapeScene, cfg: OptimizeConfig, out: Path) -> dict:
     t0 = time.perf_counter()
     with one_blas_thread():
         if cfg.driver == "hf":

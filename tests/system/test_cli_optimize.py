@@ -78,3 +78,65 @@ def test_shape_side_by_side_study(tmp_path, capsys):
     assert r["J_uniform_bound"] <= min(r["hf_J"], r["rb_J_hf"])  # sum lam = load: a bound
     text = capsys.readouterr().out
     assert f"{r['hf_J']:.6e}" in text and "uniform-pressure bound" in text
+
+
+@pytest.mark.parametrize("eps", ["nan", "-1", "0", "inf"])
+def test_optimize_refuses_a_bad_eps(eps, capsys, tmp_path):
+    from rbbench.cli import main
+
+    assert main(["optimize", "--eps", eps, "--out", str(tmp_path / "o")]) == 2
+    assert "--eps" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_optimize_config_refuses_what_the_cli_refuses():
+    from rbbench.optim.run import OptimizeConfig
+    from rbbench.scene.parameters import SceneError
+
+    for bad in ({"eps": float("nan")}, {"max_iter": 0}, {"driver": "fast"},
+                {"metric": "newton"}, {"max_evals": 2.5}):
+        with pytest.raises(SceneError, match=next(iter(bad))):
+            OptimizeConfig(**bad)
+
+
+def test_an_optimize_rerun_never_mixes_files_and_holds_the_lock(tmp_path):
+    """A rerun into a folder removes the previous run's files before its first row (a
+    killed rerun leaves no older summary beside its history); a folder whose lock is held
+    is refused; a link among the outputs is removed, not written through."""
+    from rbbench.bench.guard import RunLock, RunLockedError
+    from rbbench.optim.run import OUTPUTS, run_optimization
+    from rbbench.optim.shape_scene import load_shape_scene
+
+    out = tmp_path / "o"
+    out.mkdir()
+    outside = tmp_path / "outside.txt"
+    outside.write_text("precious")
+    (out / "summary.json").write_text("{\"old\": true}")
+    (out / "designs.png").symlink_to(outside)
+    sc = load_shape_scene("shape_coulomb", {"geometry.contact_nodes": 9, "geometry.ny": 4})
+    cfg_stop = _tiny_config()
+    with RunLock(out), pytest.raises(RunLockedError):
+        run_optimization(sc, cfg_stop, out)
+    seen = {}
+
+    def spy(*a, **k):  # the first row: the old files are gone already
+        seen["files"] = sorted(p.name for p in out.iterdir() if p.name in OUTPUTS)
+        raise KeyboardInterrupt
+
+    import rbbench.optim.run as run_mod
+
+    orig = run_mod._run
+    run_mod._run = spy
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            run_optimization(sc, cfg_stop, out)
+    finally:
+        run_mod._run = orig
+    assert seen["files"] == []
+    assert outside.read_text() == "precious"
+
+
+def _tiny_config():
+    from rbbench.optim.run import OptimizeConfig
+
+    return OptimizeConfig(max_iter=1, max_evals=2, quiet=True)
