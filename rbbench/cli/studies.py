@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,51 @@ from rbbench.studies.published import PUBLISHED_SETTING
 HERTZ_SCENE = "a Hertz scene: name in problems/ or path to a .toml file"
 
 
+#: integer arguments of the studies: ``dest -> (flag, largest value)``; all must be >= 1
+STUDY_INTS = {"N": ("-N", 1000), "R": ("-R", 1000), "n_train": ("--n-train", 10_000),
+              "n_valid": ("--n-valid", 10_000), "repeats": ("--repeats", 10_000),
+              "n_cells": ("--n-cells", 1024), "P": ("-P", 10_000), "jobs": ("--jobs", 256),
+              "rounds": ("--rounds", 1000), "max_iter": ("--max-iter", 100_000),
+              "max_evals": ("--max-evals", 100_000)}
+#: float arguments: ``dest -> (flag, low, high, low included)``
+STUDY_FLOATS = {"eps": ("--eps", 0.0, math.inf, False), "pause": ("--pause", 0.0, 60.0, True)}
+
+
+def check_study_args(args: argparse.Namespace) -> None:
+    """Refuse, before any work, a study argument out of its range (naming the flag and the
+    range) and a ``--json`` file whose folder does not exist (it was noticed only after the
+    whole study had run)."""
+    for dest, (flag, high) in STUDY_INTS.items():
+        value = getattr(args, dest, None)
+        for v in value if isinstance(value, list) else [] if value is None else [value]:
+            if not 1 <= v <= high:
+                raise SceneError(f"{flag} {v}: must be an integer in [1, {high}]")
+    for dest, (flag, low, high, closed) in STUDY_FLOATS.items():
+        v = getattr(args, dest, None)
+        if v is None:
+            continue
+        ok = math.isfinite(v) and (low <= v if closed else low < v) and v <= high
+        if not ok:
+            bound = (f"{'>=' if closed else '>'} {low:g}" if math.isinf(high) else
+                     f"in {'[' if closed else '('}{low:g}, {high:g}]")
+            raise SceneError(f"{flag} {v:g}: must be a finite number {bound}")
+    target = getattr(args, "json", None)
+    if target:
+        folder = Path(target).resolve().parent
+        if not folder.is_dir():
+            raise SceneError(f"--json {target}: the folder {folder} does not exist")
+
+
+def _checked(run: Any) -> Any:
+    """``run`` after :func:`check_study_args`."""
+    def checked(args: argparse.Namespace) -> int:
+        check_study_args(args)
+        return run(args)
+
+    checked.__doc__ = run.__doc__
+    return checked
+
+
 def add_parser(sub) -> None:
     """Register ``studies`` and one subcommand per study on the CLI's subparsers."""
     st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-robin, "
@@ -34,7 +80,7 @@ def add_parser(sub) -> None:
                      (_add_heat_robin_parser, cmd_heat_robin),
                      (_add_shape_side_by_side_parser, cmd_shape_side_by_side),
                      (_add_snapshot_workers_parser, cmd_snapshot_workers)):
-        add(group).set_defaults(func=run)
+        add(group).set_defaults(func=_checked(run))
 
 
 def cmd_hertz_table(args) -> int:
@@ -84,7 +130,7 @@ def _add_study_tail(p, func) -> None:
     p.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE",
                    help="override a scene value (repeatable), e.g. discretization.degree=1")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
-    p.set_defaults(func=func)
+    p.set_defaults(func=_checked(func))
 
 
 def _add_hertz_table_parser(sub) -> None:
