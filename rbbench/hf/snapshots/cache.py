@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -160,15 +161,35 @@ def atomic_write(path: Path, write) -> None:
         raise
 
 
+#: the arrays of a snapshot file that its checksum covers, in order
+CHECKED = ("mu", "u", "lam", "lam_t", "free", "iterations", "stop_reason", "n_dofs")
+
+
+def checksum(arrays: dict[str, np.ndarray]) -> str:
+    """sha256 over the dtype, shape and bytes of the :data:`CHECKED` arrays."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for name in CHECKED:
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}:{a.dtype.str}:{a.shape};".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
 def save_snapshot(path: Path, snap: Snapshot) -> None:
-    """Write ``snap`` to ``path`` atomically (``np.savez``)."""
+    """Write ``snap`` to ``path`` atomically (``np.savez``), with the :func:`checksum` of
+    its arrays."""
+    arrays = {"mu": np.asarray(snap.mu, dtype=float), "u": np.asarray(snap.u, dtype=float),
+              "lam": np.asarray(snap.lam, dtype=float),
+              "lam_t": np.asarray(snap.lam_t, dtype=float),
+              "free": np.asarray(snap.free if snap.free is not None else [], dtype=np.int64),
+              "iterations": np.int64(snap.iterations), "stop_reason": np.str_(snap.stop_reason),
+              "n_dofs": np.int64(snap.n_dofs)}
 
     def write(fh):
-        np.savez(fh, mu=np.asarray(snap.mu, dtype=float), u=np.asarray(snap.u, dtype=float),
-                 lam=np.asarray(snap.lam, dtype=float), iterations=np.int64(snap.iterations),
-                 stop_reason=np.str_(snap.stop_reason), time_s=np.float64(snap.time_s),
-                 free=np.asarray(snap.free if snap.free is not None else [], dtype=np.int64),
-                 n_dofs=np.int64(snap.n_dofs), lam_t=np.asarray(snap.lam_t, dtype=float))
+        np.savez(fh, **arrays, time_s=np.float64(snap.time_s),
+                 checksum=np.str_(checksum(arrays)))
 
     atomic_write(path, write)
 
@@ -185,12 +206,41 @@ def load_snapshot(path: Path, need_lam_t: bool = False) -> Snapshot:
                         free=z["free"], n_dofs=int(z["n_dofs"]), lam_t=lam_t)
 
 
+def verify(path: Path) -> str | None:
+    """Why the snapshot file ``path`` cannot be trusted, or None: no checksum (written by
+    an older rbbench), a checksum that does not match its arrays (the file was modified),
+    non-finite values, or arrays whose sizes disagree (``u`` against ``free``)."""
+    with np.load(path, allow_pickle=False) as z:
+        if "checksum" not in z.files:
+            return "no checksum (an older cache file)"
+        arrays = {name: z[name] for name in CHECKED if name in z.files}
+        if len(arrays) < len(CHECKED) or checksum(arrays) != str(z["checksum"]):
+            return "its checksum does not match its content (the file was modified)"
+    u, lam, free = arrays["u"], arrays["lam"], arrays["free"]
+    if not (np.isfinite(u).all() and np.isfinite(lam).all()):
+        return "non-finite values"
+    if free.size and u.size != free.size:
+        return f"u has {u.size} entries for {free.size} free dofs"
+    return None
+
+
 def load_if_complete(path: Path, mu: np.ndarray, need_lam_t: bool = False) -> Snapshot | None:
+    """The cached snapshot at ``path`` for ``mu``, or None (then it is recomputed): no file,
+    an unreadable one, a friction file without ``lam_t``, another mu, or a file
+    :func:`verify` does not trust (a warning names the file and why, unless it is merely an
+    older cache file)."""
     if not path.exists():
         return None
     try:
-        snap = load_snapshot(path, need_lam_t)
-    except Exception:  # unreadable, or a friction file without lam_t: recompute
+        why = verify(path)
+        if why is None:
+            snap = load_snapshot(path, need_lam_t)
+    except Exception as exc:  # noqa: BLE001 - unreadable, or no lam_t: recompute
+        why = f"unreadable ({type(exc).__name__})"
+    if why is not None:
+        if not why.startswith("no checksum") and not why.startswith("unreadable (KeyError"):
+            warnings.warn(f"{path}: cached snapshot not used, recomputed: {why}",
+                          RuntimeWarning, stacklevel=2)
         return None
     return snap if np.array_equal(snap.mu, mu) else None
 

@@ -186,7 +186,24 @@ def test_corrupt_cache_file_is_recomputed(scene, tmp_path):
     S = compute_snapshots(scene, mus, cache_dir=tmp_path, n_jobs=1, progress=False)
     path = snapshots.cache_path(tmp_path, S.key, mus[2])
     path.write_bytes(b"garbage")
-    S2 = compute_snapshots(scene, mus, cache_dir=tmp_path, n_jobs=1, progress=False)
+    with pytest.warns(RuntimeWarning, match="cached snapshot not used, recomputed: unreadable"):
+        S2 = compute_snapshots(scene, mus, cache_dir=tmp_path, n_jobs=1, progress=False)
+    assert S2.n_computed == 1
+    np.testing.assert_array_equal(S.U, S2.U)
+
+
+def test_a_tampered_cache_file_is_recomputed(scene, tmp_path):
+    """u multiplied by 1000 under the same key and mu: the checksum catches it, the
+    snapshot is recomputed and equals the original (it was used silently before)."""
+    mus = parameter_set(scene, "train", n=3)
+    S = compute_snapshots(scene, mus, cache_dir=tmp_path, n_jobs=1, progress=False)
+    path = snapshots.cache_path(tmp_path, S.key, mus[1])
+    with np.load(path, allow_pickle=False) as z:
+        data = {k: z[k] for k in z.files}
+    data["u"] = data["u"] * 1000
+    np.savez(path, **data)
+    with pytest.warns(RuntimeWarning, match="checksum does not match"):
+        S2 = compute_snapshots(scene, mus, cache_dir=tmp_path, n_jobs=1, progress=False)
     assert S2.n_computed == 1
     np.testing.assert_array_equal(S.U, S2.U)
 
