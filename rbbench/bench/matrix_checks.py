@@ -20,7 +20,7 @@ import math
 import re
 from typing import Any
 
-from rbbench.rb.friction.options import DEPRECATED_DUALS
+from rbbench.rb.friction.options import AUTO, DEPRECATED_DUALS
 from rbbench.rb.friction.options import FRICTION_DUALS as _FRICTION_DUALS
 from rbbench.scene import limits
 
@@ -65,7 +65,7 @@ REDUCE_FIELDS: dict[str, tuple] = {
 
 
 #: the reduced friction dual models (rbbench.rb.friction.options), and their old names
-FRICTION_DUALS = (*_FRICTION_DUALS, *DEPRECATED_DUALS)
+FRICTION_DUALS = (AUTO, *_FRICTION_DUALS, *DEPRECATED_DUALS)
 
 
 def _online_methods() -> tuple[str, ...]:

@@ -205,11 +205,12 @@ def _add_mixed_args(m: Any) -> None:
 
 def _add_friction_args(f: Any) -> None:
     """The options of the mixed formulation on friction scenes (argument group ``f``)."""
-    f.add_argument("--friction-dual", choices=("collocation", "wedge", "seed"),
-                   help="the dual model: collocation (normal cone, POD of lam_t, Coulomb "
-                   "collocated at GCNS nodes) or wedge (cones of F lam_n +- lam_t, De Saxce's "
-                   "fixed point: the Coulomb cone at every node); 'seed': old name of "
-                   "collocation (deprecated)")
+    f.add_argument("--friction-dual", choices=("auto", "collocation", "wedge", "seed"),
+                   help="the dual model: auto (wedge on Coulomb scenes, with the friction EIM "
+                   "when --hyper is auto; collocation on Tresca scenes), collocation (normal "
+                   "cone, POD of lam_t, Coulomb collocated at GCNS nodes) or wedge (cones of "
+                   "F lam_n +- lam_t, De Saxce's fixed point: the Coulomb cone at every "
+                   "node); 'seed': old name of collocation (deprecated)")
     f.add_argument("-S", type=int, help="tangential size (collocation: POD of lam_t; wedge: "
                    "generators of the F lam_n - lam_t cone; default R)")
     f.add_argument("--gcns-per-iteration", type=int,

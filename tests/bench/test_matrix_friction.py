@@ -87,7 +87,7 @@ def test_friction_dual_axis_is_the_reduce_field(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text(head + 'friction_dual = ["box"]\n')
     with pytest.raises(MatrixError,
-                       match="friction_dual = 'box'; valid: collocation, wedge, seed"):
+                       match="friction_dual = 'box'; valid: auto, collocation, wedge, seed"):
         load_matrix(bad, registry=reg)
     grid = tmp_path / "grid.toml"
     grid.write_text(head + "[params.friction_dual.collocation]\ngcns_patience = [1, 2]\n")

@@ -48,5 +48,5 @@ def test_friction_dual_is_checked_on_the_command_line_and_in_a_matrix(tmp_path, 
                  'dual = ["cpg"]\nstabilizer = ["none"]\n[sizes]\nN = [3]\nR = [3]\n'
                  '[reduce]\nfriction_dual = "bogus"\n')
     with pytest.raises(MatrixError,
-                       match="friction_dual = 'bogus'; valid: collocation, wedge, seed"):
+                       match="friction_dual = 'bogus'; valid: auto, collocation, wedge, seed"):
         load_matrix(p, registry=default_registry())

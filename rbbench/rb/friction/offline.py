@@ -30,18 +30,36 @@ point online (:mod:`rbbench.rb.friction.wedge.model`). The choice is read from t
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from rbbench.rb.compressors import is_online
 from rbbench.rb.config import ReduceConfig
 from rbbench.rb.friction.collocation.stage import FrictionStage
-from rbbench.rb.friction.options import FrictionOptions
+from rbbench.rb.friction.options import AUTO, FrictionOptions
 from rbbench.rb.friction.wedge.stage import WedgeStage
 from rbbench.rb.offline import fixed_contact_points
 from rbbench.registry import Registry
 from rbbench.scene.loading import Scene, SceneError
 
-__all__ = ["FrictionReduction"]
+__all__ = ["FrictionReduction", "resolve_auto"]
+
+
+def resolve_auto(scene: Scene, config: ReduceConfig) -> ReduceConfig:
+    """``friction_dual = "auto"``: the wedge model on a Coulomb scene, the collocation model
+    on a Tresca scene; with the wedge model, hyper ``auto`` becomes the friction EIM when the
+    scene's contact points are fixed (else the plain model). The choice measured best on the
+    published case (errors near the floors, the Coulomb cone at every node, an online stage
+    independent of the mesh)."""
+    options = config.options
+    if options.friction_dual != AUTO:
+        return config
+    law = scene.data.get("friction", {}).get("law", "coulomb")
+    dual = "wedge" if law == "coulomb" else "collocation"
+    hyper = config.hyper
+    if dual == "wedge" and hyper == "auto":
+        hyper = "eim" if fixed_contact_points(scene, "auto") else "none"
+    return replace(config, hyper=hyper, options=replace(options, friction_dual=dual))
 
 
 class FrictionReduction:
@@ -59,6 +77,8 @@ class FrictionReduction:
         registry.get("primal", config.primal)
         registry.get("dual", options.dual)
         registry.get("stabilizer", options.stabilizer)
+        config = resolve_auto(scene, config)
+        options = config.options
         wedge = options.friction_dual == "wedge"
         if config.hyper not in ("auto", "none") and not (wedge and config.hyper == "eim"):
             raise SceneError(f"{scene.path}: hyper {config.hyper!r}: the reduced friction "

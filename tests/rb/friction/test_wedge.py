@@ -95,18 +95,43 @@ def test_wedge_snapshots_reconstruct_and_refuse_outside_the_cone():
 
 
 def test_friction_dual_choice_and_table():
-    """The dual model is an option (default: collocation; 'seed', the deprecated alias);
+    """The dual model is an option (default: auto; 'seed', the deprecated alias);
     unknown names refused; the comparison table puts summaries side by side."""
     from rbbench.rb.friction.options import FrictionOptions
     from rbbench.rb.friction.wedge.stage import comparison_table
 
-    assert FrictionOptions().friction_dual == "collocation"
+    assert FrictionOptions().friction_dual == "auto"
     assert FrictionOptions(friction_dual="wedge").friction_dual == "wedge"
     with pytest.warns(DeprecationWarning, match="'seed' is now 'collocation'"):
         assert FrictionOptions(friction_dual="seed").friction_dual == "collocation"
-    with pytest.raises(ValueError, match="valid: collocation, wedge"):
+    with pytest.raises(ValueError, match="valid: auto, collocation, wedge"):
         FrictionOptions(friction_dual="box")
     table = comparison_table({"collocation": {"R": 20, "S": 20, "err_u_max": 0.015},
                               "wedge": {"R": 20, "S": 20, "err_u_max": 2.4e-4}})
     assert "| dual unknowns (R + S) | 40 | 40 |" in table
     assert "| err_u max | 1.50e-02 | 2.40e-04 |" in table
+
+
+@pytest.mark.parametrize("law, hyper, integration, expected", [
+    ("coulomb", "auto", "gauss", ("wedge", "eim")),
+    ("coulomb", "none", "gauss", ("wedge", "none")),
+    ("coulomb", "auto", "segmented", ("wedge", "none")),  # moving points: no EIM
+    ("tresca", "auto", "gauss", ("collocation", "auto")),
+])
+def test_auto_picks_the_model_for_the_law(law, hyper, integration, expected):
+    """friction_dual = auto: the wedge model (and its EIM with hyper auto, when the contact
+    points are fixed) on Coulomb scenes, the collocation model on Tresca scenes."""
+    from types import SimpleNamespace
+
+    from rbbench.rb.config import ReduceConfig
+    from rbbench.rb.friction.offline import resolve_auto
+    from rbbench.rb.friction.options import FrictionOptions
+
+    scene = SimpleNamespace(path="s.toml", data={
+        "friction": {"law": law},
+        "discretization": {"contact_integration": integration},
+        "geometry": {"kind": "halfdisks", "lower": "half_disk"}})
+    cfg = resolve_auto(scene, ReduceConfig(hyper=hyper, options=FrictionOptions()))
+    assert (cfg.options.friction_dual, cfg.hyper) == expected
+    explicit = ReduceConfig(hyper=hyper, options=FrictionOptions(friction_dual="collocation"))
+    assert resolve_auto(scene, explicit) is explicit
