@@ -107,7 +107,8 @@ def test_reduced_model_check_only_on_friction_scenes():
     assert reduced_model_check(load_scene("hertz_halfdisks"), comp, {}, reg) == ("run", "")
     fr = load_scene("hertz_friction")
     assert reduced_model_check(fr, comp, {"friction_dual": "wedge"}, reg) == ("run", "")
-    assert reduced_model_check(fr, comp, {}, reg)[0] == "skip"  # default collocation model
+    assert reduced_model_check(fr, comp, {}, reg) == ("run", "")  # default: auto, wedge
+    assert reduced_model_check(fr, comp, {"friction_dual": "collocation"}, reg)[0] == "skip"
     status, reason = reduced_model_check(fr, {**comp, "stabilizer": "supremizer",
                                               "hyper": "none"}, {}, reg)
     assert status == "skip" and "supremizer" in reason

@@ -268,7 +268,8 @@ def test_rbbench_reduce_on_the_friction_scene(monkeypatch):
     _offline()
     monkeypatch.chdir(tmp_path)
     argv = ["reduce", "hertz_friction", "--n-train", "7", "--n-valid", "3", "--jobs", "2",
-            "-R", "7", "--stabilizer", "pga", "--out", str(tmp_path / "out"), "--quiet"]
+            "-R", "7", "--stabilizer", "pga", "--friction-dual", "collocation",
+            "--out", str(tmp_path / "out"), "--quiet"]
     for o in COARSE:
         argv += ["--set", o]
     assert main(argv) == 0

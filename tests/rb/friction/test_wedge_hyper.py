@@ -138,7 +138,7 @@ def test_slip_deim_interpolates_at_its_nodes_and_refuses_hyper_with_collocation(
     zero = slip_deim(np.zeros((12, 3)), P)
     assert zero.info["M_s"] == 0 and not zero.PQ.any()
     scene = load_scene("hertz_friction", overrides=COARSE)
-    cfg = make_config(solver="friction-ssn", hyper="eim")
+    cfg = make_config(solver="friction-ssn", hyper="eim", friction_dual="collocation")
     with pytest.raises(SceneError, match="wedge"):
         prepare_config(scene, cfg, default_registry())
     assert WedgeReducedModel.__dataclass_fields__.keys() <= \
