@@ -83,7 +83,7 @@ def check_values(obj: Any, where: str) -> None:
     """Refuse a field value of the dataclass ``obj`` that its type or meaning excludes,
     naming the field and what is valid: an integer field given a bool, a float or a
     string (``N = 3.7``); a count or size below 1 (:data:`POSITIVE_INTS`); a non-finite
-    float; a tolerance ``tol*`` not > 0; ``delta_pga`` outside (0, 1] (it bounds the PGA
+    float; a negative tolerance ``tol*``; ``delta_pga`` outside (0, 1] (it bounds the PGA
     defect sigma, which lies in [0, 1]). Every formulation's options and
     :class:`ReduceConfig` go through it before any HF work, on the command line and in the
     Python API alike."""
@@ -107,8 +107,9 @@ def check_values(obj: Any, where: str) -> None:
             if (isinstance(v, bool) or not isinstance(v, numbers.Real)
                     or not math.isfinite(v)):
                 raise ValueError(f"{name}: give a finite number")
-            if f.name.startswith("tol") and v <= 0:
-                raise ValueError(f"{name}: give a tolerance > 0")
+            if f.name.startswith("tol") and v < 0:
+                raise ValueError(f"{name}: give a tolerance >= 0 (0: as many terms as the "
+                                 "data allow)")
             if f.name == "delta_pga" and not 0 < v <= 1:
                 raise ValueError(f"{name}: give a value in (0, 1] (the PGA defect sigma "
                                  "lies in [0, 1])")

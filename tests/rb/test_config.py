@@ -89,9 +89,9 @@ def test_a_matrix_case_whose_formulation_refuses_an_option_is_a_skip_row(tmp_pat
 BAD_VALUES = [
     ("N", 0, "give an integer >= 1"), ("N", 3.7, "give an integer"),
     ("N", True, "give an integer"), ("n_valid", "5", "give an integer"),
-    ("tol_pod", 0.0, "tolerance > 0"), ("tol_pod", float("nan"), "finite number"),
+    ("tol_pod", -1.0, "tolerance >= 0"), ("tol_pod", float("nan"), "finite number"),
     ("R", -1, "integer >= 1"), ("k_pga_max", 0, "integer >= 1"),
-    ("tol_eim", float("nan"), "finite number"), ("tol_dual", -1e-3, "tolerance > 0"),
+    ("tol_eim", float("nan"), "finite number"), ("tol_dual", -1e-3, "tolerance >= 0"),
     ("delta_pga", -1.0, r"in \(0, 1\]"), ("delta_pga", float("inf"), "finite number"),
     ("exact_max_r", -1, "integer >= 0"), ("m_eim", 2.5, "give an integer"),
 ]
