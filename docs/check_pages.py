@@ -1,9 +1,10 @@
 """Open HTML pages in a real headless browser and check they render.
 
-    python docs/check_pages.py PAGE.html [PAGE.html ...] [--browser chromium]
+    python docs/check_pages.py PAGE.html [PAGE.html ...] [--site DIR] [--browser chromium]
 
-Each page is served over HTTP from its own directory (``http.server`` in this process,
-so relative links and scripts resolve as they do on a web server) and opened by the
+Each page is served over HTTP from its site's root (``--site``, default the page's own
+folder; ``http.server`` in this process, so relative links and scripts resolve as they do
+on a web server) and opened by the
 browser inside a same-origin frame of a probe page. Once the page has loaded, the probe
 records, for every ``<img>`` of the page, whether it loaded (``complete`` with a natural
 width above 0), and the length of the page's visible text; the browser prints the DOM
@@ -88,16 +89,22 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
         pass
 
 
-def check_page(page: Path, browser: str, min_text: int = 200,
-               timeout: float = 120.0) -> PageCheck:
-    """Serve ``page``'s directory, open the probe in ``browser``, read the record."""
+def check_page(page: Path, browser: str, min_text: int = 200, timeout: float = 120.0,
+               site: Path | None = None) -> PageCheck:
+    """Serve ``site`` (default: ``page``'s folder; give the site's root when the page
+    links to files above its folder, as a page of a Sphinx build does), open the probe in
+    ``browser``, read the record."""
     page = page.resolve()
     if not page.is_file():
         return PageCheck(page, False, "no such file")
+    site = (site or page.parent).resolve()
+    if not page.is_relative_to(site):
+        return PageCheck(page, False, f"not inside the served site {site}")
     with tempfile.TemporaryDirectory(prefix="rbbench-pages-") as tmp:
         root = Path(tmp)
-        (root / "site").symlink_to(page.parent, target_is_directory=True)
-        (root / "probe.html").write_text(PROBE.format(src=f"site/{page.name}"))
+        (root / "site").symlink_to(site, target_is_directory=True)
+        rel = page.relative_to(site).as_posix()
+        (root / "probe.html").write_text(PROBE.format(src=f"site/{rel}"))
         server, port = _serve(root)
         try:
             out = subprocess.run(
@@ -135,6 +142,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("pages", nargs="+", type=Path, help="HTML files to open")
     ap.add_argument("--browser", help="browser binary (default: chromium, chromium-browser "
                     "or google-chrome, the first on the PATH)")
+    ap.add_argument("--site", type=Path, default=None,
+                    help="the folder served as the site's root (default: each page's own "
+                    "folder); the root of a Sphinx build for its pages")
     ap.add_argument("--min-text", type=int, default=200,
                     help="characters of visible text below which a page counts as blank "
                     "(default: 200)")
@@ -146,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     failed = 0
     for page in args.pages:
-        res = check_page(page, browser, args.min_text)
+        res = check_page(page, browser, args.min_text, site=args.site)
         failed += not res.ok
         print(f"{'ok  ' if res.ok else 'FAIL'} {page}: {res.reason} ({res.images} images, "
               f"{res.text} characters of text)")

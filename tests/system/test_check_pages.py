@@ -42,6 +42,9 @@ def site(tmp_path_factory):
     (d / "good.html").write_text(f"<html><body>{text}<img src='fig.png'></body></html>")
     (d / "broken.html").write_text(f"<html><body>{text}<img src='nope.png'></body></html>")
     (d / "blank.html").write_text("<html><body><div></div></body></html>")
+    (d / "sub").mkdir()
+    (d / "sub" / "page.html").write_text(f"<html><body>{text}<img src='../fig.png'></body>"
+                                         "</html>")
     return d
 
 
@@ -64,3 +67,12 @@ def test_a_blank_page_fails(check_pages, site):
 def test_a_missing_file_fails_and_the_command_exits_1(check_pages, site, capsys):
     assert check_pages.main([str(site / "absent.html")]) == 1
     assert "no such file" in capsys.readouterr().out
+
+
+def test_a_page_linking_above_its_folder_needs_the_sites_root(check_pages, site):
+    """A page of a site (as a Sphinx build's) loads its images from above its folder: with
+    the site's root served it passes, with only its folder it fails."""
+    browser = check_pages.find_browser()
+    assert check_pages.check_page(site / "sub" / "page.html", browser, site=site).ok
+    alone = check_pages.check_page(site / "sub" / "page.html", browser)
+    assert not alone.ok and "fig.png" in alone.reason
