@@ -289,14 +289,8 @@ def cmd_snapshot_workers(args: argparse.Namespace) -> int:
     from rbbench.scene.sampling import parameter_set
     from rbbench.studies.snapshot_workers import markdown, snapshot_workers
 
-    for flag, name in (("-P", "P"), ("--jobs", "jobs"), ("--rounds", "rounds")):
-        if getattr(args, name) < 1:
-            raise SceneError(f"studies snapshot-workers {flag} {getattr(args, name)}: "
-                             "must be an integer >= 1")
-    scene = load_scene(args.scene, args.overrides)
+    scene = load_scene(args.scene, args.overrides)  # the counts: check_study_args
     mus = parameter_set(scene, "valid", n=args.P, kind="lhs")
-    if args.pause < 0:
-        raise SceneError(f"studies snapshot-workers --pause {args.pause}: must be >= 0")
     out = snapshot_workers(scene, mus, args.jobs, args.rounds, args.pause)
     rows = out["cases"]
     print(f"scene {scene.name}, {len(mus)} parameters per call, {args.rounds} interleaved "
