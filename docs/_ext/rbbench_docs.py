@@ -214,7 +214,8 @@ def matrix_reference() -> str:
     from rbbench.registry import default_registry
 
     helps = _reduce_help()
-    kinds = {"int": "integer in [{1}, {2}]", "float": "number > {1}", "dict": "a table"}
+    kinds = {"int": "integer in [{1}, {2}]", "float": "number > {1}", "float>=": "number >= {1}",
+             "dict": "a table"}
     rows = []
     for name, spec in sorted(REDUCE_FIELDS.items()):
         kind = spec[0]

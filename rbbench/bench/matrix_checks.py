@@ -48,8 +48,13 @@ def _pos_float() -> tuple[str, float, None]:
     return ("float", 0.0, None)
 
 
+def _nonneg_float() -> tuple[str, float, None]:
+    return ("float>=", 0.0, None)
+
+
 #: ``field -> (kind, low, high)`` of the ReduceConfig fields a matrix may set: ``int``
-#: (integers in [low, high]), ``float`` (finite numbers > low), ``dict`` (a table), or
+#: (integers in [low, high]), ``float`` (finite numbers > low), ``float>=`` (finite numbers
+#: >= low: a tolerance of 0 takes as many terms as the data allow), ``dict`` (a table), or
 #: ``("choice", values)``. ``None`` is not valid: leave the field out for its default.
 REDUCE_FIELDS: dict[str, tuple] = {
     "n_train": _int(1, limits.MAX_SAMPLES), "n_valid": _int(1, limits.MAX_SAMPLES),
@@ -58,7 +63,7 @@ REDUCE_FIELDS: dict[str, tuple] = {
     "m_eim": _int(1, MAX_SIZE), "n_eim_train": _int(1, limits.MAX_SAMPLES),
     "gcns_per_iteration": _int(1, MAX_SIZE), "gcns_max": _int(1, MAX_SIZE),
     "gcns_patience": _int(1, MAX_SIZE),
-    "tol_pod": _pos_float(), "tol_dual": _pos_float(), "tol_eim": _pos_float(),
+    "tol_pod": _nonneg_float(), "tol_dual": _nonneg_float(), "tol_eim": _nonneg_float(),
     "delta_pga": _pos_float(),
     "backend_options": ("dict", None, None), "formulation_options": ("dict", None, None),
 }
@@ -88,6 +93,8 @@ def _describe(spec: tuple) -> str:
         return f"an integer in [{lo}, {hi}]"
     if kind == "float":
         return "a finite number > 0"
+    if kind == "float>=":
+        return "a finite number >= 0"
     return "a table (e.g. {mesh = \"skfem\"})"
 
 
@@ -108,6 +115,8 @@ def check_reduce_value(key: str, value: Any, where: str) -> None:
     kind, lo, hi = spec
     ok = ((kind == "int" and _is_int(value) and lo <= value <= hi)
           or (kind == "float" and _is_number(value) and math.isfinite(value) and value > lo)
+          or (kind == "float>=" and _is_number(value) and math.isfinite(value)
+              and value >= lo)
           or (kind == "dict" and isinstance(value, dict)))
     if not ok:
         raise MatrixError(f"{where}: {key} = {value!r}; expected {_describe(spec)}")

@@ -195,8 +195,7 @@ def _add_mixed_args(m: Any) -> None:
                    help="PGA tolerance on sigma_max (default: the rule of "
                    "rbbench.rb.compressors.pga_delta, written as result.json pga_delta)")
     m.add_argument("--k-max", type=int, dest="k_pga_max",
-                   help="cap on the PGA dimension K (online primal size N + K; default: no "
-                   "cap)")
+                   help="cap on the PGA dimension K (online primal size N + K; none: no cap)")
     m.add_argument("--exact-max-r", type=int, help="largest cone whose inf-sup constant is "
                    "computed exactly (larger: bounds)")
     m.add_argument("--online-method", help="frictionless: reduced solver auto, nnls, pdas "
@@ -229,15 +228,17 @@ DECLARED = ((ReduceConfig, "every formulation"), (MixedOptions, "mixed"),
 
 def field_defaults(name: str) -> dict[str, Any]:
     """``{whose: default}`` of the reduction field ``name`` in the dataclasses of
-    :data:`DECLARED` that declare it with a default value (``None``: a rule, said in the
-    help's words, is left out)."""
+    :data:`DECLARED` that declare it with a default value. ``None`` (a rule, said in the
+    help's words) is left out, unless another dataclass has a value: then it is shown as
+    ``none`` beside it (``--k-max``: mixed none, friction 40)."""
     out = {}
     for cls, whose in DECLARED:
         for f in dataclasses.fields(cls):
-            if f.name == name and f.default is not dataclasses.MISSING \
-                    and f.default is not None:
+            if f.name == name and f.default is not dataclasses.MISSING:
                 out[whose] = f.default
-    return out
+    if all(v is None for v in out.values()):
+        return {}
+    return {k: ("none" if v is None else v) for k, v in out.items()}
 
 
 def state_defaults(parser: argparse.ArgumentParser) -> None:

@@ -259,6 +259,28 @@ def units_of(physics: str) -> dict[str, str]:
 
 
 DEFINITIONS = {
+    "n_dofs": "displacement (or scalar) degrees of freedom of the HF discretisation, "
+              "constrained ones included",
+    "n_free_dofs": "the degrees of freedom left after the Dirichlet conditions",
+    "n_contact": "columns of the multiplier basis (friction: the slave contact nodes, each "
+                 "carrying lam_n and lam_t)",
+    "n_contact_quadrature": "contact quadrature points on the slave boundary",
+    "n_active": "multipliers above 1e-8 of the largest (rbbench.hf.metrics.ACTIVE_THRESHOLD): "
+                "the active set",
+    "multiplier": "the multiplier space (lac, p0, p1, nodal; friction: p1 friction nodes)",
+    "iterations": "iterations of the contact solver (active-set, Newton or Uzawa steps)",
+    "converged": "true when stop_reason is 'converged'",
+    "solve_time_s": "wall time of the solve (s): operators at mu, contact solver and "
+                    "recovery of u, without meshing; its parts in times_s",
+    "times_s": "wall times of the solve's parts (s)",
+    "solver_info": "the contact solver's own diagnostics (fallbacks, condensation used, ...)",
+    "min_multiplier": "smallest multiplier value (negative: a sign violation, in the units "
+                      "of max_pressure)",
+    "flagged": "true when every multiplier is 0 while the bodies penetrate beyond "
+               "contact_half_width_gap_tol: the result is then reported as not converged "
+               "(stop_reason 'flagged')",
+    "material": "E (Pa) and nu of each body, plane strain",
+    "radii": "R1, R2 (m): the radii of the upper and lower bodies at this mu",
     "contact_force": "total normal contact force per unit thickness "
                      f"({_U['contact_force']}): vertical resultant int lam (-n_y) over the "
                      "slave zone (obstacle: int lam); Nitsche: int p (-n_y) with the point "

@@ -62,3 +62,17 @@ def test_an_unknown_hyper_lists_the_registered_ones(tmp_path, registry):
     with pytest.raises(MatrixError, match=r"\[components\] hyper: 'nope'; valid: auto, "
                        r"affine, .*outside-hyper"):
         load_matrix(_matrix(tmp_path, "nope"), registry=registry)
+
+
+@pytest.mark.parametrize("value, ok", [(0.0, True), (1e-6, True), (-1e-3, False),
+                                       (float("nan"), False), (True, False)])
+def test_matrix_tolerances_as_the_reduction_takes_them(value, ok):
+    """A run matrix takes a tolerance of 0 (as many terms as the data allow), as
+    ``ReduceConfig`` does, and refuses a negative or non-finite one, naming the field."""
+    from rbbench.bench.matrix_checks import MatrixError, check_reduce_value
+
+    if ok:
+        check_reduce_value("tol_pod", value, "m.toml [reduce]")
+    else:
+        with pytest.raises(MatrixError, match=r"m\.toml \[reduce\]: tol_pod = .*>= 0"):
+            check_reduce_value("tol_pod", value, "m.toml [reduce]")

@@ -113,7 +113,11 @@ def test_reduction_flags_show_the_dataclass_defaults(command):
         checked.append(action.dest)
         values = declared - {None, dataclasses.MISSING}
         assert len(values) <= 1, f"{action.dest}: formulations differ: {values}"
-        if values and f"(default: {shown_default(values.pop())})" not in text:
+        if values and None in declared:  # a value for some formulations, none for others
+            v = shown_default(values.pop())
+            if not ("(default: " in text and f" {v})" in text and " none" in text):
+                wrong.append(f"{_name(action)}: {text!r}")
+        elif values and f"(default: {shown_default(values.pop())})" not in text:
             wrong.append(f"{_name(action)}: {text!r}")
         elif not values and "default" not in text:  # a rule (None): said in words
             wrong.append(f"{_name(action)} (default None, no rule given): {text!r}")

@@ -20,8 +20,9 @@ After the primal space V_N (shared skeleton, :mod:`rbbench.rb.offline`; POD of u
    (:class:`rbbench.rb.friction.collocation.model.FrictionReducedModel`).
 
 These steps are Benaceur et al.'s model, the collocation model
-(:class:`rbbench.rb.friction.collocation.stage.FrictionStage`, ``friction_dual = "collocation"``,
-the default). ``friction_dual = "wedge"`` selects our alternative
+(:class:`rbbench.rb.friction.collocation.stage.FrictionStage`, ``friction_dual = "collocation"``;
+the default ``auto`` takes it on Tresca scenes). ``friction_dual = "wedge"`` selects our
+alternative (the default ``auto`` on Coulomb scenes, :func:`resolve_auto`)
 (:class:`rbbench.rb.friction.wedge.stage.WedgeStage`): cones of ``F lam_n +- lam_t`` in
 place of steps 1 and 3 (the Coulomb cone at every HF node, no GCNS) and De Saxce's fixed
 point online (:mod:`rbbench.rb.friction.wedge.model`). The choice is read from the ReduceConfig
