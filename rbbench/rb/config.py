@@ -11,6 +11,9 @@ names the option and the formulations that take it (never a silently ignored opt
 from __future__ import annotations
 
 import inspect
+import math
+import numbers
+import typing
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields, is_dataclass
 from typing import Any
@@ -87,10 +90,6 @@ def check_values(obj: Any, where: str) -> None:
     defect sigma, which lies in [0, 1]). Every formulation's options and
     :class:`ReduceConfig` go through it before any HF work, on the command line and in the
     Python API alike."""
-    import math
-    import numbers
-    import typing
-
     hints = typing.get_type_hints(type(obj))
     for f in fields(obj):
         v, hint = getattr(obj, f.name), str(hints.get(f.name, ""))

@@ -57,13 +57,13 @@ class ParameterSpace:
                                  f"unknown: {unknown or 'none'}, missing: {missing or 'none'}")
             mu = [mu[n] for n in self.names]
         try:
-            if isinstance(mu, (str, bytes)) or (isinstance(mu, (list, tuple)) and any(
-                    isinstance(x, (str, bytes, bool)) for x in mu)) or isinstance(mu, bool):
-                raise TypeError("not numbers")
-            return np.atleast_1d(np.asarray(mu, dtype=float)).ravel()
-        except (TypeError, ValueError):
+            arr = np.asarray(mu)
+        except ValueError:  # ragged nesting
+            arr = np.empty(0, dtype=object)
+        if arr.dtype.kind not in "iuf":  # strings, bools, objects: not numbers
             raise SceneError(f"{self.where}: mu = {mu!r}: give {self.dim} number(s) "
-                             f"({self._domains()}), or a dict of them by name") from None
+                             f"({self._domains()}), or a dict of them by name")
+        return np.atleast_1d(arr.astype(float)).ravel()
 
     def check(self, mu: Any) -> np.ndarray:
         """``mu`` as a float array of length :attr:`dim`, or :class:`SceneError` naming the

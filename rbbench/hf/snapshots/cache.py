@@ -19,6 +19,7 @@ interrupted run loses nothing that finished and never leaves a partial file.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import tempfile
@@ -167,8 +168,6 @@ CHECKED = ("mu", "u", "lam", "lam_t", "free", "iterations", "stop_reason", "n_do
 
 def checksum(arrays: dict[str, np.ndarray]) -> str:
     """sha256 over the dtype, shape and bytes of the :data:`CHECKED` arrays."""
-    import hashlib
-
     h = hashlib.sha256()
     for name in CHECKED:
         a = np.ascontiguousarray(arrays[name])
@@ -194,29 +193,34 @@ def save_snapshot(path: Path, snap: Snapshot) -> None:
     atomic_write(path, write)
 
 
+def _read(path: Path) -> dict[str, np.ndarray]:
+    """Every array of the snapshot file ``path``, read once."""
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def _snapshot(data: dict[str, np.ndarray], path: Path, need_lam_t: bool) -> Snapshot:
+    if need_lam_t and "lam_t" not in data:
+        raise KeyError(f"{path}: no lam_t")
+    return Snapshot(mu=data["mu"], u=data["u"], lam=data["lam"],
+                    iterations=int(data["iterations"]), stop_reason=str(data["stop_reason"]),
+                    time_s=float(data["time_s"]), free=data["free"],
+                    n_dofs=int(data["n_dofs"]), lam_t=data.get("lam_t", np.empty(0)))
+
+
 def load_snapshot(path: Path, need_lam_t: bool = False) -> Snapshot:
     """Read a snapshot file written by :func:`save_snapshot` (``need_lam_t``: a KeyError
     when the file predates the stored ``lam_t``)."""
-    with np.load(path, allow_pickle=False) as z:
-        if need_lam_t and "lam_t" not in z.files:
-            raise KeyError(f"{path}: no lam_t")
-        lam_t = z["lam_t"] if "lam_t" in z.files else np.empty(0)
-        return Snapshot(mu=z["mu"], u=z["u"], lam=z["lam"], iterations=int(z["iterations"]),
-                        stop_reason=str(z["stop_reason"]), time_s=float(z["time_s"]),
-                        free=z["free"], n_dofs=int(z["n_dofs"]), lam_t=lam_t)
+    return _snapshot(_read(path), path, need_lam_t)
 
 
-def verify(path: Path) -> str | None:
-    """Why the snapshot file ``path`` cannot be trusted, or None: no checksum (written by
-    an older rbbench), a checksum that does not match its arrays (the file was modified),
-    non-finite values, or arrays whose sizes disagree (``u`` against ``free``)."""
-    with np.load(path, allow_pickle=False) as z:
-        if "checksum" not in z.files:
-            return "no checksum (an older cache file)"
-        arrays = {name: z[name] for name in CHECKED if name in z.files}
-        if len(arrays) < len(CHECKED) or checksum(arrays) != str(z["checksum"]):
-            return "its checksum does not match its content (the file was modified)"
-    u, lam, free = arrays["u"], arrays["lam"], arrays["free"]
+def _distrust(data: dict[str, np.ndarray]) -> str | None:
+    """Why the arrays of a snapshot file cannot be trusted, or None (:func:`verify`)."""
+    if "checksum" not in data:
+        return "no checksum (an older cache file)"
+    if any(name not in data for name in CHECKED) or checksum(data) != str(data["checksum"]):
+        return "its checksum does not match its content (the file was modified)"
+    u, lam, free = data["u"], data["lam"], data["free"]
     if not (np.isfinite(u).all() and np.isfinite(lam).all()):
         return "non-finite values"
     if free.size and u.size != free.size:
@@ -224,17 +228,25 @@ def verify(path: Path) -> str | None:
     return None
 
 
+def verify(path: Path) -> str | None:
+    """Why the snapshot file ``path`` cannot be trusted, or None: no checksum (written by
+    an older rbbench), a checksum that does not match its arrays (the file was modified),
+    non-finite values, or arrays whose sizes disagree (``u`` against ``free``)."""
+    return _distrust(_read(path))
+
+
 def load_if_complete(path: Path, mu: np.ndarray, need_lam_t: bool = False) -> Snapshot | None:
     """The cached snapshot at ``path`` for ``mu``, or None (then it is recomputed): no file,
     an unreadable one, a friction file without ``lam_t``, another mu, or a file
     :func:`verify` does not trust (a warning names the file and why, unless it is merely an
-    older cache file)."""
+    older cache file). The file is read once."""
     if not path.exists():
         return None
     try:
-        why = verify(path)
+        data = _read(path)
+        why = _distrust(data)
         if why is None:
-            snap = load_snapshot(path, need_lam_t)
+            snap = _snapshot(data, path, need_lam_t)
     except Exception as exc:  # noqa: BLE001 - unreadable, or no lam_t: recompute
         why = f"unreadable ({type(exc).__name__})"
     if why is not None:
