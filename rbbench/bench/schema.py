@@ -146,6 +146,15 @@ COLUMNS: tuple[Column, ...] = (
     _c("friction_residual_max", "float", "accuracy", "1", "friction: max over ALL HF nodes "
        "of [|lam_t| - F lam_n]_+ (Tresca: [|lam_t| - s]_+) of the reconstructed reduced "
        "multipliers, relative to the largest reconstructed lam_n (Tresca: s), max " + _VALID),
+    _c("friction_law_residual_max", "float", "accuracy", "1", "friction: max over ALL HF "
+       "contact nodes of the friction law residual of the reconstruction (u_N, lam_n, lam_t): "
+       "max(min(|v|, |lam_t - s sign(v)|), |lam_t| - s, -lam_n, 0), slips v over the HF "
+       "solution's max |v|, forces over its max lam_n, s = F lam_n (Tresca: the threshold); "
+       "0 iff every node sticks or slips against the bound, max " + _VALID),
+    _c("slip_law_residual_max", "float", "accuracy", "1", "friction: max over the HF nodes "
+       "where the reconstruction slips (|v| > 1e-3 of the HF solution's max |v|) of "
+       "|lam_t - s sign(v)| over the HF solution's max lam_n (a slipping node off the bound "
+       "that opposes its slip), max " + _VALID),
     _c("online_iterations_max", "int", "accuracy", "", "friction: iterations of the online "
        "fixed point (collocation: Tresca QPs; wedge: De Saxce), max " + _VALID),
     # stability
