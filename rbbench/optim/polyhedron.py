@@ -61,8 +61,9 @@ class Polyhedron:
 
     def project(self, z: np.ndarray) -> np.ndarray:
         """The Euclidean projection ``argmin |x - z|`` over the polyhedron (a strictly convex
-        QP, by daqp: Arnstrom, Bemporad, Axehill 2022); ValueError if daqp fails (an empty
-        polyhedron) or its answer violates the polyhedron by more than 1e-9."""
+        QP, by daqp: Arnstrom, Bemporad, Axehill 2022), clipped to the bounds so that they
+        hold exactly; ValueError if daqp fails (an empty polyhedron) or its answer violates
+        the polyhedron by more than 1e-9."""
         import daqp
 
         z = np.asarray(z, dtype=float).ravel()
@@ -73,7 +74,7 @@ class Polyhedron:
         lo = np.maximum(np.r_[self.lb, self.cl], -big)
         x, _, flag, _ = daqp.solve(np.eye(self.n), -z, np.ascontiguousarray(self.C), up, lo,
                                    np.zeros(up.size, dtype=np.int32), primal_tol=1e-12)
-        x = np.asarray(x, dtype=float)
+        x = np.clip(np.asarray(x, dtype=float), self.lb, self.ub)  # bounds exactly
         if int(flag) != 1 or not self.is_feasible(x, 1e-9):
             raise ValueError(f"project: daqp exit flag {int(flag)} (empty polyhedron?)")
         return x

@@ -440,7 +440,7 @@ def test_projection_matches_clip_and_slsqp(seed):
     x = poly.project(z)
     assert poly.is_feasible(x, 1e-9)
     ref = minimize(lambda y: 0.5 * (y - z) @ (y - z), np.zeros(n), jac=lambda y: y - z,
-                   method="SLSQP", bounds=list(zip(poly.lb, poly.ub)),
+                   method="SLSQP", bounds=list(zip(poly.lb, poly.ub, strict=True)),
                    constraints=[LinearConstraint(C, poly.cl, poly.cu)],
                    options={"ftol": 1e-12, "maxiter": 1000})
     assert ref.success and np.max(np.abs(x - ref.x)) <= 1e-7
