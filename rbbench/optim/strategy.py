@@ -4,18 +4,21 @@ Why the local solver alone stops short. ``J = sum_i lam_i^p`` (``p = 6``) of the
 normal forces; equilibrium fixes ``sum_i lam_i = P`` (the whole vertical load goes
 through the contact nodes), so by Jensen's inequality ``J >= I (P / I)^p`` with equality
 for the uniform forces ``lam* = P / I`` (:meth:`~rbbench.optim.shape_scene.ShapeScene.
-uniform_pressure_bound`). A node out of contact has a positive gap: small changes of its
-design do not change the state, its component of every subgradient is zero, and the
-bundle method (a first-order method) cannot see that lowering it would share the load.
+uniform_pressure_bound`). A node out of contact has a positive gap: a small change of its
+design changes the state only through the stiffness of the body, so its component of the
+subgradient is small (at the initial design of the 21-node scene at most 0.8 % of the
+largest one on a contact node) and blind to the load the node could take: the bundle
+method (a first-order method) does not see that lowering it would share the load.
 From the scene's initial parabola it stops with about half the nodes carrying the load.
-Closing the gaps alone does not help: lowering each free node by its gap (measured: 7 HF
-solves from the default design) brings every node onto the foundation with zero force
-(weak contact), where the subgradient still vanishes and ``J`` is unchanged.
+Closing the gaps alone does not help: lowering each free node by its gap brings the nodes
+onto the foundation with zero force (weak contact), where the same holds (measured from
+the default design: after 10 closing steps every gap is zero, 24 of 81 nodes touch with
+zero force, ``J`` is 81.1 times the bound against 80.8 at the start).
 
 The phase (:func:`equalise_phase`). The design that carries the target forces is computed
-directly, by the displacement-adjustment fixed point used to design tools for a target
-shape under load (Gan & Wagoner 2004, *Int. J. Mech. Sci.* 46:1097, sec. 3: adjust the
-unloaded shape by the computed displacement until the loaded shape is the target). Here
+directly, by the displacement-adjustment (DA) fixed point used to design tools for a
+target shape under load (Gan & Wagoner 2004, *Int. J. Mech. Sci.* 46:1097-1113: adjust
+the unloaded shape by the computed displacement until the loaded shape is the target). Here
 the target loaded shape is the foundation itself, loaded by ``lam*``: at the current design
 ``alpha_k``, with its condensed stiffness ``S_k``, load ``f_k`` and tangential forces
 ``tau_k`` (:mod:`~rbbench.optim.shape_state`), solve ``S_k u = f_k + (tau_k, lam*)`` (the

@@ -178,3 +178,24 @@ def test_infeasible_start_is_refused():
     sc = load_shape_scene(overrides=COARSE)
     with pytest.raises(ValueError, match="alpha0 is infeasible"):
         equalise_phase(sc, sc.initial_design() + 1.0, lambda a: solve_state(sc, a))
+
+
+def close_gaps(sc, steps):
+    """Lower every node by its gap (projected), ``steps`` times: the naive gap closing."""
+    poly = Polyhedron(**sc.admissible())
+    alpha = sc.initial_design()
+    for _ in range(steps):
+        st_ = solve_state(sc, alpha)
+        alpha = poly.project(alpha - np.maximum(st_.u_n + alpha, 0.0))
+    return solve_state(sc, alpha)
+
+
+def test_closing_the_gaps_alone_leaves_the_load_where_it_is():
+    """Why the phase prescribes forces: with every gap closed the free nodes touch with
+    zero force, and J stays far above the bound (the plain method's valley)."""
+    sc = load_shape_scene(overrides=COARSE)
+    st_ = close_gaps(sc, 10)
+    gap = st_.u_n + st_.alpha
+    assert np.max(gap) <= 1e-9                               # every gap closed
+    assert np.sum(np.abs(st_.lam) <= 1e-8 * st_.lam.max()) >= 3   # touching, no force
+    assert np.sum(st_.lam ** sc.power) > 50 * sc.uniform_pressure_bound()
