@@ -336,8 +336,8 @@ def _run_staged(sc: ShapeScene, cfg: OptimizeConfig, out: Path, t0: float):
     counts = {"hf_solves": cost["hf_solves_total"], "hf_time_s": oracle.time_s,
               "strategy_cost": cost}
     if cfg.driver == "rb":
-        counts.update(rb_solves=rows.rb_done, basis_size=final.basis_size,
-                      J_opt_hf=final.J_hf, J_opt_reduced=final.f)
+        counts.update(rb_solves=rows.rb_done, basis_size=getattr(final, "basis_size", 0),
+                      J_opt_hf=getattr(final, "J_hf", math.nan), J_opt_reduced=final.f)
     return res, counts, hist
 
 

@@ -246,3 +246,14 @@ def test_shape_strategy_study(tmp_path, capsys):
 def test_shape_strategy_study_refuses_bad_repeats(capsys):
     assert main(["studies", "shape-strategy", "--repeats", "0"]) == 2
     assert "--repeats" in capsys.readouterr().err
+
+
+def test_failing_first_state_solve_of_the_strategy_rb_driver(tmp_path, monkeypatch):
+    def failing(sc, alpha, y0=None):
+        raise StateSolveError("semismooth Newton: no convergence (injected)")
+
+    monkeypatch.setattr(run_mod, "solve_state", failing)
+    out = tmp_path / "f"
+    assert main(["optimize", *TINY, "--driver", "rb", "--out", str(out), "--quiet"]) == 1
+    s = json.loads((out / "summary.json").read_text())
+    assert s["stop_reason"].startswith("oracle failed") and s["rb_solves"] == 0
