@@ -79,7 +79,7 @@ def run(args) -> int:
     print(f"J0 {s['J0']:.6e}  J_opt {s['J_opt']:.6e}  ratio {s['ratio']:.4e} (published: "
           f"{s['published']['ratio']:.4e})  iterations {s['iterations']}  HF solves "
           f"{s.get('hf_solves')}  wall {s['wall_s']:.1f} s  stop: {s['stop_reason']}\n"
-          f"J / uniform-pressure bound {s['J_over_bound']:.4g} (bound {s['J_uniform_bound']:.6e})"
+          f"J / uniform-pressure bound {s['J_over_bound']:.8g} (bound {s['J_uniform_bound']:.6e})"
           f"  strategy {s['strategy']}: {s['strategy_cost']['outer_stages']} stage(s), "
           f"{s['strategy_cost']['phase_state_solves']} phase state solves\n"
           f"constraint residuals at the optimum (max, raw): {s['constraint_residual_max_opt']:.2e}"
