@@ -18,7 +18,7 @@ HELP = {
     "metric": "bundle subproblem metric: identity (Schramm-Zowe BT) or bfgs (damped BFGS at "
               "serious steps, rbbench.optim.bundle_metric)",
     "eps": "stopping tolerance on the predicted decrease, relative to J0",
-    "strategy": "equalise (default): stages of a load-equalising design phase (HF state "
+    "strategy": "equalise: stages of a load-equalising design phase (HF state "
                 "solves that set the design carrying the uniform nodal force, "
                 "rbbench.optim.strategy) and the local solver from its design; none: the "
                 "local solver alone from the initial design (the plain bundle method)",
