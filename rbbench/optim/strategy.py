@@ -3,12 +3,13 @@
 Why the local solver alone stops short. ``J = sum_i lam_i^p`` (``p = 6``) of the nodal
 normal forces; equilibrium fixes ``sum_i lam_i = P`` (the whole vertical load goes
 through the contact nodes), so by Jensen's inequality ``J >= I (P / I)^p`` with equality
-for the uniform forces ``lam* = P / I`` (:meth:`~rbbench.optim.shape_scene.ShapeScene.
-uniform_pressure_bound`). A node out of contact has a positive gap: a small change of its
-design changes the state only through the stiffness of the body, so its component of the
-subgradient is small (at the initial design of the 21-node scene at most 0.8 % of the
-largest one on a contact node) and blind to the load the node could take: the bundle
-method (a first-order method) does not see that lowering it would share the load.
+for the uniform forces ``lam* = P / I``
+(:meth:`~rbbench.optim.shape_scene.ShapeScene.uniform_pressure_bound`). A node out of
+contact has a positive gap: a small change of its design changes the state only through
+the stiffness of the body, so its component of the subgradient is small (at the initial
+design of the 21-node scene at most 0.8 % of the largest one on a contact node) and blind
+to the load the node could take: the bundle method (a first-order method) does not see
+that lowering it would share the load.
 From the scene's initial parabola it stops with about half the nodes carrying the load.
 Closing the gaps alone does not help: lowering each free node by its gap brings the nodes
 onto the foundation with zero force (weak contact), where the same holds (measured from
