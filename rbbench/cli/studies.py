@@ -1,6 +1,6 @@
 """The study commands: ``rbbench hertz-table``, ``nitsche-table``, ``nitsche-compare`` and
 ``rbbench studies STUDY`` (pymor-thermal-block, heat-robin, shape-side-by-side,
-snapshot-workers); the studies themselves live in :mod:`rbbench.studies`.
+shape-strategy, snapshot-workers); the studies themselves live in :mod:`rbbench.studies`.
 
 The published figures are those of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order
 reduction methods: parametric variational inequalities" (talk), and of the talk "On
@@ -73,12 +73,13 @@ def _checked(run: Any) -> Any:
 def add_parser(sub) -> None:
     """Register ``studies`` and one subcommand per study on the CLI's subparsers."""
     st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-robin, "
-                        "shape-side-by-side, snapshot-workers)")
+                        "shape-side-by-side, shape-strategy, snapshot-workers)")
     group = st.add_subparsers(dest="study", required=True, metavar="STUDY",
                               help="the study (rbbench studies STUDY --help: its arguments)")
     for add, run in ((_add_pymor_thermal_block_parser, cmd_pymor_thermal_block),
                      (_add_heat_robin_parser, cmd_heat_robin),
                      (_add_shape_side_by_side_parser, cmd_shape_side_by_side),
+                     (_add_shape_strategy_parser, cmd_shape_strategy),
                      (_add_snapshot_workers_parser, cmd_snapshot_workers)):
         add(group).set_defaults(func=_checked(run))
 
@@ -264,6 +265,41 @@ def cmd_shape_side_by_side(args: argparse.Namespace) -> int:
     res = shape_side_by_side(args.scene, parse_overrides(args.set), args.metric, args.max_iter,
                              args.max_evals, args.eps)
     return print_and_dump(shape_markdown(res), res, args.json)
+
+def _add_shape_strategy_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies shape-strategy`` (``sub``: argparse subparsers)."""
+    p = sub.add_parser("shape-strategy", help="rbbench optimize with --strategy none and "
+                       "equalise side by side in one process: J, J / uniform-pressure bound, "
+                       "HF solves, stages, wall time")
+    p.add_argument("--scene", default="shape_coulomb", help=OPTIMIZE_HELP["scene"])
+    p.add_argument("--driver", nargs="+", choices=("hf", "rb"), default=["hf"],
+                   help="the drivers to run (each with both strategies)")
+    p.add_argument("--repeats", type=int, default=1,
+                   help="runs of each configuration, alternated (wall time: the median)")
+    p.add_argument("--metric", choices=("identity", "bfgs"), default="identity",
+                   help=OPTIMIZE_HELP["metric"])
+    p.add_argument("--max-iter", type=int, default=100, help=OPTIMIZE_HELP["max_iter"])
+    p.add_argument("--max-evals", type=int, default=300, help=OPTIMIZE_HELP["max_evals"])
+    p.add_argument("--eps", type=float, default=1e-6, help=OPTIMIZE_HELP["eps"])
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override a scene field, e.g. --set geometry.ny=20")
+    p.add_argument("--out-dir", type=Path, default=None,
+                   help="keep each run's files in OUT_DIR/<driver>_<strategy>_<repeat> "
+                        "(default: a temporary folder)")
+    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    return p
+
+
+def cmd_shape_strategy(args: argparse.Namespace) -> int:
+    """Run the study and print its table."""
+    from rbbench.optim.shape_scene import parse_overrides
+    from rbbench.studies.shape_strategy import strategy_markdown, strategy_side_by_side
+
+    res = strategy_side_by_side(args.scene, parse_overrides(args.set), tuple(args.driver),
+                                args.repeats, args.max_iter, args.max_evals, args.eps,
+                                args.metric, args.out_dir)
+    return print_and_dump(strategy_markdown(res), res, args.json)
+
 
 def _add_snapshot_workers_parser(sub: Any) -> argparse.ArgumentParser:
     """``rbbench studies snapshot-workers`` (``sub``: argparse subparsers)."""
