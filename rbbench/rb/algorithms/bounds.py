@@ -57,7 +57,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-__all__ = ["BoundTerms", "VIBound", "coercivity_constants", "hf_bound_terms",
+__all__ = ["BoundTerms", "VIBound", "coercivity_constants", "delassus", "hf_bound_terms",
            "natural_dual", "riesz_factor", "vi_bound"]
 
 #: Relative safety margin on the computed extreme eigenvalues of ``(A, X)`` (Lanczos /
@@ -123,10 +123,9 @@ def natural_dual(B: Any, x_solve: Callable[[np.ndarray], np.ndarray]
     """``d -> ||d||_*' = (d^T D^{-1} d)^(1/2)``, ``D = B X^{-1} B^T`` (m solves with X, a
     dense Cholesky of D). A ValueError when D is not positive definite (``B^T`` not
     injective: the natural norm is no norm, the HF inf-sup fails)."""
-    Bd = B.toarray() if sp.issparse(B) else np.asarray(B, dtype=float)
-    D = Bd @ np.asarray(x_solve(np.asfortranarray(Bd.T)), dtype=float).reshape(Bd.shape[1], -1)
+    D = delassus(B, x_solve)
     try:
-        cho = sla.cho_factor(0.5 * (D + D.T), lower=True)
+        cho = sla.cho_factor(D, lower=True)
     except np.linalg.LinAlgError:
         raise ValueError("B X^-1 B^T is not positive definite: B^T is not injective (the HF "
                          "inf-sup condition fails), the natural multiplier norm is no norm"
@@ -137,6 +136,14 @@ def natural_dual(B: Any, x_solve: Callable[[np.ndarray], np.ndarray]
         return float(np.linalg.norm(y))
 
     return dual_norm
+
+
+def delassus(B: Any, x_solve: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """``D = B X^{-1} B^T`` (m x m dense, symmetrised): m solves with X, B kept sparse."""
+    Bt = B.T.toarray() if sp.issparse(B) else np.asarray(B, dtype=float).T
+    Y = np.asarray(x_solve(np.asfortranarray(Bt)), dtype=float).reshape(Bt.shape)
+    D = np.asarray(B @ Y)
+    return 0.5 * (D + D.T)
 
 
 def hf_bound_terms(A: Any, F: np.ndarray, B: Any, G: np.ndarray,

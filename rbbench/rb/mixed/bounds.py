@@ -40,6 +40,7 @@ from rbbench.rb.algorithms.bounds import (
     BoundTerms,
     VIBound,
     coercivity_constants,
+    delassus,
     hf_bound_terms,
     natural_dual,
     riesz_factor,
@@ -215,10 +216,8 @@ def _dual_factor(B: Any, X: Any, x_solve: Callable[[np.ndarray], np.ndarray]) ->
             Di = sp.diags(1.0 / b)
             return {"Dinv": sp.csr_matrix(Di @ sp.csr_matrix(X) @ Di)}
         raise BoundUnsupported("B has a zero row: B^T is not injective")
-    Bd = Bs.toarray()
-    D = Bd @ np.asarray(x_solve(np.asfortranarray(Bd.T)), dtype=float).reshape(Bd.shape[1], -1)
     try:
-        L = np.linalg.cholesky(0.5 * (D + D.T))
+        L = np.linalg.cholesky(delassus(Bs, x_solve))
     except np.linalg.LinAlgError:
         raise BoundUnsupported("B X^-1 B^T is not positive definite: B^T is not injective "
                                "(the HF inf-sup condition fails)") from None
