@@ -18,31 +18,36 @@ injective, the HF inf-sup condition), whose dual norm is ``||d||_*' = (d^T D^{-1
 so no inf-sup constant enters (the HF inf-sup in another multiplier norm, ``beta_W``, only
 converts ``Delta_lam`` into that norm: ``||e_lam||_W <= Delta_lam / beta_W``).
 
-**Theorem** (HSW's bound, re-derived in the natural multiplier norm). Let ``alpha_LB <=
-inf_v v^T A v / ||v||_X^2`` and ``gamma_UB >= sup_{v,w} w^T A v / (||w||_X ||v||_X)``, and::
+**Theorem** (HSW's bound, re-derived in the natural multiplier norm, with one
+Cauchy-Schwarz step left out). Let ``alpha_LB <= inf_v v^T A v / ||v||_X^2`` and ``gamma_UB
+>= sup_{v,w} w^T A v / (||w||_X ||v||_X)``, and::
 
     rho   = ||r_u||_X'                                   (1) primal residual
     sigma = ||[d]_+||_*'                                 (2) violated part of the constraint
-    kappa = max(0, lam_N^T (G - B u_N))                  (3) complementarity
-    l_N   = ||lam_N||_* = ||B^T lam_N||_X'               (4)
+    kappa = lam_N^T [G - B u_N]_+  (>= 0)                (3) complementarity defect
+    l_N   = ||lam_N||_* = ||B^T lam_N||_X'               (4) (reported; not in (5))
 
 Then ``||u - u_N||_X <= Delta_u = delta_1 + (delta_1^2 + delta_2)^(1/2)`` with::
 
     delta_1 = (rho + gamma_UB sigma) / (2 alpha_LB),
-    delta_2 = (sigma (l_N + rho) + kappa) / alpha_LB                          (5)
+    delta_2 = (sigma rho + kappa) / alpha_LB                                  (5)
 
 and ``||lam - lam_N||_* <= Delta_lam = rho + gamma_UB Delta_u``                (6).
 
 *Proof.* With ``e = u - u_N``, ``e_lam = lam - lam_N``: ``A e + B^T e_lam = r_u``, so
 ``e^T A e = r_u(e) - e_lam^T B e``. The HF inequality at ``eta = lam_N in M`` gives
-``-e_lam^T B u <= -e_lam^T G``, hence ``-e_lam^T B e <= lam^T d - lam_N^T d <= lam^T [d]_+
-+ kappa`` (``lam >= 0``) ``<= ||lam||_* sigma + kappa``. Further ``||e_lam||_* = ||r_u - A
-e||_X' <= rho + gamma_UB ||e||_X`` (6) and ``||lam||_* <= l_N + ||e_lam||_*``, so
-``alpha_LB ||e||^2 <= rho ||e|| + sigma (l_N + rho + gamma_UB ||e||) + kappa``: a quadratic
-inequality whose larger root is (5). When ``u_N = u`` and ``lam_N = lam``: ``rho = sigma =
-kappa = 0`` and ``Delta_u = 0``. ``[d]_+`` may be replaced by any ``d - p`` with ``p <= 0``
-(the polar cone of M): the positive part is the simplest such choice, not the smallest
-dual norm (a QP), so (2) is an upper bound of HSW's projected residual.
+``-e_lam^T B u <= -e_lam^T G``, hence ``-e_lam^T B e <= lam^T d - lam_N^T d``. As ``lam >=
+0``, ``lam^T d <= lam^T [d]_+ = lam_N^T [d]_+ + e_lam^T [d]_+ <= lam_N^T [d]_+ +
+||e_lam||_* sigma``, and ``lam_N^T ([d]_+ - d) = kappa``. Further ``||e_lam||_* = ||r_u - A
+e||_X' <= rho + gamma_UB ||e||_X`` (6), so ``alpha_LB ||e||^2 <= rho ||e|| + sigma (rho +
+gamma_UB ||e||) + kappa``: a quadratic inequality whose larger root is (5). HSW bound
+``lam^T [d]_+ <= ||lam|| sigma`` instead, which gives ``sigma (l_N + rho) + max(0,
+lam_N^T (G - B u_N))`` in place of ``sigma rho + kappa``: an upper bound of it (``lam_N^T
+[d]_+ <= l_N sigma``), so (5) is never larger. When ``u_N = u`` and ``lam_N = lam``:
+``rho = sigma = 0`` and ``kappa = 0`` (complementarity), so ``Delta_u = 0``. ``[d]_+`` may
+be replaced by any ``d - p`` with ``p <= 0`` (the polar cone of M): the positive part is the
+simplest such choice, not the smallest dual norm (a QP), so (2) is an upper bound of HSW's
+projected residual.
 """
 
 from __future__ import annotations
@@ -71,7 +76,7 @@ class BoundTerms:
 
     rho: float  # ||r_u||_X'
     sigma: float  # ||[B u_N - G]_+||_*'
-    kappa: float  # max(0, lam_N . (G - B u_N))
+    kappa: float  # lam_N . [G - B u_N]_+
     lam_norm: float  # ||B^T lam_N||_X'
 
 
@@ -93,7 +98,7 @@ def vi_bound(terms: BoundTerms, alpha: float, gamma: float) -> VIBound:
         raise ValueError(f"coercivity lower bound alpha = {alpha}: must be > 0")
     t = terms
     d1 = (t.rho + gamma * t.sigma) / (2.0 * alpha)
-    d2 = (t.sigma * (t.lam_norm + t.rho) + t.kappa) / alpha
+    d2 = (t.sigma * t.rho + t.kappa) / alpha
     du = float(d1 + math.sqrt(d1 * d1 + d2))
     return VIBound(du, t.rho + gamma * du, terms, alpha, gamma)
 
@@ -159,7 +164,7 @@ def hf_bound_terms(A: Any, F: np.ndarray, B: Any, G: np.ndarray,
     r = F - A @ u_N - Btl
     d = B @ u_N - G
     return BoundTerms(rho=_xdual(r, x_solve), sigma=dual_norm(np.maximum(d, 0.0)),
-                      kappa=max(0.0, -float(lam_N @ d)), lam_norm=_xdual(Btl, x_solve))
+                      kappa=float(lam_N @ np.maximum(-d, 0.0)), lam_norm=_xdual(Btl, x_solve))
 
 
 def _xdual(r: np.ndarray, x_solve: Callable[[np.ndarray], np.ndarray]) -> float:

@@ -69,8 +69,8 @@ def bound_terms(mu, T, qF, qA, qB, C, qC, Gq, qG, Vg, c, a, ip, ix, dv, L, spars
         lam = 0.0
         for j in range(R):
             lam += Vg[r, j] * a[j]
-        kappa -= lam * d[r]
         if d[r] < 0.0:
+            kappa -= lam * d[r]
             d[r] = 0.0
     sig2 = 0.0
     if sparse:

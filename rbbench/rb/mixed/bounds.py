@@ -12,7 +12,7 @@ terms are split offline-online for a model whose HF operators are affine in mu
 * ``d = B Z c - G`` on the m contact rows (``B_q Z``, ``G_q`` offline), ``sigma = ||[d]_+||_*'``
   through ``D^{-1}``, ``D = B X^{-1} B^T`` (B independent of mu: factorised once; ``B``
   square and diagonal, as the membrane's lumped nodal multipliers: ``D^{-1} = B^{-1} X
-  B^{-1}``, sparse), ``kappa = max(0, -(Vg alpha) . d)``. This part costs O(m N) online
+  B^{-1}``, sparse), ``kappa = (Vg alpha) . [-d]_+``. This part costs O(m N) online
   (the positive part is not affine): like HSW's bound, the decomposition is partial, O(m)
   on the contact rows (on the membrane every interior node is a contact row).
 * ``alpha_LB``, ``gamma_UB``: the extreme eigenvalues of ``(A, X)`` when ``A`` does not
@@ -98,7 +98,7 @@ class MixedBound:
             sigma = float(np.sqrt(max(float(dp @ (self.Dinv @ dp)), 0.0)))
         else:
             sigma = float(np.linalg.norm(sla.solve_triangular(self.Lchol, dp, lower=True)))
-        kappa = max(0.0, -float((self.Vg @ a) @ d))
+        kappa = float((self.Vg @ a) @ np.maximum(-d, 0.0))
         return BoundTerms(rho, sigma, kappa, lam_norm)
 
     def terms_compiled(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray

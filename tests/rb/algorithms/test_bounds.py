@@ -73,6 +73,12 @@ def test_bound_holds_for_any_reduced_pair(seed, scale, lam_scale):
     err_u, err_lam = _errors(A, X, B, u, lam, u_N, lam_N, xs)
     assert b.delta_u >= err_u * (1 - 1e-10)
     assert b.delta_lam >= err_lam * (1 - 1e-10)
+    # never above HSW's own form: sigma (l_N + rho) + max(0, lam_N . (G - B u_N))
+    t = b.terms
+    d1 = (t.rho + gamma * t.sigma) / (2 * alpha)
+    hsw = d1 + np.sqrt(d1 * d1 + (t.sigma * (t.lam_norm + t.rho)
+                                  + max(0.0, lam_N @ (G - B @ u_N))) / alpha)
+    assert b.delta_u <= hsw * (1 + 1e-12)
 
 
 def test_bound_vanishes_at_the_hf_solution():
@@ -110,11 +116,11 @@ def test_a_coercivity_constant_that_is_not_a_lower_bound_is_caught():
 
 
 def test_quadratic_root():
-    """(5) is the larger root of alpha e^2 - (rho + gamma sigma) e - (sigma (l + rho) + kappa)."""
+    """(5) is the larger root of alpha e^2 - (rho + gamma sigma) e - (sigma rho + kappa)."""
     t = BoundTerms(rho=0.3, sigma=0.2, kappa=0.05, lam_norm=1.5)
     alpha, gamma = 0.7, 1.3
     e = vi_bound(t, alpha, gamma).delta_u
-    q = alpha * e * e - (t.rho + gamma * t.sigma) * e - (t.sigma * (t.lam_norm + t.rho) + t.kappa)
+    q = alpha * e * e - (t.rho + gamma * t.sigma) * e - (t.sigma * t.rho + t.kappa)
     assert abs(q) < 1e-12
     assert vi_bound(BoundTerms(0.3, 0.0, 0.0, 9.0), alpha, gamma).delta_u == \
         pytest.approx(0.3 / alpha)  # no violation: the linear bound rho / alpha
