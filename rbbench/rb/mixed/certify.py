@@ -69,7 +69,8 @@ class Certifier:
         self.rows: dict[str, list[float]] = {"t_bound": [], "effectivity": []}
         self.online, self.certified, self.alpha = None, "none", None
         model = stage.model
-        if stage.hyper == "affine":
+        cone = bool(stage.dual.is_cone) and float(np.min(stage.Vg, initial=0.0)) >= 0.0
+        if stage.hyper == "affine" and cone:
             try:
                 self.online = build_mixed_bound(ctx.problem_at, stage.Z_off, stage.Vg, ctx.X,
                                                 self.x_solve, ctx.scene.bounds)
@@ -80,15 +81,16 @@ class Certifier:
                             np.zeros(stage.R))  # compile / load the kernel, untimed
             except BoundUnsupported as exc:
                 self.info["online_refused"] = str(exc)
-        if self.online is None and stage.dual.is_cone:
+        if self.online is None and cone:
             if constant_stiffness(ctx.problem_at, ctx.scene.bounds):
                 A0 = ctx.problem_at(ctx.scene.default_mu).A
                 self.alpha, self.gamma = coercivity_constants(A0, ctx.X)
                 self.certified = "rigorous (HF-evaluated)"
             else:
                 self.info["refused"] = "a(.,.; mu) depends on mu: no coercivity lower bound"
-        elif not stage.dual.is_cone:
-            self.info["refused"] = "the dual space is not a cone of non-negative multipliers"
+        elif not cone:
+            self.info["refused"] = ("the dual space is not a cone of non-negative generators: "
+                                    "lam_N may leave M = {lam >= 0}, which the bound needs")
         self.info.update({"certified": self.certified, "alpha_lb": self.alpha,
                           "gamma_ub": getattr(self, "gamma", None),
                           "build_s": time.perf_counter() - t0})
