@@ -47,7 +47,7 @@ from rbbench.rb.algorithms.bounds import (
     vi_bound,
 )
 
-__all__ = ["BoundUnsupported", "MixedBound", "build_mixed_bound", "hf_bound"]
+__all__ = ["BoundUnsupported", "MixedBound", "build_mixed_bound", "constant_in_mu", "hf_bound"]
 
 
 class BoundUnsupported(ValueError):
@@ -173,17 +173,17 @@ def build_mixed_bound(problem_at: Callable[[np.ndarray], Any], Z: np.ndarray, Vg
     except NotAffineError as exc:
         raise BoundUnsupported(f"the HF operators are not affine in mu ({exc}): no online "
                                "bound (use the HF-evaluated bound)") from None
-    qF = _nonzero_terms(hf_terms[:, :, 0])
-    qA = _nonzero_terms(hf_terms[:, :, 1:1 + N])
-    qB = _nonzero_terms(hf_terms[:, :, 1 + N:])
-    if qA.size and qA.max() > 0:
+    if not constant_in_mu(lambda mu: problem_at(mu).A, bounds):
         raise BoundUnsupported("a(.,.; mu) depends on mu: no rigorous coercivity lower bound "
                                "is implemented for it (min-theta needs positive "
                                "semi-definite terms)")
-    qC = _nonzero_terms(row_terms[:, :, :N])
-    if qC.size and qC.max() > 0:
+    if not constant_in_mu(lambda mu: problem_at(mu).B, bounds):
         raise BoundUnsupported("B depends on mu: the natural multiplier norm's D = B X^-1 "
                                "B^T would too (no online dual norm of the constraint residual)")
+    qF = _nonzero_terms(hf_terms[:, :, 0])
+    qA = _nonzero_terms(hf_terms[:, :, 1:1 + N])
+    qB = _nonzero_terms(hf_terms[:, :, 1 + N:])
+    qC = _nonzero_terms(row_terms[:, :, :N])
     qG = _nonzero_terms(row_terms[:, :, N])
     pieces = [hf_terms[q, :, :1] for q in qF]
     pieces += [hf_terms[q, :, 1:1 + N] for q in qA]
@@ -197,6 +197,21 @@ def build_mixed_bound(problem_at: Callable[[np.ndarray], Any], Z: np.ndarray, Vg
                       Gq=np.ascontiguousarray(row_terms[qG][:, :, N]),
                       Vg=np.ascontiguousarray(Vg), alpha=alpha, gamma=gamma,
                       p=bounds.shape[0], **kw)
+
+
+def constant_in_mu(op_at: Callable[[np.ndarray], Any], bounds: np.ndarray,
+                   seed: int = 0) -> bool:
+    """Whether the HF matrix ``op_at(mu)`` is independent of mu: the affine decomposition of
+    ``op_at(mu) V`` (three random vectors V) has no term beyond the constant one (relative
+    1e-12; a matrix that is not affine in mu is not constant)."""
+    bounds = np.asarray(bounds, dtype=float)
+    M0 = op_at(bounds.mean(axis=1))
+    V = np.random.default_rng(seed).standard_normal((M0.shape[1], 3))
+    try:
+        terms = affine_decomposition(lambda mu: op_at(mu) @ V, bounds)
+    except NotAffineError:
+        return False
+    return bool(np.abs(terms[1:]).max(initial=0.0) <= 1e-12 * np.abs(terms[0]).max())
 
 
 def _hf_columns(p: Any, Z: np.ndarray, Vg: np.ndarray) -> np.ndarray:

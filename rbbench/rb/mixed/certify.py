@@ -16,9 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.rb.algorithms.affine import NotAffineError, affine_decomposition
 from rbbench.rb.algorithms.bounds import coercivity_constants
-from rbbench.rb.mixed.bounds import BoundUnsupported, build_mixed_bound, hf_bound
+from rbbench.rb.mixed.bounds import (
+    BoundUnsupported,
+    build_mixed_bound,
+    constant_in_mu,
+    hf_bound,
+)
 
 __all__ = ["BOUND_DEFINITIONS", "Certifier"]
 
@@ -47,18 +51,6 @@ BOUND_DEFINITIONS = {
 }
 
 
-def constant_stiffness(problem_at: Any, bounds: np.ndarray, seed: int = 0) -> bool:
-    """Whether ``A(mu)`` is independent of mu: the affine decomposition of ``A(mu) V`` (three
-    random vectors V) has no term beyond the constant one (relative 1e-12)."""
-    p0 = problem_at(np.asarray(bounds, float).mean(axis=1))
-    V = np.random.default_rng(seed).standard_normal((p0.A.shape[0], 3))
-    try:
-        terms = affine_decomposition(lambda mu: problem_at(mu).A @ V, bounds)
-    except NotAffineError:
-        return False
-    return bool(np.abs(terms[1:]).max(initial=0.0) <= 1e-12 * np.abs(terms[0]).max())
-
-
 class Certifier:
     """The bound of a mixed stage: offline build, per-mu numbers, summary."""
 
@@ -82,7 +74,7 @@ class Certifier:
             except BoundUnsupported as exc:
                 self.info["online_refused"] = str(exc)
         if self.online is None and cone:
-            if constant_stiffness(ctx.problem_at, ctx.scene.bounds):
+            if constant_in_mu(lambda mu: ctx.problem_at(mu).A, ctx.scene.bounds):
                 A0 = ctx.problem_at(ctx.scene.default_mu).A
                 self.alpha, self.gamma = coercivity_constants(A0, ctx.X)
                 self.certified = "rigorous (HF-evaluated)"
