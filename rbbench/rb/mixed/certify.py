@@ -39,7 +39,8 @@ BOUND_DEFINITIONS = {
     "certified": "'rigorous': the online bound (affine operators, mu-independent A and B); "
                  "'rigorous (HF-evaluated)': the same theorem with the HF operators at mu (no "
                  "online bound for this model, e.g. an EIM constraint); 'none': no bound, "
-                 "the reason in histories.bound",
+                 "the reason in histories.bound. A parameter where B^T is not injective (no "
+                 "natural multiplier norm) gets NaN rows, listed in histories.bound.no_bound_at",
     "bound_rho": "the bound's terms per validation mu, divided by the HF ||u||_X: bound_rho "
                  "= ||r_u||_X' (primal residual), bound_sigma = ||[B u_N - G]_+||_*' (the "
                  "violated constraint in the dual natural norm)",
@@ -106,7 +107,12 @@ class Certifier:
             self.rows["t_bound"].extend(times)
         else:
             t0 = time.perf_counter()
-            b = hf_bound(p, X, self.x_solve, hf.u, hf.lam, self.alpha, self.gamma)
+            try:
+                b = hf_bound(p, X, self.x_solve, hf.u, hf.lam, self.alpha, self.gamma)
+            except ValueError as exc:  # B^T not injective at this mu: no natural norm
+                self.info.setdefault("no_bound_at", []).append(
+                    {"mu": np.asarray(mu, float).tolist(), "reason": str(exc)})
+                return dict.fromkeys(_KEYS, float("nan"))  # the per-mu lists stay aligned
             self.rows.setdefault("t_bound_hf", []).append(time.perf_counter() - t0)
         eff = b.delta_u / err if err > 0 else float("inf")
         self.rows["effectivity"].append(eff)
@@ -129,6 +135,10 @@ class Certifier:
                 "t_bound_ratio": t_bound / t_online if t_bound and t_online else None,
                 "t_bound_hf_median_s": (float(np.median(self.rows["t_bound_hf"]))
                                         if self.rows.get("t_bound_hf") else None)}
+
+
+_KEYS = ("err_bound_u", "effectivity", "err_bound_lam", "err_lam_nat", "bound_rho",
+         "bound_sigma")
 
 
 def _xdual(r: np.ndarray, x_solve: Any) -> float:
