@@ -33,3 +33,21 @@ def test_rows_of_the_bound(tmp_path, stabilizer, certified):
         assert b.delta_u > 0
     else:
         assert s["t_bound_median_s"] is None
+
+
+def test_a_parameter_without_natural_norm_gets_nan_rows(tmp_path, monkeypatch):
+    from rbbench.rb.mixed import certify
+
+    def not_injective(*args, **kwargs):
+        raise ValueError("B X^-1 B^T is not positive definite: B^T is not injective")
+
+    monkeypatch.setattr(certify, "hf_bound", not_injective)
+    scene = rbbench.load_scene("membrane_obstacle", ["discretization.n_cells=8"])
+    res = rbbench.reduce(scene, N=4, R=4, n_train=9, n_valid=3, online_repeats=1,
+                         stabilizer="supremizer", cache_dir=str(tmp_path))
+    s = res.summary()
+    assert s["certified"] == "rigorous (HF-evaluated)"
+    assert len(s["per_mu"]["err_bound_u"]) == len(s["per_mu"]["err_u"]) == 3
+    assert all(np.isnan(v) for v in s["per_mu"]["err_bound_u"])
+    assert len(s["histories"]["bound"]["no_bound_at"]) == 3
+    assert s["effectivity_min"] is None
