@@ -60,7 +60,9 @@ class Certifier:
         self.ctx, self.x_solve = ctx, stage.x_solve
         self.info: dict[str, Any] = {}
         self.rows: dict[str, list[float]] = {"t_bound": [], "effectivity": []}
-        self.online, self.certified, self.alpha = None, "none", None
+        self.online, self.certified = None, "none"
+        self.alpha: float | None = None
+        self.gamma: float | None = None
         model = stage.model
         cone = bool(stage.dual.is_cone) and float(np.min(stage.Vg, initial=0.0)) >= 0.0
         if stage.hyper == "affine" and cone:
@@ -85,7 +87,7 @@ class Certifier:
             self.info["refused"] = ("the dual space is not a cone of non-negative generators: "
                                     "lam_N may leave M = {lam >= 0}, which the bound needs")
         self.info.update({"certified": self.certified, "alpha_lb": self.alpha,
-                          "gamma_ub": getattr(self, "gamma", None),
+                          "gamma_ub": self.gamma,
                           "build_s": time.perf_counter() - t0})
 
     def metrics(self, mu: np.ndarray, p: Any, u: np.ndarray, lam: np.ndarray, res: Any,
