@@ -48,7 +48,8 @@ _ROW_COLUMNS = ("scene", "backend", "formulation", "solver", "primal", "dual",
 _TITLES = {"pareto": "Error against online time (Pareto fronts)",
            "offline": "Offline cost against online time",
            "error_vs_size": "Error against RB size", "infsup": "Inf-sup constants",
-           "histories": "Offline histories", "speedup": "Speed-up",
+           "histories": "Offline histories", "bound": "Certified error bound",
+           "speedup": "Speed-up",
            "gcns": "GCNS curves (reduced friction)", "status": "Status counts",
            "lam_t": "lam_t, HF against RB (reduced friction)"}
 _KIND_PREFIX = {"cone-upper": "≤ ", "span-lower-bound": "≥ "}
