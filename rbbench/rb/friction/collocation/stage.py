@@ -67,6 +67,8 @@ DEFINITIONS = {
     "eim": "hyper 'eim': M_n, M_t, M_G the friction EIM sizes of Bn Z, Bt Z, Gn (magic "
            "entries of Vn^T Bn Z, Vt^T Bt Z, Vn^T Gn), rows the distinct HF contact rows "
            "paired online, n_eim_train the EIM training parameters (no HF solve there)",
+    "eim_error": "hyper 'eim': relative max-norm EIM training error of Bn Z after each "
+                 "term (eim_error_t: of Bt Z; eim_error_G: of Gn)",
     "speedup": "median HF solve time / median online time",
     "u_best": "per validation mu: ||u - Pi u||_X / ||u||_X, Pi the X-projection onto the "
               "online primal space span(Z_off): the floor of err_u",
@@ -155,6 +157,7 @@ class FrictionStage(ReducedStage):
         """hyper 'eim': :func:`rbbench.rb.friction.collocation.hyper.collocation_hyper_model`
         (the friction EIM on the EIM training set, affine ``A_N``, ``F_N``)."""
         from rbbench.rb.friction.collocation.hyper import collocation_hyper_model
+        from rbbench.rb.friction.eim import eim_histories
         from rbbench.rb.offline import eim_training_set
 
         t1 = time.perf_counter()
@@ -167,6 +170,7 @@ class FrictionStage(ReducedStage):
             m_max=ctx.options.m_eim)
         self.hyper = "eim"
         self.histories["eim"] = self.model.info
+        self.histories.update(eim_histories(self.model.arrays_at.operators.eim))
         ctx.timings["hyper_s"] = time.perf_counter() - t1
 
     # -- offline -----------------------------------------------------------------------

@@ -87,6 +87,7 @@ class WedgeStage(FrictionStage):
     def _hyper(self, ctx: Any) -> None:
         """hyper 'eim': :func:`rbbench.rb.friction.wedge.hyper.wedge_hyper_model` (the slip
         DEIM on the training iterates, the friction EIM on the EIM training set)."""
+        from rbbench.rb.friction.eim import eim_histories
         from rbbench.rb.friction.wedge.hyper import wedge_hyper_model
         from rbbench.rb.offline import eim_training_set
 
@@ -103,6 +104,7 @@ class WedgeStage(FrictionStage):
             m_max=ctx.options.m_eim)
         self.hyper = "eim"
         self.histories["eim"] = self.model.info
+        self.histories.update(eim_histories(self.model.eim))
         ctx.timings["hyper_s"] = time.perf_counter() - t1
 
     def _spaces(self, ctx: Any) -> None:
