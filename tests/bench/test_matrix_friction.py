@@ -28,16 +28,16 @@ COARSE = ["discretization.degree=1", "discretization.h_contact=0.02",
 
 
 def _smoke_matrix(tmp_path: Path, n_train: int = 5, n_valid: int = 2) -> Path:
-    """friction_rb.toml with the coarse P1 mesh and small sizes (its own tables otherwise)."""
+    """friction_rb.toml (the coarse P1 mesh) with small sizes (its own tables otherwise)."""
     text = (PROBLEMS_DIR / "matrices" / "friction_rb.toml").read_text()
     data = tomllib.loads(text)
     assert data["sizes"]["pairs"] == [[30, 20]] and data["reduce"]["S"] == 20
+    assert data["scene_overrides"]["hertz_friction"] == COARSE
     text = (text.replace('name = "friction_rb"', 'name = "friction_rb_smoke"')
             .replace("pairs = [[30, 20]]", "pairs = [[10, 5]]")
             .replace("S = 20", "S = 5").replace("n_train = 41", f"n_train = {n_train}")
             .replace("n_valid = 20", f"n_valid = {n_valid}")
             .replace("k_pga_max = 40", "k_pga_max = 10\nonline_repeats = 1"))
-    text += "\n[scene_overrides]\nhertz_friction = " + json.dumps(COARSE) + "\n"
     p = tmp_path / "friction_smoke.toml"
     p.write_text(text)
     return p
@@ -63,6 +63,11 @@ def test_friction_rb_matrix_expands_both_models_with_and_without_eim():
         assert c.params["S"] == 20 and c.params["k_pga_max"] == 40
     assert len({c.case_id for c in m.cases}) == 6
     assert by[("wedge", "eim", None)].reduce_config("/tmp").options["friction_dual"] == "wedge"
+    # the P2 variant: the same cases on the scene's own (P2) mesh, no scene override
+    p2 = load_matrix("friction_rb_p2", registry=default_registry())
+    assert {_key(c) for c in p2.cases} == set(by)
+    assert all(c.status == "run" and not c.overrides for c in p2.cases)
+    assert all(tuple(c.overrides) == tuple(COARSE) for c in m.cases)
 
 
 def test_friction_dual_axis_is_the_reduce_field(tmp_path):

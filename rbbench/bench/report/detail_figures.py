@@ -126,12 +126,21 @@ def _curve_x(ax, first: dict[str, Any]) -> tuple[np.ndarray, str]:
     return np.arange(len(rows), dtype=float), "validation parameter (index)"
 
 
+#: the widest line of an inf-sup legend entry (characters): longer lists of cases (e.g. the
+#: friction models' combinations) are wrapped, so the legend fits under its panel
+_LABEL_WIDTH = 80
+
+
 def _curve_label(parts: list[dict[str, Any]], case_labels: set[str], kinds: list) -> str:
+    import textwrap
+
     joiner = "\n  = " if len({c["vals"] for c in parts}) == 1 else "\n  ≈ "
-    return joiner.join(
+    text = joiner.join(
         f"beta_{c['name']} ({_BETA_TEXT.get(c['name'], c['name'])})"
         + ("" if c["cases"] == case_labels else f" [{', '.join(sorted(c['cases']))}]")
         for c in parts) + f": {_kind_text(kinds)}"
+    return "\n".join(textwrap.fill(line, _LABEL_WIDTH, subsequent_indent="    ",
+                                    break_on_hyphens=False) for line in text.split("\n"))
 
 
 def _draw_beta(ax, parts: list[dict[str, Any]], case_labels: set[str],
