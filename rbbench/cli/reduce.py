@@ -167,8 +167,8 @@ def _add_shared_args(g: Any) -> None:
                   "formulation's own: ssn for mixed, friction-ssn on a friction scene, "
                   "newton for nitsche; a linear scene has none)")
     component_arg(g, "--primal", "primal", "primal compressor")
-    component_arg(g, "--hyper", "hyper", "hyper-reducer (eim on friction scenes: the wedge "
-                  "model's EIM of its B, g and DEIM of the slip)",
+    component_arg(g, "--hyper", "hyper", "hyper-reducer (eim on friction scenes: the EIM of "
+                  "the friction rows, with the wedge model also a DEIM of the slip)",
                   extra={"auto": "the formulation's rule"})
     g.add_argument("-N", type=int, help="primal size (default: POD tolerance --tol-pod); "
                    "clipped to the number of training snapshots and to their numerical rank, "

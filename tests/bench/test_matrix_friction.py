@@ -1,6 +1,6 @@
-"""Run matrices of the reduced friction models: the ``friction_dual`` axis,
-the combinations the reduced model refuses as skip rows, the friction columns of a row and
-the case details, and (slow) ``problems/matrices/friction_rb.toml`` on a coarse P1 mesh
+"""Run matrices of the reduced friction models: the ``friction_dual`` axis (both models with
+and without hyper-reduction), the combinations refused as skip rows, the friction columns of
+a row and the case details, and (slow) ``problems/matrices/friction_rb.toml`` on a coarse P1 mesh
 through the runner and the report."""
 
 from __future__ import annotations
@@ -28,16 +28,16 @@ COARSE = ["discretization.degree=1", "discretization.h_contact=0.02",
 
 
 def _smoke_matrix(tmp_path: Path, n_train: int = 5, n_valid: int = 2) -> Path:
-    """friction_rb.toml with the coarse P1 mesh and small sizes (its own tables otherwise)."""
+    """friction_rb.toml (the coarse P1 mesh) with small sizes (its own tables otherwise)."""
     text = (PROBLEMS_DIR / "matrices" / "friction_rb.toml").read_text()
     data = tomllib.loads(text)
     assert data["sizes"]["pairs"] == [[30, 20]] and data["reduce"]["S"] == 20
+    assert data["scene_overrides"]["hertz_friction"] == COARSE
     text = (text.replace('name = "friction_rb"', 'name = "friction_rb_smoke"')
             .replace("pairs = [[30, 20]]", "pairs = [[10, 5]]")
             .replace("S = 20", "S = 5").replace("n_train = 41", f"n_train = {n_train}")
             .replace("n_valid = 20", f"n_valid = {n_valid}")
             .replace("k_pga_max = 40", "k_pga_max = 10\nonline_repeats = 1"))
-    text += "\n[scene_overrides]\nhertz_friction = " + json.dumps(COARSE) + "\n"
     p = tmp_path / "friction_smoke.toml"
     p.write_text(text)
     return p
@@ -49,22 +49,25 @@ def _key(case) -> tuple:
 
 
 # --------------------------------------------------------------------------- the matrix
-def test_friction_rb_matrix_expands_and_skips_collocation_with_eim():
-    """friction_rb.toml: collocation (patience 1, 10) and wedge, hyper none and eim; the
-    collocation model with eim is a skip row whose reason is the reduced model's own refusal."""
+def test_friction_rb_matrix_expands_both_models_with_and_without_eim():
+    """friction_rb.toml: collocation (patience 1, 10) and wedge, hyper none and eim, every
+    case runs (both models are hyper-reduced by the friction EIM)."""
     m = load_matrix("friction_rb", registry=default_registry())
     by = {_key(c): c for c in m.cases}
     assert set(by) == {("collocation", "none", 1), ("collocation", "none", 10),
                        ("wedge", "none", None), ("collocation", "eim", 1),
                        ("collocation", "eim", 10), ("wedge", "eim", None)}
     for k, c in by.items():
-        assert c.status == ("skip" if k[:2] == ("collocation", "eim") else "run"), (k, c.reason)
+        assert c.status == "run", (k, c.reason)
         assert c.components["solver"] == "friction-ssn" and (c.N, c.R) == (30, 20)
         assert c.params["S"] == 20 and c.params["k_pga_max"] == 40
-    reason = by[("collocation", "eim", 1)].reason
-    assert "hyper 'eim'" in reason and "wedge" in reason
     assert len({c.case_id for c in m.cases}) == 6
     assert by[("wedge", "eim", None)].reduce_config("/tmp").options["friction_dual"] == "wedge"
+    # the P2 variant: the same cases on the scene's own (P2) mesh, no scene override
+    p2 = load_matrix("friction_rb_p2", registry=default_registry())
+    assert {_key(c) for c in p2.cases} == set(by)
+    assert all(c.status == "run" and not c.overrides for c in p2.cases)
+    assert all(tuple(c.overrides) == tuple(COARSE) for c in m.cases)
 
 
 def test_friction_dual_axis_is_the_reduce_field(tmp_path):
@@ -100,7 +103,8 @@ def test_friction_dual_axis_is_the_reduce_field(tmp_path):
 
 def test_reduced_model_check_only_on_friction_scenes():
     """A frictionless scene is not checked here (its cases record their own failures); the
-    friction scene's refusals come from the model (stabilizer, hyper)."""
+    friction scene's refusals come from the model (stabilizer, hyper); both dual models take
+    hyper 'eim'."""
     reg = default_registry()
     comp = {"backend": "skfem", "formulation": "mixed", "solver": "friction-ssn",
             "primal": "pod", "dual": "mcpg", "stabilizer": "pga", "hyper": "eim"}
@@ -108,7 +112,10 @@ def test_reduced_model_check_only_on_friction_scenes():
     fr = load_scene("hertz_friction")
     assert reduced_model_check(fr, comp, {"friction_dual": "wedge"}, reg) == ("run", "")
     assert reduced_model_check(fr, comp, {}, reg) == ("run", "")  # default: auto, wedge
-    assert reduced_model_check(fr, comp, {"friction_dual": "collocation"}, reg)[0] == "skip"
+    assert reduced_model_check(fr, comp, {"friction_dual": "collocation"}, reg) == ("run", "")
+    status, reason = reduced_model_check(fr, {**comp, "hyper": "deim"},
+                                         {"friction_dual": "collocation"}, reg)
+    assert status == "skip" and "'deim'" in reason
     status, reason = reduced_model_check(fr, {**comp, "stabilizer": "supremizer",
                                               "hyper": "none"}, {}, reg)
     assert status == "skip" and "supremizer" in reason
@@ -189,8 +196,13 @@ def test_frictionless_row_leaves_friction_columns_empty(monkeypatch, tmp_path):
     assert "gcns_history" not in rec["details"] and "lam_t_profiles" not in rec["details"]
 
 
-def test_skip_row_names_the_pair():
-    m = load_matrix("friction_rb", selectors=["friction_dual=collocation", "hyper=eim"],
+def test_skip_row_names_the_pair(tmp_path):
+    """A refused friction case (an online stabiliser with hyper 'eim') is a skip row that
+    keeps its friction_dual and hyper, with the reason and no friction numbers."""
+    text = (PROBLEMS_DIR / "matrices" / "friction_rb.toml").read_text()
+    p = tmp_path / "online_stab.toml"
+    p.write_text(text.replace('stabilizer = ["pga"]', 'stabilizer = ["supremizer"]'))
+    m = load_matrix(p, selectors=["friction_dual=collocation", "hyper=eim"],
                     registry=default_registry())
     row = decided_row(m.cases[0], "r", "serial")["row"]
     assert row["status"] == "skip" and row["friction_dual"] == "collocation"
@@ -204,7 +216,7 @@ def test_skip_row_names_the_pair():
 def test_friction_rb_smoke_run_and_report(tmp_path):
     """friction_rb.toml on the coarse P1 mesh (5 training / 2 validation mu, N = 10,
     R = S = 5, K <= 10) through the runner (serial) and the report: every friction column
-    finite on the ok rows, the raw properties of each model, the skip rows, the figures.
+    finite on every row (all six run), the raw properties of each model, the figures.
     About 5 minutes on a loaded 2-core machine (the HF snapshots dominate)."""
     from rbbench.bench.report import report
     from rbbench.bench.runner import load_rows, run_matrix
@@ -216,12 +228,10 @@ def test_friction_rb_smoke_run_and_report(tmp_path):
     recs = load_rows(tmp_path / "out")
     rows = {(r["row"]["friction_dual"], r["row"]["hyper"],
              json.loads(r["row"]["params"]).get("gcns_patience")): r for r in recs.values()}
-    assert {k for k, r in rows.items() if r["row"]["status"] == "skip"} == {
-        ("collocation", "eim", 1), ("collocation", "eim", 10)}
     ok = {k: r for k, r in rows.items() if r["row"]["status"] == "ok"}
-    assert set(ok) == {("collocation", "none", 1), ("collocation", "none", 10),
-                       ("wedge", "none", None),
-                       ("wedge", "eim", None)}, {k: r["row"]["reason"] for k, r in rows.items()}
+    assert set(ok) == {(d, h, p) for d, p in (("collocation", 1), ("collocation", 10),
+                                              ("wedge", None)) for h in ("none", "eim")}, \
+        {k: r["row"]["reason"] for k, r in rows.items()}
     for k, r in ok.items():
         row = r["row"]
         assert all(row[c] is not None and math.isfinite(row[c]) for c in FRICTION_COLUMNS), k
@@ -235,8 +245,9 @@ def test_friction_rb_smoke_run_and_report(tmp_path):
         else:
             kept = [e for e in r["details"]["gcns_history"] if e["q"] == row["gcns_iterations"]]
             assert len(kept) == 1 and row["S_q"] == kept[0]["S_q"] > 0
-    assert ok[("wedge", "eim", None)]["row"]["hyper_used"] == "eim"
+    for k in (("wedge", "eim", None), ("collocation", "eim", 1), ("collocation", "eim", 10)):
+        assert ok[k]["row"]["hyper_used"] == "eim", k
     out = report(tmp_path / "out", formats=("png",))
-    assert "gcns" in out.figures and len([n for n in out.figures if n.startswith("lam_t_")]) == 4
+    assert "gcns" in out.figures and len([n for n in out.figures if n.startswith("lam_t_")]) == 6
     md = out.summary_md.read_text()
     assert "## Reduced friction models" in md and "collocation+eim" in md

@@ -126,12 +126,21 @@ def _curve_x(ax, first: dict[str, Any]) -> tuple[np.ndarray, str]:
     return np.arange(len(rows), dtype=float), "validation parameter (index)"
 
 
+#: the widest line of an inf-sup legend entry (characters): longer lists of cases (e.g. the
+#: friction models' combinations) are wrapped, so the legend fits under its panel
+_LABEL_WIDTH = 80
+
+
 def _curve_label(parts: list[dict[str, Any]], case_labels: set[str], kinds: list) -> str:
+    import textwrap
+
     joiner = "\n  = " if len({c["vals"] for c in parts}) == 1 else "\n  ≈ "
-    return joiner.join(
+    text = joiner.join(
         f"beta_{c['name']} ({_BETA_TEXT.get(c['name'], c['name'])})"
         + ("" if c["cases"] == case_labels else f" [{', '.join(sorted(c['cases']))}]")
         for c in parts) + f": {_kind_text(kinds)}"
+    return "\n".join(textwrap.fill(line, _LABEL_WIDTH, subsequent_indent="    ",
+                                    break_on_hyphens=False) for line in text.split("\n"))
 
 
 def _draw_beta(ax, parts: list[dict[str, Any]], case_labels: set[str],
@@ -237,18 +246,50 @@ def _fig_infsup(ctx: _Ctx):
     return fig, _INFSUP_CAPTION
 
 
+#: a history the wedge friction model records under another name: its cone of
+#: ``F lam_n + lam_t`` (``e_proj_plus``) stands for the dual compressor's ``e_proj``
+_HISTORY_ALIASES = {"e_proj": ("e_proj", "e_proj_plus")}
+
+
+def _curve_key(r: dict[str, Any]) -> str:
+    """The curve of a case in the histories figure: its dual compressor, and on friction rows
+    its dual model too (``mcpg+collocation``, ``mcpg+wedge``: both models side by side)."""
+    model = r.get("friction_dual")
+    return str(r.get("dual")) + (f"+{model}" if model else "")
+
+
+def _history(det: dict, name: str) -> list | None:
+    """History ``name`` of a case (or its alias, :data:`_HISTORY_ALIASES`); None if absent."""
+    hist = det.get("histories") or {}
+    for key in _HISTORY_ALIASES.get(name, (name,)):
+        h = hist.get(key)
+        if isinstance(h, list) and h:
+            return h
+    return None
+
+
 def _pick_history(cases: list[tuple[dict, dict]], name: str):
-    """Per dual, the case with the largest (N, R) that has history ``name``."""
+    """Per curve (:func:`_curve_key`), the case with the largest (N, R) that has history
+    ``name``."""
     best: dict[str, tuple] = {}
     for r, det in cases:
-        h = (det.get("histories") or {}).get(name)
-        if not isinstance(h, list) or not h:
+        h = _history(det, name)
+        if h is None:
             continue
-        dual = str(r.get("dual"))
+        key = _curve_key(r)
         rank = (_size_req(r), len(h))
-        if dual not in best or rank > best[dual][0]:
-            best[dual] = (rank, r, det)
+        if key not in best or rank > best[key][0]:
+            best[key] = (rank, r, det)
     return {d: (r, det) for d, (_, r, det) in best.items()}
+
+
+def _curve_line(ctx: _Ctx, key: str, keys: list[str]) -> dict[str, Any]:
+    """The line of a histories curve: a dual compressor's own (:func:`_dual_line`); a friction
+    model's the colour of its dual compressor and the line style, marker and width of its
+    rank among the figure's curves (``keys``, sorted), so the two models stay apart."""
+    if "+" not in key:
+        return _dual_line(ctx, key)
+    return _dual_line(ctx, key.split("+")[0], keys.index(key) if key in keys else 0)
 
 
 def _draw_history(ax, ctx: _Ctx, picks: dict, name: str, start: int,
@@ -260,9 +301,9 @@ def _draw_history(ax, ctx: _Ctx, picks: dict, name: str, start: int,
     drew = False
     for dual in sorted(picks):
         r, det = picks[dual]
-        h = np.array([_num(v) for v in det["histories"][name]])
+        h = np.array([_num(v) for v in _history(det, name)])
         x = np.arange(start, start + h.size)
-        style = _dual_line(ctx, dual)  # coinciding curves of two duals both visible
+        style = _curve_line(ctx, dual, seen["keys"])  # coinciding curves both visible
         colour = style["color"]
         seen["duals"].add(dual)
         # relative quantities: values at round-off level (or exactly 0) are drawn
@@ -307,7 +348,8 @@ def _history_panel(ax, ctx: _Ctx, sc: str, picks: dict, spec: tuple,
 def _history_legend(fig, ctx: _Ctx, seen: dict[str, Any]) -> None:
     from matplotlib.lines import Line2D
 
-    handles = [Line2D([], [], label=d, **_dual_line(ctx, d)) for d in sorted(seen["duals"])]
+    handles = [Line2D([], [], label=d, **_curve_line(ctx, d, seen["keys"]))
+               for d in sorted(seen["duals"])]
     if seen["delta"]:
         handles.append(Line2D([], [], color="0.3", linestyle=":", label="PGA tolerance delta"))
     if seen["floored"]:
@@ -326,7 +368,8 @@ def _fig_histories(ctx: _Ctx):
         raise _Skip("no ok case with histories (e_proj, sigma_max, eim_error)")
     scenes = [sc for sc in ctx.scenes if any(found[n][sc] for n, *_ in _HISTORIES)]
     fig, axes = _figure(len(scenes), 3)
-    seen: dict[str, Any] = {"duals": set(), "delta": False, "floored": False}
+    keys = sorted({k for per in found.values() for picks in per.values() for k in picks})
+    seen: dict[str, Any] = {"duals": set(), "delta": False, "floored": False, "keys": keys}
     for i, sc in enumerate(scenes):
         for j, spec in enumerate(_HISTORIES):
             _history_panel(axes[i, j], ctx, sc, found[spec[0]][sc], spec, seen)
@@ -341,5 +384,9 @@ def _fig_histories(ctx: _Ctx):
                f"each magic row (hyper eim). Values below {_HIST_FLOOR:g} (round-off, or 0) "
                f"are drawn at {_HIST_FLOOR:g} with a down-pointing triangle. Each dual has "
                "its own line style and marker, the first the thickest and the next ones "
-               "thinner and on top, so equal histories of two duals both stay visible.")
+               "thinner and on top, so equal histories of two duals both stay visible. "
+               "Friction rows: one curve per dual compressor and friction dual model "
+               "(e.g. mcpg+collocation, mcpg+wedge); the wedge model's e_proj is that of "
+               "its F lam_n + lam_t cone (e_proj_plus), its EIM error that of Bn Z as the "
+               "collocation model's.")
     return fig, caption

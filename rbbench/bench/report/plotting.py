@@ -57,11 +57,12 @@ def _dodge(ctx: _Ctx, dual: str, span: float) -> float:
     return (ctx.combos.dual_rank(dual) - (n - 1) / 2) * 0.025 * (span if span > 0 else 4.0)
 
 
-def _dual_line(ctx: _Ctx, dual: str) -> dict[str, Any]:
+def _dual_line(ctx: _Ctx, dual: str, rank: int | None = None) -> dict[str, Any]:
     """Line style of a dual compressor's curve where the curves of several duals can
     coincide: its colour, a line style and a marker of its own, the first dual the
-    thickest and lowest, each next one thinner, smaller and above it."""
-    k = ctx.combos.dual_rank(dual)
+    thickest and lowest, each next one thinner, smaller and above it (``rank``: another
+    rank than the dual's among the run's, for several curves of one dual)."""
+    k = ctx.combos.dual_rank(dual) if rank is None else rank
     colour = ctx.combos.dual_colour.get(dual, "k")
     return {"color": colour, "linestyle": _LINESTYLES[k % len(_LINESTYLES)],
             "linewidth": max(0.9, 3.2 - 0.9 * k), "marker": _MARKERS[k % len(_MARKERS)],

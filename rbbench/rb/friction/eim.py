@@ -45,8 +45,9 @@ from rbbench.rb.hyper.contact_eim import (
     tangent,
 )
 
-__all__ = ["FrictionEIM", "FrictionOperators", "friction_eim", "friction_layout",
-           "friction_operators", "friction_training_operators", "reduced_eim_errors"]
+__all__ = ["FrictionEIM", "FrictionOperators", "eim_histories", "friction_eim",
+           "friction_layout", "friction_operators", "friction_training_operators",
+           "reduced_eim_errors"]
 
 
 def friction_layout(layout: ContactLayout) -> ContactLayout:
@@ -226,6 +227,14 @@ def friction_eim(layout: ContactLayout, Bn_train: Sequence, Bt_train: Sequence,
                        sla.lu_factor(res_G.Q[res_G.magic]), (Vn.T @ res_G.Q).T,
                        np.ascontiguousarray(Z[loc]), info,
                        None if slip_rows is None else _slip_terms(ev, slip, Z.shape[1]))
+
+
+def eim_histories(feim: FrictionEIM) -> dict[str, list[float]]:
+    """The training error curves of a friction EIM as a stage's histories: ``eim_error``
+    (``C^n = Bn Z``, the normal contact rows, as the frictionless EIM's), ``eim_error_t``
+    (``Bt Z``), ``eim_error_G`` (``Gn``); relative max-norm after each term."""
+    return {"eim_error": list(feim.info["errors_n"]), "eim_error_t": list(feim.info["errors_t"]),
+            "eim_error_G": list(feim.info["errors_G"])}
 
 
 def _slip_terms(ev: RowEvaluator, rows: np.ndarray, N: int) -> _Terms:

@@ -13,10 +13,11 @@ After the primal space V_N (shared skeleton, :mod:`rbbench.rb.offline`; POD of u
    PGA on ``B = [Bn; Bt]`` against ``blockdiag(Vn, Vt)``);
 3. GCNS (:func:`rbbench.rb.algorithms.gcns.gcns`) picks the collocation nodes of the tangential
    constraint on the training set;
-4. the plain online stage (hyper ``none``; ``eim`` with the wedge model:
-   :mod:`rbbench.rb.friction.wedge.hyper`): the HF operators at mu projected on the bases
-   (:func:`rbbench.rb.friction.collocation.model.project_friction`, its time included in the online
-   time), then the small Coulomb solve
+4. the online stage: plain (hyper ``none``), the HF operators at mu projected on the bases
+   (:func:`rbbench.rb.friction.collocation.model.project_friction`, its time included in the
+   online time), or hyper-reduced (hyper ``eim``: the friction EIM and the affine ``A_N``,
+   ``F_N``, :mod:`rbbench.rb.friction.collocation.hyper`; the wedge model's:
+   :mod:`rbbench.rb.friction.wedge.hyper`), then the small Coulomb solve
    (:class:`rbbench.rb.friction.collocation.model.FrictionReducedModel`).
 
 These steps are Benaceur et al.'s model, the collocation model
@@ -81,10 +82,10 @@ class FrictionReduction:
         config = resolve_auto(scene, config)
         options = config.options
         wedge = options.friction_dual == "wedge"
-        if config.hyper not in ("auto", "none") and not (wedge and config.hyper == "eim"):
+        if config.hyper not in ("auto", "none", "eim"):
             raise SceneError(f"{scene.path}: hyper {config.hyper!r}: the reduced friction "
-                             "model takes hyper 'none' / 'auto' (plain), or 'eim' with the "
-                             "wedge dual model (friction_dual = 'wedge')")
+                             "models take hyper 'none' / 'auto' (plain) or 'eim' (the "
+                             "friction EIM)")
         if config.hyper == "eim":
             fixed_contact_points(scene, "eim")
         if is_online(registry, options.stabilizer):

@@ -35,7 +35,7 @@ class FrictionOptions:
     inf-sup constant is computed exactly.
     GCNS (collocation model): ``gcns_per_iteration`` nodes added per iteration,
     ``gcns_max`` iterations at most, stop after ``gcns_patience`` increases of its error.
-    ``tol_eim``, ``m_eim``, ``n_eim_train``: the friction EIM (hyper ``eim``, wedge model).
+    ``tol_eim``, ``m_eim``, ``n_eim_train``: the friction EIM (hyper ``eim``, both models).
     """
 
     friction_dual: str = AUTO

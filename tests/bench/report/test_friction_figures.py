@@ -112,6 +112,34 @@ def test_gcns_figure_draws_each_collocation_history_and_circles_the_kept_q(run_d
     assert "kept" in caption and "1e-12" in caption  # e_nt_rel = 0 was floored
 
 
+def test_histories_figure_draws_both_friction_models(tmp_path):
+    """The offline histories of a friction run: one curve per dual model (mcpg+collocation,
+    mcpg+wedge) in each panel, with the values stored: the collocation model's e_proj, the
+    wedge model's e_proj_plus (its F lam_n + lam_t cone), both sigma_max and eim_error."""
+    from rbbench.bench.report.detail_figures import _fig_histories
+
+    hist = {"collocation": {"e_proj": [0.5, 0.1, 0.02], "sigma_max": [1.0, 0.4, 0.1],
+                            "eim_error": [1.0, 1e-2, 1e-5]},
+            "wedge": {"e_proj_plus": [0.4, 0.05], "e_proj_minus": [0.3, 0.2],
+                      "sigma_max": [1.0, 0.6], "eim_error": [1.0, 1e-3]}}
+    recs = []
+    for dual, kept in (("collocation", 3), ("wedge", None)):
+        row, det = _friction(f"{dual}eim", dual, "eim", kept, 0.2)
+        det["histories"] = hist[dual]
+        recs.append({"row": row, "details": det})
+    fig, caption = _fig_histories(_context(load_run(write_run_dir(tmp_path / "h", recs))))
+    want = {"mcpg+collocation": hist["collocation"], "mcpg+wedge": hist["wedge"]}
+    for ax, name in zip(fig.axes[:3], ("e_proj", "sigma_max", "eim_error"), strict=True):
+        curves = {ln.get_label(): ln for ln in ax.lines if not ln.get_label().startswith("_")}
+        assert set(curves) == set(want), (name, set(curves))
+        for key, h in want.items():
+            stored = h.get(name, h.get("e_proj_plus"))
+            np.testing.assert_array_equal(curves[key].get_ydata(), stored)
+        styles = {(ln.get_linestyle(), ln.get_marker()) for ln in curves.values()}
+        assert len(styles) == 2  # the two models apart
+    assert "e_proj_plus" in caption
+
+
 def test_lam_t_figure_per_case_one_panel_per_mu(run_dir):
     """One figure per ok friction case with profiles; in each panel (one per mu) the HF and
     RB lam_t and the bounds +- F lam_n exactly as stored, against x."""

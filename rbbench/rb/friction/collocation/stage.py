@@ -72,9 +72,15 @@ DEFINITIONS = {
     "gcns_iterations": "q of the kept collocation set (published: 20); S_q its size "
                        "(published: 40)",
     "t_online": "wall time of one online solve: HF assembly at mu + projection on the bases "
-                "(t_online_hf_assembly_s, the plain model: grows with the HF size) + the "
+                "(t_online_hf_assembly_s, the plain model: grows with the HF size; hyper "
+                "'eim': the affine A_N, F_N and the friction EIM, t_online_eim_s) + the "
                 "reduced Coulomb fixed point (t_online_solve_median_s); median over "
                 "validation mus x repeats",
+    "eim": "hyper 'eim': M_n, M_t, M_G the friction EIM sizes of Bn Z, Bt Z, Gn (magic "
+           "entries of Vn^T Bn Z, Vt^T Bt Z, Vn^T Gn), rows the distinct HF contact rows "
+           "paired online, n_eim_train the EIM training parameters (no HF solve there)",
+    "eim_error": "hyper 'eim': relative max-norm EIM training error of Bn Z after each "
+                 "term (eim_error_t: of Bt Z; eim_error_G: of Gn)",
     "speedup": "median HF solve time / median online time",
     "u_best": "per validation mu: ||u - Pi u||_X / ||u||_X, Pi the X-projection onto the "
               "online primal space span(Z_off): the floor of err_u",
@@ -156,6 +162,28 @@ class FrictionStage(ReducedStage):
         self.floors: dict[str, list[float]] = {"lam_best_valid": []}
         self.t_asm: list[float] = []
         self.t_solve: list[float] = []
+        if config.hyper == "eim":
+            self._hyper(ctx)
+
+    def _hyper(self, ctx: Any) -> None:
+        """hyper 'eim': :func:`rbbench.rb.friction.collocation.hyper.collocation_hyper_model`
+        (the friction EIM on the EIM training set, affine ``A_N``, ``F_N``)."""
+        from rbbench.rb.friction.collocation.hyper import collocation_hyper_model
+        from rbbench.rb.friction.eim import eim_histories
+        from rbbench.rb.offline import eim_training_set
+
+        t1 = time.perf_counter()
+        ctx.progress("hyper eim: friction EIM of Bn Z, Bt Z, Gn; affine A_N, F_N")
+        layout = _contact_layout(ctx)
+        self.model = collocation_hyper_model(
+            self.reduced, self.Z_off, self.Vn, self.Vt, layout,
+            ctx.problem_at(ctx.mus_train[0]).free, ctx.problem_at, ctx.scene.bounds,
+            eim_training_set(ctx.scene, ctx.options, ctx.mus_train), tol=ctx.options.tol_eim,
+            m_max=ctx.options.m_eim)
+        self.hyper = "eim"
+        self.histories["eim"] = self.model.info
+        self.histories.update(eim_histories(self.model.arrays_at.operators.eim))
+        ctx.timings["hyper_s"] = time.perf_counter() - t1
 
     # -- offline -----------------------------------------------------------------------
     def _spaces(self, ctx: Any) -> None:
@@ -266,8 +294,12 @@ class FrictionStage(ReducedStage):
     # -- validation --------------------------------------------------------------------
     def record_online(self, mu: np.ndarray, solutions: list) -> None:
         """The online time split: the reduced arrays at mu (the plain model: its HF assembly
-        and projection, once per mu) and the reduced solves."""
-        self.t_asm.append(solutions[-1].assembly_s)
+        and projection, done once per mu; hyper 'eim': the EIM evaluation of every solve) and
+        the reduced solves."""
+        if self.model is self.reduced:
+            self.t_asm.append(solutions[-1].assembly_s)
+        else:
+            self.t_asm.extend(s.assembly_s for s in solutions)
         self.t_solve.extend(s.time_s - s.assembly_s for s in solutions)
 
     def metrics(self, mu: np.ndarray, p: Any, u: np.ndarray, lam: np.ndarray, res: Any,
@@ -356,7 +388,8 @@ class FrictionStage(ReducedStage):
     def finish(self, histories: dict, timings: dict) -> None:
         histories.update(self.floors)
         if self.t_asm:
-            timings["t_online_hf_assembly_s"] = float(np.median(self.t_asm))
+            key = "t_online_hf_assembly_s" if self.model is self.reduced else "t_online_eim_s"
+            timings[key] = float(np.median(self.t_asm))
             timings["t_online_solve_median_s"] = float(np.median(self.t_solve))
 
     def summary(self) -> dict[str, Any]:
@@ -367,6 +400,14 @@ class FrictionStage(ReducedStage):
                 "dim_v_off": int(self.Z_off.shape[1]),
                 "delta_pga": self.histories.get("pga_delta"),
                 "lam_t_profiles": self._profiles()}
+
+
+def _contact_layout(ctx: Any) -> Any:
+    """The backend's reference contact layout (hyper 'eim'), or a clear error."""
+    if not hasattr(ctx.backend, "contact_layout"):
+        raise ValueError(f"hyper 'eim': backend {ctx.config.backend!r} provides no contact "
+                         "layout; use hyper 'none'")
+    return ctx.backend.contact_layout()
 
 
 def _stack_b(p: Any) -> Any:

@@ -84,14 +84,10 @@ class WedgeStage(FrictionStage):
     definitions = WEDGE_DEFINITIONS
     online_method = "daqp (De Saxce fixed point on the wedge cones)"
 
-    def __init__(self, ctx: Any) -> None:
-        super().__init__(ctx)
-        if ctx.config.hyper == "eim":
-            self._hyper(ctx)
-
     def _hyper(self, ctx: Any) -> None:
         """hyper 'eim': :func:`rbbench.rb.friction.wedge.hyper.wedge_hyper_model` (the slip
         DEIM on the training iterates, the friction EIM on the EIM training set)."""
+        from rbbench.rb.friction.eim import eim_histories
         from rbbench.rb.friction.wedge.hyper import wedge_hyper_model
         from rbbench.rb.offline import eim_training_set
 
@@ -108,6 +104,7 @@ class WedgeStage(FrictionStage):
             m_max=ctx.options.m_eim)
         self.hyper = "eim"
         self.histories["eim"] = self.model.info
+        self.histories.update(eim_histories(self.model.eim))
         ctx.timings["hyper_s"] = time.perf_counter() - t1
 
     def _spaces(self, ctx: Any) -> None:
@@ -158,19 +155,6 @@ class WedgeStage(FrictionStage):
                 project_wedge, Z=self.Z_off, basis=self.wedge)),
             basis=ReducedBasis(self.Z_off, self.wedge.Ln, self.wedge.Lt))
         ctx.timings["gcns_s"] = time.perf_counter() - t1
-
-    def record_online(self, mu: np.ndarray, solutions: list) -> None:
-        """hyper 'eim': the EIM evaluation of every solve and the fixed points, timed apart;
-        the plain model as the base class."""
-        if self.model is self.reduced:
-            return super().record_online(mu, solutions)
-        self.t_asm.extend(s.assembly_s for s in solutions)
-        self.t_solve.extend(s.time_s - s.assembly_s for s in solutions)
-
-    def finish(self, histories: dict, timings: dict) -> None:
-        super().finish(histories, timings)
-        if self.model is not self.reduced and self.t_asm:
-            timings["t_online_eim_s"] = timings.pop("t_online_hf_assembly_s")
 
     def _floors(self, lam: np.ndarray, lam_t: np.ndarray, W: Any) -> dict[str, float]:
         """Best approximations: lam_n in Span+(Ln); lam_t in span(Lt) and Span+(Lt)."""
