@@ -63,7 +63,9 @@ DEFINITIONS = {
                 "(t_online_hf_assembly_s, the plain model: grows with the HF size) + the "
                 "reduced Coulomb fixed point (t_online_solve_median_s); median over "
                 "validation mus x repeats",
-    "speedup": "median HF solve time / median online time",
+    "speedup": "speed-up against the timed HF solve: t_hf_median_s (median over the training "
+               "and validation snapshots of the stored HF solve time: discretise + formulate "
+               "+ solve) / t_online_median_s (against the HF floor: speedup_floor)",
     "u_best": "per validation mu: ||u - Pi u||_X / ||u||_X, Pi the X-projection onto the "
               "online primal space span(Z_off): the floor of err_u",
     "dim_v_off": "N + K: the primal space after the stabiliser (PGA on the combined form "
