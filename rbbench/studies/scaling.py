@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rbbench._compat import deprecated_names
 from rbbench.rb.online import OnlineTimes, timed_online_solves
 from rbbench.runtime.threads import one_blas_thread
 from rbbench.runtime.timing import ONLINE_PROTOCOL, gc_paused
@@ -81,3 +82,6 @@ def scaling_markdown(rows: list[dict]) -> str:
             "validation mus x repeats; rbbench reduce and run rows name the same protocol). "
             "HF floor: one factorisation + one solve of A(mu), median over the validation "
             "set.")
+
+
+__getattr__ = deprecated_names(__name__)  # names that left this module (rbbench._compat)
