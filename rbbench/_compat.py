@@ -168,6 +168,7 @@ NAMES: dict[str, dict[str, str]] = {
                            "build_problem": f"{_MODEL}:build_problem"},
     "rbbench.cli": {k: f"rbbench.cli.{m}:{k}" for k, m in _CLI.items()},
     "rbbench.hf.snapshots": {"limit_blas_threads": "rbbench.runtime.threads:limit_blas_threads"},
+    "rbbench.studies.scaling": {"gc_paused": "rbbench.runtime.timing:gc_paused"},
     "rbbench.scene": {"Field": "rbbench.scene.schema:Field",
                       "SCHEMA": "rbbench.scene.schema:SCHEMA",
                       "KEY_NEUTRAL_DEFAULTS": "rbbench.scene.loading:KEY_NEUTRAL_DEFAULTS",

@@ -38,7 +38,8 @@ _COPIED = ("n_hf_dofs", "n_contact", "n_train", "n_valid", "N", "R", "M_eim", "e
            "err_u_mean", "err_lam_max", "err_lam_mean", "lam_best_max", "penetration_max",
            "complementarity_max", "energy_err_max", "t_offline_s", "t_snapshots_hf_s",
            "t_offline_hf_s", "n_snapshots_cached", "t_online_median_s", "t_online_iqr_s",
-           "t_hf_median_s", "speedup")
+           "t_hf_median_s", "speedup", "floor_s", "speedup_floor", "online_protocol",
+           "online_path", "online_method")
 #: Summary keys of a reduced friction model (rbbench.rb.friction.collocation.stage) copied as they
 # are;  ``S_tau`` is its ``S`` (the row's ``S`` is the stabiliser size).
 _FRICTION = ("err_lam_t_max", "err_lam_t_mean", "lam_t_best_max", "friction_residual_max",

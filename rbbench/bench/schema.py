@@ -16,6 +16,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from rbbench.runtime.timing import ONLINE_PROTOCOL_DEFINITION
+
 __all__ = ["COLUMNS", "STATUSES", "Column", "case_record_problem", "column_definitions",
            "empty_row", "names", "normalise_row"]
 
@@ -212,7 +214,8 @@ COLUMNS: tuple[Column, ...] = (
     _c("n_snapshots_cached", "int", "timings", "", "training + validation snapshots the case "
        "read from the snapshot cache"),
     _c("t_online_median_s", "float", "timings", "s", "one online solve (reduced arrays + "
-       "reduced saddle-point solve), median over validation mus x repeats; with hyper_used "
+       "reduced saddle-point solve), median over validation mus x repeats under the protocol "
+       "online_protocol; with hyper_used "
        "= none (e.g. online supremizers) it includes the HF assembly at mu, the supremizers "
        "and the projection (t_online_hf_assembly_s): such a model is not HF-size "
        "independent"),
@@ -222,12 +225,26 @@ COLUMNS: tuple[Column, ...] = (
     _c("t_bound_median_s", "float", "timings", "s", "certified = 'rigorous': one online "
        "evaluation of the error bound, median over validation mus x repeats"),
     _c("t_online_iqr_s", "float", "timings", "s", "inter-quartile range of the online time"),
+    _c("online_protocol", "str", "timings", "", "the protocol of t_online_median_s and "
+       "t_online_iqr_s: " + ONLINE_PROTOCOL_DEFINITION),
+    _c("online_path", "str", "timings", "", "the online path of the timed solves: compiled "
+       "(numba kernels) or python ('/'-joined when both ran)"),
+    _c("online_method", "str", "timings", "", "the online method of the timed solves (auto "
+       "resolved: nnls or daqp for the mixed model; empty for a model that names none)"),
     _c("t_hf_median_s", "float", "timings", "s", "one HF solve, median over all snapshots"),
-    _c("floor_s", "float", "timings", "s", "mode hf: one factorisation + one solve of the "
-       "same stiffness with the solver's direct solver, timed after the last repeat"),
+    _c("floor_s", "float", "timings", "s", "the HF floor, one factorisation + one solve of "
+       "the HF stiffness A(mu) x = F(mu) (one BLAS thread): mode hf, at the scene's default mu "
+       "with the solver's direct solver, timed after the last repeat; mode rb, median over "
+       "the validation set, timed at each validation mu with the direct solver of a default "
+       "HF solve (empty for parabolic scenes)"),
     _c("solve_over_floor", "float", "timings", "1", "mode hf: the last repeat's solver time "
        "(times_s.solve_s, without assembly) / floor_s"),
-    _c("speedup", "float", "timings", "1", "t_hf_median_s / t_online_median_s"),
+    _c("speedup", "float", "timings", "1", "mode rb: speed-up against the timed HF solve, "
+       "t_hf_median_s / t_online_median_s"),
+    _c("speedup_floor", "float", "timings", "1", "mode rb: speed-up against the HF floor, "
+       "floor_s / t_online_median_s (what the reduced model gains over one factorisation + "
+       "one solve; speedup / speedup_floor = t_hf_median_s / floor_s, the HF solve's "
+       "overhead)"),
     _c("t_case_s", "float", "timings", "s", "wall time of the whole case"),
     # memory
     _c("peak_rss_mb", "float", "memory", "MiB", "peak resident memory of the process that "

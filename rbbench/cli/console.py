@@ -199,6 +199,16 @@ def _print_mindlin(b: dict | None, units: dict) -> None:
           f"% (even part {100 * b['traction_l2_rel_error_even']:.2f} %)")
 
 
+#: what a reduction's timing lines are, printed beside them
+_REDUCE_NOTES = {
+    "t_online_median_s": "  (median over validation mus x repeats, protocol online_protocol)",
+    "t_hf_median_s": "  (timed HF solve, median over the snapshots)",
+    "speedup": "  (against the timed HF solve: t_hf_median_s / t_online_median_s)",
+    "floor_s": "  (HF floor: one factorisation + one solve of A(mu), median over validation)",
+    "speedup_floor": "  (against the HF floor: floor_s / t_online_median_s)",
+}
+
+
 def _print_reduce_summary(s: dict, formulation: str, units: dict | None = None) -> None:
     """The main numbers of ``rbbench reduce`` (``s``: the reduction's summary; ``units``: the
     scene's, :func:`rbbench.hf.metrics.units_of`)."""
@@ -208,7 +218,8 @@ def _print_reduce_summary(s: dict, formulation: str, units: dict | None = None) 
             "beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min", "beta_kind",
             "beta_hf_rel_min", "beta_dec_rel_min", "beta_on_rel_min", "beta_off_rel_min",
             "t_offline_s", "t_snapshots_hf_s", "t_offline_hf_s", "n_snapshots_cached",
-            "t_online_median_s", "t_hf_median_s", "speedup", "S", "S_q",
+            "t_online_median_s", "t_hf_median_s", "speedup", "floor_s", "speedup_floor",
+            "S", "S_q",
             "gcns_iterations", "gcns_stop", "err_lam_t_max", "err_lam_t_mean", "lam_t_best_max",
             "friction_residual_max", "friction_law_residual_max", "slip_law_residual_max",
             "certified", "err_bound_u_max", "effectivity_min",
@@ -216,7 +227,7 @@ def _print_reduce_summary(s: dict, formulation: str, units: dict | None = None) 
             "t_bound_hf_median_s"]
     for k in keys:
         if k in s and not (k.startswith("t_bound") and s[k] is None):
-            print(f"  {k:<20} {_valued(k, s[k], units)}")
+            print(f"  {k:<20} {_valued(k, s[k], units)}{_REDUCE_NOTES.get(k, '')}")
     _nondimensional_note(units)
     for w in s.get("warnings", ()):
         print(f"  WARNING: {w}")
@@ -241,7 +252,7 @@ _SOLVE_KEYS = ("physics", "n_dofs", "n_free", "steps", "dt", "stop_reason", "res
 _REDUCE_KEYS = ("N", "hyper", "n_train", "n_valid", "n_hf_dofs", "err_u_max", "err_u_mean",
                 "err_est_max", "effectivity_min", "effectivity_max", "alpha_lb_max",
                 "energy_err_max", "t_offline_s", "t_offline_hf_s", "n_snapshots_cached",
-                "t_online_median_s", "t_hf_median_s", "speedup")
+                "t_online_median_s", "t_hf_median_s", "speedup", "floor_s", "speedup_floor")
 
 
 def print_linear_summary(m: dict, mu: dict, mu_units: dict | None = None) -> None:
@@ -262,7 +273,7 @@ def print_linear_reduce(s: dict, parabolic: bool, inner: str) -> None:
     ``inner_product``)."""
     for k in _REDUCE_KEYS:
         if k in s and s[k] is not None:
-            print(f"  {k:<20} {_valued(k, s[k], {})}")
+            print(f"  {k:<20} {_valued(k, s[k], {})}{_REDUCE_NOTES.get(k, '')}")
     for w in s.get("warnings", ()):
         print(f"  WARNING: {w}")
     x = {"h1_semi": "H1_0 seminorm |.|_1", "h1": "H1"}.get(inner, inner)

@@ -278,6 +278,18 @@ def solve_floor(problem: Any, linear_solver: str | None = None) -> dict[str, Any
     return {"floor_s": t2 - t0, "factor_s": t1 - t0, "solve_s": t2 - t1, "solver": name}
 
 
+def default_floor(problem: Any) -> dict[str, Any]:
+    """:func:`solve_floor` with the direct solver a default HF contact solve picks
+    (``linear_solver = "auto"`` of :func:`rbbench.hf.condensation.schur.condense_problem`): the
+    backend's ``factorize`` when it gives one, else PARDISO when ``pypardiso`` is installed,
+    else SuperLU. Used where the solve itself is not at hand (a reduction's validation, whose
+    HF snapshots were solved, maybe cached, with the default)."""
+    from rbbench.hf.condensation.pardiso import available
+
+    pardiso = problem.factorize is None and available()
+    return solve_floor(problem, "pardiso" if pardiso else None)
+
+
 def floor_metrics(sol: HFSolution) -> dict[str, Any]:
     """``floor_s``, ``solve_over_floor`` (solver time ``times["solve_s"]`` / ``floor_s``)
     and the ``floor`` block of :func:`solve_floor` with the solve's own linear solver

@@ -1,20 +1,80 @@
 """What the reduced models share online: the bases that turn a reduced solution into HF
-vectors (:class:`ReducedBasis`, used by ``reconstruct`` only), and the online stage of a
-model without hyper-reduction (:class:`PlainArrays`: HF assembly at mu, then projection).
+vectors (:class:`ReducedBasis`, used by ``reconstruct`` only), the online stage of a
+model without hyper-reduction (:class:`PlainArrays`: HF assembly at mu, then projection),
+and the one protocol of every online time (:func:`timed_online_solves`,
+:data:`rbbench.runtime.timing.ONLINE_PROTOCOL`).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from rbbench.interfaces import HFVectors
+from rbbench.runtime.threads import one_blas_thread
+from rbbench.runtime.timing import ONLINE_PROTOCOL, gc_paused
 
-__all__ = ["PlainArrays", "ReducedBasis", "require_basis"]
+__all__ = ["OnlineTimes", "PlainArrays", "ReducedBasis", "require_basis",
+           "timed_online_solves"]
+
+@dataclass
+class OnlineTimes:
+    """The timed solutions of :func:`timed_online_solves`: ``per_mu[j]`` the ``repeats``
+    solutions at the j-th mu."""
+
+    per_mu: list[list[Any]] = field(default_factory=list)
+
+    @property
+    def times(self) -> list[float]:
+        """Every timed solve's ``time_s`` (s), mu by mu."""
+        return [float(s.time_s) for sols in self.per_mu for s in sols]
+
+    @property
+    def paths(self) -> str:
+        """The online paths that ran (``compiled`` / ``python``; ``/``-joined when both)."""
+        return _joined(str(getattr(s, "path", "python")) for sols in self.per_mu for s in sols)
+
+    @property
+    def methods(self) -> str:
+        """The online methods that ran (``auto`` resolved; empty for a model that names
+        none)."""
+        return _joined(str(getattr(s, "method", "") or "") for sols in self.per_mu
+                       for s in sols)
+
+    def extend(self, other: OnlineTimes) -> None:
+        self.per_mu.extend(other.per_mu)
+
+    def summary(self) -> dict[str, Any]:
+        """``t_online_median_s``, ``t_online_iqr_s`` (s), ``online_path``,
+        ``online_method`` and ``online_protocol``."""
+        t = self.times
+        return {"t_online_median_s": float(np.median(t)),
+                "t_online_iqr_s": float(np.subtract(*np.percentile(t, [75, 25]))),
+                "online_path": self.paths, "online_method": self.methods,
+                "online_protocol": ONLINE_PROTOCOL}
+
+
+def _joined(names: Any) -> str:
+    return "/".join(sorted({n for n in names if n}))
+
+
+def timed_online_solves(model: Any, mus: Sequence[np.ndarray], repeats: int,
+                        warm_up: bool = True, **solve_kw: Any) -> OnlineTimes:
+    """The online-time protocol :data:`~rbbench.runtime.timing.ONLINE_PROTOCOL`
+    (:data:`~rbbench.runtime.timing.ONLINE_PROTOCOL_DEFINITION`):
+    ``repeats`` (at least one) timed solves ``model.solve(mu, **solve_kw)`` at each of
+    ``mus``, one BLAS thread, garbage collector paused; ``warm_up``: one untimed solve at
+    ``mus[0]`` first (give ``False`` for a model already warmed up in this process)."""
+    repeats = max(1, int(repeats))
+    with one_blas_thread(), gc_paused():
+        if warm_up and len(mus):
+            model.solve(mus[0], **solve_kw)
+        return OnlineTimes([[model.solve(mu, **solve_kw) for _ in range(repeats)]
+                            for mu in mus])
 
 
 @dataclass

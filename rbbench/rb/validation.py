@@ -18,7 +18,9 @@ from typing import Any
 import numpy as np
 
 from rbbench.interfaces import HFVectors
+from rbbench.rb.online import OnlineTimes, timed_online_solves
 from rbbench.runtime.threads import BLAS_THREADS_DEFINITION, one_blas_thread
+from rbbench.runtime.timing import ONLINE_PROTOCOL, ONLINE_PROTOCOL_DEFINITION
 
 
 @dataclass
@@ -51,6 +53,11 @@ class ReduceResult:
     per_mu_extra: dict[str, list[float]] = field(default_factory=dict)  # a stage's own
     extra: dict[str, Any] = field(default_factory=dict)  # a stage's own summary entries
     warnings: list[str] = field(default_factory=list)  # e.g. -N larger than the rank
+    #: the HF floor at each validation mu (s): one factorisation + one solve of A(mu)
+    t_floor: list[float] = field(default_factory=list)
+    floor_solver: str | None = None  # the direct solver of the floor
+    online_path: str = ""  # the online paths that ran (compiled / python)
+    online_method: str = ""  # the online methods that ran (auto resolved)
 
     def summary(self) -> dict[str, Any]:
         """The flat summary (``result.json``, one results row): max / mean / min over the
@@ -75,7 +82,10 @@ class ReduceResult:
             **_offline_times(self.timings),
             "t_online_median_s": t_on,
             "t_online_iqr_s": float(np.subtract(*np.percentile(self.t_online, [75, 25]))),
+            "online_protocol": ONLINE_PROTOCOL, "online_path": self.online_path,
+            "online_method": self.online_method,
             "t_hf_median_s": t_hf, "speedup": t_hf / t_on if t_on > 0 else None,
+            **_floor_summary(self.t_floor, self.floor_solver, t_on),
         }
         out.update(beta_summary(self.beta))
         for name, values in self.per_mu_extra.items():  # e.g. friction: err_lam_t
@@ -101,6 +111,31 @@ def _finite(reduce_):
         return float(reduce_(v)) if v else None
 
     return f
+
+
+def _floor_summary(t_floor: list[float], solver: str | None, t_on: float) -> dict[str, Any]:
+    """``floor_s`` (median over the validation mus of the HF floor), ``floor_solver`` and
+    ``speedup_floor = floor_s / t_online_median_s`` (None without a floor)."""
+    if not t_floor:
+        return {"floor_s": None, "floor_solver": None, "speedup_floor": None}
+    floor = float(np.median(t_floor))
+    return {"floor_s": floor, "floor_solver": solver,
+            "speedup_floor": floor / t_on if t_on > 0 else None}
+
+
+def hf_floor(problem: Any) -> dict[str, Any] | None:
+    """The HF floor of a validation problem (:func:`rbbench.hf.model.default_floor`: one
+    factorisation + one solve of its stiffness with the direct solver of a default HF
+    solve), or None for a problem that is not one stiffness solve away from its HF
+    solution's floor (a parabolic scene's space-time view)."""
+    from rbbench.hf.linear.model import LinearProblem
+    from rbbench.hf.model import default_floor
+    from rbbench.interfaces import ContactProblem, FrictionProblem, NitscheProblem
+
+    if not isinstance(problem, (ContactProblem, FrictionProblem, NitscheProblem,
+                                LinearProblem)):
+        return None
+    return default_floor(problem)
 
 
 def _offline_times(timings: dict[str, float]) -> dict[str, Any]:
@@ -201,15 +236,12 @@ class ReducedStage(ABC):
         return {}
 
 
-def online_solutions(model: Any, mu: np.ndarray, repeats: int) -> list:
-    """``repeats`` (at least one) timed solves of ``model`` at mu, through the model interface."""
-    return [model.solve(mu) for _ in range(max(1, int(repeats)))]
-
-
 def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
     """Validate ``stage.model`` on ``ctx.valid`` (the shared step of
     :func:`rbbench.rb.offline.reduce`) through the model interface only: ``solve(mu)``
-    (``config.online_repeats`` timed repetitions) and ``reconstruct`` of the last one.
+    (``config.online_repeats`` timed repetitions under the online-time protocol,
+    :func:`rbbench.rb.online.timed_online_solves`, the model warmed up once before its
+    first) and ``reconstruct`` of the last one; the HF floor at every mu (:func:`hf_floor`).
 
     ``ctx`` is the :class:`rbbench.rb.offline.OfflineContext` the stage was built from.
     """
@@ -218,16 +250,19 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
     ctx.progress(f"online validation ({n_valid} mus: online solves, errors, inf-sup constants)")
     per_mu: dict[str, list[float]] = {"err_lam": [], "penetration": [], "complementarity": []}
     extra: dict[str, list[float]] = {}
-    err_u, e_en, t_on = [], [], []
+    err_u, e_en, t_floor = [], [], []
+    timed = OnlineTimes()
+    floor_solver = None
     stops: dict[str, int] = {}
     X = ctx.X
     with one_blas_thread() as threads:  # every timed online solve: one BLAS thread
         for j, mu in enumerate(ctx.valid.mus):
             p = ctx.problem_at(mu)
             u, lam = ctx.valid.U[:, j], ctx.valid.LAM[:, j]
-            sols = online_solutions(model, mu, ctx.config.online_repeats)
+            run = timed_online_solves(model, [mu], ctx.config.online_repeats, warm_up=j == 0)
+            timed.extend(run)
+            sols = run.per_mu[0]
             res = sols[-1]
-            t_on.extend(s.time_s for s in sols)
             stage.record_online(mu, sols)
             stops[res.stop_reason] = stops.get(res.stop_reason, 0) + 1
             hf = model.reconstruct(res)
@@ -236,6 +271,10 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
                 (per_mu if key in per_mu else extra).setdefault(key, []).append(value)
             J = energy(p, u)
             e_en.append(float(abs(energy(p, hf.u) - J) / abs(J)) if J != 0 else float("nan"))
+            floor = hf_floor(p)
+            if floor is not None:
+                t_floor.append(floor["floor_s"])
+                floor_solver = floor["solver"]
             ctx.progress(f"online validation {j + 1}/{n_valid}: err_u {err_u[-1]:.3g}, "
                          f"online {np.median([s.time_s for s in sols]):.3g} s, "
                          f"{res.stop_reason}")
@@ -251,13 +290,14 @@ def validate(ctx: Any, stage: ReducedStage) -> ReduceResult:
         n_hf_dofs=int(ctx.train.n_dofs), n_contact=stage.n_contact, err_u=err_u,
         err_lam=per_mu["err_lam"], penetration=per_mu["penetration"],
         complementarity=per_mu["complementarity"], energy_err=e_en, beta=stage.beta,
-        t_online=t_on,
+        t_online=timed.times, online_path=timed.paths, online_method=timed.methods,
         t_hf=[float(t) for t in np.concatenate([ctx.train.times, ctx.valid.times])],
         timings=timings, histories=histories,
         definitions={**SHARED_DEFINITIONS, **stage.definitions},
         model=stage.model, valid_mus=np.asarray(ctx.valid.mus), per_mu_extra=extra,
         extra={**stage.summary(), "blas_threads": threads},
-        warnings=list(getattr(ctx, "warnings", [])))
+        warnings=list(getattr(ctx, "warnings", [])), t_floor=t_floor,
+        floor_solver=floor_solver)
 
 
 def snapshot_timings(train: Any, valid: Any) -> dict[str, float]:
@@ -288,6 +328,24 @@ SHARED_DEFINITIONS = {
     "blas_threads": "the BLAS thread limit of the online validation loop (every timed online "
                     "solve and the per-mu error evaluation): " + BLAS_THREADS_DEFINITION,
     "n_snapshots_cached": "training + validation snapshots this run read from the cache",
+    "floor_s": "the HF floor (s): one factorisation + one solve A(mu) x = F(mu) of the HF "
+               "stiffness on the free dofs with the direct solver of a default HF solve "
+               "(floor_solver names it), timed at each validation mu in the validation loop "
+               "(one BLAS thread), median over the validation set; what no HF solve can beat "
+               "(rbbench solve's floor_s, at one mu); null for a parabolic scene",
+    "floor_solver": "the direct solver of floor_s",
+    "online_protocol": ONLINE_PROTOCOL_DEFINITION,
+    "online_path": "the online path(s) that ran in the timed solves: compiled (numba kernels) "
+                   "or python ('/'-joined when both ran)",
+    "online_method": "the online method(s) that ran in the timed solves (auto resolved, e.g. "
+                     "nnls or daqp; empty for a model that names none)",
+    "speedup": "speed-up against the timed HF solve: t_hf_median_s (median over the training "
+               "and validation snapshots of the stored HF solve time) / t_online_median_s "
+               "(against the HF floor: speedup_floor)",
+    "speedup_floor": "speed-up against the HF floor: floor_s / t_online_median_s (speedup is "
+                     "the one against the timed HF solve, t_hf_median_s / "
+                     "t_online_median_s; their ratio speedup / speedup_floor = t_hf_median_s "
+                     "/ floor_s is the HF solve's overhead over its floor)",
     "warnings": "what the reduction changed or doubts, in words (e.g. -N above the number or "
                 "the numerical rank of the training snapshots: the basis built is smaller, "
                 "N is the size built)",

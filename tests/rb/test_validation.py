@@ -5,7 +5,9 @@ who touches which attribute."""
 from __future__ import annotations
 
 import sys
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 import rbbench
@@ -13,7 +15,7 @@ import rbbench.rb.offline as skeleton
 
 PROTOCOL = {"parameters", "solve", "reconstruct"}
 #: the modules that may use the model interface only (the formulation's own stage may do more)
-SHARED = ("rbbench.rb.validation", "rbbench.bench", "rbbench.api")
+SHARED = ("rbbench.rb.validation", "rbbench.rb.online", "rbbench.bench", "rbbench.api")
 
 MATRIX = """
 [matrix]
@@ -103,3 +105,64 @@ def test_the_python_api_reduce_calls_only_the_model_interface(spies, tmp_path):
                    cache_dir=str(tmp_path))
     (spy,) = spies
     assert {"solve", "reconstruct"} <= _shared_calls(spy) <= PROTOCOL
+
+
+def test_every_reduction_row_has_the_hf_floor_beside_the_timed_hf(tmp_path, monkeypatch):
+    """The floor is timed at every validation mu on that mu's own HF problem; the summary
+    holds its median and both speed-ups, each defined."""
+    import rbbench.hf.model as hf_model
+
+    seen = []
+    real = hf_model.solve_floor
+
+    def spy(problem, linear_solver=None):
+        seen.append((problem, linear_solver))
+        return real(problem, linear_solver)
+
+    monkeypatch.setattr(hf_model, "solve_floor", spy)
+    scene = rbbench.load_scene("membrane_obstacle", ["discretization.n_cells=6"])
+    res = rbbench.reduce(scene, N=3, R=3, n_train=5, n_valid=3, dual="cpg",
+                         stabilizer="none", hyper="affine", online_repeats=2,
+                         cache_dir=str(tmp_path))
+    s = res.summary()
+    assert len(seen) == len(res.t_floor) == 3
+    # each floor solved that mu's stiffness (the problems differ: mu moves the obstacle)
+    from rbbench.hf.condensation.pardiso import available
+
+    expected = "pardiso" if available() else None  # the membrane backend gives no solver
+    assert len({id(p) for p, _ in seen}) == 3 and all(ls == expected for _, ls in seen)
+    assert all(t > 0 for t in res.t_floor)
+    assert s["floor_s"] == float(np.median(res.t_floor))
+    assert s["speedup_floor"] == pytest.approx(s["floor_s"] / s["t_online_median_s"])
+    assert s["speedup"] / s["speedup_floor"] == pytest.approx(s["t_hf_median_s"]
+                                                              / s["floor_s"])
+    assert s["floor_solver"].startswith("PARDISO" if expected else "SuperLU")
+    for key in ("floor_s", "floor_solver", "speedup_floor", "speedup"):
+        assert key in s["definitions"]
+    assert "timed HF solve" in s["definitions"]["speedup"]
+
+
+def test_the_floor_uses_the_default_solves_direct_solver(monkeypatch):
+    """The backend's solver when the problem gives one, PARDISO only when it is installed
+    and the backend gives none (the ``auto`` rule of the condensation), else SuperLU."""
+    import rbbench.hf.condensation.pardiso as pardiso
+    import rbbench.hf.model as hf_model
+
+    calls = []
+    monkeypatch.setattr(hf_model, "solve_floor", lambda p, ls=None: calls.append(ls) or {})
+    own = SimpleNamespace(factorize=lambda A: None)
+    none = SimpleNamespace(factorize=None)
+    for installed in (False, True):
+        monkeypatch.setattr(pardiso, "available", lambda v=installed: v)
+        hf_model.default_floor(own)
+        hf_model.default_floor(none)
+    assert calls == [None, None, None, "pardiso"]
+
+
+def test_no_floor_for_a_problem_that_is_not_one_stiffness_solve():
+    """A parabolic scene's space-time view (no stiffness of one HF solve) has no floor."""
+    from rbbench.rb.validation import _floor_summary, hf_floor
+
+    assert hf_floor(SimpleNamespace(A=None, F=None)) is None
+    assert _floor_summary([], None, 1e-5) == {"floor_s": None, "floor_solver": None,
+                                              "speedup_floor": None}

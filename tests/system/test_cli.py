@@ -231,8 +231,11 @@ def test_reduce_summary_units(capsys):
     out = capsys.readouterr().out
     assert re.search(r"^  penetration_max\s+1e-06 m$", out, re.M)
     assert re.search(r"^  t_offline_s\s+2\.5 s$", out, re.M)
-    for key in ("N", "err_u_max", "speedup"):
+    for key in ("N", "err_u_max"):
         assert re.search(rf"^  {key}\s+\S+$", out, re.M), key
+    # a speed-up says against what it is measured
+    assert re.search(r"^  speedup\s+10 \s*\(against the timed HF solve: t_hf_median_s / "
+                     r"t_online_median_s\)$", out, re.M)
     _print_reduce_summary(s, "mixed", units_of("poisson"))
     out = capsys.readouterr().out
     assert re.search(r"^  penetration_max\s+1e-06$", out, re.M)

@@ -1,6 +1,6 @@
 """The report of a run directory: its figures written to disk, and the Markdown / HTML
-summary (status counts, best combination per error level, figures with captions, rows
-not ok, every row, column definitions)."""
+summary (status counts, flagged cases, best combination per error level, figures with
+captions, rows not ok, every row, column definitions)."""
 
 from __future__ import annotations
 
@@ -30,6 +30,7 @@ from rbbench.bench.report.common import (
     _md_table,
 )
 from rbbench.bench.report.figures import _FIGURES
+from rbbench.bench.report.flags import FLAG_RULES, case_flags
 from rbbench.bench.report.friction_figures import FIGURE_GROUPS, friction_table, table_note
 from rbbench.bench.report.loading import load_run
 from rbbench.bench.report.plotting import _NotApplicable, _Skip
@@ -44,7 +45,7 @@ _ROW_COLUMNS = ("scene", "backend", "formulation", "solver", "primal", "dual",
                 "penetration_max", "beta_dec_min", "beta_on_min", "beta_off_min",
                 "contact_force", "tangential_force", "n_stick", "n_slip",
                 "friction_residual", "hf_iterations", "t_hf_median_s", "t_offline_s",
-                "t_online_median_s", "speedup", "case_id")
+                "t_online_median_s", "speedup", "floor_s", "speedup_floor", "case_id")
 _TITLES = {"pareto": "Error against online time (Pareto fronts)",
            "offline": "Offline cost against online time",
            "error_vs_size": "Error against RB size", "infsup": "Inf-sup constants",
@@ -279,6 +280,26 @@ def _status_section(d: _Doc, ctx: _Ctx) -> None:
     d.use("status")
 
 
+def _flags_section(d: _Doc, ctx: _Ctx) -> None:
+    """The ok cases an error of which grows with N or sits far above its floor
+    (:mod:`rbbench.bench.report.flags`)."""
+    flags = case_flags(ctx.records)
+    hit = [(r, f) for r, f in zip(ctx.records, flags, strict=True) if f]
+    d.heading(f"Flagged cases ({len(hit)})")
+    d.bullets([f"Rule: {rule}." for rule in FLAG_RULES])
+    if not hit:
+        d.para("No ok row is flagged.")
+        return
+    hit.sort(key=lambda rf: (str(rf[0].get("scene")), ctx.combos_all.label(rf[0]),
+                             _size_req(rf[0]), rf[0].get("repetition") or 0))
+    d.table(["scene", "combination", "N", "R", "repetition", "flags", "case_id"],
+            [[str(r.get("scene")), ctx.combos_all.label(r), _fmt(r.get("N")),
+              _fmt(r.get("R")), _fmt(r.get("repetition")), "; ".join(f),
+              _fmt(r.get("case_id"))] for r, f in hit])
+    d.use("N", "R", "repetition", "err_u_max", "err_lam_max", "lam_best_max",
+          "err_lam_t_max", "lam_t_best_max", "case_id")
+
+
 def _without_values(ctx: _Ctx, col: str) -> list[str]:
     """The scenes with ok rows, none of which has a value of ``col``."""
     ok = [r for r in ctx.records if r.get("status") == "ok"]
@@ -396,9 +417,15 @@ def _rows_section(d: _Doc, ctx: _Ctx) -> None:
     if dropped:
         d.para("Columns empty in every row, not shown: " + ", ".join(dropped) + ".")
     kinds = [{c: r.get(c.replace("_min", "_kind")) for c in _BETAS} for r in rows_sorted]
-    d.table([_header(c) for c in keep],
-            [[_cell(s[c], c, k) for c in keep] for s, k in zip(shown, kinds, strict=True)])
+    flags = ["; ".join(f) for f in case_flags(rows_sorted)]
+    extra = ["flags"] if any(flags) else []
+    d.table([_header(c) for c in keep] + extra,
+            [[_cell(s[c], c, k) for c in keep] + ([f] if extra else [])
+             for s, k, f in zip(shown, kinds, flags, strict=True)])
     d.use(*keep)
+    if extra:
+        d.para("flags: see 'Flagged cases' (an error that grows with N in its configuration, "
+               "or err_lam far above its cone floor lam_best).")
     if any(c in _BETAS for c in keep):
         d.para("beta columns: a value marked '≤' is a cone upper estimate (the true "
                "constant is at most this), '≥' a span lower bound; unmarked: exact cone "
@@ -428,6 +455,7 @@ def _summary(ctx: _Ctx, drawn: _Drawn, img_fmt: str) -> tuple[str, str]:
     d = _Doc()
     _intro(d, ctx, run_id)
     _status_section(d, ctx)
+    _flags_section(d, ctx)
     for col in ("err_u_max", "err_lam_max"):
         _best_section(d, ctx, col)
     _friction_section(d, ctx)

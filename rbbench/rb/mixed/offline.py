@@ -77,7 +77,9 @@ DEFINITIONS = {
                 "INCLUDES the HF assembly at mu, the online supremizers and the projection "
                 "(their part alone: t_online_hf_assembly_s): that model's online cost grows "
                 "with the HF size",
-    "speedup": "median HF solve time / median online time",
+    "speedup": "speed-up against the timed HF solve: t_hf_median_s (median over the training "
+               "and validation snapshots of the stored HF solve time: discretise + formulate "
+               "+ solve) / t_online_median_s (against the HF floor: speedup_floor)",
     "e_proj": "dual compressor: relative max projection error of the multiplier snapshots on "
               "the cone after r generators (Benaceur et al., mCPG algorithm (4/4))",
     "e_orth": "normalised distance of each new generator from the previous cone",

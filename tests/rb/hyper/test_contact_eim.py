@@ -101,24 +101,6 @@ def test_windowed_ray_cast_equals_brute_force_on_the_window(data):
     np.testing.assert_allclose(np.abs(t1[hit]), np.abs(t0[hit]), rtol=1e-9, atol=1e-12)
 
 
-def test_gc_paused_restores_the_collector_state():
-    import gc
-
-    from rbbench.studies.scaling import gc_paused
-
-    assert gc.isenabled()
-    with gc_paused():
-        assert not gc.isenabled()
-    assert gc.isenabled()
-    gc.disable()
-    try:
-        with gc_paused():
-            pass
-        assert not gc.isenabled()  # a caller's own pause is kept
-    finally:
-        gc.enable()
-
-
 @settings(max_examples=100, deadline=None)
 @given(chains(), st.integers(1, 50))
 def test_ray_cast_in_blocks_equals_one_block(data, block):
@@ -192,6 +174,7 @@ def test_pipeline_with_eim_matches_the_plain_reduced_model(tmp_path):
 
 
 def test_online_scaling_study_runs_on_two_levels(tmp_path, monkeypatch):
+    from rbbench.runtime.timing import ONLINE_PROTOCOL
     from rbbench.studies.scaling import online_scaling, scaling_markdown
 
     monkeypatch.chdir(tmp_path)
@@ -205,4 +188,7 @@ def test_online_scaling_study_runs_on_two_levels(tmp_path, monkeypatch):
     from rbbench.rb.mixed.compiled import NUMBA_VERSION
 
     assert {r["online_path"] for r in rows} == {"compiled" if NUMBA_VERSION else "python"}
-    assert "| 1 |" in scaling_markdown(rows)
+    assert {r["online_protocol"] for r in rows} == {ONLINE_PROTOCOL}
+    assert all(r["floor_s"] > 0 for r in rows)
+    text = scaling_markdown(rows)
+    assert "| 1 |" in text and ONLINE_PROTOCOL in text

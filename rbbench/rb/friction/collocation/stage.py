@@ -81,7 +81,9 @@ DEFINITIONS = {
            "paired online, n_eim_train the EIM training parameters (no HF solve there)",
     "eim_error": "hyper 'eim': relative max-norm EIM training error of Bn Z after each "
                  "term (eim_error_t: of Bt Z; eim_error_G: of Gn)",
-    "speedup": "median HF solve time / median online time",
+    "speedup": "speed-up against the timed HF solve: t_hf_median_s (median over the training "
+               "and validation snapshots of the stored HF solve time: discretise + formulate "
+               "+ solve) / t_online_median_s (against the HF floor: speedup_floor)",
     "u_best": "per validation mu: ||u - Pi u||_X / ||u||_X, Pi the X-projection onto the "
               "online primal space span(Z_off): the floor of err_u",
     "dim_v_off": "N + K: the primal space after the stabiliser (PGA on the combined form "
