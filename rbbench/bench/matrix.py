@@ -65,7 +65,7 @@ from rbbench.bench.applicability import (
 from rbbench.bench.matrix_checks import MatrixError
 from rbbench.registry import Registry
 from rbbench.scene import limits
-from rbbench.scene.loading import PROBLEMS_DIR, load_scene, tomllib
+from rbbench.scene.loading import PROBLEMS_DIR, load_scene
 
 __all__ = ["COMPONENT_ROLES", "MODEL_AXES", "Case", "Matrix", "MatrixError", "compatibility",
            "load_matrix", "reduced_model_check"]
@@ -273,14 +273,10 @@ def _case_count(plan: _Plan) -> int:
 
 def _read_toml(path: Path, where: str) -> dict[str, Any]:
     """The matrix file's tables, with the top-level ones and ``[matrix]`` checked."""
-    try:
-        data = tomllib.loads(limits.read_input(path, "run matrix"))
-    except tomllib.TOMLDecodeError as exc:  # noqa: BLE001 - any parse error becomes a named one
-        raise MatrixError(f"{where}: not valid TOML: {exc}") from None
-    except ValueError as exc:  # a directory, too large, unreadable, not UTF-8
+    try:  # a directory, too large, unreadable, not UTF-8, not TOML, nested too deeply
+        data = limits.read_toml(path, "run matrix")
+    except ValueError as exc:
         raise MatrixError(str(exc)) from None
-    except RecursionError:
-        raise MatrixError(f"{where}: not valid TOML: nested too deeply") from None
     _check_keys(data, _TOP, where)
     if "matrix" not in data:
         raise MatrixError(f"{where}: missing the [matrix] table (name, scenes)")

@@ -15,7 +15,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
-import sys
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -37,11 +36,6 @@ from rbbench.scene.schema import (
     _parameter_ref,
     _unknown,
 )
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 
 def _shipped_dir(package: str = "rbbench.problems") -> Path:
@@ -224,11 +218,10 @@ def parse_override(text: str) -> tuple[list[str], Any]:
     if len(parts) < 2:
         raise SceneError(
             f"override {text!r}: the key must read section.key (e.g. load.displacement)")
-    raw = raw.strip()
     try:
-        value = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw
+        value = limits.toml_literal(raw.strip(), f"override {key.strip()!r}")
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
     return parts, value
 
 
@@ -236,13 +229,9 @@ def load_scene(name_or_path: str | Path, overrides: tuple[str, ...] | list[str] 
     """Load and validate a scene, applying ``--set`` style overrides."""
     path = find_scene(name_or_path)
     try:
-        data = tomllib.loads(limits.read_input(path, "scene"))
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: not valid TOML: {exc}") from exc
-    except ValueError as exc:  # a directory, too large, unreadable, not UTF-8
+        data = limits.read_toml(path, "scene")
+    except ValueError as exc:  # a directory, too large, unreadable, not UTF-8, not TOML
         raise SceneError(str(exc)) from None
-    except RecursionError:
-        raise SceneError(f"{path}: not valid TOML: nested too deeply") from None
     for text in overrides:
         parts, value = parse_override(text)
         node = data
