@@ -55,6 +55,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from rbbench.bench import json_text
 from rbbench.bench import matrix_checks as checks
 from rbbench.bench.applicability import (
     REGISTRY_ROLES,
@@ -186,11 +187,13 @@ def _check_keys(d: dict, allowed: set, where: str) -> None:
         raise MatrixError(f"{where}: unknown key(s) {bad}; valid: {sorted(allowed)}")
 
 
-def _parse_value(text: str) -> Any:
+def _parse_value(text: str, key: str = "") -> Any:
     try:
-        return json.loads(text)
+        return json_text.loads(text)
     except json.JSONDecodeError:
         return text
+    except ValueError as exc:  # nested too deeply
+        raise MatrixError(f"--set {key}: the value is {exc}") from None
 
 
 def _selectors(selectors: list[str] | tuple[str, ...]) -> dict[str, list[str]]:
@@ -377,7 +380,7 @@ def _base_params(reduce: dict, sets: list[str] | tuple[str, ...], rfields: set[s
         if "=" not in s:
             raise MatrixError(f"--set {s!r}: write FIELD=VALUE (a [reduce] field)")
         k, v = s.split("=", 1)
-        base[k.strip()] = _parse_value(v.strip())
+        base[k.strip()] = _parse_value(v.strip(), k.strip())
     _check_params(base, rfields, f"{where}: [reduce] / --set")
     checks.check_reduce_values(base, f"{where}: [reduce] / --set")
     return base
