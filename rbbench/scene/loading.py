@@ -322,7 +322,16 @@ def _check_materials(data: dict[str, Any], path: str, params: dict[str, Paramete
             mat[key] = _check_value(path, f"[material.{body}] {key}", f, mat[key], params)
 
 
-def _check_kind(data: dict[str, Any], path: str) -> None:
+def _span(raw: Any, params: dict[str, Parameter]) -> tuple[float, float]:
+    """The least and the largest value of a validated scene value over the domain (a
+    number, or a ``"mu.NAME"`` reference: the parameter's range)."""
+    name = _parameter_ref(raw)
+    if name is None:
+        return float(raw), float(raw)
+    return float(params[name].low), float(params[name].high)
+
+
+def _check_kind(data: dict[str, Any], path: str, params: dict[str, Parameter]) -> None:
     """The keys and the physics that the geometry kind requires."""
     kind = data["geometry"]["kind"]
     for section, keys in _KIND_REQUIRES[kind].items():
@@ -343,6 +352,11 @@ def _check_kind(data: dict[str, Any], path: str) -> None:
                            + SCHEMA["geometry"]["lower_radius"].describe())
         if data["scene"]["physics"] != "elasticity":
             raise _err(path, "[scene] physics", "geometry kind 'halfdisks' needs 'elasticity'")
+        d, r1 = data["load"]["displacement"], data["geometry"]["upper_radius"]
+        if _span(d, params)[1] >= _span(r1, params)[0]:
+            raise _err(path, "[load] displacement", f"{d!r} is out of range; the approach of "
+                       "the upper body must stay below its radius [geometry] upper_radius = "
+                       f"{r1!r} (over the parameter domain)")
     if kind == "unit_square" and data["scene"]["physics"] != "poisson":
         raise _err(path, "[scene] physics", "geometry kind 'unit_square' needs 'poisson'")
 
@@ -362,7 +376,7 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
     params = _parameters(data, path)  # first: other keys may reference them
     _fill_schema(data, path, params)
     _check_materials(data, path, params)
-    _check_kind(data, path)
+    _check_kind(data, path, params)
     check_friction(data, path, params)  # [friction], tangential load, load steps
     if not limits.check_name(data["scene"]["name"]):
         raise _err(path, "[scene] name", f"{data['scene']['name']!r} is not a valid name "
