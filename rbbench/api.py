@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import Scene, SceneError, load_scene
+from rbbench.scene.parameters import FieldError
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -77,10 +78,15 @@ def solve(scene: str | Path | Scene, mu: Any = None, backend: str = "skfem",
         :func:`rbbench.hf.linear.solve.solve_linear_hf`, ``.problem`` a
         :class:`~rbbench.hf.linear.model.LinearProblem`, ``.metrics`` without contact fields.
     """
-    from rbbench.hf.components import make_components
+    from rbbench.hf.components import check_component_options, check_names, make_components
     from rbbench.hf.model import solve_hf
+    from rbbench.registry import default_registry
 
     sc = as_scene(scene)
+    reg = options.get("registry") or default_registry()
+    if mu is not None:  # checked before any HF work, as the names and options below
+        sc.check_mu(mu)
+    check_component_options(reg, "backend", backend, backend_options or {})
     if is_linear(sc):  # no contact: one sparse solve (rbbench.hf.linear.solve)
         from rbbench.hf.linear.solve import solve_linear_hf
 
@@ -89,6 +95,12 @@ def solve(scene: str | Path | Scene, mu: Any = None, backend: str = "skfem",
                              "formulation options")
         return solve_linear_hf(sc, mu, backend, formulation, options.get("registry"),
                                backend_options, options.get("progress", lambda m: None))
+    check_names(sc, reg, backend, formulation, solver)
+    if formulation_options:
+        try:
+            reg.create("formulation", formulation, **formulation_options)
+        except (TypeError, ValueError) as exc:
+            raise FieldError("", "formulation_options", formulation_options, str(exc)) from None
     if backend_options or formulation_options:
         options["components"] = make_components(
             sc, backend, formulation, solver, options.get("registry"),

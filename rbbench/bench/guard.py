@@ -128,7 +128,7 @@ def mark_interrupted(out_dir: Path, why: str) -> None:
     """Set ``state = "interrupted"`` in ``DIR/manifest.json`` if it says ``running``."""
     path = Path(out_dir) / "manifest.json"
     try:
-        man = json_text.loads(path.read_text())
+        man = json_text.loads(json_text.read_text(path))
     except (OSError, ValueError):
         return
     if not isinstance(man, dict) or man.get("state") != "running":

@@ -157,7 +157,7 @@ def _case_rows(d: Path, notes: list[str] | None) -> list[dict[str, Any]]:
     raw = []
     for f in files:
         try:
-            rec = json_text.loads(f.read_text())
+            rec = json_text.loads(json_text.read_text(f))
         except (OSError, ValueError) as exc:
             problem = f"unreadable ({exc})"
         else:

@@ -24,6 +24,7 @@ import numpy as np
 
 from rbbench.scene import limits
 from rbbench.scene.friction import check_friction, key_neutral
+from rbbench.scene.limits import tomllib  # noqa: F401 - the TOML reader (tomli before 3.11)
 from rbbench.scene.parameters import ParameterSpace, SceneError  # noqa: F401 - SceneError lives here
 from rbbench.scene.schema import (
     _ELASTIC,
@@ -211,7 +212,7 @@ def find_scene(name_or_path: str | Path) -> Path:
 
 def parse_override(text: str) -> tuple[list[str], Any]:
     """Parse ``section.key=value`` (value as a TOML literal, else a string)."""
-    if "=" not in text:
+    if not isinstance(text, str) or "=" not in text:
         raise SceneError(f"override {text!r}: expected section.key=value")
     key, raw = text.split("=", 1)
     parts = [p for p in key.strip().split(".") if p]

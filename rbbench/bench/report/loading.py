@@ -48,7 +48,7 @@ def _manifest(d: Path, notes: list[str]) -> dict:
     if not (d / "manifest.json").is_file():
         return {}
     try:
-        man = json_text.loads((d / "manifest.json").read_text())
+        man = json_text.loads(json_text.read_text(d / "manifest.json"))
     except (OSError, ValueError) as exc:
         notes.append(f"manifest.json unreadable ({exc})")
         return {}
@@ -65,7 +65,7 @@ def _details(d: Path, notes: list[str]) -> dict[tuple[str, int], dict]:
         return details
     for f in sorted((d / "cases").glob("*.json")):
         try:
-            doc = json_text.loads(f.read_text())
+            doc = json_text.loads(json_text.read_text(f))
         except (OSError, ValueError) as exc:
             notes.append(f"cases/{f.name}: unreadable ({exc}); ignored")
             continue
