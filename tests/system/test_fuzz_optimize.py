@@ -122,7 +122,7 @@ def test_unsafe_scene_names(name):
     assert_rejected(code, err, outside, "scene.name")
 
 
-FLAGS = [("--eps", v) for v in ("nan", "inf", "-1", "0", "-inf", "abc", "1e309")] + \
+FLAGS = [("--eps", v) for v in ("nan", "inf", "-1", "0", "-inf", "abc", "1e309", "2")] + \
         [("--max-iter", v) for v in ("0", "-1", "2.5", "abc", "1e9")] + \
         [("--max-evals", v) for v in ("0", "-3", "x")] + \
         [("--driver", "fem"), ("--method", "newton"), ("--metric", "l2")]
