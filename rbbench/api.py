@@ -77,6 +77,16 @@ def solve(scene: str | Path | Scene, mu: Any = None, backend: str = "skfem",
         A linear scene (``thermal_block``, ``heat_robin``; no contact):
         :func:`rbbench.hf.linear.solve.solve_linear_hf`, ``.problem`` a
         :class:`~rbbench.hf.linear.model.LinearProblem`, ``.metrics`` without contact fields.
+
+    Raises
+    ------
+    ValueError
+        Before any HF work: ``mu`` outside the domain or not numbers
+        (:class:`~rbbench.scene.loading.SceneError`), component options the component does
+        not take (:class:`~rbbench.scene.parameters.FieldError`), a solver of another
+        formulation.
+    rbbench.registry.UnknownComponentError
+        Before any HF work, for a component name that is not registered.
     """
     from rbbench.hf.components import check_component_options, check_names, make_components
     from rbbench.hf.model import solve_hf
@@ -147,7 +157,12 @@ def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None 
     ValueError
         Before any HF work, for an option the formulation does not take
         (:class:`~rbbench.rb.config.OptionError`, naming the option and the formulations
-        that take it) or a value outside its range (:class:`~rbbench.scene.loading.SceneError`).
+        that take it), a value of the wrong type or outside its range
+        (:class:`~rbbench.scene.parameters.FieldError`, naming the field and what is valid)
+        or a choice the scene cannot take (:class:`~rbbench.scene.loading.SceneError`).
+    rbbench.registry.UnknownComponentError
+        Before any HF work, for a component name that is not registered (listing the
+        registered ones).
     """
     from rbbench.rb.config import make_config
     from rbbench.rb.offline import reduce as reduce_offline

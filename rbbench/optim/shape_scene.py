@@ -215,7 +215,7 @@ def validate(sc: ShapeScene, where: Path | str) -> None:
          f"{sc.n_contact}: need I <= {MAX_NODES}"),
         ("geometry.ny", sc.n_contact * sc.ny <= MAX_CELLS,
          f"{sc.ny}: need (I - 1) x ny <= {MAX_CELLS} cells (I = {sc.n_contact})"),
-        ("objective.power", not 2 <= sc.power <= MAX_POWER
+        ("objective.power", not 2 <= sc.power <= MAX_POWER or sc.n_contact < 2
          or _finite_objective(sc, load * length),
          f"{sc.power}: J >= I (P / I)^p with the load P = (pressure + |traction|) (b - a) "
          f"= {load * length:.3g} overflows; lower the power or the load"),
@@ -234,7 +234,7 @@ def validate(sc: ShapeScene, where: Path | str) -> None:
 def _finite_objective(sc: ShapeScene, total: float) -> bool:
     """Whether ``I (P / I)^p`` (the least J of the load ``P`` on ``I`` nodes, and the scale
     of every J of the run) is a finite number."""
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):
         return bool(np.isfinite(sc.n_contact * (np.float64(total) / sc.n_contact) ** sc.power))
 
 
