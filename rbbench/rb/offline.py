@@ -147,7 +147,9 @@ def check_hyper_name(config: ReduceConfig, registry: Registry) -> None:
 def prepare_config(scene: Scene, config: ReduceConfig, registry: Registry
                    ) -> tuple[Any, ReduceConfig]:
     """The formulation's offline steps and the configuration they will run, checked before
-    any HF work: the formulation (default: ``linear`` on a linear scene, else ``mixed``),
+    any HF work: the component names (registered, strings) and the backend's options
+    (:func:`~rbbench.hf.components.check_component_options`), the formulation (default:
+    ``linear`` on a linear scene, else ``mixed``; one the scene's physics can take),
     the steps support the scene's friction law, the solver (default: the
     formulation's own for that law), the formulation's options (:func:`parse_options`:
     an option of another formulation is an :class:`~rbbench.rb.config.OptionError`),
