@@ -42,9 +42,12 @@ _COPIED = ("n_hf_dofs", "n_contact", "n_train", "n_valid", "N", "R", "M_eim", "e
 #: Summary keys of a reduced friction model (rbbench.rb.friction.collocation.stage) copied as they
 # are;  ``S_tau`` is its ``S`` (the row's ``S`` is the stabiliser size).
 _FRICTION = ("err_lam_t_max", "err_lam_t_mean", "lam_t_best_max", "friction_residual_max",
+             "friction_law_residual_max", "slip_law_residual_max",
              "online_iterations_max", "S_q", "gcns_iterations", "dim_v_off", "delta_pga")
-#: Summary keys of a reduced model with an a posteriori error bound (linear scenes).
-_ESTIMATOR = ("err_est_max", "effectivity_min", "effectivity_max")
+#: Summary keys of a reduced model with an a posteriori error bound (linear scenes; mixed
+#: contact scenes: err_bound_u_max, certified, the bound's online time).
+_ESTIMATOR = ("err_est_max", "effectivity_min", "effectivity_max", "effectivity_median",
+              "err_bound_u_max", "certified", "t_bound_median_s")
 #: Summary entries of a friction reduction kept in the case details (report figures).
 _FRICTION_DETAILS = ("gcns_history", "lam_t_profiles")
 _TIMINGS = {"t_snapshots_s": "snapshots_s", "t_primal_s": "primal_s", "t_dual_s": "dual_s",

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 from rbbench.optim.shape_scene import parse_overrides
+from rbbench.optim.strategy import STRATEGIES
 
 #: the help of the optimiser's arguments (``rbbench optimize``, ``rbbench studies
 #: shape-side-by-side``)
@@ -17,6 +18,10 @@ HELP = {
     "metric": "bundle subproblem metric: identity (Schramm-Zowe BT) or bfgs (damped BFGS at "
               "serious steps, rbbench.optim.bundle_metric)",
     "eps": "stopping tolerance on the predicted decrease, relative to J0",
+    "strategy": "equalise: stages of a load-equalising design phase (HF state "
+                "solves that set the design carrying the uniform nodal force, "
+                "rbbench.optim.strategy) and the local solver from its design; none: the "
+                "local solver alone from the initial design (the plain bundle method)",
 }
 
 
@@ -32,6 +37,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
                         "enriched in a trust region")
     p.add_argument("--method", choices=("bundle", "slsqp"), default="bundle",
                    help="bundle trust region or scipy's SLSQP as a smooth baseline")
+    p.add_argument("--strategy", choices=STRATEGIES, default="equalise",
+                   help=HELP["strategy"])
     p.add_argument("--max-iter", type=int, default=100, help=HELP["max_iter"])
     p.add_argument("--max-evals", type=int, default=300, help=HELP["max_evals"])
     p.add_argument("--metric", choices=("identity", "bfgs"), default="identity",
@@ -40,7 +47,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override a scene field, e.g. --set geometry.ny=20")
     p.add_argument("--out", type=Path, default=None,
-                   help="output directory (default results/optimize/<scene>_<driver>_<method>)")
+                   help="output directory (default results/optimize/<scene>_<driver>_<method>, "
+                        "with _none appended for --strategy none)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
     return p
@@ -59,16 +67,23 @@ def run(args) -> int:
         raise SceneError(f"--eps {args.eps:g}: must be a finite number in (0, 1] (relative "
                          "to J0)")
     sc = load_shape_scene(args.scene, parse_overrides(args.set))
-    out = args.out or Path("results") / "optimize" / f"{sc.name}_{args.driver}_{args.method}"
+    tail = "" if args.strategy == "equalise" else f"_{args.strategy}"
+    out = args.out or (Path("results") / "optimize"
+                       / f"{sc.name}_{args.driver}_{args.method}{tail}")
     cfg = OptimizeConfig(driver=args.driver, method=args.method, max_iter=args.max_iter,
                          max_evals=args.max_evals, eps=args.eps, quiet=args.quiet,
-                         metric=args.metric)
+                         metric=args.metric, strategy=args.strategy)
     print(f"rbbench optimize {sc.name}: driver {cfg.driver}, method {cfg.method}, "
+          f"strategy {cfg.strategy}, "
           f"I = {sc.n_contact}, mesh {sc.n_contact - 1} x {sc.ny} Q1 -> {out}")
     s = run_optimization(sc, cfg, out)
     print(f"J0 {s['J0']:.6e}  J_opt {s['J_opt']:.6e}  ratio {s['ratio']:.4e} (published: "
           f"{s['published']['ratio']:.4e})  iterations {s['iterations']}  HF solves "
           f"{s.get('hf_solves')}  wall {s['wall_s']:.1f} s  stop: {s['stop_reason']}\n"
+          f"J / uniform-pressure bound {s['J_over_bound']:.8g} (bound {s['J_uniform_bound']:.6e})"
+          f"  strategy {s['strategy']}: {s['strategy_cost']['outer_stages']} stage(s), "
+          f"{s['strategy_cost']['phase_state_solves']} phase state solves\n"
           f"constraint residuals at the optimum (max, raw): {s['constraint_residual_max_opt']:.2e}"
+          f" ({s['constraint_worst_opt']})"
           f"\nwritten: {out}/summary.json, history.csv, designs.png, pressure.png, history.png")
     return 1 if str(s["stop_reason"]).startswith("oracle failed") else 0

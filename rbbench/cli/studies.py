@@ -1,6 +1,6 @@
 """The study commands: ``rbbench hertz-table``, ``nitsche-table``, ``nitsche-compare`` and
 ``rbbench studies STUDY`` (pymor-thermal-block, heat-robin, shape-side-by-side,
-snapshot-workers); the studies themselves live in :mod:`rbbench.studies`.
+shape-strategy, snapshot-workers); the studies themselves live in :mod:`rbbench.studies`.
 
 The published figures are those of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order
 reduction methods: parametric variational inequalities" (talk), and of the talk "On
@@ -32,8 +32,9 @@ STUDY_INTS = {"N": ("-N", 1000), "R": ("-R", 1000), "n_train": ("--n-train", 10_
               "rounds": ("--rounds", 1000), "max_iter": ("--max-iter", 100_000),
               "max_evals": ("--max-evals", 100_000)}
 #: float arguments: ``dest -> (flag, low, high, low included)`` (high included; eps: the
-#: stopping tolerance relative to J0, below 1)
-STUDY_FLOATS = {"eps": ("--eps", 0.0, 1.0, False), "pause": ("--pause", 0.0, 60.0, True)}
+#: stopping tolerance relative to J0, at most 1)
+STUDY_FLOATS = {"eps": ("--eps", 0.0, 1.0, False), "pause": ("--pause", 0.0, 60.0, True),
+                "tol": ("--tol", 0.0, math.inf, False)}
 
 
 def check_study_args(args: argparse.Namespace) -> None:
@@ -106,13 +107,15 @@ def _checked(run: Any) -> Any:
 def add_parser(sub) -> None:
     """Register ``studies`` and one subcommand per study on the CLI's subparsers."""
     st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-robin, "
-                        "shape-side-by-side, snapshot-workers)")
+                        "shape-side-by-side, shape-strategy, snapshot-workers, bound-greedy)")
     group = st.add_subparsers(dest="study", required=True, metavar="STUDY",
                               help="the study (rbbench studies STUDY --help: its arguments)")
     for add, run in ((_add_pymor_thermal_block_parser, cmd_pymor_thermal_block),
                      (_add_heat_robin_parser, cmd_heat_robin),
                      (_add_shape_side_by_side_parser, cmd_shape_side_by_side),
-                     (_add_snapshot_workers_parser, cmd_snapshot_workers)):
+                     (_add_shape_strategy_parser, cmd_shape_strategy),
+                     (_add_snapshot_workers_parser, cmd_snapshot_workers),
+                     (_add_bound_greedy_parser, cmd_bound_greedy)):
         add(group).set_defaults(func=_checked(run))
 
 
@@ -335,6 +338,41 @@ def cmd_shape_side_by_side(args: argparse.Namespace) -> int:
                              args.max_evals, args.eps)
     return print_and_dump(shape_markdown(res), res, args.json)
 
+def _add_shape_strategy_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies shape-strategy`` (``sub``: argparse subparsers)."""
+    p = sub.add_parser("shape-strategy", help="rbbench optimize with --strategy none and "
+                       "equalise side by side in one process: J, J / uniform-pressure bound, "
+                       "HF solves, stages, wall time")
+    p.add_argument("--scene", default="shape_coulomb", help=OPTIMIZE_HELP["scene"])
+    p.add_argument("--driver", nargs="+", choices=("hf", "rb"), default=["hf"],
+                   help="the drivers to run (each with both strategies)")
+    p.add_argument("--repeats", type=int, default=1,
+                   help="runs of each configuration, alternated (wall time: the median)")
+    p.add_argument("--metric", choices=("identity", "bfgs"), default="identity",
+                   help=OPTIMIZE_HELP["metric"])
+    p.add_argument("--max-iter", type=int, default=100, help=OPTIMIZE_HELP["max_iter"])
+    p.add_argument("--max-evals", type=int, default=300, help=OPTIMIZE_HELP["max_evals"])
+    p.add_argument("--eps", type=float, default=1e-6, help=OPTIMIZE_HELP["eps"])
+    p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override a scene field, e.g. --set geometry.ny=20")
+    p.add_argument("--out-dir", type=Path, default=None,
+                   help="keep each run's files in OUT_DIR/<driver>_<strategy>_<repeat> "
+                        "(default: a temporary folder)")
+    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    return p
+
+
+def cmd_shape_strategy(args: argparse.Namespace) -> int:
+    """Run the study and print its table."""
+    from rbbench.optim.shape_scene import parse_overrides
+    from rbbench.studies.shape_strategy import strategy_markdown, strategy_side_by_side
+
+    res = strategy_side_by_side(args.scene, parse_overrides(args.set), tuple(args.driver),
+                                args.repeats, args.max_iter, args.max_evals, args.eps,
+                                args.metric, args.out_dir)
+    return print_and_dump(strategy_markdown(res), res, args.json)
+
+
 def _add_snapshot_workers_parser(sub: Any) -> argparse.ArgumentParser:
     """``rbbench studies snapshot-workers`` (``sub``: argparse subparsers)."""
     p = sub.add_parser("snapshot-workers", help="HF snapshots with 1 and n worker "
@@ -378,3 +416,38 @@ def cmd_snapshot_workers(args: argparse.Namespace) -> int:
                                                "settle_faults": out["settle_faults"],
                                                "cases": rows}, indent=1))
     return 0
+
+
+def _add_bound_greedy_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies bound-greedy`` (``sub``: argparse subparsers)."""
+    p = sub.add_parser("bound-greedy", help="weak greedy driven by the certified error bound "
+                       "against POD: HF solves to reach the POD's err_u_max")
+    p.add_argument("scene", nargs="?", default="membrane_obstacle",
+                   help="scene name in problems/ or path to a .toml file (affine operators, "
+                   "mu-independent A and B: the online bound's requirements)")
+    p.add_argument("--set", dest="overrides", action="append", default=[],
+                   metavar="KEY=VALUE", help="scene override (repeatable)")
+    p.add_argument("--n-train", dest="n_train", type=int, default=1000,
+                   help="the greedy's training set (Latin hypercube)")
+    p.add_argument("--tol", type=float, default=1e-3,
+                   help="tolerance on max Delta_u / ||u_N||_X over the training set")
+    p.add_argument("--max-iter", dest="max_iter", type=int, default=25,
+                   help="the most HF solves of the greedy")
+    p.add_argument("-N", type=int, default=8, help="POD: primal size")
+    p.add_argument("-R", type=int, default=8, help="POD: cone size")
+    p.add_argument("--n-valid", dest="n_valid", type=int, default=20,
+                   help="validation parameters (the scene's random validation set)")
+    p.add_argument("--cache-dir", default=".rbbench_cache", help="HF snapshot cache")
+    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    return p
+
+
+def cmd_bound_greedy(args: argparse.Namespace) -> int:
+    """Run the study and print its table."""
+    from rbbench.scene.loading import load_scene
+    from rbbench.studies.bound_greedy import bound_greedy_study, markdown
+
+    scene = load_scene(args.scene, args.overrides)
+    out = bound_greedy_study(scene, args.n_train, args.tol, args.max_iter, args.N, args.R,
+                             args.n_valid, args.cache_dir, progress=_Progress(False))
+    return print_and_dump(markdown(out), out, args.json)

@@ -42,6 +42,23 @@ def locking_warnings(degree: int, nus: dict[str, float]) -> list[str]:
             for name, nu in nus.items() if nu >= NU_LOCKING]
 
 
+def nitsche_discretization_warnings(disc_data: dict[str, Any]) -> list[str]:
+    """A warning when a Nitsche solve uses facet normals or Gauss-point-to-segment contact
+    integration: each alone keeps Benaceur et al.'s e_AC from converging under mesh
+    refinement (docs: user guide, Nitsche). They stay the defaults because the hyper-reducers
+    of the reduced Nitsche model (EIM, ECSW) evaluate fixed contact points online, which
+    segmented integration moves with mu, and because earlier results stay bit for bit."""
+    normals = disc_data.get("normals", "facet")
+    integration = disc_data.get("contact_integration", "gauss")
+    if normals == "smooth" and integration == "segmented":
+        return []
+    return [f"Nitsche with discretization.normals = {normals!r} and "
+            f"discretization.contact_integration = {integration!r}: e_AC does not converge "
+            "under mesh refinement with these; set normals = \"smooth\" and "
+            "contact_integration = \"segmented\" for a first-order e_AC (segmented "
+            "integration is refused by the EIM and ECSW hyper-reducers)"]
+
+
 def contact_metrics(sol: Any) -> dict[str, Any]:
     """Labelled contact quantities of an HF solution (:class:`rbbench.hf.model.HFSolution`;
     see ``definitions`` in the output)."""
@@ -101,6 +118,8 @@ def contact_metrics(sol: Any) -> dict[str, Any]:
     m.update(gap_checks(c, u, basis, active, disc.physics == "elasticity",
                         None if nitsche else m["multiplier"],
                         sol.scene.data["discretization"].get("lac_patch")))
+    if nitsche:
+        m["warnings"] += nitsche_discretization_warnings(sol.scene.data["discretization"])
     if disc.physics == "elasticity":
         geo = disc.info["geometry"]
         m["material"] = {b.name: {"E": b.E, "nu": b.nu} for b in disc.bodies}
@@ -310,7 +329,8 @@ DEFINITIONS = {
                 "contact_half_width_gap_tol at contact points that no active multiplier's "
                 "support covers (supports coarser than the contact zone; mixed "
                 "formulations only); P1 displacements with nu >= 0.45 (volumetric "
-                "locking)",
+                "locking); Nitsche with facet normals or Gauss-point-to-segment "
+                "integration (e_AC does not converge under refinement)",
     "stop_reason": "the solver's stop reason (converged, max_iterations, stagnation, nan, "
                    "diverged), or 'flagged': the solver converged (solver_stop_reason) but "
                    "every multiplier is 0 while the bodies penetrate beyond "

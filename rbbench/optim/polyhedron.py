@@ -59,6 +59,26 @@ class Polyhedron:
     def is_feasible(self, x: np.ndarray, tol: float = 1e-8) -> bool:
         return all(r <= tol for r in self.residuals(x).values())
 
+    def project(self, z: np.ndarray) -> np.ndarray:
+        """The Euclidean projection ``argmin |x - z|`` over the polyhedron (a strictly convex
+        QP, by daqp: Arnstrom, Bemporad, Axehill 2022), clipped to the bounds so that they
+        hold exactly; ValueError if daqp fails (an empty polyhedron) or its answer violates
+        the polyhedron by more than 1e-9."""
+        import daqp
+
+        z = np.asarray(z, dtype=float).ravel()
+        if z.size != self.n or not np.isfinite(z).all():
+            raise ValueError(f"project: need {self.n} finite entries, got {z.size}")
+        big = 1e30  # daqp's infinity
+        up = np.minimum(np.r_[self.ub, self.cu], big)
+        lo = np.maximum(np.r_[self.lb, self.cl], -big)
+        x, _, flag, _ = daqp.solve(np.eye(self.n), -z, np.ascontiguousarray(self.C), up, lo,
+                                   np.zeros(up.size, dtype=np.int32), primal_tol=1e-12)
+        x = np.clip(np.asarray(x, dtype=float), self.lb, self.ub)  # bounds exactly
+        if int(flag) != 1 or not self.is_feasible(x, 1e-9):
+            raise ValueError(f"project: daqp exit flag {int(flag)} (empty polyhedron?)")
+        return x
+
     def check(self, x: np.ndarray, name: str = "x0", tol: float = 1e-8) -> None:
         """Raise ValueError naming every violated group and by how much."""
         x = np.asarray(x, dtype=float).ravel()

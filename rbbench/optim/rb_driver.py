@@ -288,7 +288,7 @@ class RBHistory:
 
     FIELDS = ("iteration", "kind", "serious", "f", "J_trial", "pred", "rho", "step_inf",
               "delta", "grad_norm", "hf_solves", "rb_solves", "basis_size", "err_J_trial",
-              "err_xi_trial", "wall_s")
+              "err_xi_trial", "wall_s", "stage", "relax", "force_mismatch", "contact_nodes")
 
     def __init__(self, path, quiet: bool = False) -> None:
         import csv
@@ -298,7 +298,8 @@ class RBHistory:
             csv.writer(fh).writerow(self.FIELDS)
 
     def __call__(self, row: dict) -> None:
-        row = {**row, "f": row["J"], "serious": row["kind"] in ("start", "accepted")}
+        row = {**row, "f": row["J"],
+               "serious": row.get("serious", row["kind"] in ("start", "accepted"))}
         self.rows.append(row)
         with open(self.path, "a", newline="") as fh:
             self._csv.writer(fh).writerow([row.get(k, "") for k in self.FIELDS])
@@ -310,15 +311,21 @@ class RBHistory:
                   f"N {row['basis_size']}  {row['wall_s']:.1f} s", flush=True)
 
 
-def optimize_rb_run(sc: ShapeScene, cfg, out) -> tuple[RBResult, dict, RBHistory]:
-    """``rbbench optimize --driver rb``: :func:`optimize_rb` with ``max_outer = cfg.max_iter``
-    and the inner bundle's ``eps = cfg.eps``; ``history.csv`` in ``out``."""
+def rb_options(cfg) -> RBOptions:
+    """The :class:`RBOptions` of ``rbbench optimize --driver rb``: ``max_outer =
+    cfg.max_iter``, the inner bundle's ``eps = cfg.eps`` and metric."""
     if cfg.method != "bundle":
         raise ValueError(f"--method {cfg.method!r}: the rb driver runs the bundle method only")
-    hist = RBHistory(out / "history.csv", cfg.quiet)
-    opts = RBOptions(max_outer=cfg.max_iter,
+    return RBOptions(max_outer=cfg.max_iter,
                      inner=BundleOptions(max_iter=100, max_evals=200, eps=cfg.eps,
                                          metric=cfg.metric))
+
+
+def optimize_rb_run(sc: ShapeScene, cfg, out) -> tuple[RBResult, dict, RBHistory]:
+    """``rbbench optimize --driver rb --strategy none``: :func:`optimize_rb` from the initial
+    design with :func:`rb_options`; ``history.csv`` in ``out``."""
+    opts = rb_options(cfg)
+    hist = RBHistory(out / "history.csv", cfg.quiet)
     res = optimize_rb(sc, sc.initial_design(), opts, hist)
     counts = {"hf_solves": res.hf_solves, "rb_solves": res.rb_solves,
               "basis_size": res.basis_size, "J_opt_hf": res.J_hf, "J_opt_reduced": res.f}

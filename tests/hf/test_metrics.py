@@ -29,3 +29,15 @@ def test_a_locking_solve_says_so(nu, warned):
     assert bool(locking) == warned
     if warned:
         assert abs(m["hertz"]["p0_rel_error"]) > 0.5
+
+
+def test_nitsche_discretization_warning_names_both_keys_and_the_remedy():
+    """Facet normals or Gauss-point-to-segment integration: a warning naming the key(s) and
+    the converging settings; smooth + segmented: none."""
+    from rbbench.hf.metrics import nitsche_discretization_warnings as warn
+
+    assert warn({"normals": "smooth", "contact_integration": "segmented"}) == []
+    for data in ({}, {"normals": "smooth"}, {"contact_integration": "segmented"}):
+        (msg,) = warn(data)
+        assert "discretization.normals" in msg and "e_AC does not converge" in msg
+        assert 'normals = "smooth"' in msg and 'contact_integration = "segmented"' in msg

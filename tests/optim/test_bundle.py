@@ -426,6 +426,29 @@ def test_polyhedron_input_errors_and_residuals():
     assert not poly.is_feasible([1.25, 0.5]) and poly.is_feasible([1.0, 0.5])
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_projection_matches_clip_and_slsqp(seed):
+    """The projection onto a box is the clip (exact); onto a polyhedron with general rows
+    it agrees with scipy's SLSQP on the same strictly convex QP."""
+    rng = np.random.default_rng(seed)
+    n, mc = 5, 3
+    z = 2.0 * rng.standard_normal(n)
+    box = Polyhedron.box(-np.ones(n), np.ones(n))
+    assert np.max(np.abs(box.project(z) - np.clip(z, -1, 1))) <= 1e-12
+    C = rng.standard_normal((mc, n))
+    poly = Polyhedron(-np.ones(n), np.ones(n), C, np.full(mc, -0.3), np.full(mc, 0.4))
+    x = poly.project(z)
+    assert poly.is_feasible(x, 1e-9)
+    ref = minimize(lambda y: 0.5 * (y - z) @ (y - z), np.zeros(n), jac=lambda y: y - z,
+                   method="SLSQP", bounds=list(zip(poly.lb, poly.ub, strict=True)),
+                   constraints=[LinearConstraint(C, poly.cl, poly.cu)],
+                   options={"ftol": 1e-12, "maxiter": 1000})
+    assert ref.success and np.max(np.abs(x - ref.x)) <= 1e-7
+    assert np.max(np.abs(poly.project(x) - x)) <= 1e-12          # a projection is idempotent
+    with pytest.raises(ValueError, match="project: need 5 finite entries"):
+        poly.project(np.r_[z[:4], np.nan])
+
+
 @pytest.mark.parametrize("kw, key", [({"m_L": 0.6}, "m_L, m_R"), ({"t0": 1e4}, "t0"),
                                      ({"max_bundle": 3}, "max_bundle"), ({"gamma": -1}, "gamma")])
 def test_options_validation(kw, key):

@@ -63,7 +63,8 @@ def test_the_walk_reaches_every_command():
                 "rbbench nitsche-table", "rbbench nitsche-compare", "rbbench optimize",
                 "rbbench run", "rbbench report", "rbbench compare", "rbbench studies",
                 "rbbench studies pymor-thermal-block", "rbbench studies heat-robin",
-                "rbbench studies shape-side-by-side", "rbbench studies snapshot-workers"}
+                "rbbench studies shape-side-by-side", "rbbench studies shape-strategy",
+                "rbbench studies snapshot-workers"}
     assert expected <= set(PARSERS)
 
 

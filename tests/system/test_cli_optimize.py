@@ -23,9 +23,19 @@ def test_hf_bundle_run_writes_everything(tmp_path, capsys):
     assert s["J_opt"] <= s["J0"]
     assert s["constraint_residual_max_opt"] <= 1e-8
     assert s["J_opt"] >= s["J_uniform_bound"]
+    assert s["strategy"] == "equalise" and s["J_over_bound"] == s["J_opt"] / s["J_uniform_bound"]
+    assert s["constraints_satisfied_opt"] and s["constraint_worst_opt"] in s[
+        "constraint_residuals_opt"]
+    cost = s["strategy_cost"]
+    assert cost["hf_solves_total"] == cost["phase_state_solves"] + cost["local_hf_solves"]
+    assert cost["hf_solves_total"] == s["hf_solves"] and cost["outer_stages"] >= 1
     rows = list(csv.DictReader(open(out / "history.csv")))
     assert len(rows) == s["evaluations"] and rows[0]["kind"] == "start"
     assert int(rows[-1]["hf_solves"]) == s["hf_solves"]
+    assert sum(r["kind"].startswith("equalise") for r in rows) + cost["outer_stages"] == cost[
+        "phase_state_solves"]                       # one row per phase solve
+    its = [int(r["iteration"]) for r in rows]
+    assert its == sorted(its)                       # continued across the stages
     for png in ("designs.png", "pressure.png", "history.png"):
         assert (out / png).stat().st_size > 1000
     assert "it " in capsys.readouterr().out                     # progress lines
@@ -55,12 +65,81 @@ def test_failing_state_solve_keeps_the_history(tmp_path, monkeypatch):
 
     monkeypatch.setattr(run_mod, "evaluate", flaky)
     out = tmp_path / "f"
-    assert main(["optimize", *TINY, "--max-iter", "20", "--out", str(out), "--quiet"]) == 1
+    assert main(["optimize", *TINY, "--max-iter", "20", "--out", str(out), "--quiet",
+                 "--strategy", "none"]) == 1
     s = json.loads((out / "summary.json").read_text())
     assert s["stop_reason"].startswith("oracle failed") and "injected" in s["stop_reason"]
     rows = list(csv.DictReader(open(out / "history.csv")))
     assert len(rows) == 3
     assert np.isfinite(s["J_opt"])
+
+
+def test_failing_first_state_solve_of_the_strategy(tmp_path, monkeypatch):
+    """The state at the initial design fails: exit 1, the reason in summary.json."""
+    def failing(sc, alpha, y0=None):
+        raise StateSolveError("semismooth Newton: no convergence (injected)")
+
+    monkeypatch.setattr(run_mod, "solve_state", failing)
+    out = tmp_path / "f"
+    assert main(["optimize", *TINY, "--out", str(out), "--quiet"]) == 1
+    s = json.loads((out / "summary.json").read_text())
+    assert s["stop_reason"].startswith("oracle failed") and "injected" in s["stop_reason"]
+    assert s["strategy_cost"]["outer_stages"] == 0
+
+
+def test_strategy_none_is_the_plain_bundle_method(tmp_path):
+    """``--strategy none`` runs the bundle method from the initial design: the same J
+    sequence as bundle_trust called directly; its summary says so."""
+    from rbbench.optim.bundle import BundleOptions, Polyhedron, bundle_trust
+    from rbbench.optim.run import HFOracle
+    from rbbench.optim.shape_scene import load_shape_scene
+
+    out = tmp_path / "n"
+    assert main(["optimize", *TINY, "--strategy", "none", "--max-iter", "6", "--out",
+                 str(out), "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["strategy"] == "none" and s["config"]["strategy"] == "none"
+    assert s["strategy_cost"]["phase_state_solves"] == 0
+    sc = load_shape_scene(overrides={"geometry.contact_nodes": 11, "geometry.ny": 4})
+    ref = bundle_trust(HFOracle(sc), sc.initial_design(), Polyhedron(**sc.admissible()),
+                       BundleOptions(max_iter=6, max_evals=300))
+    rows = list(csv.DictReader(open(out / "history.csv")))
+    assert [float(r["f"]) for r in rows] == pytest.approx([h["f"] for h in ref.history],
+                                                          rel=1e-9)
+    assert s["J_opt"] == pytest.approx(ref.f, rel=1e-9)
+
+
+def test_rb_driver_runs_with_the_strategy(tmp_path):
+    """``--driver rb`` as the local solver of the strategy: HF-verified J, feasible, far
+    below the plain RB run's J with the same budget, HF counts consistent."""
+    from rbbench.optim.shape_adjoint import evaluate
+    from rbbench.optim.shape_scene import load_shape_scene
+
+    coarse = ["--set", "geometry.contact_nodes=21", "--set", "geometry.ny=8"]
+    got = {}
+    for strategy in ("equalise", "none"):
+        out = tmp_path / strategy
+        assert main(["optimize", *coarse, "--driver", "rb", "--strategy", strategy,
+                     "--max-iter", "4", "--out", str(out), "--quiet"]) == 0
+        got[strategy] = json.loads((out / "summary.json").read_text())
+    s, plain = got["equalise"], got["none"]
+    assert s["strategy"] == "equalise" and s["driver"] == "rb"
+    sc = load_shape_scene(overrides={"geometry.contact_nodes": 21, "geometry.ny": 8})
+    J = evaluate(sc, np.array(s["alpha_opt"])).J               # an independent HF solve
+    assert J == pytest.approx(s["J_opt_hf"], rel=1e-8)
+    assert J / sc.uniform_pressure_bound() <= 2 < plain["J_over_bound"]
+    assert max(sc.residuals(np.array(s["alpha_opt"])).values()) <= 1e-8
+    rows = list(csv.DictReader(open(tmp_path / "equalise" / "history.csv")))
+    assert int(rows[-1]["hf_solves"]) == s["hf_solves"] == s["strategy_cost"]["hf_solves_total"]
+    assert s["rb_solves"] >= 1
+
+
+def test_cli_refuses_an_unknown_strategy(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["optimize", "--strategy", "gaps"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "--strategy" in err and "'equalise', 'none'" in err     # argparse's choices
 
 
 def test_shape_side_by_side_study(tmp_path, capsys):
@@ -94,7 +173,7 @@ def test_optimize_config_refuses_what_the_cli_refuses():
     from rbbench.scene.parameters import SceneError
 
     for bad in ({"eps": float("nan")}, {"max_iter": 0}, {"driver": "fast"},
-                {"metric": "newton"}, {"max_evals": 2.5}):
+                {"metric": "newton"}, {"max_evals": 2.5}, {"strategy": "gaps"}):
         with pytest.raises(SceneError, match=next(iter(bad))):
             OptimizeConfig(**bad)
 
@@ -140,3 +219,41 @@ def _tiny_config():
     from rbbench.optim.run import OptimizeConfig
 
     return OptimizeConfig(max_iter=1, max_evals=2, quiet=True)
+
+
+def test_shape_strategy_study(tmp_path, capsys):
+    """``rbbench studies shape-strategy`` on a coarse scene: both strategies from the same
+    J0, the strategy's J far below the plain method's, feasible designs, repeats agree,
+    the printed table and the JSON agree."""
+    out = tmp_path / "s.json"
+    assert main(["studies", "shape-strategy", "--set", "geometry.ny=8", "--set",
+                 "geometry.contact_nodes=21", "--max-iter", "6", "--repeats", "2",
+                 "--out-dir", str(tmp_path / "runs"), "--json", str(out)]) == 0
+    r = json.loads(out.read_text())
+    plain, eq = r["runs"]["hf/none"], r["runs"]["hf/equalise"]
+    assert plain["J0"] == eq["J0"] and eq["J"] < plain["J"]
+    assert eq["J_over_bound"] <= 2 and eq["phase_state_solves"] >= 2
+    assert plain["phase_state_solves"] == 0
+    for fig in (plain, eq):
+        assert fig["constraint_residual_max_opt"] <= 1e-8 and fig["wall_s_median"] > 0
+        assert fig["J"] == pytest.approx(fig["J_over_bound"] * r["J_uniform_bound"], rel=1e-12)
+    s = json.loads((tmp_path / "runs" / "hf_equalise_1" / "summary.json").read_text())
+    assert s["J_opt"] == eq["J"]                        # the second repeat, same figures
+    text = capsys.readouterr().out
+    assert f"{eq['J']:.6e}" in text and "strategy equalise" in text
+
+
+def test_shape_strategy_study_refuses_bad_repeats(capsys):
+    assert main(["studies", "shape-strategy", "--repeats", "0"]) == 2
+    assert "--repeats" in capsys.readouterr().err
+
+
+def test_failing_first_state_solve_of_the_strategy_rb_driver(tmp_path, monkeypatch):
+    def failing(sc, alpha, y0=None):
+        raise StateSolveError("semismooth Newton: no convergence (injected)")
+
+    monkeypatch.setattr(run_mod, "solve_state", failing)
+    out = tmp_path / "f"
+    assert main(["optimize", *TINY, "--driver", "rb", "--out", str(out), "--quiet"]) == 1
+    s = json.loads((out / "summary.json").read_text())
+    assert s["stop_reason"].startswith("oracle failed") and s["rb_solves"] == 0

@@ -33,6 +33,8 @@ def no_study_work(monkeypatch):
     (["studies", "snapshot-workers", "--pause", "nan"], "--pause nan"),
     (["studies", "shape-side-by-side", "--eps", "nan"], "--eps nan"),
     (["studies", "shape-side-by-side", "--max-iter", "0"], "--max-iter 0"),
+    (["studies", "shape-strategy", "--max-evals", "0"], "--max-evals 0"),
+    (["studies", "shape-strategy", "--eps", "-1"], "--eps -1"),
     (["nitsche-compare", "-R", "10", "0"], "-R 0"),
     (["nitsche-compare", "--n-valid", "0"], "--n-valid 0"),
 ])

@@ -27,7 +27,7 @@ _COMBO_ORDER = ("backend", "formulation", "solver", "primal", "dual", "friction_
 # how repetitions of one case are combined (plots, best-per-level)
 _AGG_MAX = ("err_u_max", "err_u_mean", "err_lam_max", "err_lam_mean", "penetration_max",
             "complementarity_max", "energy_err_max", "err_lam_t_max", "err_lam_t_mean",
-            "friction_residual_max")
+            "friction_residual_max", "friction_law_residual_max", "slip_law_residual_max")
 _ERRORS = ("err_u_max", "err_lam_max")
 _BETAS = ("beta_hf_min", "beta_dec_min", "beta_on_min", "beta_off_min")
 _TIMES = ("t_online_median_s", "t_offline_s", "t_hf_median_s")

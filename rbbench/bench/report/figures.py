@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from rbbench.bench.report.analysis import _Ctx, _size, _size_req, status_counts
+from rbbench.bench.report.bound_figures import _fig_bound
 from rbbench.bench.report.common import _COL, _axis_label, _num, _pos
 from rbbench.bench.report.cost_figures import _fig_offline, _fig_pareto
 from rbbench.bench.report.detail_figures import _fig_histories, _fig_infsup
@@ -196,5 +197,5 @@ def _fig_status(ctx: _Ctx):
 #: (name, builder) of every figure, in report order
 _FIGURES = (("pareto", _fig_pareto), ("offline", _fig_offline),
             ("error_vs_size", _fig_error_vs_size),
-            ("infsup", _fig_infsup), ("histories", _fig_histories),
+            ("infsup", _fig_infsup), ("histories", _fig_histories), ("bound", _fig_bound),
             ("speedup", _fig_speedup), ("gcns", _fig_gcns), ("status", _fig_status))

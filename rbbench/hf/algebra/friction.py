@@ -202,6 +202,38 @@ def friction_residuals(D: np.ndarray, q: np.ndarray, lam_n: np.ndarray, lam_t: n
     return res
 
 
+#: a node of a reconstruction "slips" when its slip exceeds this fraction of the reference
+#: slip scale (:func:`law_residuals`)
+SLIP_RTOL = 1e-3
+
+
+def law_residuals(v: np.ndarray, lam_n: np.ndarray, lam_t: np.ndarray, s: np.ndarray,
+                  v_scale: float, f_scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per-node residuals of the friction law for ANY ``(v, lam_n, lam_t)``, e.g. a reduced
+    solution reconstructed at the HF nodes (the law of :class:`rbbench.interfaces.FrictionProblem`:
+    ``|lam_t| <= s``, ``|lam_t| < s => v = 0``, ``v != 0 => lam_t = s sign(v)``).
+
+    Slips are divided by ``v_scale``, forces by ``f_scale`` (e.g. the HF solution's max
+    slip and max ``lam_n``). Returns ``(law, slipping)``:
+
+    * ``law[i] = max(min(|v_i|, |lam_t,i - s_i sign(v_i)|), |lam_t,i| - s_i, -lam_n,i, 0)``,
+      zero iff node i satisfies the law (stick or slip opposing ``v``, inside the cone);
+    * ``slipping[i] = |lam_t,i - s_i sign(v_i)|`` (forces) at the nodes with
+      ``|v_i| > SLIP_RTOL`` (slips), 0 elsewhere: how far a node the reconstruction makes
+      slip is from the bound that must oppose its slip.
+
+    For Coulomb ``s = nu_F lam_n`` of the same solution, for Tresca the threshold.
+    """
+    vs, fs = max(float(v_scale), 1e-300), max(float(f_scale), 1e-300)
+    vr = np.asarray(v, float) / vs
+    ln, lt, sc = (np.asarray(a, float) / fs for a in (lam_n, lam_t, s))
+    off_bound = np.abs(lt - sc * np.sign(vr))
+    law = np.maximum.reduce([np.minimum(np.abs(vr), off_bound), np.abs(lt) - sc, -ln,
+                             np.zeros_like(vr)])
+    slipping = np.where(np.abs(vr) > SLIP_RTOL, off_bound, 0.0)
+    return law, slipping
+
+
 def node_states(lam_n: np.ndarray, lam_t: np.ndarray, s: np.ndarray,
                 rtol: float = 1e-9) -> np.ndarray:
     """Per-node state: ``"open"`` (``lam_n = 0``), ``"slip"`` (``|lam_t| = s``), ``"stick"``.

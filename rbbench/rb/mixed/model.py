@@ -24,6 +24,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -220,6 +221,9 @@ class ReducedModel:
         (:data:`rbbench.rb.mixed.options.ONLINE_METHODS`).
     basis : ReducedBasis or None
         ``Z`` and the cone generators ``V`` (HF size), for :meth:`reconstruct` only.
+    bound : MixedBound or None
+        The online error bound (:mod:`rbbench.rb.mixed.bounds`), where the offline stage
+        could build it: :meth:`error_bound`.
     """
 
     A: AffineOperator
@@ -231,6 +235,7 @@ class ReducedModel:
     parameters: ParameterSpace | None = None
     online_method: str = "auto"
     basis: ReducedBasis | None = None
+    bound: Any = None
 
     def __post_init__(self) -> None:
         # A_N independent of mu (e.g. a dilation, which leaves 2D stiffness invariant):
@@ -288,6 +293,15 @@ class ReducedModel:
         res.time_s = time.perf_counter() - t0
         res.method, res.mu = method, mu
         return res
+
+    def error_bound(self, solution: OnlineResult) -> Any:
+        """The certified bound of ``||u(mu) - Z c||_X`` (and of the multiplier error) of an
+        online ``solution`` (:class:`rbbench.rb.algorithms.bounds.VIBound`); a RuntimeError
+        when this model has none (:attr:`bound`)."""
+        if self.bound is None:
+            raise RuntimeError("this reduced model has no online error bound (its offline "
+                               "stage says why: result.json histories.bound)")
+        return self.bound(solution.mu, solution.c, solution.alpha)
 
     def reconstruct(self, solution: OnlineResult) -> HFVectors:
         """``Z c`` on the free dofs and ``V alpha`` in the HF multiplier space."""

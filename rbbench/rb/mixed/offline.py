@@ -23,6 +23,7 @@ from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.affine import NotAffineError
 from rbbench.rb.compressors import is_online, make_stabilizer, pga_delta, takes_delta
 from rbbench.rb.config import ReduceConfig, config_dict
+from rbbench.rb.mixed.certify import BOUND_DEFINITIONS, Certifier
 from rbbench.rb.mixed.model import build_affine_model, projector
 from rbbench.rb.mixed.options import MixedOptions
 from rbbench.rb.mixed.plain import PlainProjection, PlainReducedModel
@@ -91,6 +92,7 @@ DEFINITIONS = {
                  "maxima over the training set); eim_error_G the same for G(mu); "
                  "eim.e_eim_valid_BN / _GN: the resulting error of B_N, G_N over the validation "
                  "set; eim_entrywise: Benaceur et al.'s entrywise EIM of B(mu) for comparison",
+    **BOUND_DEFINITIONS,
 }
 
 
@@ -141,6 +143,9 @@ class MixedStage(ReducedStage):
         self._dual_step(ctx)
         self._stabilizer_step(ctx)
         self._hyper_step(ctx, fixed_points)
+        ctx.progress("error bound (offline stage)")
+        self.certifier = Certifier(ctx, self)
+        self.t_solve: list[float] = []
         self.beta: dict[str, list] = {"hf": [], "dec": [], "on": [], "off": []}
         self.lam_floor: list[float] = []
         self.t_asm: list[float] = []
@@ -225,7 +230,9 @@ class MixedStage(ReducedStage):
 
     # -- validation --------------------------------------------------------------------
     def record_online(self, mu: np.ndarray, solutions: list) -> None:
-        """The plain model: its HF assembly and projection at mu (``t_online_hf_assembly_s``)."""
+        """The plain model: its HF assembly and projection at mu (``t_online_hf_assembly_s``);
+        the solve times (the bound's time ratio)."""
+        self.t_solve.extend(s.time_s for s in solutions)
         if solutions[-1].assembly_s:
             self.t_asm.append(solutions[-1].assembly_s)
 
@@ -241,7 +248,13 @@ class MixedStage(ReducedStage):
         den = np.linalg.norm(lam_r) * np.linalg.norm(p.G)
         compl = float(abs(lam_r @ disc_gap) / den) if den > 0 else 0.0
         self._infsup(p)
-        return {"err_lam": err_lam, "penetration": pen, "complementarity": compl}
+        return {"err_lam": err_lam, "penetration": pen, "complementarity": compl,
+                **self.certifier.metrics(mu, p, u, lam, res, hf)}
+
+    def summary(self) -> dict[str, Any]:
+        """The bound's entries of the row (:data:`BOUND_DEFINITIONS`)."""
+        return self.certifier.summary(float(np.median(self.t_solve)) if self.t_solve
+                                      else None)
 
     def _infsup(self, p: Any) -> None:
         """beta_HF, beta_dec, beta_on (and beta_off) at one validation mu; H H^T =
@@ -274,6 +287,7 @@ class MixedStage(ReducedStage):
         if not self.offline_stab:
             self.beta.pop("off")
         histories["lam_best_valid"] = self.lam_floor
+        histories["bound"] = self.certifier.info
         if self.t_asm:
             timings["t_online_hf_assembly_s"] = float(np.median(self.t_asm))
 

@@ -79,6 +79,7 @@ def _details(dual: str, stab: str, hyper: str, k: int) -> dict:
     if hyper == "eim":
         hist["eim_error"] = [0.5 * 0.7 ** j for j in range(15)]
     return {"per_mu": {"err_u": [1e-3] * n, "err_lam": [1e-2] * n,
+                       "err_bound_u": [1e-3 * (2 + j) for j in range(n)],
                        "penetration": [0.0] * n, "beta": beta},
             "histories": hist, "valid_mus": VALID_MUS}
 
@@ -105,7 +106,8 @@ def _rows(run_id: str = "run-a") -> list[tuple[dict, dict]]:
                "beta_off_min": 8e-7 if stab == "pga" else None,
                "t_offline_s": 30.0 + n, "t_offline_hf_s": 40.0 + n,
                "t_online_median_s": t, "t_hf_median_s": 5.0,
-               "speedup": 5.0 / t, "M_eim": 15 if hyper == "eim" else None}
+               "speedup": 5.0 / t, "M_eim": 15 if hyper == "eim" else None,
+               "err_bound_u_max": 6 * err, "certified": "rigorous"}
         out.append((schema.normalise_row(row), _details(dual, stab, hyper, size[0] // 4)))
     bad = [("error", "ValueError: boom\nsecond line | with a pipe"),
            ("timeout", "killed after 600 s"),
@@ -155,7 +157,8 @@ def reported(run_a):
     return report(run_a)
 
 
-FIGS = ("pareto", "offline", "error_vs_size", "infsup", "histories", "speedup", "status")
+FIGS = ("pareto", "offline", "error_vs_size", "infsup", "histories", "bound", "speedup",
+        "status")
 
 
 def test_report_writes_every_file(run_a, reported):
@@ -370,7 +373,7 @@ def test_all_none_columns_do_not_crash(tmp_path):
     d = write_run(tmp_path / "fails", fails)
     out = report(d, formats=("png",))
     assert set(out.skipped) == {"pareto", "offline", "error_vs_size", "infsup", "histories",
-                                "speedup"}
+                                "bound", "speedup"}
     assert list(out.figures) == ["status"]
     md = out.summary_md.read_text()
     assert "(not drawn)" in md and "why 2" in md

@@ -17,8 +17,10 @@ from hypothesis import strategies as st
 
 from rbbench.hf.algebra.friction import (
     MODEL_B,
+    SLIP_RTOL,
     CoefficientLaw,
     condense_friction,
+    law_residuals,
     node_array,
     slip,
     uzawa_friction,
@@ -310,3 +312,56 @@ def test_bad_input_raises_naming_the_quantity():
         pdas_tresca(D, q[:-1], 0.1)
     with pytest.raises(ValueError, match="entries"):
         node_array(np.ones(2), 3, "F")
+
+
+@pytest.mark.parametrize("F", [0.2, 1.0])
+def test_law_residuals_vanish_at_a_coulomb_solution_and_measure_a_wrong_slip_force(F):
+    """At a converged Coulomb solution (raw multipliers) every node satisfies the law; moving
+    the tangential force of one slipping node by delta gives exactly delta (relative)."""
+    found = 0
+    for seed in range(40):
+        D, q = _problem(seed, 6)
+        r = coulomb_direct(D, q, F)
+        assert r.stop_reason == "converged"
+        ln, lt = r.lam_n, r.lam_t
+        v = slip(D, q, ln, lt)
+        vs, fs = np.abs(v).max(), max(ln.max(), 1e-300)
+        law, slipping = law_residuals(v, ln, lt, F * ln, vs, fs)
+        assert law.max() <= 1e-8 and slipping.max() <= 1e-8
+        moving = np.flatnonzero(np.abs(v) > 10 * SLIP_RTOL * vs)
+        if moving.size == 0:
+            continue
+        found += 1
+        i = moving[0]
+        delta = 0.5 * F * ln[i]
+        lt2 = lt.copy()
+        lt2[i] -= delta * np.sign(v[i])  # inside the cone, but no longer opposing the slip
+        law2, slipping2 = law_residuals(v, ln, lt2, F * ln, vs, fs)
+        assert slipping2[i] == pytest.approx(delta / fs, rel=1e-7)
+        assert law2[i] == pytest.approx(min(abs(v[i]) / vs, delta / fs), rel=1e-7)
+        assert np.delete(law2, i).max() <= 1e-8
+    assert found >= 5
+
+
+@given(st.integers(1, 12), st.integers(0, 2**32 - 1))
+@settings(max_examples=40, deadline=None)
+def test_law_residuals_zero_exactly_on_law_states_and_positive_off(m, seed):
+    """Constructed states: stick (v = 0, |lam_t| <= s) and slip (lam_t = s sign v) give 0;
+    a stick node made to move and a node pushed outside the cone give > 0."""
+    rng = np.random.default_rng(seed)
+    ln = rng.uniform(0.1, 2.0, m)
+    s = 0.4 * ln
+    stick = rng.random(m) < 0.5
+    v = np.where(stick, 0.0, rng.uniform(0.1, 1.0, m) * rng.choice([-1.0, 1.0], m))
+    lt = np.where(stick, rng.uniform(-1.0, 1.0, m) * s, s * np.sign(v))
+    law, slipping = law_residuals(v, ln, lt, s, 1.0, 1.0)
+    assert law.max() == 0.0 and slipping.max() == 0.0
+    i = int(rng.integers(m))
+    lt_out = lt.copy()
+    lt_out[i] = 1.5 * s[i] * (np.sign(lt[i]) or 1.0)
+    assert law_residuals(v, ln, lt_out, s, 1.0, 1.0)[0][i] >= 0.5 * s[i] - 1e-12
+    if stick[i] and abs(lt[i]) < s[i]:
+        v_mv = v.copy()
+        v_mv[i] = 0.3
+        expected = min(0.3, abs(lt[i] - s[i]))
+        assert law_residuals(v_mv, ln, lt, s, 1.0, 1.0)[0][i] == pytest.approx(expected)

@@ -316,6 +316,21 @@ def test_wedge_full_bases_reproduce_the_training_snapshots():
         for L, lam in ((st.wedge.Ln, ctx.train.LAM), (st.wedge.Lt, ctx.train.LAM_T)):
             d = L @ res.c - lam[:, j]
             assert np.sqrt(d @ (p.W @ d) / (lam[:, j] @ (p.W @ lam[:, j]))) < 1e-7
+        law = st.metrics(mu, p, ctx.train.U[:, j], ctx.train.LAM[:, j], res,
+                         st.reduced.reconstruct(res))
+        assert law["friction_law_residual"] < 1e-6 and law["slip_law_residual"] < 1e-6
+
+
+def test_friction_rows_report_the_law_residual_of_the_reconstruction():
+    """Validation rows carry the friction law residual at every HF node (the wedge cone holds
+    by construction, the law need not): finite, non-negative, and the slipping-node part never
+    above the whole (both are maxima over HF nodes of the same off-bound distance)."""
+    for d in ("collocation", "wedge"):
+        s = validate(_offline(dual=d).context, _offline(dual=d).stage).summary()
+        for key in ("friction_law_residual", "slip_law_residual"):
+            assert len(s["per_mu"][key]) == s["n_valid"]
+            assert 0.0 <= s[f"{key}_max"] < np.inf
+        assert s["slip_law_residual_max"] <= max(s["friction_law_residual_max"], 1.0)
 
 
 def test_wedge_model_against_the_collocation_model_on_validation():

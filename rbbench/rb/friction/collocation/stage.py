@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
+from rbbench.hf.algebra.friction import law_residuals
 from rbbench.hf.components import discretize_for
 from rbbench.rb.algorithms import infsup as inf
 from rbbench.rb.algorithms.cones.metric import span_projection
@@ -51,6 +52,17 @@ DEFINITIONS = {
                          "[|lam_t| - s]_+) of the reconstructed multipliers, relative to the "
                          "largest reconstructed lam_n (Tresca: s)",
     "collocation_violation": "the same at the GCNS nodes only (the reduced constraint; ~0)",
+    "friction_law_residual": "max over ALL HF contact nodes of the friction law residual of "
+                             "the reconstruction (u_N, lam_n,R, lam_t,R): max(min(|v|, |lam_t "
+                             "- s sign(v)|), |lam_t| - s, -lam_n, 0) with the slip v = Bt u_N "
+                             "+ ut_lift (mean jump per node) over the HF solution's max |v| "
+                             "and forces over the HF solution's max lam_n; s = nu_F lam_n,R "
+                             "(Tresca: the threshold); 0 iff every node sticks or slips "
+                             "against the bound, inside the cone",
+    "slip_law_residual": "max over the HF nodes where the reconstruction slips (|v| > 1e-3 of "
+                         "the HF solution's max |v|) of |lam_t - s sign(v)| over the HF "
+                         "solution's max lam_n: how far a slipping node is from the bound "
+                         "that must oppose its slip",
     "penetration": "max_i (Bn u_N - Gn)_i / int phi_i clipped at 0 (m), nodal rows",
     "complementarity": "|lam_n,R . (Gn - Bn u_N)| / (||lam_n,R||_2 ||Gn||_2) at the HF rows",
     "gcns_history": "per GCNS set C(q), q = 0, 1, ...: S_q, e_nt = e_GCNS^{n tau}(q) = max over "
@@ -273,6 +285,7 @@ class FrictionStage(ReducedStage):
         scale = float(np.max(bound if self.law == "tresca" else ln, initial=0.0)) or 1.0
         gap = p.Gn - p.Bn @ u_n
         den = np.linalg.norm(ln) * np.linalg.norm(p.Gn)
+        law, slipping = self._law_residuals(p, u, lam, u_n, ln, lt)
         return {
             "err_lam": float(np.sqrt(xnorm2(W, lam - ln) / n2)),
             "penetration": float(max(0.0, -(gap / p.node_weights).min())),
@@ -281,8 +294,23 @@ class FrictionStage(ReducedStage):
             **floors,
             "friction_residual": float(viol.max(initial=0.0)) / scale,
             "collocation_violation": float(viol[nodes].max(initial=0.0)) / scale,
+            "friction_law_residual": float(law.max(initial=0.0)),
+            "slip_law_residual": float(slipping.max(initial=0.0)),
             "online_iterations": float(res.iterations),
         } | self._infsup(p)
+
+    def _law_residuals(self, p: Any, u: np.ndarray, lam: np.ndarray, u_n: np.ndarray,
+                       ln: np.ndarray, lt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`rbbench.hf.algebra.friction.law_residuals` of the reconstruction, slips
+        and forces scaled by the HF solution ``(u, lam)`` at the same mu (one load step:
+        ``ut_prev = 0``)."""
+        lift = p.steps[-1].ut_lift
+        v_red = (p.Bt @ u_n + lift) / p.node_weights
+        v_hf = (p.Bt @ u + lift) / p.node_weights
+        s = np.asarray(p.threshold, float) if self.law == "tresca" else \
+            np.asarray(p.coefficient, float) * ln
+        return law_residuals(v_red, ln, lt, s, float(np.abs(v_hf).max(initial=0.0)),
+                             float(np.max(lam, initial=0.0)))
 
     def _n_signed(self) -> int:
         """Signed coefficients of the dual set ``{V y : y[:n] >= 0}`` (the normal cone's R)."""

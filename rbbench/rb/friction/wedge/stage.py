@@ -224,6 +224,8 @@ TABLE_ROWS = (
     ("floor lam_t (span)", "lam_t_best_max", "{:.3g}"),
     ("floor lam_t (cone)", "lam_t_best_cone_max", "{:.3g}"),
     ("friction residual max", "friction_residual_max", "{:.2e}"),
+    ("friction law residual max", "friction_law_residual_max", "{:.2e}"),
+    ("  at slipping nodes", "slip_law_residual_max", "{:.2e}"),
     ("online iterations max", "online_iterations_max", "{:.0f}"),
     ("t_online median (s)", "t_online_median_s", "{:.3f}"),
     ("  of which reduced solve (s)", "t_online_solve_median_s", "{:.4f}"),
