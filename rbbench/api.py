@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import Scene, SceneError, load_scene
+from rbbench.scene.parameters import FieldError
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -76,11 +77,26 @@ def solve(scene: str | Path | Scene, mu: Any = None, backend: str = "skfem",
         A linear scene (``thermal_block``, ``heat_robin``; no contact):
         :func:`rbbench.hf.linear.solve.solve_linear_hf`, ``.problem`` a
         :class:`~rbbench.hf.linear.model.LinearProblem`, ``.metrics`` without contact fields.
+
+    Raises
+    ------
+    ValueError
+        Before any HF work: ``mu`` outside the domain or not numbers
+        (:class:`~rbbench.scene.loading.SceneError`), component options the component does
+        not take (:class:`~rbbench.scene.parameters.FieldError`), a solver of another
+        formulation.
+    rbbench.registry.UnknownComponentError
+        Before any HF work, for a component name that is not registered.
     """
-    from rbbench.hf.components import make_components
+    from rbbench.hf.components import check_component_options, check_names, make_components
     from rbbench.hf.model import solve_hf
+    from rbbench.registry import default_registry
 
     sc = as_scene(scene)
+    reg = options.get("registry") or default_registry()
+    if mu is not None:  # checked before any HF work, as the names and options below
+        sc.check_mu(mu)
+    check_component_options(reg, "backend", backend, backend_options or {})
     if is_linear(sc):  # no contact: one sparse solve (rbbench.hf.linear.solve)
         from rbbench.hf.linear.solve import solve_linear_hf
 
@@ -89,6 +105,12 @@ def solve(scene: str | Path | Scene, mu: Any = None, backend: str = "skfem",
                              "formulation options")
         return solve_linear_hf(sc, mu, backend, formulation, options.get("registry"),
                                backend_options, options.get("progress", lambda m: None))
+    check_names(sc, reg, backend, formulation, solver)
+    if formulation_options:
+        try:
+            reg.create("formulation", formulation, **formulation_options)
+        except (TypeError, ValueError) as exc:
+            raise FieldError("", "formulation_options", formulation_options, str(exc)) from None
     if backend_options or formulation_options:
         options["components"] = make_components(
             sc, backend, formulation, solver, options.get("registry"),
@@ -135,7 +157,12 @@ def reduce(scene: str | Path | Scene, *, progress: Callable[[str], None] | None 
     ValueError
         Before any HF work, for an option the formulation does not take
         (:class:`~rbbench.rb.config.OptionError`, naming the option and the formulations
-        that take it) or a value outside its range (:class:`~rbbench.scene.loading.SceneError`).
+        that take it), a value of the wrong type or outside its range
+        (:class:`~rbbench.scene.parameters.FieldError`, naming the field and what is valid)
+        or a choice the scene cannot take (:class:`~rbbench.scene.loading.SceneError`).
+    rbbench.registry.UnknownComponentError
+        Before any HF work, for a component name that is not registered (listing the
+        registered ones).
     """
     from rbbench.rb.config import make_config
     from rbbench.rb.offline import reduce as reduce_offline

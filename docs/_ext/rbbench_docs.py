@@ -75,7 +75,9 @@ def scene_reference() -> str:
                 + "; `threshold` (Tresca); `coefficient` (Coulomb): "
                 + friction._COEFFICIENT_WHAT + ". `[load] load_steps`: a list of tables "
                 "with keys " + ", ".join(f"`{k}`" for k in friction.STEP_KEYS)
-                + " (fractions of the normal and tangential loads).\n")
+                + " (fractions of the normal and tangential loads, at most "
+                f"{friction.MAX_STEP_FRACTION:g} in magnitude; at most "
+                f"{friction.MAX_LOAD_STEPS} steps).\n")
     text += ["\n### Linear scenes (no contact)\n", _schema_tables(LINEAR_SCHEMA)]
     return "\n".join(text)
 

@@ -65,6 +65,9 @@ class LinearBackend(Backend):
     name = "linear"
     factorize = None
 
+    #: the constructor's options (checked before the mesh is built)
+    OPTIONS: tuple[str, ...] = ()
+
     def __init__(self, scene: Scene, **options) -> None:
         if options:
             raise TypeError(f"{self.name} linear backend: unknown options {sorted(options)}")

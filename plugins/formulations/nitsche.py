@@ -34,6 +34,8 @@ from rbbench.interfaces import (
 
 #: Default dimensionless Nitsche parameter (``gamma = gamma0 E / h``).
 GAMMA0 = 10.0
+#: largest gamma0 taken: gamma = gamma0 E / h; beyond, the penalty term swamps the stiffness
+MAX_GAMMA0 = 1.0e6
 
 
 class NitscheFormulation(Formulation):
@@ -42,14 +44,15 @@ class NitscheFormulation(Formulation):
     Parameters
     ----------
     theta : float
-        1 (symmetric: Benaceur et al.'s choice, a minimisation), 0 (skew-less) or -1
-        (skew-symmetric, well posed for every ``gamma0 > 0``).
+        In [-1, 1]: 1 (symmetric: Benaceur et al.'s choice, a minimisation), 0
+        (skew-less) or -1 (skew-symmetric, well posed for every ``gamma0 > 0``).
     gamma0 : float
         Dimensionless Nitsche parameter, ``gamma = gamma0 E / h`` with ``E`` the
         slave's Young's modulus and ``h`` the slave facet length at each point.
         ``theta = 1`` needs ``gamma0`` large enough for the Nitsche energy to be
         convex (the inverse trace constant of the mesh; about 1 on the Hertz
-        meshes, see ``tests/hf/algebra/test_nitsche.py``); 10 by default.
+        meshes, see ``tests/hf/algebra/test_nitsche.py``); 10 by default, at most
+        :data:`MAX_GAMMA0`.
     """
 
     name = "nitsche"
@@ -62,10 +65,12 @@ class NitscheFormulation(Formulation):
         for key, v in (("gamma0", gamma0), ("theta", theta)):
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 raise ValueError(f"nitsche formulation: {key} = {v!r} must be a number")
-        if not np.isfinite(gamma0) or gamma0 <= 0:
-            raise ValueError(f"nitsche formulation: gamma0 = {gamma0!r} must be > 0")
-        if not np.isfinite(theta):
-            raise ValueError(f"nitsche formulation: theta = {theta!r} must be finite")
+        if not (np.isfinite(gamma0) and 0 < gamma0 <= MAX_GAMMA0):
+            raise ValueError(f"nitsche formulation: gamma0 = {gamma0!r} must lie in "
+                             f"(0, {MAX_GAMMA0:g}] (larger only worsens the conditioning)")
+        if not (np.isfinite(theta) and -1 <= theta <= 1):
+            raise ValueError(f"nitsche formulation: theta = {theta!r} must lie in [-1, 1] "
+                             "(1 symmetric, 0, -1 skew-symmetric)")
         self.theta, self.gamma0 = float(theta), float(gamma0)
 
     def cache_params(self) -> dict[str, float]:

@@ -23,6 +23,8 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
+from rbbench.bench import json_text
+
 __all__ = ["LOCK_NAME", "RunLock", "RunLockedError", "Watchdog", "mark_interrupted"]
 
 LOCK_NAME = ".rbbench.lock"
@@ -103,7 +105,7 @@ class RunLock:
     @staticmethod
     def _read(fd: int) -> dict:
         with contextlib.suppress(OSError, ValueError):
-            data = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
+            data = json_text.loads(os.pread(fd, 4096, 0).decode() or "{}")
             return data if isinstance(data, dict) else {}
         return {}
 
@@ -126,7 +128,7 @@ def mark_interrupted(out_dir: Path, why: str) -> None:
     """Set ``state = "interrupted"`` in ``DIR/manifest.json`` if it says ``running``."""
     path = Path(out_dir) / "manifest.json"
     try:
-        man = json.loads(path.read_text())
+        man = json_text.loads(json_text.read_text(path))
     except (OSError, ValueError):
         return
     if not isinstance(man, dict) or man.get("state") != "running":

@@ -55,6 +55,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from rbbench.bench import json_text
 from rbbench.bench import matrix_checks as checks
 from rbbench.bench.applicability import (
     REGISTRY_ROLES,
@@ -65,7 +66,7 @@ from rbbench.bench.applicability import (
 from rbbench.bench.matrix_checks import MatrixError
 from rbbench.registry import Registry
 from rbbench.scene import limits
-from rbbench.scene.loading import PROBLEMS_DIR, load_scene, tomllib
+from rbbench.scene.loading import PROBLEMS_DIR, load_scene
 
 __all__ = ["COMPONENT_ROLES", "MODEL_AXES", "Case", "Matrix", "MatrixError", "compatibility",
            "load_matrix", "reduced_model_check"]
@@ -186,11 +187,13 @@ def _check_keys(d: dict, allowed: set, where: str) -> None:
         raise MatrixError(f"{where}: unknown key(s) {bad}; valid: {sorted(allowed)}")
 
 
-def _parse_value(text: str) -> Any:
+def _parse_value(text: str, key: str = "") -> Any:
     try:
-        return json.loads(text)
+        return json_text.loads(text)
     except json.JSONDecodeError:
         return text
+    except ValueError as exc:  # nested too deeply
+        raise MatrixError(f"--set {key}: the value is {exc}") from None
 
 
 def _selectors(selectors: list[str] | tuple[str, ...]) -> dict[str, list[str]]:
@@ -273,14 +276,10 @@ def _case_count(plan: _Plan) -> int:
 
 def _read_toml(path: Path, where: str) -> dict[str, Any]:
     """The matrix file's tables, with the top-level ones and ``[matrix]`` checked."""
-    try:
-        data = tomllib.loads(limits.read_input(path, "run matrix"))
-    except tomllib.TOMLDecodeError as exc:  # noqa: BLE001 - any parse error becomes a named one
-        raise MatrixError(f"{where}: not valid TOML: {exc}") from None
-    except ValueError as exc:  # a directory, too large, unreadable, not UTF-8
+    try:  # a directory, too large, unreadable, not UTF-8, not TOML, nested too deeply
+        data = limits.read_toml(path, "run matrix")
+    except ValueError as exc:
         raise MatrixError(str(exc)) from None
-    except RecursionError:
-        raise MatrixError(f"{where}: not valid TOML: nested too deeply") from None
     _check_keys(data, _TOP, where)
     if "matrix" not in data:
         raise MatrixError(f"{where}: missing the [matrix] table (name, scenes)")
@@ -381,7 +380,7 @@ def _base_params(reduce: dict, sets: list[str] | tuple[str, ...], rfields: set[s
         if "=" not in s:
             raise MatrixError(f"--set {s!r}: write FIELD=VALUE (a [reduce] field)")
         k, v = s.split("=", 1)
-        base[k.strip()] = _parse_value(v.strip())
+        base[k.strip()] = _parse_value(v.strip(), k.strip())
     _check_params(base, rfields, f"{where}: [reduce] / --set")
     checks.check_reduce_values(base, f"{where}: [reduce] / --set")
     return base

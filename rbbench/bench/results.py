@@ -10,7 +10,6 @@ file gets the same dtypes as the Parquet file it was written beside.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -18,7 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rbbench.bench import schema
+from rbbench.bench import json_text, schema
 from rbbench.bench.errors import ResultsError, ResultsNotFoundError
 
 __all__ = ["DTYPES", "ResultsError", "ResultsNotFoundError", "load_results", "records",
@@ -158,7 +157,7 @@ def _case_rows(d: Path, notes: list[str] | None) -> list[dict[str, Any]]:
     raw = []
     for f in files:
         try:
-            rec = json.loads(f.read_text())
+            rec = json_text.loads(json_text.read_text(f))
         except (OSError, ValueError) as exc:
             problem = f"unreadable ({exc})"
         else:

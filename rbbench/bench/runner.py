@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.bench import schema
+from rbbench.bench import json_text, schema
 from rbbench.bench.execution import (
     CaseTimeout,
     decided_row,
@@ -75,7 +75,7 @@ def load_rows(out_dir: Path) -> dict[str, dict]:
     out = {}
     for p in sorted((Path(out_dir) / "cases").glob("*.json")):
         try:
-            rec = json.loads(p.read_text())
+            rec = json_text.loads(json_text.read_text(p))
         except (OSError, ValueError) as exc:
             problem = f"unreadable ({type(exc).__name__}: {exc})"
         else:

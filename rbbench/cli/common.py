@@ -6,7 +6,8 @@ import argparse
 from typing import Any
 
 from rbbench.runtime import openblas_env as _openblas_env  # noqa: F401  (first: before numpy loads OpenBLAS)
-from rbbench.scene.loading import SceneError, tomllib
+from rbbench.scene.limits import toml_literal
+from rbbench.scene.loading import SceneError
 
 
 def _backend_options(items: list[str] | None, flag: str = "--backend-option") -> dict:
@@ -20,9 +21,9 @@ def _backend_options(items: list[str] | None, flag: str = "--backend-option") ->
             raise SceneError(f"{flag} {text!r}: expected KEY=VALUE, e.g. mesh=skfem or "
                              "gamma0=1.0")
         try:
-            options[key] = tomllib.loads(f"v = {raw}")["v"]
-        except tomllib.TOMLDecodeError:
-            options[key] = raw
+            options[key] = toml_literal(raw, f"{flag} {key}")
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
     return options
 
 

@@ -63,8 +63,9 @@ def run(args) -> int:
     for flag, v in (("--max-iter", args.max_iter), ("--max-evals", args.max_evals)):
         if v < 1:
             raise SceneError(f"{flag} {v}: must be an integer >= 1")
-    if not (math.isfinite(args.eps) and args.eps > 0):
-        raise SceneError(f"--eps {args.eps:g}: must be a finite number > 0")
+    if not (math.isfinite(args.eps) and 0 < args.eps <= 1):
+        raise SceneError(f"--eps {args.eps:g}: must be a finite number in (0, 1] (relative "
+                         "to J0)")
     sc = load_shape_scene(args.scene, parse_overrides(args.set))
     tail = "" if args.strategy == "equalise" else f"_{args.strategy}"
     out = args.out or (Path("results") / "optimize"

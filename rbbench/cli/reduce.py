@@ -25,6 +25,7 @@ from rbbench.rb.friction.options import FrictionOptions
 from rbbench.rb.mixed.options import MixedOptions
 from rbbench.rb.nitsche.options import NitscheOptions
 from rbbench.scene.loading import SceneError, load_scene
+from rbbench.scene.parameters import FieldError
 
 #: flags that are not ``--`` + the field's name with dashes
 FLAGS = {"N": "-N", "R": "-R", "S": "-S", "k_pga_max": "--k-max", "n_jobs": "--jobs"}
@@ -55,8 +56,9 @@ def reduce_fields(args: argparse.Namespace) -> dict[str, Any]:
     return fields
 
 
-def _flagged(exc: OptionError) -> SceneError:
-    """An option error with the flag the user typed in place of the field's name."""
+def _flagged(exc: OptionError | FieldError) -> SceneError:
+    """An option or value error with the flag the user typed in place of the field's
+    name."""
     return SceneError(exc.message(flag))
 
 
@@ -74,7 +76,7 @@ def cmd_reduce(args: argparse.Namespace) -> int:
         try:
             res = reduce(scene, progress=_Progress(args.quiet),
                          snapshot_progress=not args.quiet, **reduce_fields(args))
-        except OptionError as exc:
+        except (OptionError, FieldError) as exc:
             raise _flagged(exc) from None
         s = res.summary()
         c = s["config"]
@@ -127,7 +129,7 @@ def cmd_online_scaling(args: argparse.Namespace) -> int:
         rows = online_scaling(args.scene, make_config(**reduce_fields(args)),
                               tuple(args.levels), tuple(args.set or ()), repeats=args.repeats,
                               progress=_Progress(args.quiet))
-    except OptionError as exc:
+    except (OptionError, FieldError) as exc:
         raise _flagged(exc) from None
     print(scaling_markdown(rows))
     print("(online time: one reduced solve incl. the EIM evaluation; median and IQR over "

@@ -31,8 +31,9 @@ STUDY_INTS = {"N": ("-N", 1000), "R": ("-R", 1000), "n_train": ("--n-train", 10_
               "n_cells": ("--n-cells", 1024), "P": ("-P", 10_000), "jobs": ("--jobs", 256),
               "rounds": ("--rounds", 1000), "max_iter": ("--max-iter", 100_000),
               "max_evals": ("--max-evals", 100_000)}
-#: float arguments: ``dest -> (flag, low, high, low included)``
-STUDY_FLOATS = {"eps": ("--eps", 0.0, math.inf, False), "pause": ("--pause", 0.0, 60.0, True),
+#: float arguments: ``dest -> (flag, low, high, low included)`` (high included; eps: the
+#: stopping tolerance relative to J0, at most 1)
+STUDY_FLOATS = {"eps": ("--eps", 0.0, 1.0, False), "pause": ("--pause", 0.0, 60.0, True),
                 "tol": ("--tol", 0.0, math.inf, False)}
 
 
@@ -59,6 +60,38 @@ def check_study_args(args: argparse.Namespace) -> None:
         folder = Path(target).resolve().parent
         if not folder.is_dir():
             raise SceneError(f"--json {target}: the folder {folder} does not exist")
+        if Path(target).is_dir():
+            raise SceneError(f"--json {target}: is a directory; give a file name")
+    backend = getattr(args, "backend", None)
+    if backend is not None:
+        from rbbench.registry import default_registry
+
+        default_registry().get("backend", backend)  # an unknown one: the valid names
+
+
+def _scene_values(scene: str, base: list[str], values: list[tuple[str, Any, list[str]]]
+                  ) -> Any:
+    """Load ``scene`` with the overrides ``base`` (its errors as they are), then with each
+    ``(flag, value, overrides)`` of ``values``: an error names the flag and its value. The
+    scene with ``base`` only is returned."""
+    from rbbench.scene.loading import load_scene
+
+    sc = load_scene(scene, base)
+    for flag, value, extra in values:
+        try:
+            load_scene(scene, [*base, *extra])
+        except SceneError as exc:
+            raise SceneError(f"{flag} {value}: {exc}") from None
+    return sc
+
+
+def _mu_values(sc: Any, flag: str, mus: list[float]) -> None:
+    """Each of ``mus`` is a parameter of ``sc`` (one-parameter scenes), else the flag named."""
+    for mu in mus:
+        try:
+            sc.check_mu([mu])
+        except SceneError as exc:
+            raise SceneError(f"{flag} {mu}: {exc}") from None
 
 
 def _checked(run: Any) -> Any:
@@ -89,6 +122,12 @@ def add_parser(sub) -> None:
 def cmd_hertz_table(args) -> int:
     from rbbench.studies.hertz import hertz_markdown, hertz_table
 
+    sc = _scene_values(args.scene, list(args.set or ()),
+                       [*(("--loads", d, [f"load.displacement={d!r}"]) for d in args.loads),
+                        *(("--levels", lv, [f"discretization.level={lv}"])
+                          for lv in args.levels)])
+    _mu_values(sc, "--mu", [args.mu])
+
     progress = _Progress(args.quiet)
     rows = hertz_table(args.scene, tuple(args.loads), tuple(args.levels), args.mu,
                        tuple(args.set or ()), progress=progress)
@@ -99,10 +138,14 @@ def cmd_hertz_table(args) -> int:
 def cmd_nitsche_table(args) -> int:
     from rbbench.studies.nitsche_eac import NITSCHE_COLUMNS, nitsche_markdown, nitsche_table
 
-    overrides = [f"load.displacement={args.load!r}", f"discretization.degree={args.degree}",
-                 f"discretization.quadrature={args.quadrature}",
-                 f"discretization.normals={args.normals!r}",
-                 f"discretization.contact_integration={args.integration!r}", *(args.set or ())]
+    by_flag = {"--load": (args.load, f"load.displacement={args.load!r}"),
+               "--degree": (args.degree, f"discretization.degree={args.degree}"),
+               "--quadrature": (args.quadrature, f"discretization.quadrature={args.quadrature}"),
+               "--normals": (args.normals, f"discretization.normals={args.normals!r}"),
+               "--integration": (args.integration,
+                                 f"discretization.contact_integration={args.integration!r}")}
+    overrides = [o for _, o in by_flag.values()] + list(args.set or ())
+    _check_nitsche_table(args, by_flag)
     rows = nitsche_table(args.scene, tuple(1e-3 * h for h in args.h), tuple(args.mu),
                          backend=args.backend, theta=args.theta, gamma0=args.gamma0,
                          overrides=tuple(overrides), progress=_Progress(args.quiet))
@@ -115,8 +158,33 @@ def cmd_nitsche_table(args) -> int:
     return 0
 
 
+def _check_nitsche_table(args, by_flag: dict[str, tuple[Any, str]]) -> None:
+    """nitsche-table's values, before any solve: the scene with each flag's override, the
+    mesh sizes, the parameters and the Nitsche options (theta, gamma0)."""
+    from rbbench.registry import default_registry
+    from rbbench.studies.nitsche_eac import published_h_overrides
+
+    for flag, v in (("--h", h) for h in args.h):
+        if not (math.isfinite(v) and v > 0):
+            raise SceneError(f"{flag} {v:g}: must be a finite mesh size > 0 (mm)")
+    sc = _scene_values(args.scene, list(args.set or ()),
+                       [*((flag, v, [o]) for flag, (v, o) in by_flag.items()),
+                        *(("--h", h, published_h_overrides(args.backend, 1e-3 * h))
+                          for h in args.h)])
+    _mu_values(sc, "--mu", args.mu)
+    options = {"theta": args.theta, **({} if args.gamma0 is None else {"gamma0": args.gamma0})}
+    try:
+        default_registry().create("formulation", "nitsche", **options)
+    except (TypeError, ValueError) as exc:
+        flag = "--gamma0" if "gamma0" in str(exc) else "--theta"
+        raise SceneError(f"{flag}: {exc}") from None
+
+
 def cmd_nitsche_compare(args) -> int:
+    from rbbench.scene.loading import load_scene
     from rbbench.studies.nitsche_compare import comparison_markdown, formulation_comparison
+
+    load_scene(args.scene, list(args.set or ()))
 
     res = formulation_comparison(args.scene, tuple(args.set or ()), n_train=args.n_train,
                                  n_valid=args.n_valid, N=args.N, Rs=tuple(args.R),
@@ -261,8 +329,10 @@ def _add_shape_side_by_side_parser(sub: Any) -> argparse.ArgumentParser:
 
 def cmd_shape_side_by_side(args: argparse.Namespace) -> int:
     """Run the study and print its table."""
-    from rbbench.optim.shape_scene import parse_overrides
+    from rbbench.optim.shape_scene import load_shape_scene, parse_overrides
     from rbbench.studies.shape_side_by_side import shape_markdown, shape_side_by_side
+
+    load_shape_scene(args.scene, parse_overrides(args.set))  # its errors before any solve
 
     res = shape_side_by_side(args.scene, parse_overrides(args.set), args.metric, args.max_iter,
                              args.max_evals, args.eps)

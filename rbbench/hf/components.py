@@ -3,6 +3,7 @@ checked against the scene (friction law, declared solvers) before any meshing, a
 
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
 from rbbench.interfaces import (
@@ -13,6 +14,7 @@ from rbbench.registry import Registry, default_registry
 from rbbench.scene.friction import friction_of, friction_value
 from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import Scene, SceneError
+from rbbench.scene.parameters import FieldError
 
 
 def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mixed",
@@ -38,6 +40,42 @@ def make_components(scene: Scene, backend: str = "skfem", formulation: str = "mi
     return b, f, s
 
 
+def check_component_options(registry: Registry, role: str, name: str, options: Any) -> None:
+    """Refuse, before the component is built (a backend meshes in its constructor), options
+    its constructor does not take: a :class:`~rbbench.scene.parameters.FieldError` naming
+    them and the valid ones. The valid names are the class's ``OPTIONS`` if it declares
+    them, else its constructor's keyword parameters (a constructor with ``**options`` and
+    no ``OPTIONS`` is not checked here)."""
+    field = f"{role}_options"
+    if not isinstance(options, dict):
+        raise FieldError("", field, options, "give a table of options (a dict)")
+    if not options:
+        return
+    cls = registry.load(role, name)
+    valid = getattr(cls, "OPTIONS", None)
+    if valid is None:
+        params = inspect.signature(cls).parameters.values()
+        if any(p.kind is p.VAR_KEYWORD for p in params):
+            return
+        valid = tuple(p.name for p in params if p.name != "scene")
+    unknown = sorted(k for k in options if k not in valid)
+    if unknown:
+        raise FieldError("", field, options, f"the {role} {name!r} takes no option "
+                         f"{', '.join(map(repr, unknown))}; its options: "
+                         f"{', '.join(map(repr, valid)) or 'none'}")
+
+
+def check_physics_support(scene: Scene, registry: Registry, formulation: str) -> None:
+    """A formulation that needs the stress on the contact boundary (``needs`` holds
+    ``"stress"``: Nitsche) is refused on a scalar scene, before any solve."""
+    needs = getattr(registry.load("formulation", formulation), "needs", frozenset())
+    physics = scene.data["scene"]["physics"]
+    if "stress" in needs and physics != "elasticity":
+        raise SceneError(f"{scene.path}: the {formulation!r} formulation needs the contact "
+                         f"stress of an elasticity scene; this scene's physics is {physics!r} "
+                         "(use the 'mixed' formulation)")
+
+
 def check_names(scene: Scene, registry: Registry, backend: str, formulation: str,
                 solver: str | None) -> str:
     """Check the three HF component names before any meshing (unknown names list the valid
@@ -49,6 +87,7 @@ def check_names(scene: Scene, registry: Registry, backend: str, formulation: str
                          "rbbench.hf.linear.solve.solve_linear_hf (rbbench solve, "
                          "rbbench.solve) and reduced by rbbench reduce / rbbench.reduce")
     check_friction_support(scene, registry.get("formulation", formulation))
+    check_physics_support(scene, registry, formulation)
     if solver is None:
         solver = default_solver(formulation, registry, friction_of(scene).law)
     for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):

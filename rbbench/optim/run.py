@@ -57,9 +57,10 @@ class OptimizeConfig:
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise SceneError(f"optimize: {name} = {v!r}: give an integer >= 1")
         if (isinstance(self.eps, bool) or not isinstance(self.eps, (int, float))
-                or not math.isfinite(self.eps) or self.eps <= 0):
-            raise SceneError(f"optimize: eps = {self.eps!r}: give a finite number > 0 (the "
-                             "stopping tolerance on the predicted decrease)")
+                or not math.isfinite(self.eps) or not 0 < self.eps <= 1):
+            raise SceneError(f"optimize: eps = {self.eps!r}: give a finite number in (0, 1] "
+                             "(the stopping tolerance on the predicted decrease, relative to "
+                             "J0)")
 
 
 class HFOracle:

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from rbbench.optim.shape_mesh import Grid, area, area_weights, elasticity_matrix
-from rbbench.scene.limits import NAME_PATTERN, check_name
-from rbbench.scene.loading import PROBLEMS_DIR, tomllib
+from rbbench.scene.limits import NAME_PATTERN, check_name, read_toml, toml_literal
+from rbbench.scene.loading import PROBLEMS_DIR
 from rbbench.scene.parameters import ParameterSpace, SceneError
 
 SHAPE_DIR = PROBLEMS_DIR / "optimize"
@@ -116,6 +116,9 @@ _FIELDS = {
 _RENAME = {"contact_nodes": "n_contact", "coefficient": "friction0"}
 #: bounds that keep a run finite in memory and in floating point
 MAX_POWER, MAX_NODES, MAX_CELLS = 32, 10_001, 1_000_000
+#: largest length (|a|, |b|, gamma, m) and friction coefficient F0 (real pairs lie below
+#: about 2); the slip scale l lies within SLIP_RATIO^(+-1) times the contact length b - a
+MAX_LENGTH, MAX_COEFFICIENT, SLIP_RATIO = 1.0e6, 10.0, 1.0e12
 
 
 def load_shape_scene(name_or_path: str | Path = "shape_coulomb",
@@ -124,14 +127,13 @@ def load_shape_scene(name_or_path: str | Path = "shape_coulomb",
     path = Path(name_or_path)
     if not path.suffix:
         path = SHAPE_DIR / f"{name_or_path}.toml"
-    if not path.is_file():
+    if not path.exists():
         avail = sorted(p.stem for p in SHAPE_DIR.glob("*.toml"))
         raise SceneError(f"shape scene {name_or_path!r}: no file {path}; available: {avail}")
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{path}: not a TOML shape scene ({exc})") from None
+    try:  # a directory, too large, not UTF-8, not TOML, nested too deeply
+        data = read_toml(path, "shape scene")
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
     for key, value in (overrides or {}).items():
         sec, _, k = key.partition(".")
         data.setdefault(sec, {})[k] = value
@@ -183,14 +185,25 @@ def _typed(path: Path, key: str, value: object, typ: type) -> object:
 
 def validate(sc: ShapeScene, where: Path | str) -> None:
     """Raise :class:`SceneError` naming the first invalid key, or an infeasible ``alpha_0``."""
+    length = sc.b - sc.a
+    load = sc.pressure + abs(sc.traction)
     checks = [
+        *((f"geometry.{k}", abs(v) <= MAX_LENGTH, f"{v}: need |{k}| <= {MAX_LENGTH:g} m")
+          for k, v in (("a", sc.a), ("b", sc.b), ("gamma", sc.gamma))),
         ("geometry.contact_nodes", sc.n_contact >= 2, f"{sc.n_contact}: need I >= 2"),
         ("geometry.ny", sc.ny >= 1, f"{sc.ny}: need >= 1"),
         ("geometry.b", sc.b > sc.a, f"{sc.b}: need b > a = {sc.a}"),
         ("material.E", sc.E > 0, f"{sc.E}: need E > 0"),
         ("material.nu", 0 <= sc.nu < 0.5, f"{sc.nu}: need 0 <= nu < 0.5"),
-        ("friction.coefficient", sc.friction0 >= 0, f"{sc.friction0}: need >= 0"),
-        ("friction.slip_scale", sc.slip_scale > 0, f"{sc.slip_scale}: need > 0"),
+        ("load.pressure", sc.pressure > 0, f"{sc.pressure}: need > 0 (the load pressing "
+         "the body onto the foundation)"),
+        ("material.E", load <= sc.E, f"{sc.E}: need E >= pressure + |traction| = {load:g} "
+         "(strains of at most 1: linear elasticity)"),
+        ("friction.coefficient", 0 <= sc.friction0 <= MAX_COEFFICIENT,
+         f"{sc.friction0}: need 0 <= F0 <= {MAX_COEFFICIENT:g}"),
+        ("friction.slip_scale", length > 0 and 1 / SLIP_RATIO <= sc.slip_scale / length
+         <= SLIP_RATIO, f"{sc.slip_scale}: need l in [1e-12, 1e12] x (b - a) = "
+         f"{length:g} m"),
         ("design.C0", 0 < sc.C0 < sc.gamma, f"{sc.C0}: need 0 < C0 < gamma = {sc.gamma}"),
         ("design.C1", sc.C1 > 0, f"{sc.C1}: need C1 > 0"),
         ("design.C2", sc.C2 <= sc.C3, f"{sc.C2} > C3 = {sc.C3}: need C2 <= C3"),
@@ -202,6 +215,10 @@ def validate(sc: ShapeScene, where: Path | str) -> None:
          f"{sc.n_contact}: need I <= {MAX_NODES}"),
         ("geometry.ny", sc.n_contact * sc.ny <= MAX_CELLS,
          f"{sc.ny}: need (I - 1) x ny <= {MAX_CELLS} cells (I = {sc.n_contact})"),
+        ("objective.power", not 2 <= sc.power <= MAX_POWER or sc.n_contact < 2
+         or _finite_objective(sc, load * length),
+         f"{sc.power}: J >= I (P / I)^p with the load P = (pressure + |traction|) (b - a) "
+         f"= {load * length:.3g} overflows; lower the power or the load"),
     ]
     for key, ok, msg in checks:
         if not ok:
@@ -214,6 +231,13 @@ def validate(sc: ShapeScene, where: Path | str) -> None:
                          f"({worst} violated by {bad[worst]:.3g}; all: {bad})")
 
 
+def _finite_objective(sc: ShapeScene, total: float) -> bool:
+    """Whether ``I (P / I)^p`` (the least J of the load ``P`` on ``I`` nodes, and the scale
+    of every J of the run) is a finite number."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return bool(np.isfinite(sc.n_contact * (np.float64(total) / sc.n_contact) ** sc.power))
+
+
 def parse_overrides(items: list[str]) -> dict[str, object]:
     """``SECTION.KEY=VALUE`` overrides of a shape scene (``--set``), values as TOML literals
     (else strings)."""
@@ -223,9 +247,9 @@ def parse_overrides(items: list[str]) -> dict[str, object]:
         if not sep or "." not in key:
             raise SceneError(f"--set {item!r}: expected SECTION.KEY=VALUE, e.g. geometry.ny=20")
         try:
-            out[key] = tomllib.loads(f"v = {text}")["v"]
-        except tomllib.TOMLDecodeError:
-            out[key] = text
+            out[key] = toml_literal(text, f"--set {key}")
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
     return out
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import inspect
 import math
 import numbers
+import os
 import typing
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields, is_dataclass
@@ -20,7 +21,9 @@ from typing import Any
 
 from rbbench.rb.hyper.reducers import BUILTIN as BUILTIN_HYPER
 from rbbench.registry import Registry
+from rbbench.scene.limits import MAX_SAMPLES
 from rbbench.scene.loading import SceneError
+from rbbench.scene.parameters import FieldError
 
 __all__ = ["HYPER", "SHARED_FIELDS", "OptionError", "ReduceConfig", "config_dict",
            "formulation_options", "make_config", "option_owners", "parse_options",
@@ -69,8 +72,8 @@ class ReduceConfig:
         # component names are checked against the registry by the skeleton; here only what
         # does not depend on which plugins are installed
         if not isinstance(self.hyper, str) or not self.hyper.strip():
-            raise ValueError(f"hyper {self.hyper!r}: give 'auto' (the formulation's rule) or "
-                             "the name of a registered hyper-reducer (rbbench plugins)")
+            raise FieldError("reduce", "hyper", self.hyper, "give 'auto' (the formulation's "
+                             "rule) or the name of a registered hyper-reducer (rbbench plugins)")
         check_values(self, "reduce")
 
 
@@ -80,38 +83,54 @@ POSITIVE_INTS = frozenset({"N", "R", "S", "n_train", "n_valid", "n_jobs", "onlin
                            "gcns_max", "gcns_patience"})
 #: integers that may be 0
 NONNEGATIVE_INTS = frozenset({"exact_max_r"})
+#: the largest value of an integer field (a run matrix has the same bounds): sample and
+#: basis sizes at most :data:`~rbbench.scene.limits.MAX_SAMPLES`, timed repeats and worker
+#: processes fewer
+MAX_INTS = {**dict.fromkeys(POSITIVE_INTS | NONNEGATIVE_INTS, MAX_SAMPLES),
+            "online_repeats": 10_000, "n_jobs": 256}
 
 
 def check_values(obj: Any, where: str) -> None:
     """Refuse a field value of the dataclass ``obj`` that its type or meaning excludes,
-    naming the field and what is valid: an integer field given a bool, a float or a
-    string (``N = 3.7``); a count or size below 1 (:data:`POSITIVE_INTS`); a non-finite
-    float; a negative tolerance ``tol*``; ``delta_pga`` outside (0, 1] (it bounds the PGA
-    defect sigma, which lies in [0, 1]). Every formulation's options and
-    :class:`ReduceConfig` go through it before any HF work, on the command line and in the
-    Python API alike."""
+    with a :class:`~rbbench.scene.parameters.FieldError` naming the field and what is
+    valid: an integer field given a bool, a float or a string (``N = 3.7``); a count or size
+    below 1 (:data:`POSITIVE_INTS`) or above its bound (:data:`MAX_INTS`); a non-finite
+    float; a tolerance ``tol*`` outside [0, 1) (relative; 0: as many terms as the data
+    allow); ``delta_pga`` outside (0, 1] (it bounds the PGA defect sigma, which lies in
+    [0, 1]); a name field that is not a string; a table field that is not a dict. Every
+    formulation's options and :class:`ReduceConfig` go through it before any HF work, on
+    the command line and in the Python API alike."""
     hints = typing.get_type_hints(type(obj))
     for f in fields(obj):
         v, hint = getattr(obj, f.name), str(hints.get(f.name, ""))
-        if v is None:
+        if v is None or hint in ("typing.Any", ""):
             continue
-        name = f"{where}: {f.name} = {v!r}"
         if "int" in hint and "float" not in hint:
-            if isinstance(v, bool) or not isinstance(v, numbers.Integral):
-                raise ValueError(f"{name}: give an integer")
             low = 0 if f.name in NONNEGATIVE_INTS else 1 if f.name in POSITIVE_INTS else None
-            if low is not None and v < low:
-                raise ValueError(f"{name}: give an integer >= {low}")
+            high = MAX_INTS.get(f.name)
+            rule = ("give an integer" if low is None else f"give an integer in [{low}, {high}]"
+                    if high is not None else f"give an integer >= {low}")
+            if (isinstance(v, bool) or not isinstance(v, numbers.Integral)
+                    or low is not None and v < low or high is not None and v > high):
+                raise FieldError(where, f.name, v, rule)
         elif "float" in hint:
             if (isinstance(v, bool) or not isinstance(v, numbers.Real)
                     or not math.isfinite(v)):
-                raise ValueError(f"{name}: give a finite number")
-            if f.name.startswith("tol") and v < 0:
-                raise ValueError(f"{name}: give a tolerance >= 0 (0: as many terms as the "
-                                 "data allow)")
+                raise FieldError(where, f.name, v, "give a finite number")
+            if f.name.startswith("tol") and not 0 <= v < 1:
+                raise FieldError(where, f.name, v, "give a relative tolerance in [0, 1) (0: "
+                                 "as many terms as the data allow)")
             if f.name == "delta_pga" and not 0 < v <= 1:
-                raise ValueError(f"{name}: give a value in (0, 1] (the PGA defect sigma "
-                                 "lies in [0, 1])")
+                raise FieldError(where, f.name, v, "give a value in (0, 1] (the PGA defect "
+                                 "sigma lies in [0, 1])")
+        elif hint == "dict" or hint.startswith("dict"):
+            if not isinstance(v, dict):
+                raise FieldError(where, f.name, v, "give a table of options (a dict)")
+        elif f.name == "cache_dir":
+            if not isinstance(v, (str, os.PathLike)):
+                raise FieldError(where, f.name, v, "give a directory (a path)")
+        elif "str" in hint and (not isinstance(v, str) or not v.strip()):
+            raise FieldError(where, f.name, v, "give a name (a non-empty string)")
 
 
 #: the fields of :class:`ReduceConfig` a caller may give (``options`` is built from the rest)
@@ -162,8 +181,12 @@ class OptionError(SceneError):
 def reduction_steps(config: ReduceConfig, registry: Registry, law: str = "none") -> Any:
     """The offline steps of ``config.formulation`` (its plugin's ``reduction()``; for a
     friction ``law``, ``reduction(friction=law)`` when the plugin takes that keyword)."""
-    form = registry.create("formulation", config.formulation,
-                           **dict(config.formulation_options))
+    try:
+        form = registry.create("formulation", config.formulation,
+                               **dict(config.formulation_options))
+    except (TypeError, ValueError) as exc:  # the constructor's own check of its options
+        raise FieldError("reduce", "formulation_options", config.formulation_options,
+                         str(exc)) from None
     if law != "none" and "friction" in inspect.signature(form.reduction).parameters:
         return form.reduction(friction=law)
     return form.reduction()
@@ -211,11 +234,10 @@ def parse_options(steps: Any, options: Any, registry: Registry) -> Any:
     where = getattr(steps, "label", steps.name)
     try:
         out = cls(**values)
+    except FieldError as exc:
+        raise FieldError(where, exc.field, exc.value, exc.rule) from None
     except (TypeError, ValueError) as exc:
         raise SceneError(f"{where}: {exc}") from None
     if is_dataclass(out):
-        try:
-            check_values(out, where)
-        except ValueError as exc:
-            raise SceneError(str(exc)) from None
+        check_values(out, where)
     return out

@@ -22,7 +22,12 @@ from typing import Any
 import numpy as np
 
 from rbbench._compat import deprecated_names
-from rbbench.hf.components import default_solver, make_components
+from rbbench.hf.components import (
+    check_component_options,
+    check_physics_support,
+    default_solver,
+    make_components,
+)
 from rbbench.hf.model import ProblemCache, ProblemSource
 from rbbench.hf.snapshots.cache import SnapshotSet
 from rbbench.hf.snapshots.compute import compute_snapshots
@@ -33,6 +38,7 @@ from rbbench.runtime.workers import keep_workers
 from rbbench.scene.friction import friction_of
 from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import Scene, SceneError
+from rbbench.scene.parameters import FieldError
 from rbbench.scene.sampling import parameter_set
 
 __all__ = ["DivergedError", "OfflineContext", "Offline", "ReduceResult", "check_finite",
@@ -141,17 +147,29 @@ def check_hyper_name(config: ReduceConfig, registry: Registry) -> None:
 def prepare_config(scene: Scene, config: ReduceConfig, registry: Registry
                    ) -> tuple[Any, ReduceConfig]:
     """The formulation's offline steps and the configuration they will run, checked before
-    any HF work: the formulation (default: ``linear`` on a linear scene, else ``mixed``),
+    any HF work: the component names (registered, strings) and the backend's options
+    (:func:`~rbbench.hf.components.check_component_options`), the formulation (default:
+    ``linear`` on a linear scene, else ``mixed``; one the scene's physics can take),
     the steps support the scene's friction law, the solver (default: the
     formulation's own for that law), the formulation's options (:func:`parse_options`:
     an option of another formulation is an :class:`~rbbench.rb.config.OptionError`),
     the steps' own checks (``prepare``) and the hyper-reducer."""
     law = friction_of(scene).law
+    for role in ("formulation", "backend", "primal", "solver"):  # names before anything
+        name = getattr(config, role)
+        if name is not None:
+            if not isinstance(name, str):
+                raise FieldError("reduce", role, name, f"give the name of a registered {role}"
+                                 " (rbbench plugins)")
+            registry.get(role, name)
+    check_component_options(registry, "backend", config.backend, config.backend_options)
     if config.formulation is None:
         config = replace(config, formulation="linear" if is_linear(scene) else "mixed")
     elif is_linear(scene) and config.formulation != "linear":
         raise SceneError(f"{scene.path}: a linear scene (no contact) is reduced by the "
                          f"formulation 'linear', not {config.formulation!r}")
+    if not is_linear(scene):
+        check_physics_support(scene, registry, config.formulation)
     steps = reduction_steps(config, registry, law)
     laws = getattr(steps, "friction_laws", ("none",))
     if law not in laws:

@@ -19,7 +19,8 @@ shape optimization"::
 A load step scales the two loads: ``normal`` times ``displacement`` and ``tangential``
 times ``tangential_displacement`` (each 0 when left out). Without ``load_steps`` there is
 one step, ``{normal = 1, tangential = 1}``. Friction is path-dependent: slip is measured
-from the previous step.
+from the previous step. At most :data:`~rbbench.scene.limits.MAX_LOAD_STEPS` steps, each
+fraction at most :data:`MAX_STEP_FRACTION` in magnitude.
 
 The scene layer imports nothing above it, so the coefficient laws are named here
 (:data:`COEFFICIENT_LAW_NAMES`) and defined in :mod:`rbbench.hf.algebra.friction`
@@ -37,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from rbbench.scene.limits import MAX_LOAD_STEPS
 from rbbench.scene.parameters import SceneError
 
 #: the friction laws of ``[friction] law``
@@ -50,6 +52,8 @@ FRICTION_KEYS = ("law", "threshold", "coefficient")
 _KEY_LAW = {"threshold": "tresca", "coefficient": "coulomb"}
 #: the keys of one load step
 STEP_KEYS = ("normal", "tangential")
+#: largest magnitude of a load step's fraction of the scene's load
+MAX_STEP_FRACTION = 10.0
 _COEFFICIENT_WHAT = ('a number >= 0, "mu.NAME" for a declared parameter, or a coefficient '
                      "law of the slip: " + ", ".join(map(repr, COEFFICIENT_LAW_NAMES)))
 
@@ -135,7 +139,10 @@ def _check_steps(steps: Any, path: str, tangential: bool) -> list[dict[str, floa
     what = ("a non-empty list of tables such as [{normal = 1.0}, {normal = 1.0, "
             "tangential = 1.0}] (fractions of displacement and tangential_displacement)")
     if not isinstance(steps, list) or not steps or not all(isinstance(s, dict) for s in steps):
-        raise _err(path, where, f"expected {what}, got {steps!r}")
+        raise _err(path, where, f"expected {what}, got {steps!r}"[:400])
+    if len(steps) > MAX_LOAD_STEPS:
+        raise _err(path, where, f"{len(steps)} steps; at most {MAX_LOAD_STEPS} (each step is "
+                   "one nonlinear solve of every snapshot)")
     out = []
     for i, step in enumerate(steps):
         for key in step:
@@ -146,6 +153,11 @@ def _check_steps(steps: Any, path: str, tangential: bool) -> list[dict[str, floa
                          "a finite number >= 0")
         shear = _number(path, f"{where}[{i}] tangential", step.get("tangential", 0.0), {},
                         "a finite number", low=None)
+        for key, v in (("normal", normal), ("tangential", shear)):
+            if abs(v) > MAX_STEP_FRACTION:
+                raise _err(path, f"{where}[{i}] {key}", f"{v!r} is out of range; a step is a "
+                           f"fraction of the scene's load, at most {MAX_STEP_FRACTION:g} in "
+                           "magnitude")
         if shear != 0.0 and not tangential:
             raise _err(path, f"{where}[{i}] tangential", "a tangential step needs "
                        "[load] tangential_displacement")

@@ -15,7 +15,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
-import sys
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -25,6 +24,7 @@ import numpy as np
 
 from rbbench.scene import limits
 from rbbench.scene.friction import check_friction, key_neutral
+from rbbench.scene.limits import tomllib  # noqa: F401 - the TOML reader (tomli before 3.11)
 from rbbench.scene.parameters import ParameterSpace, SceneError  # noqa: F401 - SceneError lives here
 from rbbench.scene.schema import (
     _ELASTIC,
@@ -37,11 +37,6 @@ from rbbench.scene.schema import (
     _parameter_ref,
     _unknown,
 )
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 
 def _shipped_dir(package: str = "rbbench.problems") -> Path:
@@ -217,18 +212,17 @@ def find_scene(name_or_path: str | Path) -> Path:
 
 def parse_override(text: str) -> tuple[list[str], Any]:
     """Parse ``section.key=value`` (value as a TOML literal, else a string)."""
-    if "=" not in text:
+    if not isinstance(text, str) or "=" not in text:
         raise SceneError(f"override {text!r}: expected section.key=value")
     key, raw = text.split("=", 1)
     parts = [p for p in key.strip().split(".") if p]
     if len(parts) < 2:
         raise SceneError(
             f"override {text!r}: the key must read section.key (e.g. load.displacement)")
-    raw = raw.strip()
     try:
-        value = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw
+        value = limits.toml_literal(raw.strip(), f"override {key.strip()!r}")
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
     return parts, value
 
 
@@ -236,13 +230,9 @@ def load_scene(name_or_path: str | Path, overrides: tuple[str, ...] | list[str] 
     """Load and validate a scene, applying ``--set`` style overrides."""
     path = find_scene(name_or_path)
     try:
-        data = tomllib.loads(limits.read_input(path, "scene"))
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: not valid TOML: {exc}") from exc
-    except ValueError as exc:  # a directory, too large, unreadable, not UTF-8
+        data = limits.read_toml(path, "scene")
+    except ValueError as exc:  # a directory, too large, unreadable, not UTF-8, not TOML
         raise SceneError(str(exc)) from None
-    except RecursionError:
-        raise SceneError(f"{path}: not valid TOML: nested too deeply") from None
     for text in overrides:
         parts, value = parse_override(text)
         node = data
@@ -333,7 +323,16 @@ def _check_materials(data: dict[str, Any], path: str, params: dict[str, Paramete
             mat[key] = _check_value(path, f"[material.{body}] {key}", f, mat[key], params)
 
 
-def _check_kind(data: dict[str, Any], path: str) -> None:
+def _span(raw: Any, params: dict[str, Parameter]) -> tuple[float, float]:
+    """The least and the largest value of a validated scene value over the domain (a
+    number, or a ``"mu.NAME"`` reference: the parameter's range)."""
+    name = _parameter_ref(raw)
+    if name is None:
+        return float(raw), float(raw)
+    return float(params[name].low), float(params[name].high)
+
+
+def _check_kind(data: dict[str, Any], path: str, params: dict[str, Parameter]) -> None:
     """The keys and the physics that the geometry kind requires."""
     kind = data["geometry"]["kind"]
     for section, keys in _KIND_REQUIRES[kind].items():
@@ -354,6 +353,11 @@ def _check_kind(data: dict[str, Any], path: str) -> None:
                            + SCHEMA["geometry"]["lower_radius"].describe())
         if data["scene"]["physics"] != "elasticity":
             raise _err(path, "[scene] physics", "geometry kind 'halfdisks' needs 'elasticity'")
+        d, r1 = data["load"]["displacement"], data["geometry"]["upper_radius"]
+        if _span(d, params)[1] >= _span(r1, params)[0]:
+            raise _err(path, "[load] displacement", f"{d!r} is out of range; the approach of "
+                       "the upper body must stay below its radius [geometry] upper_radius = "
+                       f"{r1!r} (over the parameter domain)")
     if kind == "unit_square" and data["scene"]["physics"] != "poisson":
         raise _err(path, "[scene] physics", "geometry kind 'unit_square' needs 'poisson'")
 
@@ -373,7 +377,7 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
     params = _parameters(data, path)  # first: other keys may reference them
     _fill_schema(data, path, params)
     _check_materials(data, path, params)
-    _check_kind(data, path)
+    _check_kind(data, path, params)
     check_friction(data, path, params)  # [friction], tangential load, load steps
     if not limits.check_name(data["scene"]["name"]):
         raise _err(path, "[scene] name", f"{data['scene']['name']!r} is not a valid name "

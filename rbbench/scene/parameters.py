@@ -8,6 +8,7 @@ rejects.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,6 +17,24 @@ import numpy as np
 
 class SceneError(ValueError):
     """A scene file or override is invalid; the message says where and what is valid."""
+
+
+class FieldError(SceneError):
+    """A value that a named field (a reduction option) does not take.
+
+    ``where``: whose field (e.g. the formulation), ``field``, ``value``, ``rule``: what is
+    valid. :meth:`message` shows the field by a function of its name (the command line:
+    its flag).
+    """
+
+    def __init__(self, where: str, field: str, value: object, rule: str) -> None:
+        self.where, self.field, self.value, self.rule = where, field, value, rule
+        super().__init__(self.message(str))
+
+    def message(self, show: Callable[[str], str]) -> str:
+        """The message with the field's name shown by ``show``."""
+        head = f"{self.where}: " if self.where else ""
+        return f"{head}{show(self.field)} = {self.value!r}: {self.rule}"
 
 
 @dataclass(frozen=True)

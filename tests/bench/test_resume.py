@@ -1,7 +1,7 @@
 """Resume that survives damaged case files; one writer per run directory; no orphans.
 
-* a case file of the wrong shape, or copied under another name, is recomputed with a
-  warning naming it, and no row is lost;
+* a case file of the wrong shape (nested 200,000 levels deep included), or copied under
+  another name, is recomputed with a warning naming it, and no row is lost;
 * the table is rebuilt from every valid case file (also other selections');
 * a second writer on the same run directory gets a clear error;
 * SIGKILL of a run during its snapshot preparation leaves no process of the run, and
@@ -75,7 +75,9 @@ def _copy_run(src: Path, dst: Path) -> Path:
 
 @pytest.mark.parametrize("content", ["{}", "[]", '{"row": null}', '{"row": {"status": "ok"}}',
                                      '{"row": {"case_id": "x", "repetition": 0, '
-                                     '"status": "bogus"}}', "not json", "\xff"])
+                                     '"status": "bogus"}}', "not json", "\xff",
+                                     "[" * 200_000 + "]" * 200_000,
+                                     '{"row": ' * 500 + "0" + "}" * 500])
 def test_damaged_case_files_are_recomputed_with_a_warning(finished, tmp_path, content):
     p, tmp = finished
     out = _copy_run(tmp / "run", tmp_path / "run")

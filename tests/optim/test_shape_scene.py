@@ -33,7 +33,7 @@ def test_a_contact_scene_is_not_a_shape_scene():
 def test_a_binary_file_is_refused(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_bytes(bytes(range(256)))
-    with pytest.raises(SceneError, match="not a TOML shape scene"):
+    with pytest.raises(SceneError, match="bad.toml: not a UTF-8 text file"):
         load_shape_scene(bad)
 
 

@@ -160,12 +160,25 @@ def test_scene_file_with_a_friction_section(tmp_path):
      ["[load] load_steps[0] normal", "out of range", ">= 0"]),
     (COULOMB + ["load.load_steps=[{normal=1.0}, {normal=1.0, tangential=1.0}]"],
      ["[load] load_steps[1] tangential", "needs [load] tangential_displacement"]),
+    (COULOMB + ["load.load_steps=[" + ", ".join(["{normal=1.0}"] * 2000) + "]"],
+     ["[load] load_steps", "2000 steps; at most 100"]),
+    (COULOMB + ["load.load_steps=[{normal=1e300}]"],
+     ["[load] load_steps[0] normal", "out of range", "at most 10"]),
+    (COULOMB + ["load.tangential_displacement=0.001",
+                "load.load_steps=[{normal=1.0, tangential=-11.0}]"],
+     ["[load] load_steps[0] tangential", "out of range", "at most 10"]),
 ])
 def test_bad_input_names_the_file_and_the_key(overrides, fragments):
     msg = _error(overrides)
     assert msg.startswith(str(PROBLEMS_DIR / "hertz_halfdisks.toml") + ": "), msg
     for fragment in fragments:
         assert fragment in msg, (fragment, msg)
+
+
+def test_the_largest_number_of_load_steps_loads():
+    steps = "[" + ", ".join(["{normal=1.0}"] * 100) + "]"
+    sc = load_scene("hertz_halfdisks", COULOMB + [f"load.load_steps={steps}"])
+    assert len(sc.data["load"]["load_steps"]) == 100
 
 
 def test_friction_on_a_scalar_scene_is_an_error():

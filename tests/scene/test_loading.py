@@ -416,11 +416,18 @@ def test_override_bool_and_array():
 
 def test_override_parameter_reference_and_nested_key():
     sc = load_scene("hertz_halfdisks", overrides=['load.displacement="mu.mu"',
+                                                  "geometry.upper_radius=2.0",
                                                   "material.upper.nu=0.25",
                                                   "parameters.mu.range=[0.8, 1.2]"])
     assert sc.value("load", "displacement", np.array([0.9])) == pytest.approx(0.9)
     assert sc.material("upper") == (2.0e11, 0.25)
     np.testing.assert_array_equal(sc.bounds, [[0.8, 1.2]])
+
+
+def test_an_approach_beyond_the_radius_is_refused():
+    with pytest.raises(SceneError, match=r"\[load\] displacement.*upper_radius = 'mu.mu'"):
+        load_scene("hertz_halfdisks", overrides=["load.displacement=0.7"])  # R1 in [0.7, 1.3]
+    assert load_scene("hertz_halfdisks", overrides=["load.displacement=0.69"])
 
 
 def test_override_applies_in_order():

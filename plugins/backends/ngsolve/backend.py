@@ -119,6 +119,9 @@ class NGSolveBackend(common.HalfDiskContact, Backend):
 
     name = "ngsolve"
 
+    #: the constructor's options (checked before the mesh is built)
+    OPTIONS: tuple[str, ...] = ("mesh", "direct_solver", "threads")
+
     def __init__(self, scene: Scene, mesh: Any = "netgen", direct_solver: str = "sparsecholesky",
                  threads: int = 1, **options: Any):
         if options:

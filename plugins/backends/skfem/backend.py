@@ -101,6 +101,9 @@ class SkfemBackend(common.HalfDiskContact, Backend):
 
     name = "skfem"
 
+    #: the constructor's options (checked before the mesh is built)
+    OPTIONS: tuple[str, ...] = ()
+
     def __init__(self, scene: Scene, **options):
         if options:
             raise TypeError(f"skfem backend: unknown options {sorted(options)}")

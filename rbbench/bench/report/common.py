@@ -8,7 +8,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from rbbench.bench import schema
+from rbbench.bench import json_text, schema
 
 #: Columns that identify a case across runs (``compare``); not ``run_id`` / ``case_id``.
 IDENTITY: tuple[str, ...] = ("scene", "scene_overrides", "backend", "formulation", "solver",
@@ -112,7 +112,7 @@ def _compact(v: Any) -> str:
         return "-"
     s = str(v)
     try:
-        obj = json.loads(s)
+        obj = json_text.loads(s)
     except ValueError:
         return s
     if isinstance(obj, dict):
@@ -123,7 +123,7 @@ def _compact(v: Any) -> str:
 def _param_dict(rec: dict[str, Any]) -> dict[str, Any] | None:
     """A row's ``params`` (JSON) as a dict; ``None`` if it is not a JSON table."""
     try:
-        p = json.loads(rec.get("params") or "{}")
+        p = json_text.loads(rec.get("params") or "{}")
     except (TypeError, ValueError):
         return None
     return p if isinstance(p, dict) else None

@@ -5,6 +5,7 @@ captions, rows not ok, every row, column definitions)."""
 from __future__ import annotations
 
 import html
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,6 +14,7 @@ from typing import Any
 import pandas as pd
 
 from rbbench.bench import schema
+from rbbench.bench.errors import ResultsError
 from rbbench.bench.report.analysis import (
     _context,
     _Ctx,
@@ -187,6 +189,9 @@ def report(run_dir: str | Path, out_dir: str | Path | None = None,
     fmts = _check_formats(formats)
     run = load_run(run_dir)
     out = Path(out_dir) if out_dir is not None else run.run_dir / "report"
+    if out_dir is None and out.is_symlink():  # the default folder: never written through
+        raise ResultsError(f"{out}: the report folder of the run is a symbolic link (to "
+                           f"{os.readlink(out)}); remove it, or name a folder with --out")
     out.mkdir(parents=True, exist_ok=True)
     ctx = _context(run)
     drawn = _draw_figures(ctx, out, fmts)

@@ -3,13 +3,13 @@ per-case details."""
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from rbbench.bench import json_text, schema
 from rbbench.bench.results import ResultsNotFoundError, load_results, records
 
 
@@ -48,10 +48,14 @@ def _manifest(d: Path, notes: list[str]) -> dict:
     if not (d / "manifest.json").is_file():
         return {}
     try:
-        return json.loads((d / "manifest.json").read_text())
-    except ValueError as exc:
+        man = json_text.loads(json_text.read_text(d / "manifest.json"))
+    except (OSError, ValueError) as exc:
         notes.append(f"manifest.json unreadable ({exc})")
         return {}
+    if not isinstance(man, dict):
+        notes.append("manifest.json is not a JSON object; ignored")
+        return {}
+    return man
 
 
 def _details(d: Path, notes: list[str]) -> dict[tuple[str, int], dict]:
@@ -61,18 +65,17 @@ def _details(d: Path, notes: list[str]) -> dict[tuple[str, int], dict]:
         return details
     for f in sorted((d / "cases").glob("*.json")):
         try:
-            doc = json.loads(f.read_text())
+            doc = json_text.loads(json_text.read_text(f))
         except (OSError, ValueError) as exc:
-            notes.append(f"cases/{f.name}: unreadable ({exc})")
+            notes.append(f"cases/{f.name}: unreadable ({exc}); ignored")
             continue
-        row = doc.get("row") or {}
-        det = doc.get("details") or {}
-        cid, rep = row.get("case_id"), row.get("repetition")
-        if cid is None or rep is None:
-            stem, _, r = f.stem.rpartition("-r")
-            cid, rep = (stem, r) if r.isdigit() else (cid, rep)
-        if cid is not None and rep is not None and det:
-            details[(str(cid), int(rep))] = det
+        problem = schema.case_record_problem(f.name, doc)
+        if problem is not None:
+            notes.append(f"cases/{f.name}: {problem}; ignored")
+            continue
+        row, det = doc["row"], doc.get("details")
+        if isinstance(det, dict) and det:
+            details[(str(row["case_id"]), int(row["repetition"]))] = det
     return details
 
 

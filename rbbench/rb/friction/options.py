@@ -5,6 +5,8 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 
+from rbbench.scene.parameters import FieldError
+
 __all__ = ["AUTO", "DEPRECATED_DUALS", "FRICTION_DUALS", "FrictionOptions"]
 
 #: the reduced friction dual models: ``collocation`` (normal cone, POD of lam_t, Coulomb's
@@ -55,11 +57,14 @@ class FrictionOptions:
     n_eim_train: int | None = None
 
     def __post_init__(self) -> None:
+        if not isinstance(self.friction_dual, str):
+            raise FieldError("", "friction_dual", self.friction_dual,
+                             f"valid: {', '.join((AUTO, *FRICTION_DUALS))}")
         if self.friction_dual in DEPRECATED_DUALS:
             new = DEPRECATED_DUALS[self.friction_dual]
             warnings.warn(f"friction_dual {self.friction_dual!r} is now {new!r} (the old name "
                           "goes in rbbench 0.3)", DeprecationWarning, stacklevel=3)
             self.friction_dual = new
         if self.friction_dual not in (AUTO, *FRICTION_DUALS):
-            raise ValueError(f"friction dual model {self.friction_dual!r}: valid: "
+            raise FieldError("", "friction_dual", self.friction_dual, "valid: "
                              f"{', '.join((AUTO, *FRICTION_DUALS))}")

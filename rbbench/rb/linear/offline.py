@@ -37,6 +37,7 @@ from rbbench.rb.linear.model import ReducedLinear, build_reduced, coercivity_ref
 from rbbench.rb.offline import (
     OfflineContext,
     check_finite,
+    clipped_size,
     prepare_config,
     primal_basis,
     primal_histories,
@@ -180,16 +181,29 @@ class LinearData:
         return model
 
 
+#: POD-greedy stops (``"rank"``) when the projection error of the trajectory it picks has
+#: an X-norm below this fraction of that trajectory's: nothing new is left in the training set
+RANK_TOL = 1e-10
+
+
 def pod_greedy(lin: LinearData, U: np.ndarray, mus: np.ndarray, n_max: int,
                tol: float | None) -> PrimalBasis:
     """POD-greedy (Haasdonk & Ohlberger 2008) on the training trajectories ``U`` (flattened
     ``(K, n)`` columns): start from the largest trajectory, then add the first X-POD mode of
-    the projection error of the trajectory with the largest relative estimator."""
+    the projection error of the trajectory with the largest relative estimator.
+
+    At most ``n_max`` modes, and never more than the training set spans (``n_train K`` and
+    ``n``). ``history["pod_greedy"]["stop_reason"]``: ``"size"`` (``n_max`` modes),
+    ``"tolerance"`` (the worst relative estimator ``<= tol``), ``"rank"`` (the picked
+    trajectory's projection error is below :data:`RANK_TOL` of its norm: the training set
+    is exhausted), ``"estimator not finite"``.
+    """
     n = lin.X.shape[0]
     trajs = [U[:, j].reshape(-1, n) for j in range(U.shape[1])]
+    cap = min(n_max, sum(t.shape[0] for t in trajs), n)
     Z = np.zeros((n, 0))
-    picks, sigma = [], []
-    for _ in range(n_max):
+    picks, sigma, reason = [], [], "size"
+    while Z.shape[1] < cap:
         if Z.shape[1] == 0:
             j = int(np.argmax([np.linalg.norm(t) for t in trajs]))
         else:
@@ -198,18 +212,29 @@ def pod_greedy(lin: LinearData, U: np.ndarray, mus: np.ndarray, n_max: int,
             for mu in mus:
                 c = model.coefficients(mu)
                 est.append(model.estimate(mu, c) / max(np.linalg.norm(c), 1e-300))
+            if not np.all(np.isfinite(est)):
+                reason = "estimator not finite"
+                break
             j = int(np.argmax(est))
             sigma.append(float(est[j]))
             if tol is not None and est[j] <= tol:
+                reason = "tolerance"
                 break
         E = trajs[j].T - Z @ (Z.T @ (lin.X @ trajs[j].T))
         w, V = np.linalg.eigh(E.T @ (lin.X @ E))  # first X-POD mode of E (K x K)
+        T = trajs[j].T
+        if w[-1] <= RANK_TOL**2 * float(np.sum(T * (lin.X @ T))):
+            reason = "rank"
+            break
         mode = E @ V[:, -1:]
         mode = mode - Z @ (Z.T @ (lin.X @ mode))  # re-orthogonalise
         Z = np.hstack([Z, mode / np.sqrt(xnorm2(lin.X, mode[:, 0]))])
         picks.append(j)
+    if reason == "size" and Z.shape[1] < n_max:
+        reason = "rank"  # the cap was the training set's span
     return PrimalBasis(Z=Z, name="pod-greedy",
-                       history={"pod_greedy": {"sigma": sigma, "picks": picks}})
+                       history={"pod_greedy": {"sigma": sigma, "picks": picks,
+                                               "stop_reason": reason}})
 
 
 def _space_time(lin: LinearData) -> tuple[Any, Callable[[Any], Any]]:
@@ -248,13 +273,21 @@ def run_linear(scene: Scene, config: ReduceConfig, progress: Callable[[str], Non
     with one_blas_thread():  # small dense algebra: one thread (2 shared cores)
         t1 = time.perf_counter()
         lin = LinearData(hf, scene)
+        clipped = None
         if is_parabolic(scene):
             progress(f"primal POD-greedy (N = {config.N})")
             primal = pod_greedy(lin, train.U, mus_train, config.N or len(mus_train),
                                 None if config.N else config.tol_pod)
+            if config.N is not None and primal.Z.shape[1] < config.N:
+                why = primal.history["pod_greedy"]["stop_reason"]
+                clipped = (f"-N {config.N}: POD-greedy built {primal.Z.shape[1]} modes only "
+                           f"(stop reason {why!r}: the {len(mus_train)} training "
+                           "trajectories span no more; clipped)")
             X_ctx, problem_at = _space_time(lin)
         else:
             primal = primal_basis(reg, config, train.U, lin.X, progress)
+            if config.N is not None and primal.Z.shape[1] < config.N:
+                clipped = clipped_size("-N", config.N, int(primal.Z.shape[1]), len(mus_train))
             X_ctx, problem_at = lin.X, lin
         timings["primal_s"] = time.perf_counter() - t1
         form = reg.create("formulation", config.formulation)
@@ -262,6 +295,8 @@ def run_linear(scene: Scene, config: ReduceConfig, progress: Callable[[str], Non
                              mus_train, train, np.asarray(mus_valid), valid, primal, t0,
                              timings)
         ctx.linear = lin
+        if clipped:
+            ctx.warn(clipped)
         stage = steps.reduce(ctx)
     timings["offline_s"] = time.perf_counter() - t0
     return validate(ctx, stage)

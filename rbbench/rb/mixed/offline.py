@@ -118,6 +118,10 @@ class MixedReduction:
         if is_online(registry, options.stabilizer) and config.hyper in ("affine", "eim"):
             raise SceneError(f"stabilizer {options.stabilizer!r} builds its space online from "
                              f"the HF B(mu): use hyper 'none' or 'auto', not {config.hyper!r}")
+        if config.hyper == "eim" and scene.data["geometry"]["kind"] != "halfdisks":
+            raise SceneError(f"{scene.path}: hyper 'eim' (the contact EIM of B(mu) and "
+                             "g(mu)) needs a two-body scene (geometry kind 'halfdisks'); here: "
+                             "hyper 'auto', 'affine' or 'none'")
         self.fixed_points = fixed_contact_points(scene, config.hyper)
         return config
 

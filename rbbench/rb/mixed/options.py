@@ -1,9 +1,12 @@
 """The options of the mixed formulation's reduced model (frictionless scenes): standard
-library only, so that the command line reads their defaults without loading the numerics."""
+library and the scene layer's error type only, so that the command line reads their defaults
+without loading the numerics."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from rbbench.scene.parameters import FieldError
 
 __all__ = ["ONLINE_METHODS", "MixedOptions"]
 
@@ -42,6 +45,6 @@ class MixedOptions:
     n_eim_train: int | None = None
 
     def __post_init__(self) -> None:
-        if self.online_method not in ONLINE_METHODS:
-            raise ValueError(f"online method {self.online_method!r}: valid: "
+        if not isinstance(self.online_method, str) or self.online_method not in ONLINE_METHODS:
+            raise FieldError("", "online_method", self.online_method, "valid: "
                              f"{', '.join(ONLINE_METHODS)}")
