@@ -210,6 +210,9 @@ class WedgeOnlineResult:
     #: the time of the reduced arrays at mu (s): the HF assembly and projection of the plain
     #: model, the EIM evaluation of the hyper-reduced one; included in ``time_s``
     assembly_s: float = 0.0
+    #: which online path ran: "python" (the reference) or "compiled"
+    #: (:mod:`rbbench.rb.friction.wedge.compiled`: one kernel, no split into arrays and solve)
+    path: str = "python"
 
     @property
     def x(self) -> np.ndarray:

@@ -1,0 +1,198 @@
+"""The compiled online path of the hyper-reduced wedge model: one numba kernel per mu.
+
+On the Python path (:meth:`rbbench.rb.friction.wedge.hyper.WedgeHyperModel.solve`) the
+friction EIM's pairing and magic entries, the coefficient solves and De Saxce's fixed point
+(daqp called from a Python loop) take ~10 ms on hertz_friction P2. Here
+:func:`rbbench.rb.friction.wedge.kernels.wedge_online` does all of it in one call, on the
+frictionless path's plan layout (:mod:`rbbench.rb.mixed.compiled`: the pairing arrays, the
+normal magic entries, the EIM maps with the coefficient solves folded in) and a second
+buffer of the wedge's own arrays (tangential and slip entries, the slip DEIM's ``P``, the
+training solutions of the warm start).
+
+The Python path stays the reference (``path = "python"``);
+``tests/rb/friction/test_wedge_compiled.py`` compares the two. Without numba, or for a
+model the kernel does not cover (:func:`path_reason`), the Python path runs and
+:meth:`~rbbench.rb.friction.wedge.hyper.WedgeHyperModel.online_path` says why; any
+deviation at one mu (a kernel status other than ``OK``) reruns that mu on the Python path.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Any
+
+import numpy as np
+
+from rbbench.rb.mixed import compiled as mixed_compiled
+from rbbench.rb.mixed.compiled import NUMBA_VERSION
+
+__all__ = ["COMPILE", "COMPILE_ESTIMATE_S", "CompiledWedge", "is_cached", "path_reason",
+           "prepare", "wedge_plan"]
+
+#: first call of the kernel in this process: ``{"first_call_s": s, "from_disk_cache":
+#: bool}`` (compilation, or loading numba's on-disk cache; never part of an online time)
+COMPILE: dict[str, Any] = {}
+#: the first call's time without a disk cache (compiling every kernel it inlines),
+#: measured on the 2-core development machine shared with other jobs; announced before it
+COMPILE_ESTIMATE_S = 60
+
+
+def path_reason(model: Any) -> str | None:
+    """Why ``model`` (a :class:`~rbbench.rb.friction.wedge.hyper.WedgeHyperModel`) cannot
+    take the compiled path (None when it can)."""
+    from rbbench.rb.algorithms.affine import LinearInMu
+
+    if NUMBA_VERSION is None:
+        return "numba is not installed"
+    if not isinstance(model.coefficients, LinearInMu):
+        return f"coefficient map {type(model.coefficients).__name__} (not theta = [1, mu])"
+    feim = model.eim
+    if feim is None or feim.slip is None:
+        return "no friction EIM with slip rows"
+    lay = feim.evaluator.layout
+    if lay.degree not in (1, 2) or lay.integration != "gauss":
+        return f"facet degree {lay.degree}, integration {lay.integration!r}"
+    if lay.master is not None and feim.evaluator.windows is None:
+        return "a master chain without windows"
+    return None
+
+
+def wedge_plan(model: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """``(shared, own)``: the kernel's plan. ``shared`` in the frictionless layout
+    (:data:`rbbench.rb.mixed.kernels.FLOATS`, ``INTS``): the pairing arrays of the friction
+    EIM's evaluator, its normal magic entries as the ``b`` entries, Gn's rows as the ``g``
+    rows, ``w_b`` the normal then tangential EIM maps (:func:`~rbbench.rb.mixed.compiled.
+    coefficient_map`) times the eigenbasis ``V`` of ``A_N``'s terms, transposed (n x R
+    each); ``own``: :data:`rbbench.rb.friction.wedge.kernels.FLOATS`, ``INTS``. Raises
+    ValueError where ``A_N``'s terms have no common eigenbasis."""
+    feim = model.eim
+    ev, lay = feim.evaluator, feim.evaluator.layout
+    sl, ms = lay.slave, lay.master
+    basis = mixed_compiled.eigenbasis(model.A.terms, mixed_compiled._centre_theta(model))
+    if isinstance(basis, str):
+        raise ValueError(basis)
+    V, lam = basis
+    x_hat, n_hat, w_hat, sphi = mixed_compiled.reference_points(lay)
+    t_hat = np.stack([-n_hat[:, 1], n_hat[:, 0]], axis=1)
+    Z, Zv = feim.Z_loc, feim.Z_loc @ V
+    nrm, tan, slip = feim.normal, feim.tangential, feim.slip
+
+    def slave(part, direction, basis_loc):
+        return mixed_compiled.slave_terms(basis_loc, part.col, sl.dofs, sphi, direction,
+                                          part.support[0], lay.n_gauss)
+
+    w_b = np.concatenate([mixed_compiled.coefficient_map(nrm.lu, nrm.T),
+                          mixed_compiled.coefficient_map(tan.lu, tan.T)])
+    pts_g, vals_g = ev.support(feim.pos_G)
+    shared = {**mixed_compiled._bounds(model), "s_scale": sl.map.scale,
+              "s_shift": sl.map.shift,
+              "m_scale": sl.map.scale if ms is None else ms.map.scale,
+              "m_shift": sl.map.shift if ms is None else ms.map.shift,
+              "x_hat": x_hat, "n_hat": n_hat, "w_hat": w_hat,
+              "slave_b": slave(nrm, n_hat, Z), "vals_b": nrm.support[1], "vals_g": vals_g,
+              "w_b": np.ascontiguousarray(np.einsum("era,ak->ekr", w_b, V)),
+              "w_g": mixed_compiled.coefficient_map(feim.lu_G, feim.T_G),
+              "a_terms": model.A.terms, "f_terms": model.F.terms @ V,
+              "dims": np.array([lay.degree, ms is not None, 0]),
+              "pts_b": nrm.support[0], "cols_b": nrm.col,
+              "order_b": np.argsort(nrm.col, kind="stable"), "pts_g": pts_g,
+              "vt": np.ascontiguousarray(V.T), "lam_a": lam}
+    master = mixed_compiled._master_plan(feim, n_hat)
+    shared.update(master)
+    zt_s = np.zeros_like(master["zt_m"])
+    if ms is not None:  # the master dofs of the windows, in Z V (the slip rows' basis)
+        zt_s = _master_basis(feim, Zv)
+    x_train = np.asarray(model.x_train, float).reshape(-1, model.R)
+    own = {"t_hat": t_hat, "slave_t": slave(tan, t_hat, Z), "vals_t": tan.support[1],
+           "slave_s": slave(slip, t_hat, Zv), "vals_s": slip.support[1], "zt_s": zt_s,
+           "pq": model.P, "mus_train": np.asarray(model.mus_train, float).reshape(
+               x_train.shape[0], -1) if x_train.size else np.zeros((1, 1)),
+           "x_train": x_train if x_train.size else np.zeros((1, model.R)),
+           "settings": np.array([model.tol]),
+           "pts_t": tan.support[0], "cols_t": tan.col,
+           "order_t": np.argsort(tan.col, kind="stable"), "pts_s": slip.support[0],
+           "cols_s": slip.col, "order_s": np.argsort(slip.col, kind="stable"),
+           "sizes": np.array([model.P.shape[1], model.max_iter])}
+    return shared, own
+
+
+def _master_basis(feim: Any, basis_loc: np.ndarray) -> np.ndarray:
+    """``basis_loc^T`` on the master dofs the windows reach, numbered as
+    :func:`rbbench.rb.mixed.compiled._master_plan` numbers them (``m_dofs``)."""
+    ev, ms = feim.evaluator, feim.evaluator.layout.master
+    lo, hi, _ = ev.windows
+    dofs = np.asarray(ms.dofs).reshape(ms.dofs.shape[0], -1)
+    reached = np.zeros(dofs.shape[0], dtype=bool)
+    for a, b in zip(lo, hi, strict=True):
+        reached[a:b + 1] = True
+    return np.ascontiguousarray(basis_loc[np.unique(dofs[reached])].T)
+
+
+def is_cached() -> bool:
+    """Whether numba's disk cache holds the kernel (else its first call compiles it)."""
+    from rbbench.rb.friction.wedge import kernels
+
+    return os.path.exists(kernels.wedge_online._cache._cache_file._index_path)
+
+
+class CompiledWedge:
+    """One wedge model's compiled online solve (module docstring): the packed plans.
+    Not picklable state: the model rebuilds it after unpickling."""
+
+    def __init__(self, model: Any) -> None:
+        from rbbench.rb.friction.wedge import kernels
+
+        self._k = kernels
+        shared, own = wedge_plan(model)
+        self.fb, self.ib, self.meta = mixed_compiled.pack(shared)
+        self.fw, self.iw, self.mw = mixed_compiled.pack(own, kernels.FLOATS, kernels.INTS)
+        self.R = int(model.R)
+        self.start = kernels.NEAREST if np.asarray(model.x_train).size else kernels.COLD
+
+    def warm_up(self, mu: np.ndarray) -> None:
+        """First call of the kernel (compile or load the disk cache), timed into
+        :data:`COMPILE` once per process."""
+        if COMPILE:
+            return
+        t0 = time.perf_counter()
+        self.solve(mu)
+        stats = self._k.wedge_online.stats
+        COMPILE.update(first_call_s=time.perf_counter() - t0,
+                       from_disk_cache=bool(stats.cache_hits) and not stats.cache_misses)
+
+    def solve(self, mu: Any, x0: np.ndarray | None = None) -> Any:
+        """The online solve at ``mu`` (warm start ``x0``, else the nearest training
+        solution): a :class:`~rbbench.rb.friction.wedge.model.WedgeOnlineResult` with
+        ``path = "compiled"``, or None where the Python path must decide."""
+        from rbbench.rb.friction.wedge.model import WedgeOnlineResult
+
+        if not (isinstance(mu, np.ndarray) and mu.dtype == np.float64 and mu.ndim == 1):
+            mu = np.asarray(mu, dtype=np.float64).reshape(-1)
+        k = self._k
+        if x0 is None:
+            start, x = self.start, np.zeros(self.R)
+        else:
+            start, x = k.GIVEN, np.asarray(x0, dtype=np.float64).reshape(-1)
+            if x.size != self.R:
+                return None
+        status, it, stop, inner, a, c, hist = k.wedge_online(
+            mu, self.fb, self.ib, self.meta, self.fw, self.iw, self.mw, x, start)
+        if status != k.OK:
+            return None
+        return WedgeOnlineResult(a, c, int(it), int(inner), k.STOPS[stop], 0.0,
+                                 hist.tolist(), mu, path="compiled")
+
+
+def prepare(model: Any) -> CompiledWedge | str:
+    """The compiled solve of ``model`` (kernel compiled or loaded, :data:`COMPILE`), or the
+    reason (:func:`path_reason`, no eigenbasis of ``A_N``'s terms) it takes the Python path."""
+    reason = path_reason(model)
+    if reason is not None:
+        return reason
+    try:
+        online = CompiledWedge(model)
+    except ValueError as exc:  # no common eigenbasis of A_N's terms
+        return str(exc)
+    online.warm_up(mixed_compiled._centre(model))
+    return online
