@@ -84,6 +84,8 @@ def wedge_plan(model: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]
 
     w_b = np.concatenate([mixed_compiled.coefficient_map(nrm.lu, nrm.T),
                           mixed_compiled.coefficient_map(tan.lu, tan.T)])
+    w_b = np.einsum("era,ak->ekr", w_b, V)
+    w_u, w_b = compress_map(w_b.reshape(w_b.shape[0], -1), _sample_values(model))
     pts_g, vals_g = ev.support(feim.pos_G)
     shared = {**mixed_compiled._bounds(model), "s_scale": sl.map.scale,
               "s_shift": sl.map.shift,
@@ -91,7 +93,7 @@ def wedge_plan(model: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]
               "m_shift": sl.map.shift if ms is None else ms.map.shift,
               "x_hat": x_hat, "n_hat": n_hat, "w_hat": w_hat,
               "slave_b": slave(nrm, n_hat, Z), "vals_b": nrm.support[1], "vals_g": vals_g,
-              "w_b": np.ascontiguousarray(np.einsum("era,ak->ekr", w_b, V)),
+              "w_b": np.ascontiguousarray(w_b),
               "w_g": mixed_compiled.coefficient_map(feim.lu_G, feim.T_G),
               "a_terms": model.A.terms, "f_terms": model.F.terms @ V,
               "dims": np.array([lay.degree, ms is not None, 0]),
@@ -100,25 +102,72 @@ def wedge_plan(model: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]
               "vt": np.ascontiguousarray(V.T), "lam_a": lam}
     master = mixed_compiled._master_plan(feim, n_hat)
     shared.update(master)
-    zt_s = np.zeros_like(master["zt_m"])
+    z_s = np.zeros((1, Zv.shape[1]))
     if ms is not None:  # the master dofs of the windows, in Z V (the slip rows' basis)
-        zt_s = _master_basis(feim, Zv)
+        z_s = _master_basis(feim, Zv)
+    n_basis, n_rows = Zv.shape[1], model.P.shape[1]
+    pts_s, vals_s = slip.support[0][::n_basis], slip.support[1][::n_basis]  # one per row
+    slave_s = slave(slip, t_hat, Zv).reshape(n_rows, n_basis, -1).transpose(0, 2, 1)
     x_train = np.asarray(model.x_train, float).reshape(-1, model.R)
     own = {"t_hat": t_hat, "slave_t": slave(tan, t_hat, Z), "vals_t": tan.support[1],
-           "slave_s": slave(slip, t_hat, Zv), "vals_s": slip.support[1], "zt_s": zt_s,
+           "slave_s": np.ascontiguousarray(slave_s), "vals_s": vals_s, "z_s": z_s,
            "pq": model.P, "mus_train": np.asarray(model.mus_train, float).reshape(
                x_train.shape[0], -1) if x_train.size else np.zeros((1, 1)),
            "x_train": x_train if x_train.size else np.zeros((1, model.R)),
            "settings": np.array([model.tol]),
            "pts_t": tan.support[0], "cols_t": tan.col,
-           "order_t": np.argsort(tan.col, kind="stable"), "pts_s": slip.support[0],
-           "cols_s": slip.col, "order_s": np.argsort(slip.col, kind="stable"),
-           "sizes": np.array([model.P.shape[1], model.max_iter])}
+           "order_t": np.argsort(tan.col, kind="stable"), "pts_s": pts_s,
+           "sizes": np.array([model.P.shape[1], model.max_iter, w_u.shape[1]]), "w_u": w_u}
     return shared, own
 
 
+def compress_map(W: np.ndarray, values: np.ndarray, rtol: float = 1e-14
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``(U, W_k)`` with ``c^T W = (c^T U) W_k`` to ``rtol``: the map ``c -> c^T W`` from
+    the magic values to the reduced ``B`` (``W``: E x n, the EIM terms with the coefficient
+    solve folded in) through its truncated SVD ``W ~ U diag(s) Vt`` (``W_k = diag(s) Vt``,
+    k rows), when that halves the online work ``E n`` at least; else ``(zeros (E, 0),
+    W)``, the map itself.
+
+    ``k`` is the smallest with ``s[k] max_j ||c_j||_2 <= rtol min_j ||c_j^T W||_2`` over
+    the magic values ``values`` (rows ``c_j``) sampled on D: the truncation changes ``B``
+    by at most ``s[k] ||c||_2`` (2-norm of the flattened ``B``), so by ``rtol`` relative
+    wherever ``||c||`` and ``||B||`` stay within their sampled ranges."""
+    E, n = W.shape
+    U, sv, Vt = np.linalg.svd(W, full_matrices=False)
+    top = float(np.linalg.norm(values, axis=1).max(initial=0.0))
+    low = float(np.linalg.norm(values @ W, axis=1).min(initial=0.0))
+    k = int(np.searchsorted(-sv * top, -rtol * low, side="left"))  # first s[k] small enough
+    if k == 0 or 2 * k * (E + n) > E * n:
+        return np.zeros((E, 0)), W
+    return np.ascontiguousarray(U[:, :k]), np.ascontiguousarray(sv[:k, None] * Vt[:k])
+
+
+def _sample_values(model: Any, n: int = 33) -> np.ndarray:
+    """The magic values (normal then tangential entries) of the friction EIM at ``n``
+    parameters of D (a grid for one parameter, else corners and seeded random points),
+    by the Python path (:meth:`rbbench.rb.hyper.contact_eim.RowEvaluator.jump_entries`)."""
+    from rbbench.rb.hyper.contact_eim import tangent
+
+    feim = model.eim
+    lo, hi = np.asarray(model.parameters.low, float), np.asarray(model.parameters.high, float)
+    if lo.size == 1:
+        mus = np.linspace(lo, hi, n)
+    else:
+        rng = np.random.default_rng(0)
+        corners = np.array(np.meshgrid(*zip(lo, hi, strict=True))).reshape(lo.size, -1).T
+        mus = np.vstack([corners, lo + (hi - lo) * rng.random((n, lo.size))])
+    ev, out = feim.evaluator, []
+    for mu in mus:
+        p = ev.pairing(mu)
+        out.append(np.concatenate([
+            ev.jump_entries(p, d, feim.Z_loc, *part.support, part.col)
+            for part, d in ((feim.normal, p.nrm), (feim.tangential, tangent(p.nrm)))]))
+    return np.array(out)
+
+
 def _master_basis(feim: Any, basis_loc: np.ndarray) -> np.ndarray:
-    """``basis_loc^T`` on the master dofs the windows reach, numbered as
+    """``basis_loc`` on the master dofs the windows reach (one row per dof), numbered as
     :func:`rbbench.rb.mixed.compiled._master_plan` numbers them (``m_dofs``)."""
     ev, ms = feim.evaluator, feim.evaluator.layout.master
     lo, hi, _ = ev.windows
@@ -126,7 +175,7 @@ def _master_basis(feim: Any, basis_loc: np.ndarray) -> np.ndarray:
     reached = np.zeros(dofs.shape[0], dtype=bool)
     for a, b in zip(lo, hi, strict=True):
         reached[a:b + 1] = True
-    return np.ascontiguousarray(basis_loc[np.unique(dofs[reached])].T)
+    return np.ascontiguousarray(basis_loc[np.unique(dofs[reached])])
 
 
 def is_cached() -> bool:

@@ -46,12 +46,14 @@ from rbbench.runtime.numba_cache import use_user_cache
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
 #: the wedge arrays of the plan (a second buffer beside the frictionless plan's), in order
-FLOATS = ("t_hat", "slave_t", "vals_t", "slave_s", "vals_s", "zt_s", "pq", "mus_train",
-          "x_train", "settings")
-#: ``sizes = [M_s, max_iter]``
-INTS = ("pts_t", "cols_t", "order_t", "pts_s", "cols_s", "order_s", "sizes")
-(T_HAT, SLAVE_T, VALS_T, SLAVE_S, VALS_S, ZT_S, PQ, MUS_TRAIN, X_TRAIN, SETTINGS) = range(10)
-(PTS_T, COLS_T, ORDER_T, PTS_S, COLS_S, ORDER_S, SIZES) = range(10, 17)
+FLOATS = ("t_hat", "slave_t", "vals_t", "slave_s", "vals_s", "z_s", "pq", "mus_train",
+          "x_train", "settings", "w_u")
+#: ``sizes = [M_s, max_iter, k]``, ``k`` the rank of the compressed EIM map (``w_u``,
+#: E x k: ``B = (c^T w_u) w_b``; 0: ``B = c^T w_b``)
+INTS = ("pts_t", "cols_t", "order_t", "pts_s", "sizes")
+(T_HAT, SLAVE_T, VALS_T, SLAVE_S, VALS_S, Z_S, PQ, MUS_TRAIN, X_TRAIN, SETTINGS,
+ W_U) = range(11)
+(PTS_T, COLS_T, ORDER_T, PTS_S, SIZES) = range(11, 16)
 
 #: statuses: :mod:`rbbench.rb.mixed.kernels`' ``OK``, ``OUTSIDE_D``, ``NO_HIT``, and these
 OK = K.OK
@@ -62,6 +64,34 @@ STOPS = ("converged", "max_iterations", "diverged")
 NEAREST, GIVEN, COLD = 0, 1, 2
 #: the natural residual each QP must reach, and the passive-set solves it may take
 TOL, QP_MAX_ITER = 1e-10, 500
+
+
+@njit(cache=True)
+def jump_rows(s, dh, wh, zs, m_dofs, has_master, slave, vals, pts, mphi, seg, out):
+    """Whole rows ``out[r] = (J(mu) Z)[row r]`` (the slip rows), as
+    :func:`rbbench.rb.mixed.kernels.jump_values` does entry by entry but a row at a time:
+    ``slave[r, p]`` the tabulated slave term of point ``p`` for every column, ``zs`` the
+    basis on the master dofs of the windows, one contiguous row per dof (``out`` zeroed
+    by the caller)."""
+    k, n = mphi.shape[1], out.shape[1]
+    acc = np.empty(n)
+    for r in range(pts.shape[0]):
+        for p in range(pts.shape[1]):
+            coef = vals[r, p]
+            if coef == 0.0:  # padding
+                continue
+            q = pts[r, p]
+            acc[:] = slave[r, p]
+            if has_master:
+                f = seg[q]
+                for a in range(k):
+                    dx, dy = mphi[q, a] * dh[q, 0], mphi[q, a] * dh[q, 1]
+                    zx, zy = zs[m_dofs[f, 2 * a]], zs[m_dofs[f, 2 * a + 1]]
+                    for j in range(n):
+                        acc[j] -= dx * zx[j] + dy * zy[j]
+            coef *= s * wh[q]
+            for j in range(n):
+                out[r, j] += coef * acc[j]
 
 
 @njit(cache=True)
@@ -162,14 +192,22 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
                   K._i(iw, mw, ORDER_T), mphi, seg, vals[mn:])
     gvals = np.empty(meta[K.PTS_G, 1])
     K.gap_values(w, gap, K._f2(fb, meta, K.VALS_G), K._i2(ib, meta, K.PTS_G), gvals)
-    rows = np.empty(ms * n)
-    K.jump_values(s, tangent, wh, K._f2(fw, mw, ZT_S), m_dofs, dims[1],
-                  K._f2(fw, mw, SLAVE_S), K._f2(fw, mw, VALS_S), K._i2(iw, mw, PTS_S),
-                  K._i(iw, mw, COLS_S), K._i(iw, mw, ORDER_S), mphi, seg, rows)
-    rv = rows.reshape((ms, n))
+    rv = np.zeros((ms, n))
+    jump_rows(s, tangent, wh, K._f2(fw, mw, Z_S), m_dofs, dims[1],
+              K._f(fw, mw, SLAVE_S).reshape((ms, mw[VALS_S, 2], n)), K._f2(fw, mw, VALS_S),
+              K._i2(iw, mw, PTS_S), mphi, seg, rv)
     # 2. reduced arrays and condensation
     bt, gn = np.empty(n * r), np.empty(r)
-    K._combine(vals, K._f2(fb, meta, K.W_B), bt)
+    if sizes[2] > 0:  # the compressed map: B = (c^T U) W_k
+        wu = K._f2(fw, mw, W_U)
+        y = np.zeros(sizes[2])
+        for e in range(vals.size):
+            ce = vals[e]
+            for j in range(y.size):
+                y[j] += ce * wu[e, j]
+        K._combine(y, K._f2(fb, meta, K.W_B), bt)
+    else:
+        K._combine(vals, K._f2(fb, meta, K.W_B), bt)
     K._combine(gvals, K._f2(fb, meta, K.W_G), gn)
     bt2 = bt.reshape((n, r))
     sd, ft = np.empty(n), np.empty(n)
