@@ -195,7 +195,8 @@ def wedge_condensed(D: np.ndarray, q: np.ndarray, basis: WedgeBasis) -> WedgeCon
 @dataclass
 class WedgeOnlineResult:
     """One wedge solve: ``a`` (N; empty at the HF level), ``c`` (R), fixed-point
-    ``iterations``, daqp ``inner_iterations``, ``stop_reason``, ``history`` (relative
+    ``iterations``, ``inner_iterations`` of the QPs (daqp's on the Python path, passive-set
+    solves on the compiled one), ``stop_reason``, ``history`` (relative
     increments), ``rate`` (geometric mean of the increment ratios), wall time (s)."""
 
     a: np.ndarray
