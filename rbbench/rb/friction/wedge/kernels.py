@@ -289,3 +289,20 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
         if not np.isfinite(a[j]):
             return NOT_FINITE, it, stop, inner, a, c, hist[:it]
     return K.OK, it, stop, inner, a, c, hist[:it]
+
+
+def drop_stale_cache() -> bool:
+    """Forget the cached :func:`wedge_online` when a module whose functions it inlines
+    (:mod:`rbbench.rb.mixed.kernels`, :mod:`rbbench.rb.mixed.dual_kernels`) changed after it
+    was cached (numba checks only this file's stamp: the frictionless kernel's
+    :func:`~rbbench.rb.mixed.dual_kernels.drop_stale_cache`). Returns whether it flushed.
+    Called at import."""
+    cache = wedge_online._cache
+    index = cache._cache_file._index_path
+    if any(DK.is_stale(index, dep) for dep in (K.__file__, DK.__file__)):
+        cache.flush()
+        return True
+    return False
+
+
+drop_stale_cache()
