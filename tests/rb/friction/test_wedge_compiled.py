@@ -132,3 +132,48 @@ def test_without_numba_the_python_path_runs_and_says_why(monkeypatch):
     assert model.solve(np.array([1.0])).path == "python"
     with pytest.raises(RuntimeError, match="numba is not installed"):
         model.solve(np.array([1.0]), path="compiled")
+
+
+def test_compressed_eim_map_gives_the_same_solution(monkeypatch):
+    """The kernel's compressed map ``B = (c^T U) W_k`` (here the full SVD, exact to
+    round-off, forced on a model too small to need it) solves as the Python path does."""
+    model = _model()
+
+    def full_svd(W, values):
+        U, s, Vt = np.linalg.svd(W, full_matrices=False)
+        return np.ascontiguousarray(U), np.ascontiguousarray(s[:, None] * Vt)
+
+    monkeypatch.setattr(compiled, "compress_map", full_svd)
+    online = compiled.CompiledWedge(model)
+    assert online.mw[compiled_kernels().W_U, 2] > 0
+    for mu in (np.array([0.75]), np.array([1.22])):
+        fast, ref = online.solve(mu), model.solve(mu, path="python")
+        assert fast.iterations == ref.iterations
+        assert _rel(fast.a, ref.a) <= 1e-10
+        assert np.abs(fast.c - ref.c).max() <= 1e-10 * max(np.abs(ref.c).max(), 1e-300)
+
+
+def test_compress_map_keeps_the_map_to_its_tolerance():
+    """A map of numerical rank 5 (plus 1e-17 noise) is compressed to rank 5 and reproduces
+    ``c^T W`` to 1e-14 relative on the sampled and on new values; a full-rank map is kept."""
+    rng = np.random.default_rng(5)
+    W = rng.standard_normal((60, 5)) @ rng.standard_normal((5, 400))
+    W += 1e-17 * rng.standard_normal(W.shape)
+    values = rng.standard_normal((20, 60))
+    U, Wk = compiled.compress_map(W, values)
+    assert U.shape == (60, 5) and Wk.shape == (5, 400)
+    for c in (values, rng.standard_normal((5, 60))):
+        exact = c @ W
+        assert np.abs((c @ U) @ Wk - exact).max() <= 1e-13 * np.abs(exact).max()
+    full = rng.standard_normal((60, 80))
+    U, Wk = compiled.compress_map(full, values)
+    assert U.shape == (60, 0) and Wk is full
+    from rbbench.rb.friction.wedge import kernels
+
+    assert kernels.drop_stale_cache() is False  # just imported: nothing stale
+
+
+def compiled_kernels():
+    from rbbench.rb.friction.wedge import kernels
+
+    return kernels

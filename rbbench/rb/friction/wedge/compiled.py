@@ -136,7 +136,7 @@ def compress_map(W: np.ndarray, values: np.ndarray, rtol: float = 1e-14
     E, n = W.shape
     U, sv, Vt = np.linalg.svd(W, full_matrices=False)
     top = float(np.linalg.norm(values, axis=1).max(initial=0.0))
-    low = float(np.linalg.norm(values @ W, axis=1).min(initial=0.0))
+    low = float(np.linalg.norm(values @ W, axis=1).min()) if len(values) else 0.0
     k = int(np.searchsorted(-sv * top, -rtol * low, side="left"))  # first s[k] small enough
     if k == 0 or 2 * k * (E + n) > E * n:
         return np.zeros((E, 0)), W
