@@ -122,6 +122,7 @@ def test_outside_d_falls_back_to_the_reference_error_and_pickles():
     mu = np.array([1.1])
     np.testing.assert_array_equal(again.solve(mu).c, model.solve(mu).c)
     assert compiled.COMPILE["first_call_s"] > 0
+    assert compiled.is_cached()  # the kernel ran: numba's disk cache holds its current source
 
 
 def test_without_numba_the_python_path_runs_and_says_why(monkeypatch):

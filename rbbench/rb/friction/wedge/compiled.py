@@ -18,7 +18,6 @@ deviation at one mu (a kernel status other than ``OK``) reruns that mu on the Py
 
 from __future__ import annotations
 
-import os
 import time
 from typing import Any
 
@@ -179,10 +178,15 @@ def _master_basis(feim: Any, basis_loc: np.ndarray) -> np.ndarray:
 
 
 def is_cached() -> bool:
-    """Whether numba's disk cache holds the kernel (else its first call compiles it)."""
+    """Whether numba's disk cache holds the kernel for its current source (else its first
+    call compiles it): the cache index exists and its source stamp is current (numba's
+    own test, ``_load_index``)."""
     from rbbench.rb.friction.wedge import kernels
 
-    return os.path.exists(kernels.wedge_online._cache._cache_file._index_path)
+    try:
+        return bool(kernels.wedge_online._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - an unreadable index: numba recompiles too
+        return False
 
 
 class CompiledWedge:
