@@ -10,7 +10,9 @@ Cases (the ``scene`` parameter of the suites):
 * ``membrane_obstacle``: the scene as shipped (289 dofs, 225 multipliers, 2 parameters);
 * ``hertz_coarse``: ``hertz_halfdisks`` with :data:`rbbench.testing.HERTZ_COARSE`
   (the contract suite's coarse mesh: 8888 dofs, 64 multipliers);
-* ``hertz_default``: ``hertz_halfdisks`` on its default mesh (36910 dofs; HF solve only).
+* ``hertz_default``: ``hertz_halfdisks`` on its default mesh (36910 dofs; HF solve only);
+* ``friction_p1_h04``, ``friction_p1_h02``: ``hertz_friction`` at P1 on two coarse meshes
+  (the friction online suite: the wedge model hyper-reduced by its EIM).
 
 This module holds no benchmark (no ``time_`` / ``track_`` / ``peakmem_`` names).
 """
@@ -27,6 +29,12 @@ CASES: dict[str, tuple[str, tuple[str, ...]]] = {
     "membrane_obstacle": ("membrane_obstacle", ()),
     "hertz_coarse": ("hertz_halfdisks", tuple(HERTZ_COARSE)),
     "hertz_default": ("hertz_halfdisks", ()),
+    "friction_p1_h04": ("hertz_friction", ("discretization.degree=1",
+                                           "discretization.h_contact=0.04",
+                                           "discretization.h_max=0.4")),
+    "friction_p1_h02": ("hertz_friction", ("discretization.degree=1",
+                                           "discretization.h_contact=0.02",
+                                           "discretization.h_max=0.25")),
 }
 
 #: the cases of the reduced-basis suites (small training / validation sets)
@@ -37,7 +45,14 @@ RB_CASES = ["membrane_obstacle", "hertz_coarse"]
 RB_OPTIONS: dict[str, dict] = {
     "membrane_obstacle": {"n_train": 16, "n_valid": 5},  # 4 x 4 training grid
     "hertz_coarse": {"n_train": 11, "n_valid": 5},
+    **{case: {"n_train": 5, "n_valid": 2, "N": 8, "R": 4, "S": 4, "k_pga_max": 6,
+              "hyper": "eim", "friction_dual": "wedge"}
+       for case in ("friction_p1_h04", "friction_p1_h02")},
 }
+
+#: the friction cases of the online suite: hertz_friction, P1, two contact mesh sizes
+#: (h_contact 0.04 and 0.02: 65 and 129 contact nodes), the wedge model with its EIM
+FRICTION_CASES = ["friction_p1_h04", "friction_p1_h02"]
 
 #: Timeout (s) of one benchmark and of a setup_cache; generous against a loaded machine.
 TIMEOUT = 300.0

@@ -38,6 +38,7 @@ EXPECTED = {
     ("bench_online", "Accuracy.track_err_u_max"),
     ("bench_online", "Accuracy.track_err_lam_max"),
     ("bench_online", "Accuracy.track_neg_log10_beta_off"),
+    ("bench_friction_online", "FrictionOnlineSolve.time_online_solve"),
 }
 
 
@@ -152,6 +153,21 @@ def test_online_and_tracked_accuracy_on_a_tiny_reduction(modules, tmp_path):
         bench.setup(cache, case, method)
         t = bench.track_online_median_s(cache, case, method)
         assert isinstance(t, float) and 0 < t < 1, (method, t)
+
+
+def test_friction_online_suite_on_a_tiny_reduction(modules, tmp_path):
+    """The friction online suite's setup and benchmark, both paths, on its coarser mesh
+    with 3 training and 1 validation mu."""
+    from benchmarks._common import reduced_case
+
+    bench_mod = modules["bench_friction_online"]
+    case = bench_mod.FRICTION_CASES[0]
+    cache = {case: reduced_case(case, str(tmp_path), n_train=3, n_valid=1)}
+    assert cache[case]["summary"]["hyper"] == "eim"
+    bench = bench_mod.FrictionOnlineSolve()
+    for path in bench_mod.FrictionOnlineSolve.params[1]:
+        bench.setup(cache, case, path)
+        bench.time_online_solve(cache, case, path)
 
 
 def test_tracked_values_fail_instead_of_recording_nan(modules):

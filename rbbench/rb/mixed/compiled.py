@@ -125,7 +125,8 @@ def _eim_plan(model: Any) -> dict[str, np.ndarray]:
            "m_scale": sl.map.scale if ms is None else ms.map.scale,
            "m_shift": sl.map.shift if ms is None else ms.map.shift,
            "x_hat": x_hat, "n_hat": n_hat, "w_hat": w_hat,
-           "slave_b": _slave_terms(ceim, sl.dofs, sphi, n_hat, pts_b, lay.n_gauss),
+           "slave_b": slave_terms(ceim.Z_loc, ceim.entry_col, sl.dofs, sphi, n_hat, pts_b,
+                                   lay.n_gauss),
            "vals_b": vals_b, "vals_g": vals_g, "w_b": coefficient_map(ceim.lu_B, ceim.T_B),
            "w_g": coefficient_map(ceim.lu_G, ceim.T_G), "a_terms": model.A.terms,
            "f_terms": model.F.terms, "dims": np.array([lay.degree, ms is not None, 0]),
@@ -228,13 +229,14 @@ def reference_points(lay: Any) -> tuple[np.ndarray, ...]:
     return x, n, w, phi
 
 
-def _slave_terms(ceim: Any, dofs: np.ndarray, phi: np.ndarray, n: np.ndarray,
-                 pts: np.ndarray, n_gauss: int) -> np.ndarray:
-    """``S[e, p] = sum_(a, d) phi[q, a] n[q, d] Z[dofs[f, a, d], col_e]`` at ``q = pts[e, p]``
-    on slave facet ``f = q // n_gauss``: the slave half of the normal jump of every magic
-    entry on the reference chain (:func:`rbbench.rb.mixed.kernels.magic_values`)."""
+def slave_terms(Z_loc: np.ndarray, cols: np.ndarray, dofs: np.ndarray, phi: np.ndarray,
+                n: np.ndarray, pts: np.ndarray, n_gauss: int) -> np.ndarray:
+    """``S[e, p] = sum_(a, d) phi[q, a] n[q, d] Z[dofs[f, a, d], cols[e]]`` at ``q = pts[e,
+    p]`` on slave facet ``f = q // n_gauss``: the slave half of the jump along ``n`` (the
+    reference normals, or their tangents) of every magic entry on the reference chain
+    (:func:`rbbench.rb.mixed.kernels.jump_values`)."""
     d = np.asarray(dofs).reshape(dofs.shape[0], -1, 2)[pts // n_gauss]  # (E, P, k, 2)
-    z = ceim.Z_loc[d, ceim.entry_col[:, None, None, None]]
+    z = Z_loc[d, np.asarray(cols)[:, None, None, None]]
     return np.einsum("epa,epd,epad->ep", phi[pts], n[pts], z)
 
 
@@ -276,14 +278,18 @@ def gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
     return gauss_legendre_01(n)
 
 
-def pack(arrays: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pack(arrays: dict[str, np.ndarray], floats: tuple[str, ...] | None = None,
+         ints: tuple[str, ...] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(fb, ib, meta)``: the float and int arrays of :func:`plan_arrays` in the kernels'
-    order, one row ``[offset, s0, s1, s2]`` of ``meta`` per array (shape padded with 1)."""
+    order (``floats``, ``ints``: another kernel's names, default
+    :data:`rbbench.rb.mixed.kernels.FLOATS`, ``INTS``), one row ``[offset, s0, s1, s2]`` of
+    ``meta`` per array (shape padded with 1)."""
     from rbbench.rb.mixed import kernels as _kernels
 
     meta, chunks = [], {"f": [], "i": []}
     offsets = {"f": 0, "i": 0}
-    for kind, names in (("f", _kernels.FLOATS), ("i", _kernels.INTS)):
+    for kind, names in (("f", _kernels.FLOATS if floats is None else floats),
+                        ("i", _kernels.INTS if ints is None else ints)):
         dtype = np.float64 if kind == "f" else np.int64
         for name in names:
             a = np.ascontiguousarray(arrays[name], dtype=dtype)

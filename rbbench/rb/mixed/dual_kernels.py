@@ -153,21 +153,35 @@ def _refactor(d, idx, k, lf):
 
 
 @njit(cache=True)
-def nnls_gram(d, q, x, max_iter):
+def nnls_gram(d, q, x, max_iter, warm=False):
     """``x = argmin_{x >= 0} 1/2 x^T d x + q^T x`` for a symmetric positive definite
     ``d`` (module docstring: Lawson-Hanson / Bro-de Jong). Writes ``x``; returns
-    ``(status, iterations)``, iterations = passive-set solves."""
+    ``(status, iterations)``, iterations = passive-set solves.
+
+    ``warm``: start from the ``x >= 0`` given (Bro and de Jong's warm start): its positive
+    entries are the first passive set (an entry dependent on the others starts at 0), the
+    first passive solve and the steps back to the feasible set make it optimal on that
+    set, then the active-set loop goes on as from 0. Without ``warm``, ``x`` starts at 0."""
     r = q.size
     idx = np.empty(r, np.int64)
     inp = np.zeros(r, np.bool_)
     lf = np.zeros((r, r))
     z, w = np.empty(r), np.empty(r)
-    x[:] = 0.0
+    k, it = 0, 0
+    for i in range(r):
+        if warm and x[i] > 0.0 and _add_row(d, idx, k, lf, i):
+            inp[i] = True
+            k += 1
+        else:
+            x[i] = 0.0
     scale = 0.0
     for i in range(r):
         scale = max(scale, abs(q[i]))
     tol = 1e3 * _EPS * max(scale, 1e-300)
-    k, it = 0, 0
+    if k > 0:
+        status, k, it = _passive_steps(d, q, x, idx, inp, lf, k, z, it, max_iter)
+        if status != NNLS_OK:
+            return status, it
     _gradient(d, q, x, idx, k, w)
     while True:
         j, best = -1, tol
@@ -180,23 +194,33 @@ def nnls_gram(d, q, x, max_iter):
             return NNLS_DEPENDENT, it
         inp[j] = True
         k += 1
-        while True:
-            it += 1
-            if it > max_iter:
-                return NNLS_MAX_ITER, it
-            _solve_passive(lf, idx, k, q, z)
-            positive = True
-            for a in range(k):
-                if not z[a] > 0.0:
-                    positive = False
-            if positive:
-                for a in range(k):
-                    x[idx[a]] = z[a]
-                break
-            k = _interpolate(x, idx, k, z, inp)
-            if not _refactor(d, idx, k, lf):
-                return NNLS_DEPENDENT, it
+        status, k, it = _passive_steps(d, q, x, idx, inp, lf, k, z, it, max_iter)
+        if status != NNLS_OK:
+            return status, it
         _gradient(d, q, x, idx, k, w)
+
+
+@njit(cache=True)
+def _passive_steps(d, q, x, idx, inp, lf, k, z, it, max_iter):
+    """Lawson-Hanson's inner loop: solve on the passive set ``idx[:k]``, step back to the
+    feasible set (:func:`_interpolate`) until the passive solution is positive, which
+    becomes ``x`` there. Returns ``(status, k, iterations)``."""
+    while True:
+        it += 1
+        if it > max_iter:
+            return NNLS_MAX_ITER, k, it
+        _solve_passive(lf, idx, k, q, z)
+        positive = True
+        for a in range(k):
+            if not z[a] > 0.0:
+                positive = False
+        if positive:
+            for a in range(k):
+                x[idx[a]] = z[a]
+            return NNLS_OK, k, it
+        k = _interpolate(x, idx, k, z, inp)
+        if not _refactor(d, idx, k, lf):
+            return NNLS_DEPENDENT, k, it
 
 
 @njit(cache=True)

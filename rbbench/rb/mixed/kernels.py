@@ -253,37 +253,52 @@ def pair_points(th, fb, ib, meta, w, gap, mphi, seg):
 @njit(cache=True)
 def magic_values(fb, ib, meta, s, w, gap, mphi, seg, c, g):
     """The magic entries ``c`` of ``C(mu)`` and magic rows ``g`` of ``G(mu)``
-    (:meth:`~rbbench.rb.hyper.contact_eim.RowEvaluator.entries`), written in place.
+    (:meth:`~rbbench.rb.hyper.contact_eim.RowEvaluator.entries`), written in place: the
+    normal jump of the plan's entries (:func:`jump_values` along ``n_hat``) and the
+    weighted gaps of its rows (:func:`gap_values`)."""
+    jump_values(s, _f2(fb, meta, N_HAT), _f(fb, meta, W_HAT), _f2(fb, meta, ZT_M),
+                _i2(ib, meta, M_DOFS), _i(ib, meta, DIMS)[1], _f2(fb, meta, SLAVE_B),
+                _f2(fb, meta, VALS_B), _i2(ib, meta, PTS_B), _i(ib, meta, COLS_B),
+                _i(ib, meta, ORDER_B), mphi, seg, c)
+    gap_values(w, gap, _f2(fb, meta, VALS_G), _i2(ib, meta, PTS_G), g)
 
-    Entry ``e`` sums over its row's points ``q``: ``vals[e, p] w_q`` times the normal jump
-    ``sum_j coef[q, j] Z[dof[q, j], col_e]``
-    (:meth:`~rbbench.hf.geometry.pairing.Pairing.jump_terms`). With ``w = |s| w_hat`` and ``n =
-    sign(s) n_hat`` (:func:`slave_points`) the entry is ``s sum_p vals w_hat (S[e, p] - master
-    term)``: the slave term ``S`` (``slave_b``) is mu-independent and tabulated offline; the master
-    term reads ``Z^T`` on the master facet ``seg[q]`` (``zt_m``: the master dofs of the windows
-    only; entries in the order
-    of their columns, ``order_b``, so that a row of ``Z^T`` stays in cache)."""
-    zt, slave, nh, wh = (_f2(fb, meta, ZT_M), _f2(fb, meta, SLAVE_B), _f2(fb, meta, N_HAT),
-                         _f(fb, meta, W_HAT))
-    vals_b, pts_b, cols = _f2(fb, meta, VALS_B), _i2(ib, meta, PTS_B), _i(ib, meta, COLS_B)
-    m_dofs, order = _i2(ib, meta, M_DOFS), _i(ib, meta, ORDER_B)
-    has_master, k = _i(ib, meta, DIMS)[1], mphi.shape[1]
+
+@njit(cache=True)
+def jump_values(s, dh, wh, zt, m_dofs, has_master, slave, vals, pts, cols, order, mphi,
+                seg, c):
+    """Entries ``c[e]`` of ``J(mu) Z`` for the jump ``J`` along the direction ``sign(s)
+    dh[q]`` at every point (``dh``: the reference normals ``n_hat`` give ``B Z``, the
+    tangents ``(-n_y, n_x)`` of them ``Bt Z``), written in place.
+
+    Entry ``e`` sums over its row's points ``q = pts[e, p]``: ``vals[e, p] w_q`` times the
+    jump ``sum_j coef[q, j] Z[dof[q, j], cols[e]]``
+    (:meth:`~rbbench.hf.geometry.pairing.Pairing.jump_terms`). With ``w = |s| w_hat`` and
+    the direction ``sign(s) dh`` (:func:`slave_points`) the entry is ``s sum_p vals w_hat
+    (slave[e, p] - master term)``: the slave term (``slave``) is mu-independent and
+    tabulated offline; the master term reads ``Z^T`` on the master facet ``seg[q]``
+    (``zt``: the master dofs of the windows only, ``m_dofs`` numbered into it; entries in
+    the order of their columns, ``order``, so that a row of ``Z^T`` stays in cache)."""
+    k = mphi.shape[1]
     for i in range(order.size):
         e = order[i]
         col = cols[e]
         acc_e = 0.0
-        for p in range(pts_b.shape[1]):
-            q = pts_b[e, p]
+        for p in range(pts.shape[1]):
+            q = pts[e, p]
             acc = slave[e, p]
             if has_master:
                 f = seg[q]
                 for a in range(k):
-                    jump = nh[q, 0] * zt[col, m_dofs[f, 2 * a]]
-                    jump += nh[q, 1] * zt[col, m_dofs[f, 2 * a + 1]]
+                    jump = dh[q, 0] * zt[col, m_dofs[f, 2 * a]]
+                    jump += dh[q, 1] * zt[col, m_dofs[f, 2 * a + 1]]
                     acc -= mphi[q, a] * jump
-            acc_e += vals_b[e, p] * wh[q] * acc
+            acc_e += vals[e, p] * wh[q] * acc
         c[e] = s * acc_e
-    vals_g, pts_g = _f2(fb, meta, VALS_G), _i2(ib, meta, PTS_G)
+
+
+@njit(cache=True)
+def gap_values(w, gap, vals_g, pts_g, g):
+    """Rows ``g[r] = sum_p vals_g[r, p] w_q gap_q`` (``q = pts_g[r, p]``) of ``G(mu)``."""
     for r in range(pts_g.shape[0]):
         acc = 0.0
         for p in range(pts_g.shape[1]):

@@ -70,6 +70,24 @@ def test_nnls_gram_satisfies_kkt(seed, r, spread):
     assert dk._natural_residual(D, q, x) <= 1e-10
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), r=st.integers(1, 8), spread=st.sampled_from([0, 2, 5]),
+       start=st.sampled_from(["random", "solution", "zero"]))
+def test_warm_started_nnls_gram_equals_the_enumerated_solution(seed, r, spread, start):
+    """From any x >= 0 (random sparse, the solution itself, 0) the warm start reaches the
+    enumerated solution; started at the solution it takes one passive-set solve."""
+    D, q = _problem(seed, r, spread)
+    ref = _brute_force(D, q)
+    rng = np.random.default_rng(seed + 1)
+    x = {"random": np.abs(rng.standard_normal(r)) * (rng.random(r) < 0.5),
+         "solution": ref.copy(), "zero": np.zeros(r)}[start]
+    status, it = dk.nnls_gram(D, q, x, 100, True)
+    assert status == dk.NNLS_OK
+    assert np.abs(x - ref).max() <= 1e-8 * 10.0 ** spread * max(np.abs(ref).max(), 1e-300)
+    if start == "solution" and (ref > 0).any():
+        assert it == 1
+
+
 def test_nnls_gram_reports_dependent_rows_and_too_many_steps():
     """A singular D with a load pushing along its kernel (D [1, 1] = 0, q . [1, 1] < 0: the
     QP is unbounded below): the dependent row is refused (the caller then reruns the Python

@@ -52,8 +52,10 @@ from rbbench.rb.friction.eim import (
 from rbbench.rb.friction.wedge.model import (
     WedgeArrays,
     WedgeBasis,
+    WedgeOnlineResult,
     WedgeReducedModel,
 )
+from rbbench.rb.mixed.model import ONLINE_PATHS
 
 __all__ = ["SlipDEIM", "WedgeHyperModel", "slip_deim", "wedge_hyper_model"]
 
@@ -109,6 +111,59 @@ class WedgeHyperModel(WedgeReducedModel):
         t0 = time.perf_counter()
         arr = self.arrays(mu)
         return arr, time.perf_counter() - t0
+
+    def solve(self, mu: np.ndarray, x0: np.ndarray | None = None,
+              path: str = "auto") -> WedgeOnlineResult:
+        """Online solve at mu (warm start ``x0``, else the nearest training solution).
+
+        ``path``: ``"python"`` (the reference: :meth:`WedgeReducedModel.solve`),
+        ``"compiled"`` (:mod:`rbbench.rb.friction.wedge.compiled`, a RuntimeError saying why
+        when it is unavailable) or ``"auto"`` (compiled where available:
+        :meth:`online_path`). The kernel is prepared on the first call, outside the timed
+        solve (``compiled.COMPILE`` has that time); a mu it does not solve (outside D, a
+        point leaving its window, a QP it does not solve to its tolerance) is solved by
+        the Python path, which raises the reference's error where there is one."""
+        fast = self._compiled(path)
+        if fast is not None:
+            t0 = time.perf_counter()
+            res = fast.solve(mu, x0)
+            if res is not None:
+                res.time_s = time.perf_counter() - t0
+                return res
+        return super().solve(mu, x0)
+
+    def online_path(self) -> str:
+        """The path :meth:`solve` takes with ``path = "auto"``: ``"compiled (numba X)"`` or
+        ``"python (<why>)"``."""
+        from rbbench.rb.friction.wedge import compiled
+
+        fast = self._compiled("auto")
+        if fast is not None:
+            return f"compiled (numba {compiled.NUMBA_VERSION})"
+        return f"python ({self.__dict__['_online_state']})"
+
+    def _compiled(self, path: str) -> Any:
+        """The prepared compiled solve, or None (the Python path)."""
+        if path not in ONLINE_PATHS:
+            raise ValueError(f"online path {path!r}: valid: {', '.join(ONLINE_PATHS)}")
+        if path == "python":
+            return None
+        if "_online_state" not in self.__dict__:
+            from rbbench.rb.friction.wedge.compiled import prepare
+
+            self.__dict__["_online_state"] = prepare(self)
+        state = self.__dict__["_online_state"]
+        if isinstance(state, str):
+            if path == "compiled":
+                raise RuntimeError(f"compiled online path unavailable: {state}")
+            return None
+        return state
+
+    def __getstate__(self) -> dict:
+        """Pickle without the compiled solve (packed plans: rebuilt on use)."""
+        state = dict(self.__dict__)
+        state.pop("_online_state", None)
+        return state
 
 
 def wedge_hyper_model(plain: WedgeReducedModel, basis: WedgeBasis, Z: np.ndarray,

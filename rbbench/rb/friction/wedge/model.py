@@ -195,7 +195,8 @@ def wedge_condensed(D: np.ndarray, q: np.ndarray, basis: WedgeBasis) -> WedgeCon
 @dataclass
 class WedgeOnlineResult:
     """One wedge solve: ``a`` (N; empty at the HF level), ``c`` (R), fixed-point
-    ``iterations``, daqp ``inner_iterations``, ``stop_reason``, ``history`` (relative
+    ``iterations``, ``inner_iterations`` of the QPs (daqp's on the Python path, passive-set
+    solves on the compiled one), ``stop_reason``, ``history`` (relative
     increments), ``rate`` (geometric mean of the increment ratios), wall time (s)."""
 
     a: np.ndarray
@@ -210,6 +211,9 @@ class WedgeOnlineResult:
     #: the time of the reduced arrays at mu (s): the HF assembly and projection of the plain
     #: model, the EIM evaluation of the hyper-reduced one; included in ``time_s``
     assembly_s: float = 0.0
+    #: which online path ran: "python" (the reference) or "compiled"
+    #: (:mod:`rbbench.rb.friction.wedge.compiled`: one kernel, no split into arrays and solve)
+    path: str = "python"
 
     @property
     def x(self) -> np.ndarray:

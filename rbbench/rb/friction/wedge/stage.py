@@ -70,7 +70,19 @@ WEDGE_DEFINITIONS = {
     "R": "generators of the w+ cone (R+); S: those of the w- cone (R-); R + S dual unknowns",
     "t_online": "wall time of one online solve: HF assembly at mu + projection (plain model; "
                 "hyper 'eim': the affine A_N, F_N, the friction EIM and the slip rows, "
-                "t_online_eim_s) + De Saxce's fixed point (t_online_solve_median_s)",
+                "t_online_eim_s) + De Saxce's fixed point (t_online_solve_median_s); on the "
+                "compiled path (online_path) one kernel call does both, and those two are "
+                "the Python reference's split (t_online_python_median_s)",
+    "online_path": "the path of the timed online solves: 'compiled (numba X)' (one numba "
+                   "kernel per mu: EIM, condensation, De Saxce's fixed point) or 'python "
+                   "(<why>)'; online_compile: the kernel's first call in this process (s, "
+                   "whether from numba's disk cache), never part of t_online",
+    "t_online_python_median_s": "compiled path: the median time of as many solves by the "
+                                "Python reference at each validation mu, timed beside the "
+                                "compiled ones (t_online_eim_s and t_online_solve_median_s "
+                                "are its split); online_path_deviation_max: max over the "
+                                "validation mu of max|x_compiled - x_python| / max|x_python| "
+                                "for x = the primal coefficients a and the wedge coefficients c",
     "slip_deim": "hyper 'eim': M_s magic contact nodes of the DEIM of the slip |w_t| over the "
                  "De Saxce iterates of the training set (errors_slip: its relative max-norm "
                  "training error curve); M_n, M_t, M_G the friction EIM sizes of Ln^T Bn Z, "
@@ -83,6 +95,13 @@ class WedgeStage(FrictionStage):
 
     definitions = WEDGE_DEFINITIONS
     online_method = "daqp (De Saxce fixed point on the wedge cones)"
+
+    def __init__(self, ctx: Any) -> None:
+        self.online: dict[str, Any] = {"online_path": "python (no hyper-reduction: HF "
+                                                      "assembly at mu)"}
+        self.t_python: list[float] = []
+        self.path_deviation: list[float] = []
+        super().__init__(ctx)  # builds the hyper model (self._hyper) when hyper is 'eim'
 
     def _hyper(self, ctx: Any) -> None:
         """hyper 'eim': :func:`rbbench.rb.friction.wedge.hyper.wedge_hyper_model` (the slip
@@ -106,6 +125,23 @@ class WedgeStage(FrictionStage):
         self.histories["eim"] = self.model.info
         self.histories.update(eim_histories(self.model.eim))
         ctx.timings["hyper_s"] = time.perf_counter() - t1
+        self._prepare_online(ctx)
+
+    def _prepare_online(self, ctx: Any) -> None:
+        """The online path of the hyper model (compiled where it can:
+        :mod:`rbbench.rb.friction.wedge.compiled`), prepared now so that the kernel's first
+        call (compiling, or loading numba's disk cache; announced when it compiles) is never
+        timed as an online solve."""
+        from rbbench.rb.friction.wedge import compiled
+
+        t1 = time.perf_counter()
+        if compiled.path_reason(self.model) is None and not compiled.COMPILE \
+                and not compiled.is_cached():
+            ctx.progress("compiling the online kernels (first run after install, about "
+                         f"{compiled.COMPILE_ESTIMATE_S} s)")
+        self.online = {"online_path": self.model.online_path(),
+                       "online_compile": dict(compiled.COMPILE) or None}
+        ctx.timings["online_prepare_s"] = time.perf_counter() - t1
 
     def _spaces(self, ctx: Any) -> None:
         """The ``w+`` and ``w-`` cones (the registered dual compressor)."""
@@ -156,6 +192,24 @@ class WedgeStage(FrictionStage):
             basis=ReducedBasis(self.Z_off, self.wedge.Ln, self.wedge.Lt))
         ctx.timings["gcns_s"] = time.perf_counter() - t1
 
+    def record_online(self, mu: np.ndarray, solutions: list) -> None:
+        """Where the compiled path ran (one kernel, no split of its time), as many solves by
+        the Python reference beside it (their times, and the largest relative difference of
+        ``a`` and ``c`` between the paths), whose EIM evaluation and fixed points the base
+        class times apart."""
+        if self.model is not self.reduced and solutions[-1].path == "compiled":
+            fast = solutions[-1]
+            solutions = [self.model.solve(mu, path="python") for _ in solutions]
+            self.t_python.extend(s.time_s for s in solutions)
+            ref = solutions[-1]
+            self.path_deviation.append(max(_rel(fast.a, ref.a), _rel(fast.c, ref.c)))
+        super().record_online(mu, solutions)
+
+    def finish(self, histories: dict, timings: dict) -> None:
+        super().finish(histories, timings)
+        if self.t_python:
+            timings["t_online_python_median_s"] = float(np.median(self.t_python))
+
     def _floors(self, lam: np.ndarray, lam_t: np.ndarray, W: Any) -> dict[str, float]:
         """Best approximations: lam_n in Span+(Ln); lam_t in span(Lt) and Span+(Lt)."""
         self.floors["lam_best_valid"].append(
@@ -180,7 +234,22 @@ class WedgeStage(FrictionStage):
                 "dim_v_off": int(self.Z_off.shape[1]),
                 "delta_pga": self.histories.get("pga_delta"),
                 "training_iterations_max": max(self.histories["training_iterations"]),
-                "friction_dual": "wedge", "lam_t_profiles": self._profiles()}
+                "friction_dual": "wedge", "lam_t_profiles": self._profiles(),
+                **self.online, **self._python_side()}
+
+    def _python_side(self) -> dict[str, Any]:
+        """The Python reference beside the compiled path (:meth:`record_online`)."""
+        if not self.t_python:
+            return {}
+        return {"t_online_python_median_s": float(np.median(self.t_python)),
+                "online_path_deviation_max": max(self.path_deviation)}
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    """``max|a - b| / max|b|`` (0 for two zero vectors)."""
+    top = float(np.abs(b).max(initial=0.0))
+    return float(np.abs(a - b).max(initial=0.0)) / top if top > 0 else \
+        float(np.abs(a).max(initial=0.0))
 
 
 def reduce_friction(scene: Any, config: Any, friction_dual: str = "wedge",

@@ -1,0 +1,308 @@
+"""numba kernel of the hyper-reduced wedge model's online solve
+(:mod:`rbbench.rb.friction.wedge.compiled`).
+
+One call of :func:`wedge_online` does for one mu what
+:meth:`rbbench.rb.friction.wedge.hyper.WedgeHyperModel.solve` does on the Python path:
+
+1. the pairing of the magic rows' quadrature points in their master windows and the magic
+   entries of ``Bn(mu) Z``, ``Bt(mu) Z``, the magic rows of ``Gn(mu)`` and the slip rows
+   ``(Bt(mu) Z)[I]`` (the frictionless kernels :func:`rbbench.rb.mixed.kernels.pair_points`,
+   :func:`~rbbench.rb.mixed.kernels.jump_values` along the normals and the tangents,
+   :func:`~rbbench.rb.mixed.kernels.gap_values`);
+2. the EIM coefficient solves folded offline into the terms and the reduced ``B``, ``g``,
+   ``A_N``, ``F_N`` (:func:`rbbench.rb.mixed.kernels._combine`), written in a common
+   eigenbasis ``V`` of ``A_N``'s affine terms, ``A_N(mu) = V^-T diag(s(mu)) V^-1``
+   (:func:`rbbench.rb.mixed.compiled.eigenbasis`), so that the condensation on ``c``
+   needs no factorisation (:func:`rbbench.rb.mixed.dual_kernels.condense`)::
+
+       D = Bv diag(1/s) Bv^T,  q = g - Bv (Fv / s),  a = V (Fv - Bv^T c) / s,
+
+   ``Bv = B V``, ``Fv = V^T F_N``; the slip rows come out in the same coordinates (their
+   entries are linear in the basis: the plan holds ``Z V`` for them), so the nodal
+   tangential gap is ``t0 + T c`` with ``t0 = -Rv (Fv / s)``, ``T = Rv diag(1/s) Bv^T``;
+3. De Saxce's fixed point (:func:`rbbench.rb.friction.wedge.model.desaxce_coulomb`, the same
+   stop rule and tolerance): each bound-constrained QP ``min 1/2 c^T D c + g^T c``,
+   ``c >= 0``, by Lawson and Hanson's active set in Bro and de Jong's Gram form
+   (:func:`rbbench.rb.mixed.dual_kernels.nnls_gram`, warm-started from the previous
+   iterate as daqp is on the Python path), on the Jacobi-scaled problem (daqp's scaling),
+   accepted when its natural residual is below :data:`TOL`; the first iterate is the
+   nearest training solution.
+
+Any deviation (mu outside D, a point leaving its window, ``A_N(mu)`` not positive definite,
+a QP the active set does not solve to :data:`TOL`, non-finite numbers) returns a status
+other than :data:`OK` and the caller reruns the Python path. The module imports numba at
+the top: import it only when numba is installed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from rbbench.rb.mixed import dual_kernels as DK
+from rbbench.rb.mixed import kernels as K
+from rbbench.runtime.numba_cache import use_user_cache
+
+use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
+
+#: the wedge arrays of the plan (a second buffer beside the frictionless plan's), in order
+FLOATS = ("t_hat", "slave_t", "vals_t", "slave_s", "vals_s", "z_s", "pq", "mus_train",
+          "x_train", "settings", "w_u")
+#: ``sizes = [M_s, max_iter, k]``, ``k`` the rank of the compressed EIM map (``w_u``,
+#: E x k: ``B = (c^T w_u) w_b``; 0: ``B = c^T w_b``)
+INTS = ("pts_t", "cols_t", "order_t", "pts_s", "sizes")
+(T_HAT, SLAVE_T, VALS_T, SLAVE_S, VALS_S, Z_S, PQ, MUS_TRAIN, X_TRAIN, SETTINGS,
+ W_U) = range(11)
+(PTS_T, COLS_T, ORDER_T, PTS_S, SIZES) = range(11, 16)
+
+#: statuses: :mod:`rbbench.rb.mixed.kernels`' ``OK``, ``OUTSIDE_D``, ``NO_HIT``, and these
+OK = K.OK
+NOT_SPD, QP_FAILED, NOT_FINITE = 3, 4, 5
+#: stop reasons of the fixed point (:func:`rbbench.rb.friction.qp.increment_stop`)
+STOPS = ("converged", "max_iterations", "diverged")
+#: warm start: the nearest training solution, the ``x0`` given, none (``c = 0``)
+NEAREST, GIVEN, COLD = 0, 1, 2
+#: the natural residual each QP must reach, and the passive-set solves it may take
+TOL, QP_MAX_ITER = 1e-10, 500
+
+
+@njit(cache=True)
+def jump_rows(s, dh, wh, zs, m_dofs, has_master, slave, vals, pts, mphi, seg, out):
+    """Whole rows ``out[r] = (J(mu) Z)[row r]`` (the slip rows), as
+    :func:`rbbench.rb.mixed.kernels.jump_values` does entry by entry but a row at a time:
+    ``slave[r, p]`` the tabulated slave term of point ``p`` for every column, ``zs`` the
+    basis on the master dofs of the windows, one contiguous row per dof (``out`` zeroed
+    by the caller)."""
+    k, n = mphi.shape[1], out.shape[1]
+    acc = np.empty(n)
+    for r in range(pts.shape[0]):
+        for p in range(pts.shape[1]):
+            coef = vals[r, p]
+            if coef == 0.0:  # padding
+                continue
+            q = pts[r, p]
+            acc[:] = slave[r, p]
+            if has_master:
+                f = seg[q]
+                for a in range(k):
+                    dx, dy = mphi[q, a] * dh[q, 0], mphi[q, a] * dh[q, 1]
+                    zx, zy = zs[m_dofs[f, 2 * a]], zs[m_dofs[f, 2 * a + 1]]
+                    for j in range(n):
+                        acc[j] -= dx * zx[j] + dy * zy[j]
+            coef *= s * wh[q]
+            for j in range(n):
+                out[r, j] += coef * acc[j]
+
+
+@njit(cache=True)
+def _nearest(mu, mus, xs, c):
+    """``c = xs[j]`` for the row ``j`` of ``mus`` nearest to ``mu`` (Euclidean, the first
+    on ties: :func:`rbbench.rb.friction.qp.nearest_training`)."""
+    best, j = np.inf, 0
+    for i in range(mus.shape[0]):
+        d = 0.0
+        for k in range(mu.size):
+            d += (mus[i, k] - mu[k]) ** 2
+        if d < best:
+            best, j = d, i
+    c[:] = xs[j]
+
+
+@njit(cache=True)
+def _slip(t0, tm, c, slip):
+    """``slip = |t0 + T c|``."""
+    for i in range(t0.size):
+        v = t0[i]
+        for j in range(c.size):
+            v += tm[i, j] * c[j]
+        slip[i] = abs(v)
+
+
+@njit(cache=True)
+def _linear_term(q, pq, slip, g):
+    """``g = q + P slip``."""
+    for i in range(q.size):
+        v = q[i]
+        for j in range(slip.size):
+            v += pq[i, j] * slip[j]
+        g[i] = v
+
+
+@njit(cache=True)
+def _qp(ds, sc, g, c, warm, y):
+    """``c = argmin_{c >= 0} 1/2 c^T D c + g^T c`` from the scaled ``ds = S D S``
+    (``S = diag(sc)``): ``c = S y |S g|_inf``, ``y`` the NNLS solution of the unit-scaled
+    problem, warm-started from ``c`` when ``warm``. Returns ``(ok, passive-set solves)``."""
+    r = g.size
+    gs = np.empty(r)
+    gm = 0.0
+    for i in range(r):
+        gs[i] = sc[i] * g[i]
+        gm = max(gm, abs(gs[i]))
+    if gm == 0.0:
+        c[:] = 0.0
+        return True, 0
+    for i in range(r):
+        gs[i] /= gm
+        y[i] = c[i] / (sc[i] * gm) if warm else 0.0
+    status, it = DK.nnls_gram(ds, gs, y, QP_MAX_ITER, warm)
+    if status != DK.NNLS_OK or not DK._natural_residual(ds, gs, y) <= TOL:
+        return False, it
+    for i in range(r):
+        c[i] = sc[i] * y[i] * gm
+    return True, it
+
+
+@njit(cache=True)
+def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
+    """One online solve at ``mu`` (module docstring): ``(status, iterations, stop,
+    qp_iterations, a, c, history)``, ``stop`` an index of :data:`STOPS`, ``history`` the
+    relative increments of the linear term; ``start`` one of :data:`NEAREST`,
+    :data:`GIVEN` (``x0``), :data:`COLD`.
+
+    ``fb, ib, meta``: the frictionless plan (:mod:`rbbench.rb.mixed.kernels`) with the normal
+    magic entries in its ``b`` arrays, ``w_b`` the combined normal and tangential EIM maps
+    (``(W_e V)^T``), ``w_g`` Gn's, ``f_terms``, ``vt``, ``lam_a`` those of
+    :func:`rbbench.rb.mixed.dual_kernels.online_nnls`; ``fw, iw, mw``: the wedge arrays
+    (:data:`FLOATS`, :data:`INTS`)."""
+    sizes = K._i(iw, mw, SIZES)
+    n, r, ms, max_iter = meta[K.VT, 1], meta[K.W_G, 2], sizes[0], sizes[1]
+    a, c = np.zeros(n), np.zeros(r)
+    hist = np.zeros(max_iter)
+    status, th = K.theta(mu, fb, meta)
+    if status != K.OK:
+        return status, 0, 0, 0, a, c, hist[:0]
+    nq = meta[K.X_HAT, 1]
+    dims = K._i(ib, meta, K.DIMS)
+    w, gap = np.empty(nq), np.empty(nq)
+    mphi, seg = np.zeros((nq, dims[0] + 1)), np.zeros(nq, dtype=np.int64)
+    status, s = K.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    if status != K.OK:
+        return status, 0, 0, 0, a, c, hist[:0]
+    # 1. magic entries (normal, tangential), Gn rows, slip rows (in the eigenbasis)
+    mn, mt = meta[K.PTS_B, 1], mw[PTS_T, 1]
+    wh, zt, m_dofs = K._f(fb, meta, K.W_HAT), K._f2(fb, meta, K.ZT_M), K._i2(ib, meta, K.M_DOFS)
+    nh, tangent = K._f2(fb, meta, K.N_HAT), K._f2(fw, mw, T_HAT)
+    vals = np.empty(mn + mt)
+    K.jump_values(s, nh, wh, zt, m_dofs, dims[1], K._f2(fb, meta, K.SLAVE_B),
+                  K._f2(fb, meta, K.VALS_B), K._i2(ib, meta, K.PTS_B),
+                  K._i(ib, meta, K.COLS_B), K._i(ib, meta, K.ORDER_B), mphi, seg, vals[:mn])
+    K.jump_values(s, tangent, wh, zt, m_dofs, dims[1], K._f2(fw, mw, SLAVE_T),
+                  K._f2(fw, mw, VALS_T), K._i2(iw, mw, PTS_T), K._i(iw, mw, COLS_T),
+                  K._i(iw, mw, ORDER_T), mphi, seg, vals[mn:])
+    gvals = np.empty(meta[K.PTS_G, 1])
+    K.gap_values(w, gap, K._f2(fb, meta, K.VALS_G), K._i2(ib, meta, K.PTS_G), gvals)
+    rv = np.zeros((ms, n))
+    jump_rows(s, tangent, wh, K._f2(fw, mw, Z_S), m_dofs, dims[1],
+              K._f(fw, mw, SLAVE_S).reshape((ms, mw[VALS_S, 2], n)), K._f2(fw, mw, VALS_S),
+              K._i2(iw, mw, PTS_S), mphi, seg, rv)
+    # 2. reduced arrays and condensation
+    bt, gn = np.empty(n * r), np.empty(r)
+    if sizes[2] > 0:  # the compressed map: B = (c^T U) W_k
+        wu = K._f2(fw, mw, W_U)
+        y = np.zeros(sizes[2])
+        for e in range(vals.size):
+            ce = vals[e]
+            for j in range(y.size):
+                y[j] += ce * wu[e, j]
+        K._combine(y, K._f2(fb, meta, K.W_B), bt)
+    else:
+        K._combine(vals, K._f2(fb, meta, K.W_B), bt)
+    K._combine(gvals, K._f2(fb, meta, K.W_G), gn)
+    bt2 = bt.reshape((n, r))
+    sd, ft = np.empty(n), np.empty(n)
+    K._combine(th, K._f2(fb, meta, K.LAM_A), sd)
+    K._combine(th, K._f2(fb, meta, K.F_TERMS), ft)
+    for k in range(n):
+        if not sd[k] > 0.0:  # A_N(mu) not positive definite: the reference decides
+            return NOT_SPD, 0, 0, 0, a, c, hist[:0]
+    d, q = np.empty((r, r)), np.empty(r)
+    DK.condense(bt2, ft, sd, d, q, gn)
+    a0 = ft / sd
+    kt = np.empty((n, r))  # diag(1/s) Bv^T
+    for k in range(n):
+        for i in range(r):
+            kt[k, i] = bt2[k, i] / sd[k]
+    t0, tm = np.empty(ms), np.zeros((ms, r))
+    for j in range(ms):
+        v = 0.0
+        for k in range(n):
+            rjk = rv[j, k]
+            v -= rjk * a0[k]
+            for i in range(r):
+                tm[j, i] += rjk * kt[k, i]
+        t0[j] = v
+    sc = np.empty(r)
+    for i in range(r):
+        if not d[i, i] > 0.0:
+            return NOT_SPD, 0, 0, 0, a, c, hist[:0]
+        sc[i] = 1.0 / np.sqrt(d[i, i])
+    ds = np.empty((r, r))
+    for i in range(r):
+        for j in range(r):
+            ds[i, j] = sc[i] * d[i, j] * sc[j]
+    # 3. De Saxce's fixed point
+    warm = start != COLD
+    if start == NEAREST:
+        _nearest(mu, K._f2(fw, mw, MUS_TRAIN), K._f2(fw, mw, X_TRAIN), c)
+    elif start == GIVEN:
+        c[:] = x0
+    for i in range(r):
+        c[i] = max(c[i], 0.0)
+    pq = K._f2(fw, mw, PQ)
+    tol = K._f(fw, mw, SETTINGS)[0]
+    slip, g, g_new, y = np.empty(ms), np.empty(r), np.empty(r), np.empty(r)
+    _slip(t0, tm, c, slip)
+    _linear_term(q, pq, slip, g)
+    it, inner, stop, low = 0, 0, 1, np.inf
+    while it < max_iter:
+        it += 1
+        ok, k_it = _qp(ds, sc, g, c, warm or it > 1, y)
+        inner += k_it
+        if not ok:
+            return QP_FAILED, it, 0, inner, a, c, hist[:it]
+        _slip(t0, tm, c, slip)
+        _linear_term(q, pq, slip, g_new)
+        num, den = 0.0, 0.0
+        for i in range(r):
+            num = max(num, abs(g_new[i] - g[i]))
+            den = max(den, abs(g_new[i]))
+            g[i] = g_new[i]
+        h = num / max(den, np.finfo(np.float64).tiny)
+        hist[it - 1] = h
+        low = min(low, h)
+        if h <= tol:
+            stop = 0
+            break
+        if h > 1e6 * low:
+            stop = 2
+            break
+    av = a0.copy()
+    for k in range(n):
+        for i in range(r):
+            av[k] -= kt[k, i] * c[i]
+    vt = K._f2(fb, meta, K.VT)
+    for k in range(n):
+        for j in range(n):
+            a[j] += vt[k, j] * av[k]
+    for j in range(n):
+        if not np.isfinite(a[j]):
+            return NOT_FINITE, it, stop, inner, a, c, hist[:it]
+    return K.OK, it, stop, inner, a, c, hist[:it]
+
+
+def drop_stale_cache() -> bool:
+    """Forget the cached :func:`wedge_online` when a module whose functions it inlines
+    (:mod:`rbbench.rb.mixed.kernels`, :mod:`rbbench.rb.mixed.dual_kernels`) changed after it
+    was cached (numba checks only this file's stamp: the frictionless kernel's
+    :func:`~rbbench.rb.mixed.dual_kernels.drop_stale_cache`). Returns whether it flushed.
+    Called at import."""
+    cache = wedge_online._cache
+    index = cache._cache_file._index_path
+    if any(DK.is_stale(index, dep) for dep in (K.__file__, DK.__file__)):
+        cache.flush()
+        return True
+    return False
+
+
+drop_stale_cache()
