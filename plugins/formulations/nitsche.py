@@ -35,7 +35,8 @@ from rbbench.interfaces import (
 #: Default dimensionless Nitsche parameter (``gamma = gamma0 E / h``).
 GAMMA0 = 10.0
 #: largest gamma0 taken: gamma = gamma0 E / h; beyond, the penalty term swamps the stiffness
-MAX_GAMMA0 = 1.0e6
+#: (the gamma0 sweep of the tests converges up to 1e7)
+MAX_GAMMA0 = 1.0e8
 
 
 class NitscheFormulation(Formulation):
