@@ -18,8 +18,12 @@ from rbbench.interfaces import HFVectors
 from rbbench.runtime.threads import one_blas_thread
 from rbbench.runtime.timing import ONLINE_PROTOCOL, gc_paused
 
-__all__ = ["OnlineTimes", "PlainArrays", "ReducedBasis", "require_basis",
+__all__ = ["ONLINE_PATHS", "OnlineTimes", "PlainArrays", "ReducedBasis", "require_basis",
            "timed_online_solves"]
+
+#: the online paths of a model's ``solve(mu, path=)``: "auto" (compiled where available),
+#: "compiled" (numba kernels), "python" (the reference)
+ONLINE_PATHS = ("auto", "compiled", "python")
 
 @dataclass
 class OnlineTimes:

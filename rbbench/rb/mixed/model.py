@@ -40,7 +40,7 @@ from rbbench.rb.algorithms.affine import (
 )
 from rbbench.rb.algorithms.saddle import condense_dense
 from rbbench.rb.mixed.options import ONLINE_METHODS
-from rbbench.rb.online import ReducedBasis, require_basis
+from rbbench.rb.online import ONLINE_PATHS, ReducedBasis, require_basis
 from rbbench.scene.parameters import ParameterSpace
 
 
@@ -81,8 +81,6 @@ class OnlineResult:
         return self.stop_reason.startswith("converged")
 
 
-#: Online paths of :meth:`ReducedModel.solve`: "auto" (compiled where available)
-ONLINE_PATHS = ("auto", "compiled", "python")
 
 
 def _solve_daqp(A: np.ndarray, F: np.ndarray, B: np.ndarray,

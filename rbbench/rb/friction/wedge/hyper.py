@@ -55,7 +55,7 @@ from rbbench.rb.friction.wedge.model import (
     WedgeOnlineResult,
     WedgeReducedModel,
 )
-from rbbench.rb.mixed.model import ONLINE_PATHS
+from rbbench.rb.online import ONLINE_PATHS
 
 __all__ = ["SlipDEIM", "WedgeHyperModel", "slip_deim", "wedge_hyper_model"]
 

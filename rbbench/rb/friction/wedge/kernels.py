@@ -154,6 +154,110 @@ def _qp(ds, sc, g, c, warm, y):
 
 
 @njit(cache=True)
+def _reduced_arrays(th, fb, ib, meta, fw, iw, mw, n, r, ms, n_map):
+    """Steps 1 and 2 of :func:`wedge_online`: the pairing, the magic entries (normal,
+    tangential), Gn's rows and the slip rows, then ``B`` (n x r, in A_N's eigenbasis) and
+    ``gn`` (r): ``(status, B, gn, slip rows (ms x n))``."""
+    bt, gn, rv = np.empty(n * r), np.empty(r), np.zeros((ms, n))
+    nq = meta[K.X_HAT, 1]
+    dims = K._i(ib, meta, K.DIMS)
+    w, gap = np.empty(nq), np.empty(nq)
+    mphi, seg = np.zeros((nq, dims[0] + 1)), np.zeros(nq, dtype=np.int64)
+    status, s = K.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    if status != K.OK:
+        return status, bt.reshape((n, r)), gn, rv
+    mn, mt = meta[K.PTS_B, 1], mw[PTS_T, 1]
+    wh, zt, m_dofs = K._f(fb, meta, K.W_HAT), K._f2(fb, meta, K.ZT_M), K._i2(ib, meta, K.M_DOFS)
+    nh, tangent = K._f2(fb, meta, K.N_HAT), K._f2(fw, mw, T_HAT)
+    vals = np.empty(mn + mt)
+    K.jump_values(s, nh, wh, zt, m_dofs, dims[1], K._f2(fb, meta, K.SLAVE_B),
+                  K._f2(fb, meta, K.VALS_B), K._i2(ib, meta, K.PTS_B),
+                  K._i(ib, meta, K.COLS_B), K._i(ib, meta, K.ORDER_B), mphi, seg, vals[:mn])
+    K.jump_values(s, tangent, wh, zt, m_dofs, dims[1], K._f2(fw, mw, SLAVE_T),
+                  K._f2(fw, mw, VALS_T), K._i2(iw, mw, PTS_T), K._i(iw, mw, COLS_T),
+                  K._i(iw, mw, ORDER_T), mphi, seg, vals[mn:])
+    gvals = np.empty(meta[K.PTS_G, 1])
+    K.gap_values(w, gap, K._f2(fb, meta, K.VALS_G), K._i2(ib, meta, K.PTS_G), gvals)
+    jump_rows(s, tangent, wh, K._f2(fw, mw, Z_S), m_dofs, dims[1],
+              K._f(fw, mw, SLAVE_S).reshape((ms, mw[VALS_S, 2], n)), K._f2(fw, mw, VALS_S),
+              K._i2(iw, mw, PTS_S), mphi, seg, rv)
+    if n_map > 0:  # the compressed map: B = (c^T U) W_k
+        wu = K._f2(fw, mw, W_U)
+        y = np.zeros(n_map)
+        for e in range(vals.size):
+            ce = vals[e]
+            for j in range(y.size):
+                y[j] += ce * wu[e, j]
+        K._combine(y, K._f2(fb, meta, K.W_B), bt)
+    else:
+        K._combine(vals, K._f2(fb, meta, K.W_B), bt)
+    K._combine(gvals, K._f2(fb, meta, K.W_G), gn)
+    return K.OK, bt.reshape((n, r)), gn, rv
+
+
+@njit(cache=True)
+def _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, tm, sc, ds):
+    """Step 2 of :func:`wedge_online`: the condensation on ``c`` (``d``, ``q``), ``u = a0 -
+    kt c`` in the eigenbasis, the slip rows ``t0 + tm c`` and the Jacobi-scaled ``ds``
+    (``sc`` its scaling); False when ``d`` has a non-positive diagonal."""
+    n, r = bt2.shape
+    DK.condense(bt2, ft, sd, d, q, gn)
+    for k in range(n):
+        a0[k] = ft[k] / sd[k]
+        for i in range(r):
+            kt[k, i] = bt2[k, i] / sd[k]
+    for j in range(t0.size):
+        v = 0.0
+        for k in range(n):
+            rjk = rv[j, k]
+            v -= rjk * a0[k]
+            for i in range(r):
+                tm[j, i] += rjk * kt[k, i]
+        t0[j] = v
+    for i in range(r):
+        if not d[i, i] > 0.0:
+            return False
+        sc[i] = 1.0 / np.sqrt(d[i, i])
+    for i in range(r):
+        for j in range(r):
+            ds[i, j] = sc[i] * d[i, j] * sc[j]
+    return True
+
+
+@njit(cache=True)
+def _desaxce(ds, sc, q, pq, t0, tm, c, tol, warm, hist):
+    """Step 3 of :func:`wedge_online`: De Saxce's fixed point from ``c`` (updated in place),
+    the stop rule of :func:`rbbench.rb.friction.wedge.model.desaxce_coulomb`:
+    ``(qp ok, iterations, stop index, qp iterations)``."""
+    r, ms = c.size, t0.size
+    slip, g, g_new, y = np.empty(ms), np.empty(r), np.empty(r), np.empty(r)
+    _slip(t0, tm, c, slip)
+    _linear_term(q, pq, slip, g)
+    it, inner, stop, low = 0, 0, 1, np.inf
+    while it < hist.size:
+        it += 1
+        ok, k_it = _qp(ds, sc, g, c, warm or it > 1, y)
+        inner += k_it
+        if not ok:
+            return False, it, 0, inner
+        _slip(t0, tm, c, slip)
+        _linear_term(q, pq, slip, g_new)
+        num, den = 0.0, 0.0
+        for i in range(r):
+            num = max(num, abs(g_new[i] - g[i]))
+            den = max(den, abs(g_new[i]))
+            g[i] = g_new[i]
+        h = num / max(den, np.finfo(np.float64).tiny)
+        hist[it - 1] = h
+        low = min(low, h)
+        if h <= tol:
+            return True, it, 0, inner
+        if h > 1e6 * low:
+            return True, it, 2, inner
+    return True, it, stop, inner
+
+
+@njit(cache=True)
 def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
     """One online solve at ``mu`` (module docstring): ``(status, iterations, stop,
     qp_iterations, a, c, history)``, ``stop`` an index of :data:`STOPS`, ``history`` the
@@ -172,111 +276,31 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
     status, th = K.theta(mu, fb, meta)
     if status != K.OK:
         return status, 0, 0, 0, a, c, hist[:0]
-    nq = meta[K.X_HAT, 1]
-    dims = K._i(ib, meta, K.DIMS)
-    w, gap = np.empty(nq), np.empty(nq)
-    mphi, seg = np.zeros((nq, dims[0] + 1)), np.zeros(nq, dtype=np.int64)
-    status, s = K.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    # 1. magic entries, Gn rows, slip rows; 2. reduced arrays and condensation
+    status, bt2, gn, rv = _reduced_arrays(th, fb, ib, meta, fw, iw, mw, n, r, ms, sizes[2])
     if status != K.OK:
         return status, 0, 0, 0, a, c, hist[:0]
-    # 1. magic entries (normal, tangential), Gn rows, slip rows (in the eigenbasis)
-    mn, mt = meta[K.PTS_B, 1], mw[PTS_T, 1]
-    wh, zt, m_dofs = K._f(fb, meta, K.W_HAT), K._f2(fb, meta, K.ZT_M), K._i2(ib, meta, K.M_DOFS)
-    nh, tangent = K._f2(fb, meta, K.N_HAT), K._f2(fw, mw, T_HAT)
-    vals = np.empty(mn + mt)
-    K.jump_values(s, nh, wh, zt, m_dofs, dims[1], K._f2(fb, meta, K.SLAVE_B),
-                  K._f2(fb, meta, K.VALS_B), K._i2(ib, meta, K.PTS_B),
-                  K._i(ib, meta, K.COLS_B), K._i(ib, meta, K.ORDER_B), mphi, seg, vals[:mn])
-    K.jump_values(s, tangent, wh, zt, m_dofs, dims[1], K._f2(fw, mw, SLAVE_T),
-                  K._f2(fw, mw, VALS_T), K._i2(iw, mw, PTS_T), K._i(iw, mw, COLS_T),
-                  K._i(iw, mw, ORDER_T), mphi, seg, vals[mn:])
-    gvals = np.empty(meta[K.PTS_G, 1])
-    K.gap_values(w, gap, K._f2(fb, meta, K.VALS_G), K._i2(ib, meta, K.PTS_G), gvals)
-    rv = np.zeros((ms, n))
-    jump_rows(s, tangent, wh, K._f2(fw, mw, Z_S), m_dofs, dims[1],
-              K._f(fw, mw, SLAVE_S).reshape((ms, mw[VALS_S, 2], n)), K._f2(fw, mw, VALS_S),
-              K._i2(iw, mw, PTS_S), mphi, seg, rv)
-    # 2. reduced arrays and condensation
-    bt, gn = np.empty(n * r), np.empty(r)
-    if sizes[2] > 0:  # the compressed map: B = (c^T U) W_k
-        wu = K._f2(fw, mw, W_U)
-        y = np.zeros(sizes[2])
-        for e in range(vals.size):
-            ce = vals[e]
-            for j in range(y.size):
-                y[j] += ce * wu[e, j]
-        K._combine(y, K._f2(fb, meta, K.W_B), bt)
-    else:
-        K._combine(vals, K._f2(fb, meta, K.W_B), bt)
-    K._combine(gvals, K._f2(fb, meta, K.W_G), gn)
-    bt2 = bt.reshape((n, r))
     sd, ft = np.empty(n), np.empty(n)
     K._combine(th, K._f2(fb, meta, K.LAM_A), sd)
     K._combine(th, K._f2(fb, meta, K.F_TERMS), ft)
     for k in range(n):
         if not sd[k] > 0.0:  # A_N(mu) not positive definite: the reference decides
             return NOT_SPD, 0, 0, 0, a, c, hist[:0]
-    d, q = np.empty((r, r)), np.empty(r)
-    DK.condense(bt2, ft, sd, d, q, gn)
-    a0 = ft / sd
-    kt = np.empty((n, r))  # diag(1/s) Bv^T
-    for k in range(n):
-        for i in range(r):
-            kt[k, i] = bt2[k, i] / sd[k]
-    t0, tm = np.empty(ms), np.zeros((ms, r))
-    for j in range(ms):
-        v = 0.0
-        for k in range(n):
-            rjk = rv[j, k]
-            v -= rjk * a0[k]
-            for i in range(r):
-                tm[j, i] += rjk * kt[k, i]
-        t0[j] = v
-    sc = np.empty(r)
-    for i in range(r):
-        if not d[i, i] > 0.0:
-            return NOT_SPD, 0, 0, 0, a, c, hist[:0]
-        sc[i] = 1.0 / np.sqrt(d[i, i])
-    ds = np.empty((r, r))
-    for i in range(r):
-        for j in range(r):
-            ds[i, j] = sc[i] * d[i, j] * sc[j]
+    d, q, a0, kt = np.empty((r, r)), np.empty(r), np.empty(n), np.empty((n, r))
+    t0, tm, sc, ds = np.empty(ms), np.zeros((ms, r)), np.empty(r), np.empty((r, r))
+    if not _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, tm, sc, ds):
+        return NOT_SPD, 0, 0, 0, a, c, hist[:0]
     # 3. De Saxce's fixed point
-    warm = start != COLD
     if start == NEAREST:
         _nearest(mu, K._f2(fw, mw, MUS_TRAIN), K._f2(fw, mw, X_TRAIN), c)
     elif start == GIVEN:
         c[:] = x0
     for i in range(r):
         c[i] = max(c[i], 0.0)
-    pq = K._f2(fw, mw, PQ)
-    tol = K._f(fw, mw, SETTINGS)[0]
-    slip, g, g_new, y = np.empty(ms), np.empty(r), np.empty(r), np.empty(r)
-    _slip(t0, tm, c, slip)
-    _linear_term(q, pq, slip, g)
-    it, inner, stop, low = 0, 0, 1, np.inf
-    while it < max_iter:
-        it += 1
-        ok, k_it = _qp(ds, sc, g, c, warm or it > 1, y)
-        inner += k_it
-        if not ok:
-            return QP_FAILED, it, 0, inner, a, c, hist[:it]
-        _slip(t0, tm, c, slip)
-        _linear_term(q, pq, slip, g_new)
-        num, den = 0.0, 0.0
-        for i in range(r):
-            num = max(num, abs(g_new[i] - g[i]))
-            den = max(den, abs(g_new[i]))
-            g[i] = g_new[i]
-        h = num / max(den, np.finfo(np.float64).tiny)
-        hist[it - 1] = h
-        low = min(low, h)
-        if h <= tol:
-            stop = 0
-            break
-        if h > 1e6 * low:
-            stop = 2
-            break
+    ok, it, stop, inner = _desaxce(ds, sc, q, K._f2(fw, mw, PQ), t0, tm, c,
+                                   K._f(fw, mw, SETTINGS)[0], start != COLD, hist)
+    if not ok:
+        return QP_FAILED, it, 0, inner, a, c, hist[:it]
     av = a0.copy()
     for k in range(n):
         for i in range(r):
