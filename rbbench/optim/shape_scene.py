@@ -116,7 +116,7 @@ _FIELDS = {
 _RENAME = {"contact_nodes": "n_contact", "coefficient": "friction0"}
 #: bounds that keep a run finite in memory and in floating point
 MAX_POWER, MAX_NODES, MAX_CELLS = 32, 10_001, 1_000_000
-#: largest length (|a|, |b|, gamma, m) and friction coefficient F0 (real pairs lie below
+#: largest length (``|a|``, ``|b|``, gamma, m) and friction coefficient F0 (real pairs lie below
 #: about 2); the slip scale l lies within SLIP_RATIO^(+-1) times the contact length b - a
 MAX_LENGTH, MAX_COEFFICIENT, SLIP_RATIO = 1.0e6, 10.0, 1.0e12
 
