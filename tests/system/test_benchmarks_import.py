@@ -131,6 +131,20 @@ def test_asv_discovers_the_same_benchmarks(bench_pkg, modules):
     assert names == ours
 
 
+def test_hf_benchmark_takes_every_case_with_every_solver(modules):
+    """Every (case, solver) pair of the HF suite passes the component checks that
+    ``setup`` runs (no meshing: the names are checked against the scene first)."""
+    from rbbench.hf.components import check_names
+    from rbbench.registry import default_registry
+
+    mod = modules["bench_hf"]
+    cases, solvers = mod.HFSolve.params
+    for case in cases:
+        sc = mod.scene(case)
+        for solver in solvers:
+            check_names(sc, default_registry(), "skfem", "mixed", solver)
+
+
 def test_hf_benchmark_runs_on_the_membrane(modules):
     bench = modules["bench_hf"].HFSolve()
     bench.setup("membrane_obstacle", "ssn")
