@@ -52,7 +52,7 @@ class NitscheFormulation(Formulation):
         slave's Young's modulus and ``h`` the slave facet length at each point.
         ``theta = 1`` needs ``gamma0`` large enough for the Nitsche energy to be
         convex (the inverse trace constant of the mesh; about 1 on the Hertz
-        meshes, see ``tests/hf/algebra/test_nitsche.py``); 10 by default, at most
+        meshes, measured by the gamma0 sweep of the tests); 10 by default, at most
         :data:`MAX_GAMMA0`.
     """
 

@@ -16,6 +16,7 @@ import math
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -73,7 +74,8 @@ class HFOracle:
     def __init__(self, sc: ShapeScene) -> None:
         self.sc, self.solves, self.time_s, self.last = sc, 0, 0.0, None
 
-    def __call__(self, alpha: np.ndarray) -> tuple[float, np.ndarray]:
+    def _timed(self, solve: Any, alpha: np.ndarray) -> Any:
+        """``solve(sc, alpha, y0=)`` warm-started from the last state, counted and timed."""
         t0 = time.perf_counter()
         y0 = None
         if self.last is not None:
@@ -81,24 +83,18 @@ class HFOracle:
             y0 = np.concatenate([s.u_t, s.u_n, s.lam, s.tau])
         self.solves += 1
         try:
-            ev = evaluate(self.sc, alpha, y0=y0)
+            return solve(self.sc, alpha, y0=y0)
         finally:
             self.time_s += time.perf_counter() - t0
+
+    def __call__(self, alpha: np.ndarray) -> tuple[float, np.ndarray]:
+        ev = self._timed(evaluate, alpha)
         self.last = ev
         return ev.J, ev.xi
 
     def state(self, alpha: np.ndarray) -> ShapeState:
         """The HF state at ``alpha`` (no adjoint), warm-started; counted and timed."""
-        t0 = time.perf_counter()
-        y0 = None
-        if self.last is not None:
-            s = self.last.state
-            y0 = np.concatenate([s.u_t, s.u_n, s.lam, s.tau])
-        self.solves += 1
-        try:
-            st = solve_state(self.sc, alpha, y0=y0)
-        finally:
-            self.time_s += time.perf_counter() - t0
+        st = self._timed(solve_state, alpha)
         self.last = _StateOnly(st)
         return st
 

@@ -14,8 +14,8 @@ all of it for one mu, per online method:
 * ``daqp``: :func:`rbbench.rb.mixed.kernels.online_qp` writes the scaled QP of the Python path,
   daqp solves it (same tolerances), a second kernel unscales its answer.
 
-The Python path stays the reference (``path = "python"``); ``tests/rb/mixed/test_compiled.py``
-compares the two on the same inputs.
+The Python path stays the reference (``path = "python"``); the tests
+compare the two on the same inputs.
 
 Why numba rather than Cython or pythran: the kernels are plain loops over small float arrays
 (numba's sweet spot), numba is one ``pip install`` with wheels for every platform the

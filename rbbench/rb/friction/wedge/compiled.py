@@ -9,8 +9,8 @@ normal magic entries, the EIM maps with the coefficient solves folded in) and a 
 buffer of the wedge's own arrays (tangential and slip entries, the slip DEIM's ``P``, the
 training solutions of the warm start).
 
-The Python path stays the reference (``path = "python"``);
-``tests/rb/friction/test_wedge_compiled.py`` compares the two. Without numba, or for a
+The Python path stays the reference (``path = "python"``); the tests compare the two on
+the same model. Without numba, or for a
 model the kernel does not cover (:func:`path_reason`), the Python path runs and
 :meth:`~rbbench.rb.friction.wedge.hyper.WedgeHyperModel.online_path` says why; any
 deviation at one mu (a kernel status other than ``OK``) reruns that mu on the Python path.
