@@ -311,17 +311,22 @@ def cmd_heat_robin(args: argparse.Namespace) -> int:
     res = heat_robin_study(args.n_cells, args.N, repeats=args.repeats, backend=args.backend)
     return print_and_dump(heat_robin_markdown(res), res, args.json)
 
+def _add_bundle_options(p: argparse.ArgumentParser) -> None:
+    """The bundle method's options shared by the shape studies (as ``rbbench optimize``)."""
+    p.add_argument("--metric", choices=("identity", "bfgs"), default="identity",
+                   help=OPTIMIZE_HELP["metric"])
+    p.add_argument("--max-iter", type=int, default=100, help=OPTIMIZE_HELP["max_iter"])
+    p.add_argument("--max-evals", type=int, default=300, help=OPTIMIZE_HELP["max_evals"])
+    p.add_argument("--eps", type=float, default=1e-6, help=OPTIMIZE_HELP["eps"])
+
+
 def _add_shape_side_by_side_parser(sub: Any) -> argparse.ArgumentParser:
     """``rbbench studies shape-side-by-side`` (``sub``: argparse subparsers)."""
     p = sub.add_parser("shape-side-by-side", help="shape optimisation (model B of the "
                        "shape-optimisation talk), HF- and RB-driven in one process: J, HF "
                        "solves, wall time")
     p.add_argument("--scene", default="shape_coulomb", help=OPTIMIZE_HELP["scene"])
-    p.add_argument("--metric", choices=("identity", "bfgs"), default="identity",
-                   help=OPTIMIZE_HELP["metric"])
-    p.add_argument("--max-iter", type=int, default=100, help=OPTIMIZE_HELP["max_iter"])
-    p.add_argument("--max-evals", type=int, default=300, help=OPTIMIZE_HELP["max_evals"])
-    p.add_argument("--eps", type=float, default=1e-6, help=OPTIMIZE_HELP["eps"])
+    _add_bundle_options(p)
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override a scene field, e.g. --set design.initial_height=0.005")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
@@ -348,11 +353,7 @@ def _add_shape_strategy_parser(sub: Any) -> argparse.ArgumentParser:
                    help="the drivers to run (each with both strategies)")
     p.add_argument("--repeats", type=int, default=1,
                    help="runs of each configuration, alternated (wall time: the median)")
-    p.add_argument("--metric", choices=("identity", "bfgs"), default="identity",
-                   help=OPTIMIZE_HELP["metric"])
-    p.add_argument("--max-iter", type=int, default=100, help=OPTIMIZE_HELP["max_iter"])
-    p.add_argument("--max-evals", type=int, default=300, help=OPTIMIZE_HELP["max_evals"])
-    p.add_argument("--eps", type=float, default=1e-6, help=OPTIMIZE_HELP["eps"])
+    _add_bundle_options(p)
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override a scene field, e.g. --set geometry.ny=20")
     p.add_argument("--out-dir", type=Path, default=None,
