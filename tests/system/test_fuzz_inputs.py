@@ -13,7 +13,6 @@ import io
 import json
 import math
 import os
-import signal
 import tempfile
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import tomllib
 hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
+from support.fuzz import hard_limit  # noqa: E402
 
 from rbbench.cli import main  # noqa: E402
 from rbbench.scene.limits import NAME_PATTERN, PARAMETER_PATTERN, check_name  # noqa: E402
@@ -76,24 +76,6 @@ def _json_int(text: str) -> bool:
     return _an_int(text, lambda t: json.loads(t) if t.strip() else None)
 
 
-class _Hang(Exception):
-    pass
-
-
-@contextlib.contextmanager
-def _hard_limit(seconds: int):
-    def handler(signum, frame):
-        raise _Hang(f"no answer within {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, handler)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
-
-
 def _files(root: Path) -> set[str]:
     return {str(p.relative_to(root)) for p in root.rglob("*")
             if p.is_file() or p.is_symlink()}
@@ -117,7 +99,7 @@ def run_cli(argv_of, files: dict[str, bytes | str]) -> tuple[int, str, list[str]
         err, cwd = io.StringIO(), os.getcwd()
         os.chdir(work)
         try:
-            with _hard_limit(LIMIT_S), contextlib.redirect_stderr(err), \
+            with hard_limit(LIMIT_S), contextlib.redirect_stderr(err), \
                     contextlib.redirect_stdout(io.StringIO()):
                 try:
                     code = main(argv_of(inputs, out))
