@@ -86,6 +86,9 @@ class ContactBound:
     #: ``lambda_c^(1/2) ||e||_2`` of the last evaluation (the remainder in ``rho``)
     last_remainder: float = 0.0
 
+    def __post_init__(self) -> None:
+        self.MspT = sp.csr_matrix(self.Msp.T)
+
     def rows(self, mu: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
         """``(B(mu), G(mu))`` on the contact rows and dofs (exact)."""
         return contact_rows(self.ev, self.Msp, mu)
@@ -93,12 +96,19 @@ class ContactBound:
     def terms(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray) -> BoundTerms:
         """The terms (1)-(4), ``rho`` with the remainder (module docstring)."""
         mu = np.atleast_1d(np.asarray(mu, dtype=float))
-        B, G = self.rows(mu)
+        p = self.ev.pairing(mu)
+        terms = p.jump_terms(p.nrm)
+        uz = self.Z_loc @ c
+        ju = sum(np.einsum("qj,qj->q", cf, uz[dof]) for cf, dof in terms)
+        d = self.Msp @ (p.w * (ju - p.gap))
         lam = self.Vg @ a
-        d = B @ (self.Z_loc @ c) - G
-        b = B.T @ lam
+        lq = p.w * (self.MspT @ lam)
+        n_c = self.Z_loc.shape[0]
+        b = sum(np.bincount(dof.ravel(), weights=(cf * lq[:, None]).ravel(), minlength=n_c)
+                for cf, dof in terms)
         g = self.U.T @ b
-        rem = float(np.sqrt(self.lam_c) * np.linalg.norm(b - self.U @ g))
+        # ||b - U g||_2 by Pythagoras (U orthonormal): one product with U instead of two
+        rem = float(np.sqrt(self.lam_c * max(float(b @ b - g @ g), 0.0)))
         self.last_remainder = rem
         N = c.size
         w = np.concatenate([[1.0], -c, -g])
@@ -217,7 +227,8 @@ def _slave_lifting(problem_at: Callable, layout: Any, free: np.ndarray, X: Any,
         raise BoundUnsupported("B(mu) off the master chain is not affine in mu") from None
     scale = float(np.abs(MV).max())
     s_terms = np.array([float(np.vdot(t, MV) / np.vdot(MV, MV)) for t in terms])
-    if max(float(np.abs(t - s * MV).max()) for t, s in zip(terms, s_terms)) > 1e-10 * scale:
+    if max(float(np.abs(t - s * MV).max()) for t, s in zip(terms, s_terms, strict=True))\
+            > 1e-10 * scale:
         raise BoundUnsupported("B(mu) off the master chain is not a multiple s(mu) M of one "
                                "matrix: no online lifting of the constraint residual")
     th = [np.concatenate([[1.0], bounds[:, k]]) for k in range(2)]
