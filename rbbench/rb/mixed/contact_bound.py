@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -85,6 +86,8 @@ class ContactBound:
     gamma: float
     #: ``lambda_c^(1/2) ||e||_2`` of the last evaluation (the remainder in ``rho``)
     last_remainder: float = 0.0
+    #: the packed arrays of the numba pairing (:func:`compiled_plan`), None without numba
+    plan: dict | None = None
 
     def __post_init__(self) -> None:
         self.MspT = sp.csr_matrix(self.Msp.T)
@@ -93,19 +96,31 @@ class ContactBound:
         """``(B(mu), G(mu))`` on the contact rows and dofs (exact)."""
         return contact_rows(self.ev, self.Msp, mu)
 
-    def terms(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray) -> BoundTerms:
-        """The terms (1)-(4), ``rho`` with the remainder (module docstring)."""
-        mu = np.atleast_1d(np.asarray(mu, dtype=float))
+    def residuals(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray, compiled: bool = True
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(d, b, lam)``: ``d = B(mu) Z c - G(mu)`` (m), ``b = B(mu)^T lam`` (contact dofs),
+        ``lam = Vg a``; by the numba kernels where available (the Python pairing otherwise,
+        and wherever the kernels decline: it raises the reference's error)."""
+        lam = self.Vg @ a
+        uz = self.Z_loc @ c
+        if compiled and self.plan is not None:
+            out = _compiled_residuals(self.plan, mu, uz, lam, self.Msp.shape[0], uz.size)
+            if out is not None:
+                return out[0], out[1], lam
         p = self.ev.pairing(mu)
         terms = p.jump_terms(p.nrm)
-        uz = self.Z_loc @ c
         ju = sum(np.einsum("qj,qj->q", cf, uz[dof]) for cf, dof in terms)
         d = self.Msp @ (p.w * (ju - p.gap))
-        lam = self.Vg @ a
         lq = p.w * (self.MspT @ lam)
-        n_c = self.Z_loc.shape[0]
-        b = sum(np.bincount(dof.ravel(), weights=(cf * lq[:, None]).ravel(), minlength=n_c)
+        b = sum(np.bincount(dof.ravel(), weights=(cf * lq[:, None]).ravel(), minlength=uz.size)
                 for cf, dof in terms)
+        return d, b, lam
+
+    def terms(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray, compiled: bool = True
+              ) -> BoundTerms:
+        """The terms (1)-(4), ``rho`` with the remainder (module docstring)."""
+        mu = np.atleast_1d(np.asarray(mu, dtype=float))
+        d, b, lam = self.residuals(mu, c, a, compiled)
         g = self.U.T @ b
         # ||b - U g||_2 by Pythagoras (U orthonormal): one product with U instead of two
         rem = float(np.sqrt(self.lam_c * max(float(b @ b - g @ g), 0.0)))
@@ -115,15 +130,27 @@ class ContactBound:
         rho = float(np.linalg.norm(self.T @ w)) + rem
         lam_norm = float(np.linalg.norm(self.T[:, 1 + N:] @ g)) + rem
         s = float(np.concatenate([[1.0], mu]) @ self.s_terms)
-        y = sla.solve_triangular(self.Lchol, np.maximum(d, 0.0), lower=True)
+        y = sla.solve_triangular(self.Lchol, np.maximum(d, 0.0), lower=True,
+                                 check_finite=False)
         sigma = float(np.linalg.norm(y)) / abs(s)
         kappa = float(lam @ np.maximum(-d, 0.0))
         return BoundTerms(rho, sigma, max(kappa, 0.0), lam_norm)
 
-    def __call__(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray) -> VIBound:
-        """The bound (5)-(6) at mu for ``u_N = Z c``, ``lam_N = Vg a`` (``a >= 0``)."""
-        return vi_bound(self.terms(mu, np.asarray(c, float), np.asarray(a, float)),
+    def __call__(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray,
+                 compiled: bool = True) -> VIBound:
+        """The bound (5)-(6) at mu for ``u_N = Z c``, ``lam_N = Vg a`` (``a >= 0``);
+        ``compiled``: the numba pairing where available."""
+        return vi_bound(self.terms(mu, np.asarray(c, float), np.asarray(a, float), compiled),
                         self.alpha, self.gamma)
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state.pop("MspT", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.__post_init__()
 
 
 def contact_rows(ev: Any, Msp: sp.csr_matrix, mu: np.ndarray) -> tuple[sp.csr_matrix,
@@ -194,7 +221,63 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
     alpha, gamma = coercivity_constants(p0.A, X)
     return ContactBound(ev=ev, Msp=Msp, Z_loc=np.ascontiguousarray(Z[loc]),
                         Vg=np.ascontiguousarray(Vg), U=U, T=T, lam_c=lam_c, Lchol=Lchol,
-                        s_terms=s_terms, alpha=alpha, gamma=gamma)
+                        s_terms=s_terms, alpha=alpha, gamma=gamma,
+                        plan=compiled_plan(ev, Msp, bounds))
+
+
+def compiled_plan(ev: Any, Msp: sp.csr_matrix, bounds: np.ndarray) -> dict | None:
+    """The arrays of the numba pairing of all contact rows
+    (:func:`rbbench.rb.mixed.kernels.pair_points`, the compiled online solve's) and of
+    :func:`rbbench.rb.mixed.bound_kernels.contact_jumps`; None without numba or with
+    multipliers that are not one per point (P1)."""
+    try:
+        from rbbench.rb.mixed import kernels
+        from rbbench.rb.mixed.compiled import _master_plan, pack, reference_points
+    except ImportError:  # pragma: no cover - numba absent
+        return None
+    lay = ev.layout
+    MT = sp.csr_matrix(Msp.T)
+    if lay.master is None or not np.all(np.diff(MT.indptr) == 1) or np.any(MT.data != 1):
+        return None
+    x_hat, n_hat, w_hat, sphi = reference_points(lay)
+    one_f, one_i = np.zeros((1, 1)), np.zeros((1, 1), dtype=np.int64)
+    arrays = {**dict.fromkeys(kernels.FLOATS, one_f), **dict.fromkeys(kernels.INTS, one_i)}
+    arrays.update({"mu_lo": bounds[:, 0], "mu_hi": bounds[:, 1],
+                   "s_scale": lay.slave.map.scale, "s_shift": lay.slave.map.shift,
+                   "m_scale": lay.master.map.scale, "m_shift": lay.master.map.shift,
+                   "x_hat": x_hat, "n_hat": n_hat, "w_hat": w_hat,
+                   "dims": np.array([lay.degree, 1, 0])})
+    arrays.update(_master_plan(SimpleNamespace(evaluator=ev, Z_loc=np.zeros((lay.n_dofs, 1))),
+                               n_hat))
+    fb, ib, meta = pack(arrays)
+    nq = x_hat.shape[0]
+    i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
+    return {"fb": fb, "ib": ib, "meta": meta, "sphi": sphi, "n_hat": n_hat,
+            "sdofs": i64(lay.slave.dofs[np.arange(nq) // lay.n_gauss]),
+            "mdofs": i64(lay.master.dofs), "rows": i64(MT.indices), "k": lay.degree + 1}
+
+
+def _compiled_residuals(plan: dict, mu: np.ndarray, uz: np.ndarray, lam: np.ndarray, m: int,
+                        n_c: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(d, b)`` of :meth:`ContactBound.residuals` by the numba kernels; None where they
+    decline (mu outside D, a point leaving its window)."""
+    from rbbench.rb.mixed import kernels
+    from rbbench.rb.mixed.bound_kernels import contact_jumps
+
+    fb, ib, meta = plan["fb"], plan["ib"], plan["meta"]
+    status, th = kernels.theta(np.ascontiguousarray(mu, dtype=float), fb, meta)
+    if status != kernels.OK:
+        return None
+    nq = plan["n_hat"].shape[0]
+    w, gap = np.empty(nq), np.empty(nq)
+    mphi, seg = np.zeros((nq, plan["k"])), np.zeros(nq, dtype=np.int64)
+    status, s = kernels.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    if status != kernels.OK:
+        return None
+    d, b = np.empty(m), np.empty(n_c)
+    contact_jumps(s, w, gap, mphi, seg, plan["sphi"], plan["n_hat"], plan["sdofs"],
+                  plan["mdofs"], plan["rows"], uz, lam, d, b)
+    return d, b
 
 
 def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable) -> float:

@@ -130,3 +130,22 @@ def test_refuses_a_mu_dependent_stiffness(hertz):
     with pytest.raises(BoundUnsupported, match="depends on mu"):
         build_contact_bound(b.contact_layout(), stiffer, Z, Vg, X, xs, sc.bounds,
                             np.array([[1.0]]))
+
+
+def test_compiled_pairing_matches_the_python_one_and_pickles(hertz):
+    import pickle
+
+    sc, _, mus, sols, Z, Vg, X, _, bound, _ = hertz
+    assert bound.plan is not None
+    rng = np.random.default_rng(0)
+    for mu in (np.array([0.74]), np.array([1.27])):
+        c, a = rng.standard_normal(Z.shape[1]), rng.random(Vg.shape[1])
+        dc, bc, _ = bound.residuals(mu, c, a, compiled=True)
+        dp, bp, _ = bound.residuals(mu, c, a, compiled=False)
+        assert np.allclose(dc, dp, rtol=0, atol=1e-12 * np.abs(dp).max())
+        assert np.allclose(bc, bp, rtol=0, atol=1e-12 * np.abs(bp).max())
+    again = pickle.loads(pickle.dumps(bound))
+    res = bound(mus[1], c, a)
+    assert again(mus[1], c, a).delta_u == pytest.approx(res.delta_u, rel=1e-12)
+    # outside D the kernels decline and the Python pairing decides (here: it still pairs)
+    assert np.isfinite(bound(np.array([1.31]), c, a).delta_u)
