@@ -2,9 +2,10 @@
 
 :class:`Certifier` builds the online bound (:func:`rbbench.rb.mixed.bounds.build_mixed_bound`)
 where the model allows it (``certified = "rigorous"``: online, HF-size independent apart from
-the contact rows), else evaluates the same theorem with the HF operators at each validation
-mu (``certified = "rigorous (HF-evaluated)"``: no online bound, e.g. a constraint
-hyper-reduced by the contact EIM), else reports why there is none. Per validation mu it
+the contact rows; with the contact EIM on a two-body scene
+:func:`rbbench.rb.mixed.contact_bound.build_contact_bound`), else evaluates the same
+theorem with the HF operators at each validation mu (``certified = "rigorous
+(HF-evaluated)"``: no online bound), else reports why there is none. Per validation mu it
 records the bound beside the true error in the same norm and their ratio (the
 effectivity), and the bound's online time beside the online solve's.
 """
@@ -36,7 +37,10 @@ BOUND_DEFINITIONS = {
     "err_bound_lam": "Delta_lam / ||lam||_*: bound of the multiplier error in the natural "
                      "norm ||eta||_* = ||B^T eta||_X' (not the W norm of err_lam), per "
                      "validation mu; err_lam_nat the true error in that norm",
-    "certified": "'rigorous': the online bound (affine operators, mu-independent A and B); "
+    "certified": "'rigorous': the online bound (affine operators, mu-independent A and B; "
+                 "or, on a two-body scene with the contact EIM, the contact rows of B(mu) "
+                 "and G(mu) evaluated exactly online and B(mu)^T lam_N compressed with its "
+                 "remainder bounded, rbbench.rb.mixed.contact_bound: nothing left out); "
                  "'rigorous (HF-evaluated)': the same theorem with the HF operators at mu (no "
                  "online bound for this model, e.g. an EIM constraint); 'none': no bound, "
                  "the reason in histories.bound. A parameter where B^T is not injective (no "
@@ -44,6 +48,10 @@ BOUND_DEFINITIONS = {
     "bound_rho": "the bound's terms per validation mu, divided by the HF ||u||_X: bound_rho "
                  "= ||r_u||_X' (primal residual), bound_sigma = ||[B u_N - G]_+||_*' (the "
                  "violated constraint in the dual natural norm)",
+    "bound_eim_residual": "two-body online bound only: the part of rho from the compression "
+                          "of B(mu)^T lam_N, lambda_c^(1/2) ||b - U U^T b||_2 (an upper "
+                          "bound of its X' norm), per validation mu, divided by the HF "
+                          "||u||_X; it is INCLUDED in bound_rho and err_bound_u",
     "t_bound": "t_bound_median_s: median wall time of one online bound evaluation (one BLAS "
                "thread, numba kernel) over validation mus x repeats; t_bound_ratio: that over "
                "t_online_median_s (the reduced solve); t_bound_hf_median_s: certified = "

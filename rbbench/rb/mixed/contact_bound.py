@@ -69,8 +69,8 @@ class ContactBound:
 
     ``ev``: all contact rows, restricted layout; ``Msp`` (m, nq): the multiplier basis at
     its quadrature points; ``Z_loc`` (n_c, N), ``U`` (n_c, K); ``T`` (k, 1 + N + K);
-    ``lam_c``: ``lambda_c``; ``Lchol``: lower Cholesky factor of ``M X_SS^{-1} M^T``;
-    ``s_terms``: ``s(mu) = theta(mu) . s_terms``, ``theta = [1, mu]``.
+    ``lam_c``: ``lambda_c``; ``Linv``: the inverse of the lower Cholesky factor ``L`` of
+    ``M X_SS^{-1} M^T``; ``s_terms``: ``s(mu) = theta(mu) . s_terms``, ``theta = [1, mu]``.
     """
 
     ev: Any
@@ -80,7 +80,7 @@ class ContactBound:
     U: np.ndarray
     T: np.ndarray
     lam_c: float
-    Lchol: np.ndarray
+    Linv: np.ndarray
     s_terms: np.ndarray
     alpha: float
     gamma: float
@@ -130,9 +130,8 @@ class ContactBound:
         rho = float(np.linalg.norm(self.T @ w)) + rem
         lam_norm = float(np.linalg.norm(self.T[:, 1 + N:] @ g)) + rem
         s = float(np.concatenate([[1.0], mu]) @ self.s_terms)
-        y = sla.solve_triangular(self.Lchol, np.maximum(d, 0.0), lower=True,
-                                 check_finite=False)
-        sigma = float(np.linalg.norm(y)) / abs(s)
+        up = np.flatnonzero(d > 0)  # the violated rows: usually few
+        sigma = float(np.linalg.norm(self.Linv[:, up] @ d[up])) / abs(s)
         kappa = float(lam @ np.maximum(-d, 0.0))
         return BoundTerms(rho, sigma, max(kappa, 0.0), lam_norm)
 
@@ -217,10 +216,10 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
     progress(f"error bound: Riesz representers ({1 + Z.shape[1] + K} pieces)")
     T = riesz_factor(np.hstack([p0.F[:, None], p0.A @ Z, embed(U)]), X, x_solve)
     lam_c = _local_dual_max(loc, n, x_solve)
-    Lchol, s_terms = _slave_lifting(problem_at, layout, free, X, bounds)
+    Linv, s_terms = _slave_lifting(problem_at, layout, free, X, bounds)
     alpha, gamma = coercivity_constants(p0.A, X)
     return ContactBound(ev=ev, Msp=Msp, Z_loc=np.ascontiguousarray(Z[loc]),
-                        Vg=np.ascontiguousarray(Vg), U=U, T=T, lam_c=lam_c, Lchol=Lchol,
+                        Vg=np.ascontiguousarray(Vg), U=U, T=T, lam_c=lam_c, Linv=Linv,
                         s_terms=s_terms, alpha=alpha, gamma=gamma,
                         plan=compiled_plan(ev, Msp, bounds))
 
@@ -295,7 +294,7 @@ def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable) -> float:
 
 def _slave_lifting(problem_at: Callable, layout: Any, free: np.ndarray, X: Any,
                    bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(L, s_terms)``: ``B(mu)`` on the free dofs off the master chain is ``s(mu) M``
+    """``(L^{-1}, s_terms)``: ``B(mu)`` on the free dofs off the master chain is ``s(mu) M``
     (``s = theta . s_terms``, checked by probing), ``L L^T = M X_SS^{-1} M^T``."""
     master = np.unique(np.asarray(layout.master.dofs).ravel())
     S = np.flatnonzero(~np.isin(free, master))
@@ -327,4 +326,4 @@ def _slave_lifting(problem_at: Callable, layout: Any, free: np.ndarray, X: Any,
     except np.linalg.LinAlgError:
         raise BoundUnsupported("M X_SS^-1 M^T is not positive definite (a contact row with no "
                                "slave support)") from None
-    return L, s_terms
+    return sla.solve_triangular(L, np.eye(L.shape[0]), lower=True), s_terms
