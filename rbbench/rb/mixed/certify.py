@@ -111,8 +111,10 @@ class Certifier:
                 ctx.backend.contact_layout(), ctx.problem_at, stage.Z_off, stage.Vg, ctx.X,
                 self.x_solve, ctx.scene.bounds,
                 eim_training_set(ctx.scene, ctx.options, ctx.mus_train), ctx.progress)
-        except BoundUnsupported as exc:
-            self.info["online_refused"] = str(exc)
+        except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
+            # BoundUnsupported, a pairing outside the sampled windows, no Lanczos convergence
+            self.online = None
+            self.info["online_refused"] = f"{type(exc).__name__}: {exc}"
             return
         self.alpha, self.gamma = self.online.alpha, self.online.gamma
         self.certified = "rigorous"
