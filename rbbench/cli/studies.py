@@ -440,6 +440,9 @@ def _add_bound_greedy_parser(sub: Any) -> argparse.ArgumentParser:
                    help="validation parameters (the scene's random validation set)")
     p.add_argument("--cache-dir", default=".rbbench_cache", help="HF snapshot cache")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    p.add_argument("--pod-sizes", dest="pod_sizes", type=int, nargs="*", default=[],
+                   help="also the POD's curve: its reduction from training grids of these "
+                   "sizes (e.g. 4 9 16), on the same validation set")
     return p
 
 
@@ -450,5 +453,6 @@ def cmd_bound_greedy(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene, args.overrides)
     out = bound_greedy_study(scene, args.n_train, args.tol, args.max_iter, args.N, args.R,
-                             args.n_valid, args.cache_dir, progress=_Progress(False))
+                             args.n_valid, args.cache_dir, progress=_Progress(False),
+                             pod_sizes=tuple(args.pod_sizes))
     return print_and_dump(markdown(out), out, args.json)

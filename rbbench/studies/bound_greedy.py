@@ -32,11 +32,22 @@ __all__ = ["bound_greedy_study", "markdown"]
 def bound_greedy_study(scene: Scene, n_train: int = 1000, tol: float = 1e-3, n_max: int = 25,
                        N: int = 8, R: int = 8, n_valid: int = 20,
                        cache_dir: str = ".rbbench_cache",
-                       progress=lambda m: None) -> dict[str, Any]:
-    """Run both (module docstring); a dict of the figures and the greedy's curve."""
+                       progress=lambda m: None,
+                       pod_sizes: tuple[int, ...] = ()) -> dict[str, Any]:
+    """Run both (module docstring); a dict of the figures and the greedy's curve.
+    ``pod_sizes``: also the POD's curve, the same reduction from the scene's training grid
+    at these sizes (``n_train``: uniform grids), on the same validation set."""
     pod = reduce(scene, ReduceConfig(N=N, n_valid=n_valid, cache_dir=cache_dir,
                                      online_repeats=1, options={"R": R}), progress)
     mus_valid = np.asarray(pod.valid_mus)
+    pod_curve = []
+    for k in pod_sizes:
+        r = reduce(scene, ReduceConfig(N=N, n_train=k, n_valid=n_valid, cache_dir=cache_dir,
+                                       online_repeats=1, options={"R": R}), progress)
+        if not np.array_equal(np.asarray(r.valid_mus), mus_valid):
+            raise RuntimeError("the POD curve's validation set differs from the reference's")
+        pod_curve.append({"n_hf": r.n_train, "N": r.N, "R": r.R,
+                          "err_u_max_valid": r.summary()["err_u_max"]})
     valid = compute_snapshots(scene, mus_valid, cache_dir=cache_dir)
     comps = make_components(scene)
     problem_at = ProblemCache(comps[0], comps[1], scene)
@@ -72,7 +83,8 @@ def bound_greedy_study(scene: Scene, n_train: int = 1000, tol: float = 1e-3, n_m
             "pod": {"n_hf": pod.n_train, "N": pod.N, "R": pod.R, "K_pga": pod.K_pga,
                     "err_u_max_valid": target},
             "greedy_reaches_pod_at_n_hf": reach,
-            "hf_ratio": pod.n_train / reach if reach else None, "curve": curve}
+            "hf_ratio": pod.n_train / reach if reach else None, "curve": curve,
+            "pod_curve": pod_curve}
 
 
 def markdown(out: dict[str, Any]) -> str:
@@ -89,4 +101,9 @@ def markdown(out: dict[str, Any]) -> str:
                  f"the greedy ({out['n_train_greedy']} training parameters) reaches it after "
                  f"{out['greedy_reaches_pod_at_n_hf']} HF solves"
                  + (f" ({out['hf_ratio']:.3g}x fewer)" if out["hf_ratio"] else ""))
+    if out.get("pod_curve"):
+        lines += ["", "| POD: HF solves (training grid) | N | R | err_u_max (valid) |",
+                  "|---|---|---|---|"]
+        lines += [f"| {c['n_hf']} | {c['N']} | {c['R']} | {c['err_u_max_valid']:.3g} |"
+                  for c in out["pod_curve"]]
     return "\n".join(lines)

@@ -90,3 +90,34 @@ def bound_terms(mu, T, qF, qA, qB, C, qC, Gq, qG, Vg, c, a, ip, ix, dv, L, spars
             y[r] = s / L[r, r]
             sig2 += y[r] * y[r]
     return np.sqrt(rho2), np.sqrt(max(sig2, 0.0)), max(kappa, 0.0), np.sqrt(l2)
+
+
+@njit(cache=True)
+def contact_jumps(s, w, gap, mphi, seg, sphi, n_hat, sdofs, mdofs, rows, uz, lam, d, b):
+    """The constraint residual ``d = B(mu) uz - G(mu)`` (m rows) and ``b = B(mu)^T lam`` (on
+    the contact dofs), written in place, from the pairing at mu
+    (:func:`rbbench.rb.mixed.kernels.pair_points`: weights ``w``, gaps, master shape values
+    ``mphi`` and facets ``seg``, slave scale ``s``): the normal jump ``(u1 - u2 o pi) .
+    n`` at each point, ``n = sign(s) n_hat``, of the slave shape values ``sphi`` on the slave
+    facet's dofs ``sdofs[q]`` and the master ones on ``mdofs[seg[q]]`` (each ``(k, 2)``);
+    ``rows[q]``: the multiplier row of point q (P0 / LAC multipliers: one per point)."""
+    sign = 1.0 if s > 0 else -1.0
+    d[:] = 0.0
+    b[:] = 0.0
+    for q in range(w.size):
+        n0, n1 = sign * n_hat[q, 0], sign * n_hat[q, 1]
+        j = 0.0
+        for a in range(sphi.shape[1]):
+            j += sphi[q, a] * (n0 * uz[sdofs[q, a, 0]] + n1 * uz[sdofs[q, a, 1]])
+        f = seg[q]
+        for a in range(mphi.shape[1]):
+            j -= mphi[q, a] * (n0 * uz[mdofs[f, a, 0]] + n1 * uz[mdofs[f, a, 1]])
+        r = rows[q]
+        d[r] += w[q] * (j - gap[q])
+        lw = w[q] * lam[r]
+        for a in range(sphi.shape[1]):
+            b[sdofs[q, a, 0]] += lw * sphi[q, a] * n0
+            b[sdofs[q, a, 1]] += lw * sphi[q, a] * n1
+        for a in range(mphi.shape[1]):
+            b[mdofs[f, a, 0]] -= lw * mphi[q, a] * n0
+            b[mdofs[f, a, 1]] -= lw * mphi[q, a] * n1

@@ -20,9 +20,10 @@ terms are split offline-online for a model whose HF operators are affine in mu
   dilation of one body leaves invariant). A mu-dependent ``A`` has no bound here
   (:class:`BoundUnsupported`).
 
-A model whose constraint is not affine (hyper-reduced by the contact EIM, or projected
-online) has no online bound: :func:`hf_bound` evaluates the same theorem with the HF operators
-at mu (rigorous, HF cost).
+A model whose constraint is not affine has no online bound here: on a two-body scene with
+the contact EIM, :mod:`rbbench.rb.mixed.contact_bound` evaluates the contact rows online
+instead; elsewhere :func:`hf_bound` evaluates the same theorem with the HF operators at mu
+(rigorous, HF cost).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from rbbench.scene.parameters import FieldError
 
-__all__ = ["ONLINE_METHODS", "MixedOptions"]
+__all__ = ["BOUND_MODES", "ONLINE_METHODS", "MixedOptions"]
 
 #: Online solvers of the reduced saddle point
 #: (:meth:`rbbench.rb.mixed.model.ReducedModel.solve` ``method``; the first is the default):
@@ -16,6 +16,10 @@ __all__ = ["ONLINE_METHODS", "MixedOptions"]
 #: Lawson-Hanson's active set, the primal QP by daqp, the condensed LCP by the primal-dual
 #: active set.
 ONLINE_METHODS = ("auto", "nnls", "daqp", "pdas")
+#: How the certified error bound is evaluated: ``auto`` online where the model allows it
+#: (with the contact EIM on a two-body scene too, at an offline cost), else with the HF
+#: operators at each validation parameter; ``hf`` always the latter (no online bound)
+BOUND_MODES = ("auto", "hf")
 
 
 @dataclass
@@ -29,7 +33,8 @@ class MixedOptions:
     ``online_method``: the reduced solver (:data:`ONLINE_METHODS`);
     ``exact_max_r``: the largest cone whose inf-sup constant is computed exactly (larger:
     bounds); ``tol_eim``, ``m_eim``, ``n_eim_train``: the contact EIM's tolerance, size cap
-    and training grid (hyper ``eim``).
+    and training grid (hyper ``eim``); ``bound``: how the certified bound is evaluated
+    (:data:`BOUND_MODES`).
     """
 
     dual: str = "mcpg"
@@ -43,8 +48,11 @@ class MixedOptions:
     tol_eim: float = 1e-4
     m_eim: int | None = None
     n_eim_train: int | None = None
+    bound: str = "auto"
 
     def __post_init__(self) -> None:
+        if not isinstance(self.bound, str) or self.bound not in BOUND_MODES:
+            raise FieldError("", "bound", self.bound, f"valid: {', '.join(BOUND_MODES)}")
         if not isinstance(self.online_method, str) or self.online_method not in ONLINE_METHODS:
             raise FieldError("", "online_method", self.online_method, "valid: "
                              f"{', '.join(ONLINE_METHODS)}")

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.hf.algebra.nitsche import pressure, state
+from rbbench.hf.algebra.nitsche import pressure, residual, state
 from rbbench.hf.components import default_solver
 from rbbench.rb.algorithms.affine import (
     AffineOperator,
@@ -50,6 +50,14 @@ from rbbench.registry import Registry
 from rbbench.scene.loading import Scene
 
 DEFINITIONS = {
+    "err_indicator_u": "residual indicator of the reduced solution (not a bound): "
+                       "||R(u_N)||_X' / ||u||_X per validation mu, R the HF Nitsche residual "
+                       "at mu (rbbench.hf.algebra.nitsche.residual) in the dual norm of X, "
+                       "evaluated with the HF operators (HF cost); err_indicator_u_max / "
+                       "_mean over the validation set",
+    "indicator_effectivity": "||R(u_N)||_X' / ||u - u_N||_X per validation mu; "
+                             "indicator_effectivity_min / _median / _max over the "
+                             "validation set (below 1: the indicator underestimates)",
     "err_u": "relative error ||u - u_N||_X / ||u||_X per validation mu (X: the scene's V inner "
              "product on free dofs; u: the HF Nitsche solution); *_max / *_mean over the "
              "validation set (Benaceur et al.'s e_N^u)",
@@ -147,6 +155,7 @@ class NitscheStage(ReducedStage):
         Ysnap, plain_c = self._training_states(ctx)
         self._hyper_step(ctx, Ysnap, plain_c)
         self.err_s: list[float] = []
+        self.indicator_eff: list[float] = []
         self.err_plain: list[float] = []
         self.iters: list[int] = []
         self.num_k: dict[int, float] = {}
@@ -254,7 +263,32 @@ class NitscheStage(ReducedStage):
         self.err_s.append(_l2rel(w, su - sN, su))
         pen = float(max(0.0, np.max(p.Un @ u_n - p.gap)))
         self._eim_along_iterates(mu, u)
-        return {"err_lam": _l2rel(w, pu - pN, pu), "penetration": pen}
+        return {"err_lam": _l2rel(w, pu - pN, pu), "penetration": pen,
+                **self._indicator(p, u, u_n)}
+
+    def _indicator(self, p: Any, u: np.ndarray, u_n: np.ndarray) -> dict[str, float]:
+        """The residual indicator ``||R(u_N)||_X'`` at one validation mu (HF operators),
+        beside the true error in X (:data:`DEFINITIONS`)."""
+        if getattr(self, "_x_solve", None) is None:
+            from rbbench.rb.algorithms.infsup import make_solver
+
+            self._x_solve = make_solver(self.ctx.X)
+        X = self.ctx.X
+        r = residual(p, u_n)
+        eta = float(np.sqrt(max(float(r @ np.asarray(self._x_solve(r)).ravel()), 0.0)))
+        e = u - u_n
+        err = float(np.sqrt(max(float(e @ (X @ e)), 0.0)))
+        eff = eta / err if err > 0 else float("inf")
+        self.indicator_eff.append(eff)
+        return {"err_indicator_u": eta / float(np.sqrt(u @ (X @ u))),
+                "indicator_effectivity": eff}
+
+    def summary(self) -> dict[str, Any]:
+        """The indicator's effectivity over the validation set (:data:`DEFINITIONS`)."""
+        eff = [x for x in self.indicator_eff if np.isfinite(x)]
+        return {"indicator_effectivity_min": min(eff) if eff else None,
+                "indicator_effectivity_median": float(np.median(eff)) if eff else None,
+                "indicator_effectivity_max": max(eff) if eff else None}
 
     def _eim_along_iterates(self, mu: np.ndarray, u: np.ndarray) -> None:
         """The plain model's error and Benaceur et al.'s e_EIM along the online iterates at mu."""

@@ -51,3 +51,15 @@ def test_a_parameter_without_natural_norm_gets_nan_rows(tmp_path, monkeypatch):
     assert all(np.isnan(v) for v in s["per_mu"]["err_bound_u"])
     assert len(s["histories"]["bound"]["no_bound_at"]) == 3
     assert s["effectivity_min"] is None
+
+
+def test_bound_hf_skips_the_online_bound(tmp_path):
+    scene = rbbench.load_scene("membrane_obstacle", ["discretization.n_cells=8"])
+    res = rbbench.reduce(scene, N=4, R=4, n_train=9, n_valid=3, online_repeats=1,
+                         bound="hf", cache_dir=str(tmp_path))
+    s = res.summary()
+    assert s["certified"] == "rigorous (HF-evaluated)"
+    assert s["effectivity_min"] >= 1 and s["t_bound_median_s"] is None
+    with pytest.raises(ValueError, match="bound.*valid: auto, hf"):
+        rbbench.reduce(scene, N=4, R=4, n_train=9, n_valid=3, bound="online",
+                       cache_dir=str(tmp_path))

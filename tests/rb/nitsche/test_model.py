@@ -137,3 +137,20 @@ def test_deim_variant_runs_and_reports_the_published_errors(nitsche_reductions):
     eim = s["histories"]["eim"]
     assert eim["method"] == "deim" and len(eim["e_eim_valid_by_iteration"]) >= 1
     assert all(np.isfinite(v) for v in (eim["e_eim_valid"], eim["e_eim_cv_valid"]))
+
+
+def test_residual_indicator_rows(nitsche_reductions):
+    """The indicator over the true error per mu is the reported effectivity (both divided by
+    the same ||u||_X), its summary the statistics of those rows, and the indicator follows the
+    error as N grows (not claimed rigorous: no test that it is above the error)."""
+    _, out = nitsche_reductions
+    medians = []
+    for N in (2, 4, 8):
+        s = out[N].summary()
+        ind, err = np.array(s["per_mu"]["err_indicator_u"]), np.array(s["per_mu"]["err_u"])
+        eff = np.array(s["per_mu"]["indicator_effectivity"])
+        assert np.allclose(eff, ind / err, rtol=1e-10)
+        assert s["indicator_effectivity_min"] == pytest.approx(eff.min())
+        assert s["indicator_effectivity_median"] == pytest.approx(np.median(eff))
+        medians.append(float(np.median(ind)))
+    assert medians[2] < medians[0]

@@ -1,0 +1,329 @@
+"""The online error bound of the mixed reduced model on a two-body scene with a moving contact
+(``hyper = "eim"``: ``B(mu)`` is not affine in mu).
+
+The bound is :mod:`rbbench.rb.algorithms.bounds` (Haasdonk, Salomon & Wohlmuth 2012, SIAM J.
+Numer. Anal. 50, 2656-2676, Section 4, re-derived in the natural multiplier norm; equation
+numbers (1)-(6) of that module). Its terms at mu, for ``u_N = Z c`` and ``lam_N = Vg a``:
+
+* the contact rows of ``B(mu)`` (all ``m`` of them, on the ``n_c`` contact dofs) and
+  ``G(mu)`` are evaluated exactly online from the restricted contact layout
+  (:class:`~rbbench.rb.hyper.contact_eim.RowEvaluator`, O(m) work, no HF vector): so
+  ``d = B(mu) Z c - G(mu)`` (``sigma``, ``kappa``: (2), (3)) and ``b = B(mu)^T lam_N`` (on the
+  contact dofs) are exact;
+* ``rho = ||F - A Z c - P b||_X'`` (1), ``P`` the contact dofs among the free ones: ``b`` is
+  split into ``U g`` (``U``: an l2-orthonormal POD basis of the training vectors
+  ``B(mu)^T Vg``, ``g = U^T b``) and the remainder ``e = b - U g``. The Riesz representers
+  of ``F``, ``A Z`` and ``P U`` are orthonormalised offline
+  (:func:`~rbbench.rb.algorithms.bounds.riesz_factor`): ``||F - A Z c - P U g||_X' = ||T
+  w||``; the remainder by ``||P e||_X' <= lambda_c^(1/2) ||e||_2``, ``lambda_c`` the largest
+  eigenvalue of ``P^T X^{-1} P`` (Lanczos, with the margin of the coercivity constants).
+  By the triangle inequality ``rho <= ||T w|| + lambda_c^(1/2) ||e||_2``: the compression
+  leaves nothing out, it only loosens the bound by the remainder term, which is reported
+  (``bound_eim_residual``);
+* ``sigma = ||[d]_+||_*'`` without ``D(mu)^{-1} = (B(mu) X^{-1} B(mu)^T)^{-1}``: any ``v`` with
+  ``B(mu) v = [d]_+`` gives ``||[d]_+||_*' <= ||v||_X`` (``sup_eta eta^T B v /
+  ||B^T eta||_X' <= ||v||_X``). On the dofs off the master chain ``B(mu)`` is the slave
+  term alone, ``s(mu) M`` with a fixed ``M`` (checked offline: a uniform dilation of the
+  slave body scales it by the radius); the X-smallest such ``v`` there gives ``sigma <=
+  ||L^{-1} [d]_+||_2 / |s(mu)|``, ``L L^T = M X_SS^{-1} M^T`` (m x m, offline);
+* ``alpha_LB``, ``gamma_UB``: the extreme eigenvalues of ``(A, X)`` (``A`` mu-independent,
+  checked: a dilation leaves the 2D stiffness invariant).
+
+Online cost: O(m + n_c (N + K)) (the contact rows and dofs), independent of the HF size.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from rbbench.rb.algorithms.affine import NotAffineError, affine_decomposition
+from rbbench.rb.algorithms.bounds import (
+    EIG_MARGIN,
+    BoundTerms,
+    VIBound,
+    coercivity_constants,
+    riesz_factor,
+    vi_bound,
+)
+from rbbench.rb.mixed.bounds import BoundUnsupported, constant_in_mu
+
+__all__ = ["ContactBound", "build_contact_bound", "contact_rows"]
+
+#: Relative singular-value cut of the POD of the training vectors ``B(mu)^T Vg``
+POD_RTOL = 1e-9
+#: The most POD modes of ``B(mu)^T Vg`` (online cost O(n_c K))
+POD_MAX = 250
+
+
+@dataclass
+class ContactBound:
+    """Online evaluator of the bound (module docstring).
+
+    ``ev``: all contact rows, restricted layout; ``Msp`` (m, nq): the multiplier basis at
+    its quadrature points; ``Z_loc`` (n_c, N), ``U`` (n_c, K); ``T`` (k, 1 + N + K);
+    ``lam_c``: ``lambda_c``; ``Linv``: the inverse of the lower Cholesky factor ``L`` of
+    ``M X_SS^{-1} M^T``; ``s_terms``: ``s(mu) = theta(mu) . s_terms``, ``theta = [1, mu]``.
+    """
+
+    ev: Any
+    Msp: sp.csr_matrix
+    Z_loc: np.ndarray
+    Vg: np.ndarray
+    U: np.ndarray
+    T: np.ndarray
+    lam_c: float
+    Linv: np.ndarray
+    s_terms: np.ndarray
+    alpha: float
+    gamma: float
+    #: ``lambda_c^(1/2) ||e||_2`` of the last evaluation (the remainder in ``rho``)
+    last_remainder: float = 0.0
+    #: the packed arrays of the numba pairing (:func:`compiled_plan`), None without numba
+    plan: dict | None = None
+
+    def __post_init__(self) -> None:
+        self.MspT = sp.csr_matrix(self.Msp.T)
+
+    def rows(self, mu: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+        """``(B(mu), G(mu))`` on the contact rows and dofs (exact)."""
+        return contact_rows(self.ev, self.Msp, mu)
+
+    def residuals(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray, compiled: bool = True
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(d, b, lam)``: ``d = B(mu) Z c - G(mu)`` (m), ``b = B(mu)^T lam`` (contact dofs),
+        ``lam = Vg a``; by the numba kernels where available (the Python pairing otherwise,
+        and wherever the kernels decline: it raises the reference's error)."""
+        lam = self.Vg @ a
+        uz = self.Z_loc @ c
+        if compiled and self.plan is not None:
+            out = _compiled_residuals(self.plan, mu, uz, lam, self.Msp.shape[0], uz.size)
+            if out is not None:
+                return out[0], out[1], lam
+        p = self.ev.pairing(mu)
+        terms = p.jump_terms(p.nrm)
+        ju = sum(np.einsum("qj,qj->q", cf, uz[dof]) for cf, dof in terms)
+        d = self.Msp @ (p.w * (ju - p.gap))
+        lq = p.w * (self.MspT @ lam)
+        b = sum(np.bincount(dof.ravel(), weights=(cf * lq[:, None]).ravel(), minlength=uz.size)
+                for cf, dof in terms)
+        return d, b, lam
+
+    def terms(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray, compiled: bool = True
+              ) -> BoundTerms:
+        """The terms (1)-(4), ``rho`` with the remainder (module docstring)."""
+        mu = np.atleast_1d(np.asarray(mu, dtype=float))
+        d, b, lam = self.residuals(mu, c, a, compiled)
+        g = self.U.T @ b
+        # ||b - U g||_2 by Pythagoras (U orthonormal): one product with U instead of two
+        rem = float(np.sqrt(self.lam_c * max(float(b @ b - g @ g), 0.0)))
+        self.last_remainder = rem
+        N = c.size
+        w = np.concatenate([[1.0], -c, -g])
+        rho = float(np.linalg.norm(self.T @ w)) + rem
+        lam_norm = float(np.linalg.norm(self.T[:, 1 + N:] @ g)) + rem
+        s = float(np.concatenate([[1.0], mu]) @ self.s_terms)
+        up = np.flatnonzero(d > 0)  # the violated rows: usually few
+        sigma = float(np.linalg.norm(self.Linv[:, up] @ d[up])) / abs(s)
+        kappa = float(lam @ np.maximum(-d, 0.0))
+        return BoundTerms(rho, sigma, max(kappa, 0.0), lam_norm)
+
+    def __call__(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray,
+                 compiled: bool = True) -> VIBound:
+        """The bound (5)-(6) at mu for ``u_N = Z c``, ``lam_N = Vg a`` (``a >= 0``);
+        ``compiled``: the numba pairing where available."""
+        return vi_bound(self.terms(mu, np.asarray(c, float), np.asarray(a, float), compiled),
+                        self.alpha, self.gamma)
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state.pop("MspT", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.__post_init__()
+
+
+def contact_rows(ev: Any, Msp: sp.csr_matrix, mu: np.ndarray) -> tuple[sp.csr_matrix,
+                                                                          np.ndarray]:
+    """``B(mu)`` (m x n_c, sparse) and ``G(mu)`` (m,) from the row evaluator ``ev`` of all
+    contact rows and its multiplier basis ``Msp`` (m x nq)."""
+    p = ev.pairing(mu)
+    Mw = Msp @ sp.diags(p.w)
+    return (Mw @ p.jump(p.nrm, ev.n_local)).tocsr(), Mw @ p.gap
+
+
+def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z: np.ndarray,
+                        Vg: np.ndarray, X: Any, x_solve: Callable[[np.ndarray], np.ndarray],
+                        bounds: np.ndarray, mus_sample: np.ndarray,
+                        progress: Callable[[str], None] = lambda m: None) -> ContactBound:
+    """The offline stage (module docstring): ``mus_sample`` a dense sample of D (the master
+    windows and the POD of ``B(mu)^T Vg``). :class:`BoundUnsupported` when ``A`` or ``F``
+    depends on mu, the rows touch Dirichlet dofs, or ``B`` off the master chain is not
+    ``s(mu) M``."""
+    from rbbench.rb.hyper.contact_eim import build_row_evaluator, local_free_rows
+
+    bounds = np.asarray(bounds, dtype=float)
+    if layout.master is None:
+        raise BoundUnsupported("a rigid master: B(mu) is affine there, use hyper 'affine'")
+    if not constant_in_mu(lambda mu: problem_at(mu).A, bounds):
+        raise BoundUnsupported("a(.,.; mu) depends on mu: no coercivity lower bound")
+    if not constant_in_mu(lambda mu: problem_at(mu).F[:, None], bounds):
+        raise BoundUnsupported("F depends on mu: its Riesz representer is not offline")
+    m = Vg.shape[0]
+    ev = build_row_evaluator(layout, np.arange(m), mus_sample)
+    p0 = problem_at(bounds.mean(axis=1))
+    free = np.asarray(p0.free)
+    try:
+        loc = local_free_rows(ev, free, layout.n_dofs)
+    except ValueError as exc:
+        raise BoundUnsupported(str(exc)) from None
+    pr = ev.pairing(np.asarray(mus_sample[0], dtype=float))
+    from rbbench.hf.geometry.facets import multiplier_basis
+    Msp = sp.csr_matrix(multiplier_basis(layout.multiplier, layout.n_facets,
+                                         ev.layout.slave.ids[pr.fq], pr.sq, layout.patch)
+                        .tocsc()[:, ev.rows].T)
+    # the exact rows against the formulation's operators (a wrong dof map fails here)
+    Bc, Gc = contact_rows(ev, Msp, bounds.mean(axis=1))
+    Bfull = sp.csr_matrix(p0.B)
+    Bref = Bfull[:, loc]
+    top = abs(Bref).max()
+    err = max(abs(Bref - Bc).max() / top, np.abs(p0.G - Gc).max() / np.abs(p0.G).max(),
+              abs(abs(Bfull).sum() - abs(Bref).sum()) / abs(Bfull).sum())
+    if not err <= 1e-10:
+        raise BoundUnsupported(f"the contact rows evaluated online differ from the HF B, G "
+                               f"(max relative deviation {err:.3g}): no online bound")
+    progress("error bound: POD of B(mu)^T Vg on the contact dofs")
+    S = np.hstack([np.asarray(contact_rows(ev, Msp, mu)[0].T @ Vg) for mu in mus_sample])
+    Uf, sv, _ = np.linalg.svd(S, full_matrices=False)
+    K = int(min(POD_MAX, np.sum(sv > POD_RTOL * sv[0])))
+    U = np.ascontiguousarray(Uf[:, :K])
+    n = free.size
+
+    def embed(V: np.ndarray) -> np.ndarray:
+        out = np.zeros((n, V.shape[1]))
+        out[loc] = V
+        return out
+
+    progress(f"error bound: Riesz representers ({1 + Z.shape[1] + K} pieces)")
+    T = riesz_factor(np.hstack([p0.F[:, None], p0.A @ Z, embed(U)]), X, x_solve)
+    lam_c = _local_dual_max(loc, n, x_solve)
+    Linv, s_terms = _slave_lifting(problem_at, layout, free, X, bounds)
+    alpha, gamma = coercivity_constants(p0.A, X)
+    return ContactBound(ev=ev, Msp=Msp, Z_loc=np.ascontiguousarray(Z[loc]),
+                        Vg=np.ascontiguousarray(Vg), U=U, T=T, lam_c=lam_c, Linv=Linv,
+                        s_terms=s_terms, alpha=alpha, gamma=gamma,
+                        plan=compiled_plan(ev, Msp, bounds))
+
+
+def compiled_plan(ev: Any, Msp: sp.csr_matrix, bounds: np.ndarray) -> dict | None:
+    """The arrays of the numba pairing of all contact rows
+    (:func:`rbbench.rb.mixed.kernels.pair_points`, the compiled online solve's) and of
+    :func:`rbbench.rb.mixed.bound_kernels.contact_jumps`; None without numba or with
+    multipliers that are not one per point (P1)."""
+    try:
+        from rbbench.rb.mixed import kernels
+        from rbbench.rb.mixed.compiled import _master_plan, pack, reference_points
+    except ImportError:  # pragma: no cover - numba absent
+        return None
+    lay = ev.layout
+    MT = sp.csr_matrix(Msp.T)
+    if lay.master is None or not np.all(np.diff(MT.indptr) == 1) or np.any(MT.data != 1):
+        return None
+    x_hat, n_hat, w_hat, sphi = reference_points(lay)
+    one_f, one_i = np.zeros((1, 1)), np.zeros((1, 1), dtype=np.int64)
+    arrays = {**dict.fromkeys(kernels.FLOATS, one_f), **dict.fromkeys(kernels.INTS, one_i)}
+    arrays.update({"mu_lo": bounds[:, 0], "mu_hi": bounds[:, 1],
+                   "s_scale": lay.slave.map.scale, "s_shift": lay.slave.map.shift,
+                   "m_scale": lay.master.map.scale, "m_shift": lay.master.map.shift,
+                   "x_hat": x_hat, "n_hat": n_hat, "w_hat": w_hat,
+                   "dims": np.array([lay.degree, 1, 0])})
+    arrays.update(_master_plan(SimpleNamespace(evaluator=ev, Z_loc=np.zeros((lay.n_dofs, 1))),
+                               n_hat))
+    fb, ib, meta = pack(arrays)
+    nq = x_hat.shape[0]
+    i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
+    return {"fb": fb, "ib": ib, "meta": meta, "sphi": sphi, "n_hat": n_hat,
+            "sdofs": i64(lay.slave.dofs[np.arange(nq) // lay.n_gauss]),
+            "mdofs": i64(lay.master.dofs), "rows": i64(MT.indices), "k": lay.degree + 1}
+
+
+def _compiled_residuals(plan: dict, mu: np.ndarray, uz: np.ndarray, lam: np.ndarray, m: int,
+                        n_c: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(d, b)`` of :meth:`ContactBound.residuals` by the numba kernels; None where they
+    decline (mu outside D, a point leaving its window)."""
+    from rbbench.rb.mixed import kernels
+    from rbbench.rb.mixed.bound_kernels import contact_jumps
+
+    fb, ib, meta = plan["fb"], plan["ib"], plan["meta"]
+    status, th = kernels.theta(np.ascontiguousarray(mu, dtype=float), fb, meta)
+    if status != kernels.OK:
+        return None
+    nq = plan["n_hat"].shape[0]
+    w, gap = np.empty(nq), np.empty(nq)
+    mphi, seg = np.zeros((nq, plan["k"])), np.zeros(nq, dtype=np.int64)
+    status, s = kernels.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    if status != kernels.OK:
+        return None
+    d, b = np.empty(m), np.empty(n_c)
+    contact_jumps(s, w, gap, mphi, seg, plan["sphi"], plan["n_hat"], plan["sdofs"],
+                  plan["mdofs"], plan["rows"], uz, lam, d, b)
+    return d, b
+
+
+def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable) -> float:
+    """``lambda_c``: the largest eigenvalue of ``P^T X^{-1} P`` (Lanczos), relative margin
+    :data:`~rbbench.rb.algorithms.bounds.EIG_MARGIN` upwards."""
+    def mv(x: np.ndarray) -> np.ndarray:
+        v = np.zeros(n)
+        v[loc] = np.ravel(x)
+        return np.asarray(x_solve(v)).ravel()[loc]
+
+    op = spla.LinearOperator((loc.size, loc.size), matvec=mv, dtype=float)
+    top = float(spla.eigsh(op, k=1, which="LA", tol=1e-12, return_eigenvectors=False)[0])
+    return top * (1.0 + EIG_MARGIN)
+
+
+def _slave_lifting(problem_at: Callable, layout: Any, free: np.ndarray, X: Any,
+                   bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(L^{-1}, s_terms)``: ``B(mu)`` on the free dofs off the master chain is ``s(mu) M``
+    (``s = theta . s_terms``, checked by probing), ``L L^T = M X_SS^{-1} M^T``."""
+    master = np.unique(np.asarray(layout.master.dofs).ravel())
+    S = np.flatnonzero(~np.isin(free, master))
+    mu0 = bounds.mean(axis=1)
+    M = sp.csr_matrix(problem_at(mu0).B)[:, S]
+    V = np.random.default_rng(0).standard_normal((S.size, 3))
+    MV = np.asarray(M @ V)
+    try:
+        terms = affine_decomposition(lambda mu: sp.csr_matrix(problem_at(mu).B)[:, S] @ V,
+                                     bounds)
+    except NotAffineError:
+        raise BoundUnsupported("B(mu) off the master chain is not affine in mu") from None
+    scale = float(np.abs(MV).max())
+    s_terms = np.array([float(np.vdot(t, MV) / np.vdot(MV, MV)) for t in terms])
+    if max(float(np.abs(t - s * MV).max()) for t, s in zip(terms, s_terms, strict=True))\
+            > 1e-10 * scale:
+        raise BoundUnsupported("B(mu) off the master chain is not a multiple s(mu) M of one "
+                               "matrix: no online lifting of the constraint residual")
+    th = [np.concatenate([[1.0], bounds[:, k]]) for k in range(2)]
+    if np.prod([t @ s_terms for t in th]) <= 0:
+        raise BoundUnsupported("s(mu) changes sign over D")
+    XS = sp.csc_matrix(sp.csr_matrix(X)[S][:, S])
+    lu = spla.splu(XS)
+    Mt = M.T.toarray()
+    D = M @ lu.solve(np.asfortranarray(Mt))
+    D = 0.5 * (np.asarray(D) + np.asarray(D).T)
+    try:
+        L = np.linalg.cholesky(D)
+    except np.linalg.LinAlgError:
+        raise BoundUnsupported("M X_SS^-1 M^T is not positive definite (a contact row with no "
+                               "slave support)") from None
+    return sla.solve_triangular(L, np.eye(L.shape[0]), lower=True), s_terms
