@@ -203,9 +203,10 @@ def _add_mixed_args(m: Any) -> None:
     m.add_argument("--online-method", help="frictionless: reduced solver auto, nnls, pdas "
                    "(condensed LCP), daqp (primal QP)")
     m.add_argument("--bound", help="frictionless: the certified error bound, auto (online "
-                   "where the model allows it; with the contact EIM of a two-body scene at an "
-                   "offline cost of minutes) or hf (evaluated with the HF operators at each "
-                   "validation parameter)")
+                   "where the operators are affine, else evaluated with the HF operators at "
+                   "each validation parameter), online (also under the contact EIM of a "
+                   "two-body scene, at an offline cost of minutes) or hf (always with the HF "
+                   "operators)")
 
 
 def _add_friction_args(f: Any) -> None:

@@ -73,7 +73,7 @@ class Certifier:
         self.gamma: float | None = None
         model = stage.model
         cone = bool(stage.dual.is_cone) and float(np.min(stage.Vg, initial=0.0)) >= 0.0
-        if stage.hyper == "affine" and cone and ctx.options.bound == "auto":
+        if stage.hyper == "affine" and cone and ctx.options.bound in ("auto", "online"):
             try:
                 self.online = build_mixed_bound(ctx.problem_at, stage.Z_off, stage.Vg, ctx.X,
                                                 self.x_solve, ctx.scene.bounds)
@@ -84,7 +84,7 @@ class Certifier:
                             np.zeros(stage.R))  # compile / load the kernel, untimed
             except BoundUnsupported as exc:
                 self.info["online_refused"] = str(exc)
-        if stage.hyper == "eim" and cone and ctx.options.bound == "auto":
+        if stage.hyper == "eim" and cone and ctx.options.bound == "online":
             self._contact_bound(ctx, stage)
         if self.online is None and cone:
             if constant_in_mu(lambda mu: ctx.problem_at(mu).A, ctx.scene.bounds):

@@ -60,6 +60,6 @@ def test_bound_hf_skips_the_online_bound(tmp_path):
     s = res.summary()
     assert s["certified"] == "rigorous (HF-evaluated)"
     assert s["effectivity_min"] >= 1 and s["t_bound_median_s"] is None
-    with pytest.raises(ValueError, match="bound.*valid: auto, hf"):
-        rbbench.reduce(scene, N=4, R=4, n_train=9, n_valid=3, bound="online",
+    with pytest.raises(ValueError, match="bound.*valid: auto, online, hf"):
+        rbbench.reduce(scene, N=4, R=4, n_train=9, n_valid=3, bound="certified",
                        cache_dir=str(tmp_path))
