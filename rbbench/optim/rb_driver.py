@@ -47,6 +47,12 @@ def _inner_default() -> BundleOptions:
     return BundleOptions(max_iter=100, max_evals=200)
 
 
+#: how the reduced model follows an accepted centre: ``incremental`` adds the HF state and
+#: adjoint there to the basis (new rows / columns of the reduced operators only),
+#: ``rebuild`` replaces the basis by the interior space of the new centre
+CENTRE_UPDATES = ("incremental", "rebuild")
+
+
 @dataclass
 class RBOptions:
     """Trust region (``Delta`` in the units of ``alpha``, inf-norm) and inner bundle runs."""
@@ -61,6 +67,7 @@ class RBOptions:
     max_outer: int = 30
     ftol: float = 1e-8
     stall_rtol: float = 0.05
+    centre_update: str = "incremental"
     inner: BundleOptions = field(default_factory=_inner_default)
 
     def __post_init__(self) -> None:
@@ -70,7 +77,9 @@ class RBOptions:
                    "need 0 < eta_accept <= eta_expand < 1"),
                   ("expand", self.expand > 1, "need expand > 1"),
                   ("shrink", 0 < self.shrink < 1, "need 0 < shrink < 1"),
-                  ("max_outer", self.max_outer >= 1, "need max_outer >= 1")]
+                  ("max_outer", self.max_outer >= 1, "need max_outer >= 1"),
+                  ("centre_update", self.centre_update in CENTRE_UPDATES,
+                   f"{self.centre_update!r}: valid are {', '.join(CENTRE_UPDATES)}")]
         for key, ok, why in checks:
             if not ok:
                 raise ValueError(f"RBOptions.{key}: {why}")
@@ -214,7 +223,10 @@ def _update(run: _Outer, ev: Evaluation, res: BundleResult, pred: float, step: f
         if rho >= o.eta_expand and step >= 0.99 * run.delta:
             run.delta = min(o.expand * run.delta, o.delta_max)
         run.x, run.ev = res.x.copy(), ev
-        model.enrich(interior_space(sc, ev.state), reset=True)
+        if o.centre_update == "rebuild":
+            model.enrich(interior_space(sc, ev.state), reset=True)
+        else:
+            model.enrich(hf_snapshots(sc, ev.state))
         return "accepted"
     run.delta = o.shrink * step
     model.enrich(hf_snapshots(sc, ev.state))

@@ -239,9 +239,13 @@ class ReducedModel:
     def enrich(self, vectors, tol: float = 1e-10, reset: bool = False) -> int:
         """Add the interior parts of ``vectors`` (full dofs, one per row or a list), each
         scaled to unit norm, orthogonalised against ``V`` (twice) and orthonormalised by an
-        SVD that drops directions below ``tol``; ``reset`` replaces ``V``. Returns the count
+        SVD that drops directions below ``tol``; ``reset`` replaces ``V``. The projected
+        operators get the new rows and columns only (:meth:`_append`). Returns the count
         of new basis vectors."""
-        V = np.zeros((len(self.interior_mask), 0)) if reset else self.V
+        if reset:
+            self.V = np.zeros((len(self.interior_mask), 0))
+            self._project()
+        V = self.V
         R = np.array([np.where(self.interior_mask, np.asarray(v, float), 0.0)
                       for v in vectors]).T
         norms = np.linalg.norm(R, axis=0)
@@ -250,43 +254,65 @@ class ReducedModel:
             R = R - V @ (V.T @ R)
         U, s, _ = np.linalg.svd(R, full_matrices=False)
         keep = s > tol * max(1.0, float(s[0]) if s.size else 1.0)
-        self.V = np.column_stack([V, U[:, keep]])
-        self._project()
+        self._append(U[:, keep])
         return int(np.sum(keep))
 
-    def _project(self, chunk: int = 4) -> None:
-        """``W_c^T T_q W_c`` per column ``c`` (local trial matrix ``W_c``: 4 contact unit
-        columns, then ``V``): the contact rows ``Mc (nx, 12, 4, 4 + N)`` per column, and
-        the interior block per coefficient function of :func:`term_map` (9 combinations
-        of the templates per column), upper triangle packed, ``Mv (n_phi, N (N + 1) / 2)``:
-        one GEMV assembles ``K``."""
-        tpl, nx, N = self.tpl, self.sc.grid.nx, self.N
+    def _project(self) -> None:
+        """The projected operators from scratch: the contact block, then every column of
+        ``V`` appended (:meth:`_append`)."""
+        V, nx = self.V, self.sc.grid.nx
+        self.V = V[:, :0]
+        self.Mc = np.einsum("qal,clb->cqab", self.tpl.T[:, self.cloc][:, :, self.cloc],
+                            np.broadcast_to(np.eye(4) * self.cmask[:, None, :], (nx, 4, 4)))
+        self.Mc *= self.cmask[:, None, :, None]
+        self.Mv = np.zeros((term_map(self.sc).shape[1], 0))
+        self.iu = (np.zeros(0, dtype=int), np.zeros(0, dtype=int))
+        self.L_red = self.load[self.contact_dofs].copy()
+        self._append(V)
+
+    def _append(self, Vn: np.ndarray, chunk: int = 4) -> None:
+        """Append the orthonormal columns ``Vn`` to ``V`` and the new rows / columns of the
+        projected templates: per column ``c`` (local trial matrix ``W_c``: 4 contact unit
+        columns, then ``V``) the contact rows ``Mc (nx, 12, 4, 4 + N)``, and for the interior
+        block per coefficient function of :func:`term_map` (9 combinations of the templates
+        per column) the entries ``(i, j)``, ``i <= j``, of ``V^T T V`` packed column by
+        column, ``Mv (n_phi, N (N + 1) / 2)``: one GEMV assembles ``K``. The entries of the
+        old columns are kept: the cost is that of the new columns only."""
+        tpl, nx = self.tpl, self.sc.grid.nx
+        N0, k = self.N, Vn.shape[1]
+        self.V = np.column_stack([self.V, Vn])
+        N = N0 + k
+        if k == 0:
+            return
         ld = tpl.dofs.shape[1]
         R = term_map(self.sc).tocsr()
         cols0 = np.array([0, 1, 2, *range(nx + 2, nx + 8)])     # phi columns of column 0
         # (column c: 0, 1 + c, 2 + c, nx + 2 + 6 c ...)
         T9 = sp.csr_matrix(np.einsum("pq,qab->pab", R[:12][:, cols0].toarray().T,
                                      tpl.T).reshape(-1, ld))
-        self.iu = np.triu_indices(N)
-        self.Mc = np.empty((nx, 12, 4, 4 + N))
-        self.Mv = np.zeros((R.shape[1], len(self.iu[0])))
+        # new packed entries: column j = N0 + jj, rows i = 0 .. j
+        jj = np.repeat(np.arange(k), N0 + 1 + np.arange(k))
+        ii = np.concatenate([np.arange(N0 + 1 + t) for t in range(k)])
+        Mc = np.empty((nx, 12, 4, k))
+        Mv = np.zeros((R.shape[1], len(ii)))
         for c0 in range(0, nx, chunk):
             c = np.arange(c0, min(c0 + chunk, nx))
-            W = np.zeros((len(c), ld, 4 + N))
-            W[:, self.cloc, np.arange(4)] = self.cmask[c]
-            W[:, :, 4:] = self.V[tpl.dofs[c]]
-            Mc = np.einsum("qal,clb->cqab", tpl.T[:, self.cloc, :], W)
-            self.Mc[c] = Mc * self.cmask[c][:, None, :, None]
-            Vc = W[:, :, 4:]
-            TV = (T9 @ np.moveaxis(Vc, 0, 1).reshape(ld, -1)).reshape(9, ld, len(c), N)
+            Vc = self.V[tpl.dofs[c]]                               # (len(c), ld, N)
+            Vnew = Vc[:, :, N0:]
+            Mc[c] = np.einsum("qal,clb->cqab", tpl.T[:, self.cloc, :], Vnew) \
+                * self.cmask[c][:, None, :, None]
+            TV = (T9 @ np.moveaxis(Vnew, 0, 1).reshape(ld, -1)).reshape(9, ld, len(c), k)
             M9 = np.matmul(np.swapaxes(Vc, 1, 2)[:, None], np.moveaxis(TV, 2, 0))
-            P = M9[..., self.iu[0], self.iu[1]]                   # (len(c), 9, packed)
-            self.Mv[0] += P[:, 0].sum(axis=0)
-            self.Mv[1 + c] += P[:, 1]
-            self.Mv[2 + c] += P[:, 2]
-            self.Mv[(cols0[3:][None, :] + 6 * c[:, None]).ravel()] += P[:, 3:].reshape(
+            P = M9[..., ii, jj]                                    # (len(c), 9, new packed)
+            Mv[0] += P[:, 0].sum(axis=0)
+            Mv[1 + c] += P[:, 1]
+            Mv[2 + c] += P[:, 2]
+            Mv[(cols0[3:][None, :] + 6 * c[:, None]).ravel()] += P[:, 3:].reshape(
                 6 * len(c), P.shape[2])
-        self.L_red = np.concatenate([self.load[self.contact_dofs], self.V.T @ self.load])
+        self.Mc = np.concatenate([self.Mc, Mc], axis=3)
+        self.Mv = np.concatenate([self.Mv, Mv], axis=1)
+        self.iu = (np.concatenate([self.iu[0], ii]), np.concatenate([self.iu[1], N0 + jj]))
+        self.L_red = np.concatenate([self.L_red, Vn.T @ self.load])
 
     def galerkin(self, alpha: np.ndarray) -> np.ndarray:
         """``G = W^T A(alpha) W`` (dense, ``m + N``), assembled from the projected templates."""
