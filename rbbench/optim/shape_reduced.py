@@ -281,7 +281,6 @@ class ReducedModel:
         tpl, nx = self.tpl, self.sc.grid.nx
         N0, k = self.N, Vn.shape[1]
         self.V = np.column_stack([self.V, Vn])
-        N = N0 + k
         if k == 0:
             return
         ld = tpl.dofs.shape[1]
