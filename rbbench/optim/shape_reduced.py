@@ -52,7 +52,13 @@ from rbbench.interfaces import HFVectors, ReducedSolution
 from rbbench.optim.shape_adjoint import Evaluation, objective_gradient_lam, partition
 from rbbench.optim.shape_mesh import _GAUSS, _shape_gradients, element_dofs, top_load
 from rbbench.optim.shape_scene import ShapeScene, design_space
-from rbbench.optim.shape_state import ShapeState, dof_sets, objective, solve_condensed
+from rbbench.optim.shape_state import (
+    ShapeState,
+    dof_sets,
+    objective,
+    solve_condensed,
+    solve_jacobian,
+)
 from rbbench.scene.parameters import ParameterSpace
 
 #: coefficient functions ``theta_k(d, s)`` and their partial derivatives (d, s)
@@ -433,7 +439,7 @@ def adjoint(sc: ShapeScene, st: ShapeState) -> np.ndarray:
     m = 2 * n - 1
     rhs = np.zeros(st.jacobian.shape[0])
     rhs[m:m + n] = -objective_gradient_lam(sc, st.lam)
-    return sla.solve(st.jacobian.T, rhs)
+    return solve_jacobian(st.jacobian, rhs, m, transpose=True)
 
 
 def hf_snapshots(sc: ShapeScene, st: ShapeState) -> list[np.ndarray]:
