@@ -112,9 +112,9 @@ class ReducedOracle:
     def __call__(self, alpha: np.ndarray) -> tuple[float, np.ndarray]:
         self.calls += 1
         try:
-            ev = self.model.evaluate(alpha, y0=self.y0)
+            ev = self.model.evaluate(alpha, y0=self.y0, reconstruct=False)
         except StateSolveError:
-            ev = self.model.evaluate(alpha)      # cold start
+            ev = self.model.evaluate(alpha, reconstruct=False)      # cold start
         self.y0 = state_vector(ev.state)
         return ev.J, ev.xi
 
@@ -176,7 +176,7 @@ def optimize_rb(sc: ShapeScene, alpha0: np.ndarray, options: RBOptions | None = 
             _record(run, k, "stationary", run.ev.J, pred, step, model, t0, callback)
             break
         try:
-            ev = evaluate(sc, res.x, y0=state_vector(run.ev.state))
+            ev = _hf_evaluate(sc, res.x, state_vector(run.ev.state))
         except StateSolveError as exc:
             reason = f"HF state solve failed: {exc}"
             break
@@ -204,6 +204,15 @@ def optimize_rb(sc: ShapeScene, alpha0: np.ndarray, options: RBOptions | None = 
                     stop_reason=reason, history=run.history,
                     hf_solves=run.hf, rb_solves=run.rb, basis_size=model.N,
                     wall_s=time.perf_counter() - t0, J_hf=run.ev.J)
+
+
+def _hf_evaluate(sc: ShapeScene, alpha: np.ndarray, y0: np.ndarray) -> Evaluation:
+    """HF evaluation warm-started from the centre's state, cold-started if that fails
+    (the semismooth Newton can stall from a far warm start where a cold one converges)."""
+    try:
+        return evaluate(sc, alpha, y0=y0)
+    except StateSolveError:
+        return evaluate(sc, alpha)
 
 
 def _inner(model: ReducedModel, run: _Outer, poly: Polyhedron,

@@ -327,25 +327,37 @@ class ReducedModel:
         K = np.zeros((N, N))
         K[self.iu] = coefficients(alpha, th) @ self.Mv
         G[m:, m:] = K + np.triu(K, 1).T
-        Cx = np.einsum("cq,cqab->cab", th, self.Mc)
-        cV = np.zeros((m, N))
-        np.add.at(cV, self.cidx, Cx[:, :, 4:])
+        nx = len(th)
+        Cx = np.matmul(th[:, None, :], self.Mc.reshape(nx, 12, -1)).reshape(nx, 4, 4 + N)
+        cV = self._scatter @ Cx[:, :, 4:].reshape(4 * nx, N)
         G[:m, m:], G[m:, :m] = cV, cV.T
         np.add.at(G, (self.cidx[:, :, None], self.cidx[:, None, :]), Cx[:, :, :4])
         return G
 
+    @property
+    def _scatter(self) -> sp.csr_matrix:
+        """``P`` (``m x 4 nx``): row ``cidx[c, a]`` of the contact unknowns gets entry
+        ``4 c + a`` of the per-column contact rows."""
+        if getattr(self, "_scatter_matrix", None) is None:
+            nx = len(self.cidx)
+            self._scatter_matrix = sp.csr_matrix(
+                (np.ones(4 * nx), (self.cidx.ravel(), np.arange(4 * nx))), shape=(self.m, 4 * nx))
+        return self._scatter_matrix
+
     def design_products(self, alpha: np.ndarray, q: np.ndarray, x: np.ndarray) -> np.ndarray:
         """``q . dG/dalpha_i x`` for every design node (reduced vectors ``q, x``)."""
-        m, n = self.m, len(alpha)
+        m, n, N = self.m, len(alpha), self.N
         _, d0, d1 = theta(self.tpl, alpha, derivative=True)
         qc, xc = q[self.cidx] * self.cmask, x[self.cidx] * self.cmask
         qv, xv = q[m:], x[m:]
+        nx = len(qc)
+        Mc = self.Mc.reshape(nx * 48, 4 + N)
         b = np.einsum("ca,cqab,cb->cq", qc, self.Mc[..., :4], xc)
-        b += np.einsum("ca,cqab,b->cq", qc, self.Mc[..., 4:], xv)
-        b += np.einsum("ca,cqab,b->cq", xc, self.Mc[..., 4:], qv)
-        z = np.outer(qv, xv)
-        z = (z + z.T)[self.iu]
-        z[self.iu[0] == self.iu[1]] *= 0.5
+        Y = (Mc[:, 4:] @ np.column_stack([xv, qv])).reshape(nx, 12, 4, 2)
+        b += np.einsum("ca,cqa->cq", qc, Y[..., 0]) + np.einsum("ca,cqa->cq", xc, Y[..., 1])
+        i0, i1 = self.iu
+        z = qv[i0] * xv[i1] + xv[i0] * qv[i1]
+        z[i0 == i1] *= 0.5
         bv = self.Mv @ z                                     # (n_phi,)
         xi = bv[1:1 + n].copy()
         bnl = bv[1 + n:].reshape(len(b), 6)
@@ -398,15 +410,17 @@ class ReducedModel:
         return HFVectors(u=self.full(solution.u)[self.free], lam=np.asarray(solution.lam))
 
     def state(self, alpha: np.ndarray, tol: float = 1e-11, max_iter: int = 100,
-              y0: np.ndarray | None = None) -> ShapeState:
+              y0: np.ndarray | None = None, reconstruct: bool = True) -> ShapeState:
         """Reduced state: the semismooth Newton of ``shape_state`` on ``(S_N, f_N)``.
 
-        ``state.u`` is the full displacement ``W x``; ``state.cond.A`` the Galerkin matrix.
+        ``state.u`` is the full displacement ``W x`` (``None`` without ``reconstruct``: an
+        ``O(dofs N)`` product the optimiser does not need); ``state.cond.A`` the Galerkin
+        matrix.
         """
         alpha = np.asarray(alpha, dtype=float)
         cond = self.condense(alpha)
         st = solve_condensed(self.sc, alpha, cond, tol=tol, max_iter=max_iter, y0=y0)
-        st.u = self.full(st.u[:self.m + self.N])
+        st.u = self.full(st.u[:self.m + self.N]) if reconstruct else None
         return st
 
     def coordinates(self, st: ShapeState) -> np.ndarray:
@@ -426,9 +440,10 @@ class ReducedModel:
         return xi + st.c * st.contact * p[m:m + n]
 
     def evaluate(self, alpha: np.ndarray, y0: np.ndarray | None = None,
-                 tol: float = 1e-11) -> Evaluation:
-        """Reduced ``Theta_N(alpha)``, its subgradient and the reduced state."""
-        st = self.state(alpha, tol=tol, y0=y0)
+                 tol: float = 1e-11, reconstruct: bool = True) -> Evaluation:
+        """Reduced ``Theta_N(alpha)``, its subgradient and the reduced state
+        (``reconstruct``: :meth:`state`)."""
+        st = self.state(alpha, tol=tol, y0=y0, reconstruct=reconstruct)
         return Evaluation(np.asarray(alpha, float).copy(), objective(self.sc, st.lam),
                           self.subgradient(st), st, partition(self.sc, st))
 

@@ -71,11 +71,13 @@ def test_history_file_and_method_check(tmp_path, run):
 
 
 def test_poor_model_is_rejected_and_the_region_shrinks(monkeypatch):
-    """With only the HF state and adjoint as the interior basis (a poor model away from
-    the centre) candidates get rejected: Delta shrinks, J never increases."""
+    """With only the HF state and adjoint as the interior basis, replaced at each centre
+    (a poor model away from the centre) candidates get rejected: Delta shrinks, J never
+    increases."""
     monkeypatch.setattr(rb_driver, "interior_space", hf_snapshots)
     sc = load_shape_scene(overrides=COARSE)
-    opts = RBOptions(max_outer=6, inner=BundleOptions(max_iter=20, max_evals=40))
+    opts = RBOptions(max_outer=6, inner=BundleOptions(max_iter=20, max_evals=40),
+                     centre_update="rebuild")
     res = optimize_rb(sc, sc.initial_design(), opts)
     rows = res.history
     rejected = [i for i, r in enumerate(rows) if r["kind"] == "rejected"]
