@@ -5,14 +5,18 @@ Ohlberger, Schindler, Volkwein (2021, ESAIM M2AN 55:1239), adapted to the nonsmo
 model B of the talk "On coupling of complementarity with friction in contact shape optimization"
 and the bundle method:
 
-1. At an HF-verified centre ``alpha_k`` the reduced model of ``shape_reduced`` gets the
-   interior space of the HF factors there (``interior_space``: the harmonic extensions of
-   the contact unit vectors and the load response); it is then exact at ``alpha_k`` (same
-   ``J``, same subgradient) and accurate to second order nearby.
+1. At the start the reduced model of ``shape_reduced`` gets the interior space of the HF
+   factors there (``interior_space``: the harmonic extensions of the contact unit vectors
+   and the load response); it is then exact at ``alpha_0`` (same ``J``, same subgradient)
+   and accurate to second order nearby. At each new centre ``alpha_k`` the HF state and
+   adjoint there are added to the basis (``centre_update = "incremental"``: the reduced
+   operators get the new rows and columns only; the model is exact at ``alpha_k`` by the
+   first-order consistency of Keil et al.), or the basis is replaced by the interior space
+   of ``alpha_k`` (``"rebuild"``).
 2. The bundle trust-region method minimises the reduced ``Theta_N`` over the admissible
    polyhedron intersected with the box ``|alpha - alpha_k|_inf <= Delta_k``.
 3. The candidate is HF-evaluated: ``rho = (J_k - J(alpha~)) / (Theta_N(alpha_k) -
-   Theta_N(alpha~))``. ``rho >= eta_accept`` accepts it (new centre, new interior space);
+   Theta_N(alpha~))``. ``rho >= eta_accept`` accepts it (new centre, basis updated as in 1.);
    ``rho >= eta_expand`` with the step on the box boundary doubles ``Delta``; a rejection
    sets ``Delta = shrink * |step|_inf`` and adds the HF state and adjoint of the rejected
    candidate to the basis (the model becomes exact there too).
