@@ -48,6 +48,8 @@ def test_options_and_infeasible_start():
         RBOptions(delta0=0.0)
     with pytest.raises(ValueError, match="eta_accept"):
         RBOptions(eta_accept=0.9, eta_expand=0.5)
+    with pytest.raises(ValueError, match="centre_update.*'fast'.*incremental, rebuild"):
+        RBOptions(centre_update="fast")
     sc = load_shape_scene(overrides=COARSE)
     bad = sc.initial_design() + 1.0
     with pytest.raises(ValueError, match="alpha0 is infeasible"):
