@@ -30,7 +30,7 @@ STUDY_INTS = {"N": ("-N", 1000), "R": ("-R", 1000), "n_train": ("--n-train", 10_
               "n_valid": ("--n-valid", 10_000), "repeats": ("--repeats", 10_000),
               "n_cells": ("--n-cells", 1024), "P": ("-P", 10_000), "jobs": ("--jobs", 256),
               "rounds": ("--rounds", 1000), "max_iter": ("--max-iter", 100_000),
-              "max_evals": ("--max-evals", 100_000)}
+              "max_evals": ("--max-evals", 100_000), "ny": ("--ny", 100_000)}
 #: float arguments: ``dest -> (flag, low, high, low included)`` (high included; eps: the
 #: stopping tolerance relative to J0, at most 1)
 STUDY_FLOATS = {"eps": ("--eps", 0.0, 1.0, False), "pause": ("--pause", 0.0, 60.0, True),
@@ -329,6 +329,10 @@ def _add_shape_side_by_side_parser(sub: Any) -> argparse.ArgumentParser:
     _add_bundle_options(p)
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override a scene field, e.g. --set design.initial_height=0.005")
+    p.add_argument("--ny", type=int, nargs="+", default=None, metavar="NY",
+                   help="body meshes: element rows (geometry.ny) of each run, the 81 contact "
+                   "nodes kept, e.g. --ny 40 160 640 (6642, 26082, 103842 dofs); default: "
+                   "the scene's")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     return p
 
@@ -337,10 +341,16 @@ def cmd_shape_side_by_side(args: argparse.Namespace) -> int:
     from rbbench.optim.shape_scene import load_shape_scene, parse_overrides
     from rbbench.studies.shape_side_by_side import shape_markdown, shape_side_by_side
 
-    load_shape_scene(args.scene, parse_overrides(args.set))  # its errors before any solve
+    overrides = parse_overrides(args.set)
+    load_shape_scene(args.scene, overrides)  # its errors before any solve
+    for ny in args.ny or ():
+        try:
+            load_shape_scene(args.scene, {**overrides, "geometry.ny": ny})
+        except SceneError as exc:
+            raise SceneError(f"--ny {ny}: {exc}") from None
 
-    res = shape_side_by_side(args.scene, parse_overrides(args.set), args.metric, args.max_iter,
-                             args.max_evals, args.eps)
+    res = shape_side_by_side(args.scene, overrides, args.metric, args.max_iter,
+                             args.max_evals, args.eps, args.ny, progress=_Progress(False))
     return print_and_dump(shape_markdown(res), res, args.json)
 
 def _add_shape_strategy_parser(sub: Any) -> argparse.ArgumentParser:

@@ -5,14 +5,18 @@ Ohlberger, Schindler, Volkwein (2021, ESAIM M2AN 55:1239), adapted to the nonsmo
 model B of the talk "On coupling of complementarity with friction in contact shape optimization"
 and the bundle method:
 
-1. At an HF-verified centre ``alpha_k`` the reduced model of ``shape_reduced`` gets the
-   interior space of the HF factors there (``interior_space``: the harmonic extensions of
-   the contact unit vectors and the load response); it is then exact at ``alpha_k`` (same
-   ``J``, same subgradient) and accurate to second order nearby.
+1. At the start the reduced model of ``shape_reduced`` gets the interior space of the HF
+   factors there (``interior_space``: the harmonic extensions of the contact unit vectors
+   and the load response); it is then exact at ``alpha_0`` (same ``J``, same subgradient)
+   and accurate to second order nearby. At each new centre ``alpha_k`` the HF state and
+   adjoint there are added to the basis (``centre_update = "incremental"``: the reduced
+   operators get the new rows and columns only; the model is exact at ``alpha_k`` by the
+   first-order consistency of Keil et al.), or the basis is replaced by the interior space
+   of ``alpha_k`` (``"rebuild"``).
 2. The bundle trust-region method minimises the reduced ``Theta_N`` over the admissible
    polyhedron intersected with the box ``|alpha - alpha_k|_inf <= Delta_k``.
 3. The candidate is HF-evaluated: ``rho = (J_k - J(alpha~)) / (Theta_N(alpha_k) -
-   Theta_N(alpha~))``. ``rho >= eta_accept`` accepts it (new centre, new interior space);
+   Theta_N(alpha~))``. ``rho >= eta_accept`` accepts it (new centre, basis updated as in 1.);
    ``rho >= eta_expand`` with the step on the box boundary doubles ``Delta``; a rejection
    sets ``Delta = shrink * |step|_inf`` and adds the HF state and adjoint of the rejected
    candidate to the basis (the model becomes exact there too).
@@ -47,6 +51,12 @@ def _inner_default() -> BundleOptions:
     return BundleOptions(max_iter=100, max_evals=200)
 
 
+#: how the reduced model follows an accepted centre: ``incremental`` adds the HF state and
+#: adjoint there to the basis (new rows / columns of the reduced operators only),
+#: ``rebuild`` replaces the basis by the interior space of the new centre
+CENTRE_UPDATES = ("incremental", "rebuild")
+
+
 @dataclass
 class RBOptions:
     """Trust region (``Delta`` in the units of ``alpha``, inf-norm) and inner bundle runs."""
@@ -61,6 +71,7 @@ class RBOptions:
     max_outer: int = 30
     ftol: float = 1e-8
     stall_rtol: float = 0.05
+    centre_update: str = "incremental"
     inner: BundleOptions = field(default_factory=_inner_default)
 
     def __post_init__(self) -> None:
@@ -70,7 +81,9 @@ class RBOptions:
                    "need 0 < eta_accept <= eta_expand < 1"),
                   ("expand", self.expand > 1, "need expand > 1"),
                   ("shrink", 0 < self.shrink < 1, "need 0 < shrink < 1"),
-                  ("max_outer", self.max_outer >= 1, "need max_outer >= 1")]
+                  ("max_outer", self.max_outer >= 1, "need max_outer >= 1"),
+                  ("centre_update", self.centre_update in CENTRE_UPDATES,
+                   f"{self.centre_update!r}: valid are {', '.join(CENTRE_UPDATES)}")]
         for key, ok, why in checks:
             if not ok:
                 raise ValueError(f"RBOptions.{key}: {why}")
@@ -103,9 +116,9 @@ class ReducedOracle:
     def __call__(self, alpha: np.ndarray) -> tuple[float, np.ndarray]:
         self.calls += 1
         try:
-            ev = self.model.evaluate(alpha, y0=self.y0)
+            ev = self.model.evaluate(alpha, y0=self.y0, reconstruct=False)
         except StateSolveError:
-            ev = self.model.evaluate(alpha)      # cold start
+            ev = self.model.evaluate(alpha, reconstruct=False)      # cold start
         self.y0 = state_vector(ev.state)
         return ev.J, ev.xi
 
@@ -167,7 +180,7 @@ def optimize_rb(sc: ShapeScene, alpha0: np.ndarray, options: RBOptions | None = 
             _record(run, k, "stationary", run.ev.J, pred, step, model, t0, callback)
             break
         try:
-            ev = evaluate(sc, res.x, y0=state_vector(run.ev.state))
+            ev = _hf_evaluate(sc, res.x, state_vector(run.ev.state))
         except StateSolveError as exc:
             reason = f"HF state solve failed: {exc}"
             break
@@ -197,6 +210,15 @@ def optimize_rb(sc: ShapeScene, alpha0: np.ndarray, options: RBOptions | None = 
                     wall_s=time.perf_counter() - t0, J_hf=run.ev.J)
 
 
+def _hf_evaluate(sc: ShapeScene, alpha: np.ndarray, y0: np.ndarray) -> Evaluation:
+    """HF evaluation warm-started from the centre's state, cold-started if that fails
+    (the semismooth Newton can stall from a far warm start where a cold one converges)."""
+    try:
+        return evaluate(sc, alpha, y0=y0)
+    except StateSolveError:
+        return evaluate(sc, alpha)
+
+
 def _inner(model: ReducedModel, run: _Outer, poly: Polyhedron,
            o: RBOptions) -> tuple[BundleResult, ReducedOracle]:
     """One bundle run on the reduced model in the trust box around the centre."""
@@ -214,7 +236,10 @@ def _update(run: _Outer, ev: Evaluation, res: BundleResult, pred: float, step: f
         if rho >= o.eta_expand and step >= 0.99 * run.delta:
             run.delta = min(o.expand * run.delta, o.delta_max)
         run.x, run.ev = res.x.copy(), ev
-        model.enrich(interior_space(sc, ev.state), reset=True)
+        if o.centre_update == "rebuild":
+            model.enrich(interior_space(sc, ev.state), reset=True)
+        else:
+            model.enrich(hf_snapshots(sc, ev.state))
         return "accepted"
     run.delta = o.shrink * step
     model.enrich(hf_snapshots(sc, ev.state))

@@ -22,11 +22,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from rbbench.optim.shape_mesh import stiffness_design_products
 from rbbench.optim.shape_scene import ShapeScene
-from rbbench.optim.shape_state import ShapeState, objective, solve_state
+from rbbench.optim.shape_state import ShapeState, objective, solve_jacobian, solve_state
 
 
 @dataclass
@@ -51,7 +50,7 @@ def subgradient(sc: ShapeScene, st: ShapeState) -> np.ndarray:
     m = 2 * n - 1
     rhs = np.zeros(st.jacobian.shape[0])
     rhs[m:m + n] = -objective_gradient_lam(sc, st.lam)
-    p = sla.solve(st.jacobian.T, rhs)
+    p = solve_jacobian(st.jacobian, rhs, m, transpose=True)
     p_full = np.zeros(2 * sc.grid.n_nodes)
     p_full[st.cond.free] = st.cond.extend(p[:m])
     xi = stiffness_design_products(sc.grid, st.alpha, sc.D, p_full, st.u)

@@ -52,7 +52,13 @@ from rbbench.interfaces import HFVectors, ReducedSolution
 from rbbench.optim.shape_adjoint import Evaluation, objective_gradient_lam, partition
 from rbbench.optim.shape_mesh import _GAUSS, _shape_gradients, element_dofs, top_load
 from rbbench.optim.shape_scene import ShapeScene, design_space
-from rbbench.optim.shape_state import ShapeState, dof_sets, objective, solve_condensed
+from rbbench.optim.shape_state import (
+    ShapeState,
+    dof_sets,
+    objective,
+    solve_condensed,
+    solve_jacobian,
+)
 from rbbench.scene.parameters import ParameterSpace
 
 #: coefficient functions ``theta_k(d, s)`` and their partial derivatives (d, s)
@@ -239,9 +245,13 @@ class ReducedModel:
     def enrich(self, vectors, tol: float = 1e-10, reset: bool = False) -> int:
         """Add the interior parts of ``vectors`` (full dofs, one per row or a list), each
         scaled to unit norm, orthogonalised against ``V`` (twice) and orthonormalised by an
-        SVD that drops directions below ``tol``; ``reset`` replaces ``V``. Returns the count
+        SVD that drops directions below ``tol``; ``reset`` replaces ``V``. The projected
+        operators get the new rows and columns only (:meth:`_append`). Returns the count
         of new basis vectors."""
-        V = np.zeros((len(self.interior_mask), 0)) if reset else self.V
+        if reset:
+            self.V = np.zeros((len(self.interior_mask), 0))
+            self._project()
+        V = self.V
         R = np.array([np.where(self.interior_mask, np.asarray(v, float), 0.0)
                       for v in vectors]).T
         norms = np.linalg.norm(R, axis=0)
@@ -250,43 +260,64 @@ class ReducedModel:
             R = R - V @ (V.T @ R)
         U, s, _ = np.linalg.svd(R, full_matrices=False)
         keep = s > tol * max(1.0, float(s[0]) if s.size else 1.0)
-        self.V = np.column_stack([V, U[:, keep]])
-        self._project()
+        self._append(U[:, keep])
         return int(np.sum(keep))
 
-    def _project(self, chunk: int = 4) -> None:
-        """``W_c^T T_q W_c`` per column ``c`` (local trial matrix ``W_c``: 4 contact unit
-        columns, then ``V``): the contact rows ``Mc (nx, 12, 4, 4 + N)`` per column, and
-        the interior block per coefficient function of :func:`term_map` (9 combinations
-        of the templates per column), upper triangle packed, ``Mv (n_phi, N (N + 1) / 2)``:
-        one GEMV assembles ``K``."""
-        tpl, nx, N = self.tpl, self.sc.grid.nx, self.N
+    def _project(self) -> None:
+        """The projected operators from scratch: the contact block, then every column of
+        ``V`` appended (:meth:`_append`)."""
+        V, nx = self.V, self.sc.grid.nx
+        self.V = V[:, :0]
+        self.Mc = np.einsum("qal,clb->cqab", self.tpl.T[:, self.cloc][:, :, self.cloc],
+                            np.broadcast_to(np.eye(4) * self.cmask[:, None, :], (nx, 4, 4)))
+        self.Mc *= self.cmask[:, None, :, None]
+        self.Mv = np.zeros((term_map(self.sc).shape[1], 0))
+        self.iu = (np.zeros(0, dtype=int), np.zeros(0, dtype=int))
+        self.L_red = self.load[self.contact_dofs].copy()
+        self._append(V)
+
+    def _append(self, Vn: np.ndarray, chunk: int = 4) -> None:
+        """Append the orthonormal columns ``Vn`` to ``V`` and the new rows / columns of the
+        projected templates: per column ``c`` (local trial matrix ``W_c``: 4 contact unit
+        columns, then ``V``) the contact rows ``Mc (nx, 12, 4, 4 + N)``, and for the interior
+        block per coefficient function of :func:`term_map` (9 combinations of the templates
+        per column) the entries ``(i, j)``, ``i <= j``, of ``V^T T V`` packed column by
+        column, ``Mv (n_phi, N (N + 1) / 2)``: one GEMV assembles ``K``. The entries of the
+        old columns are kept: the cost is that of the new columns only."""
+        tpl, nx = self.tpl, self.sc.grid.nx
+        N0, k = self.N, Vn.shape[1]
+        self.V = np.column_stack([self.V, Vn])
+        if k == 0:
+            return
         ld = tpl.dofs.shape[1]
         R = term_map(self.sc).tocsr()
         cols0 = np.array([0, 1, 2, *range(nx + 2, nx + 8)])     # phi columns of column 0
         # (column c: 0, 1 + c, 2 + c, nx + 2 + 6 c ...)
         T9 = sp.csr_matrix(np.einsum("pq,qab->pab", R[:12][:, cols0].toarray().T,
                                      tpl.T).reshape(-1, ld))
-        self.iu = np.triu_indices(N)
-        self.Mc = np.empty((nx, 12, 4, 4 + N))
-        self.Mv = np.zeros((R.shape[1], len(self.iu[0])))
+        # new packed entries: column j = N0 + jj, rows i = 0 .. j
+        jj = np.repeat(np.arange(k), N0 + 1 + np.arange(k))
+        ii = np.concatenate([np.arange(N0 + 1 + t) for t in range(k)])
+        Mc = np.empty((nx, 12, 4, k))
+        Mv = np.zeros((R.shape[1], len(ii)))
         for c0 in range(0, nx, chunk):
             c = np.arange(c0, min(c0 + chunk, nx))
-            W = np.zeros((len(c), ld, 4 + N))
-            W[:, self.cloc, np.arange(4)] = self.cmask[c]
-            W[:, :, 4:] = self.V[tpl.dofs[c]]
-            Mc = np.einsum("qal,clb->cqab", tpl.T[:, self.cloc, :], W)
-            self.Mc[c] = Mc * self.cmask[c][:, None, :, None]
-            Vc = W[:, :, 4:]
-            TV = (T9 @ np.moveaxis(Vc, 0, 1).reshape(ld, -1)).reshape(9, ld, len(c), N)
+            Vc = self.V[tpl.dofs[c]]                               # (len(c), ld, N)
+            Vnew = Vc[:, :, N0:]
+            Mc[c] = np.einsum("qal,clb->cqab", tpl.T[:, self.cloc, :], Vnew) \
+                * self.cmask[c][:, None, :, None]
+            TV = (T9 @ np.moveaxis(Vnew, 0, 1).reshape(ld, -1)).reshape(9, ld, len(c), k)
             M9 = np.matmul(np.swapaxes(Vc, 1, 2)[:, None], np.moveaxis(TV, 2, 0))
-            P = M9[..., self.iu[0], self.iu[1]]                   # (len(c), 9, packed)
-            self.Mv[0] += P[:, 0].sum(axis=0)
-            self.Mv[1 + c] += P[:, 1]
-            self.Mv[2 + c] += P[:, 2]
-            self.Mv[(cols0[3:][None, :] + 6 * c[:, None]).ravel()] += P[:, 3:].reshape(
+            P = M9[..., ii, jj]                                    # (len(c), 9, new packed)
+            Mv[0] += P[:, 0].sum(axis=0)
+            Mv[1 + c] += P[:, 1]
+            Mv[2 + c] += P[:, 2]
+            Mv[(cols0[3:][None, :] + 6 * c[:, None]).ravel()] += P[:, 3:].reshape(
                 6 * len(c), P.shape[2])
-        self.L_red = np.concatenate([self.load[self.contact_dofs], self.V.T @ self.load])
+        self.Mc = np.concatenate([self.Mc, Mc], axis=3)
+        self.Mv = np.concatenate([self.Mv, Mv], axis=1)
+        self.iu = (np.concatenate([self.iu[0], ii]), np.concatenate([self.iu[1], N0 + jj]))
+        self.L_red = np.concatenate([self.L_red, Vn.T @ self.load])
 
     def galerkin(self, alpha: np.ndarray) -> np.ndarray:
         """``G = W^T A(alpha) W`` (dense, ``m + N``), assembled from the projected templates."""
@@ -296,25 +327,37 @@ class ReducedModel:
         K = np.zeros((N, N))
         K[self.iu] = coefficients(alpha, th) @ self.Mv
         G[m:, m:] = K + np.triu(K, 1).T
-        Cx = np.einsum("cq,cqab->cab", th, self.Mc)
-        cV = np.zeros((m, N))
-        np.add.at(cV, self.cidx, Cx[:, :, 4:])
+        nx = len(th)
+        Cx = np.matmul(th[:, None, :], self.Mc.reshape(nx, 12, -1)).reshape(nx, 4, 4 + N)
+        cV = self._scatter @ Cx[:, :, 4:].reshape(4 * nx, N)
         G[:m, m:], G[m:, :m] = cV, cV.T
         np.add.at(G, (self.cidx[:, :, None], self.cidx[:, None, :]), Cx[:, :, :4])
         return G
 
+    @property
+    def _scatter(self) -> sp.csr_matrix:
+        """``P`` (``m x 4 nx``): row ``cidx[c, a]`` of the contact unknowns gets entry
+        ``4 c + a`` of the per-column contact rows."""
+        if getattr(self, "_scatter_matrix", None) is None:
+            nx = len(self.cidx)
+            self._scatter_matrix = sp.csr_matrix(
+                (np.ones(4 * nx), (self.cidx.ravel(), np.arange(4 * nx))), shape=(self.m, 4 * nx))
+        return self._scatter_matrix
+
     def design_products(self, alpha: np.ndarray, q: np.ndarray, x: np.ndarray) -> np.ndarray:
         """``q . dG/dalpha_i x`` for every design node (reduced vectors ``q, x``)."""
-        m, n = self.m, len(alpha)
+        m, n, N = self.m, len(alpha), self.N
         _, d0, d1 = theta(self.tpl, alpha, derivative=True)
         qc, xc = q[self.cidx] * self.cmask, x[self.cidx] * self.cmask
         qv, xv = q[m:], x[m:]
+        nx = len(qc)
+        Mc = self.Mc.reshape(nx * 48, 4 + N)
         b = np.einsum("ca,cqab,cb->cq", qc, self.Mc[..., :4], xc)
-        b += np.einsum("ca,cqab,b->cq", qc, self.Mc[..., 4:], xv)
-        b += np.einsum("ca,cqab,b->cq", xc, self.Mc[..., 4:], qv)
-        z = np.outer(qv, xv)
-        z = (z + z.T)[self.iu]
-        z[self.iu[0] == self.iu[1]] *= 0.5
+        Y = (Mc[:, 4:] @ np.column_stack([xv, qv])).reshape(nx, 12, 4, 2)
+        b += np.einsum("ca,cqa->cq", qc, Y[..., 0]) + np.einsum("ca,cqa->cq", xc, Y[..., 1])
+        i0, i1 = self.iu
+        z = qv[i0] * xv[i1] + xv[i0] * qv[i1]
+        z[i0 == i1] *= 0.5
         bv = self.Mv @ z                                     # (n_phi,)
         xi = bv[1:1 + n].copy()
         bnl = bv[1 + n:].reshape(len(b), 6)
@@ -367,15 +410,17 @@ class ReducedModel:
         return HFVectors(u=self.full(solution.u)[self.free], lam=np.asarray(solution.lam))
 
     def state(self, alpha: np.ndarray, tol: float = 1e-11, max_iter: int = 100,
-              y0: np.ndarray | None = None) -> ShapeState:
+              y0: np.ndarray | None = None, reconstruct: bool = True) -> ShapeState:
         """Reduced state: the semismooth Newton of ``shape_state`` on ``(S_N, f_N)``.
 
-        ``state.u`` is the full displacement ``W x``; ``state.cond.A`` the Galerkin matrix.
+        ``state.u`` is the full displacement ``W x`` (``None`` without ``reconstruct``: an
+        ``O(dofs N)`` product the optimiser does not need); ``state.cond.A`` the Galerkin
+        matrix.
         """
         alpha = np.asarray(alpha, dtype=float)
         cond = self.condense(alpha)
         st = solve_condensed(self.sc, alpha, cond, tol=tol, max_iter=max_iter, y0=y0)
-        st.u = self.full(st.u[:self.m + self.N])
+        st.u = self.full(st.u[:self.m + self.N]) if reconstruct else None
         return st
 
     def coordinates(self, st: ShapeState) -> np.ndarray:
@@ -395,9 +440,10 @@ class ReducedModel:
         return xi + st.c * st.contact * p[m:m + n]
 
     def evaluate(self, alpha: np.ndarray, y0: np.ndarray | None = None,
-                 tol: float = 1e-11) -> Evaluation:
-        """Reduced ``Theta_N(alpha)``, its subgradient and the reduced state."""
-        st = self.state(alpha, tol=tol, y0=y0)
+                 tol: float = 1e-11, reconstruct: bool = True) -> Evaluation:
+        """Reduced ``Theta_N(alpha)``, its subgradient and the reduced state
+        (``reconstruct``: :meth:`state`)."""
+        st = self.state(alpha, tol=tol, y0=y0, reconstruct=reconstruct)
         return Evaluation(np.asarray(alpha, float).copy(), objective(self.sc, st.lam),
                           self.subgradient(st), st, partition(self.sc, st))
 
@@ -408,7 +454,7 @@ def adjoint(sc: ShapeScene, st: ShapeState) -> np.ndarray:
     m = 2 * n - 1
     rhs = np.zeros(st.jacobian.shape[0])
     rhs[m:m + n] = -objective_gradient_lam(sc, st.lam)
-    return sla.solve(st.jacobian.T, rhs)
+    return solve_jacobian(st.jacobian, rhs, m, transpose=True)
 
 
 def hf_snapshots(sc: ShapeScene, st: ShapeState) -> list[np.ndarray]:

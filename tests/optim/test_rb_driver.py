@@ -48,6 +48,8 @@ def test_options_and_infeasible_start():
         RBOptions(delta0=0.0)
     with pytest.raises(ValueError, match="eta_accept"):
         RBOptions(eta_accept=0.9, eta_expand=0.5)
+    with pytest.raises(ValueError, match="centre_update.*'fast'.*incremental, rebuild"):
+        RBOptions(centre_update="fast")
     sc = load_shape_scene(overrides=COARSE)
     bad = sc.initial_design() + 1.0
     with pytest.raises(ValueError, match="alpha0 is infeasible"):
@@ -71,11 +73,13 @@ def test_history_file_and_method_check(tmp_path, run):
 
 
 def test_poor_model_is_rejected_and_the_region_shrinks(monkeypatch):
-    """With only the HF state and adjoint as the interior basis (a poor model away from
-    the centre) candidates get rejected: Delta shrinks, J never increases."""
+    """With only the HF state and adjoint as the interior basis, replaced at each centre
+    (a poor model away from the centre) candidates get rejected: Delta shrinks, J never
+    increases."""
     monkeypatch.setattr(rb_driver, "interior_space", hf_snapshots)
     sc = load_shape_scene(overrides=COARSE)
-    opts = RBOptions(max_outer=6, inner=BundleOptions(max_iter=20, max_evals=40))
+    opts = RBOptions(max_outer=6, inner=BundleOptions(max_iter=20, max_evals=40),
+                     centre_update="rebuild")
     res = optimize_rb(sc, sc.initial_design(), opts)
     rows = res.history
     rejected = [i for i, r in enumerate(rows) if r["kind"] == "rejected"]

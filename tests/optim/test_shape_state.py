@@ -85,3 +85,30 @@ def test_objective_is_bounded_below_by_the_uniform_pressure(state):
 def test_bad_input_names_the_key(key, value, match):
     with pytest.raises(SceneError, match=match):
         load_shape_scene(overrides={**COARSE, key: value})
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_jacobian_solve_by_force_elimination_equals_dense_solve(seed):
+    """``solve_jacobian`` (forces eliminated, ``m x m``) against a dense LU of the whole
+    generalised Jacobian, both ways, at random points ``y`` (random contact / stick
+    branches) of a coarse scene."""
+    import scipy.linalg as sla
+
+    from rbbench.optim.shape_state import _residual_and_jacobian, condense, solve_jacobian
+
+    sc = load_shape_scene(overrides={"geometry.contact_nodes": 21, "geometry.ny": 8})
+    alpha = sc.initial_design()
+    cond = condense(sc, alpha)
+    n = len(alpha)
+    m = 2 * n - 1
+    rng = np.random.default_rng(seed)
+    y = np.concatenate([1e-3 * rng.standard_normal(m), rng.uniform(-5, 20, n),
+                        rng.uniform(-5, 5, n - 1)])
+    c = float(np.mean(np.diag(cond.S)))
+    _, jac, active, stick = _residual_and_jacobian(sc, cond.S, cond.f, alpha, y, c)
+    assert 0 < active.sum() < n and 0 < stick.sum() < n - 1     # mixed branches
+    b = rng.standard_normal(len(y))
+    for transpose in (False, True):
+        ref = sla.solve(jac.T if transpose else jac, b)
+        got = solve_jacobian(jac, b, m, transpose)
+        assert np.abs(got - ref).max() <= 1e-10 * np.abs(ref).max()

@@ -39,6 +39,10 @@ EXPECTED = {
     ("bench_online", "Accuracy.track_err_lam_max"),
     ("bench_online", "Accuracy.track_neg_log10_beta_off"),
     ("bench_friction_online", "FrictionOnlineSolve.time_online_solve"),
+    ("bench_shape_optimisation", "ShapeRBDriver.time_rb_driven_optimisation"),
+    ("bench_shape_optimisation", "ShapeRBDriver.track_hf_solves"),
+    ("bench_shape_optimisation", "ShapeRBDriver.track_J_over_bound"),
+    ("bench_shape_optimisation", "ShapeReducedEvaluation.time_reduced_evaluation"),
 }
 
 
@@ -231,3 +235,17 @@ def test_offline_stages_run_on_the_membrane(modules, tmp_path):
     pga = off.PGA()
     pga.setup(data, case)
     pga.time_pga(data, case)
+
+
+def test_shape_optimisation_suite_on_its_small_mesh(modules):
+    """The shape suite's setup and benchmarks on its smaller body mesh: the RB-driven run
+    needs HF solves and ends at or above the uniform-pressure bound."""
+    mod = modules["bench_shape_optimisation"]
+    case = mod.SHAPE_CASES[0]
+    ev = mod.ShapeReducedEvaluation()
+    ev.setup(case)
+    ev.time_reduced_evaluation(case)
+    run = mod.ShapeRBDriver()
+    run.setup(case)
+    assert run.track_hf_solves(case) >= 1.0
+    assert run.track_J_over_bound(case) >= 1.0

@@ -143,20 +143,26 @@ def test_cli_refuses_an_unknown_strategy(capsys):
 
 
 def test_shape_side_by_side_study(tmp_path, capsys):
-    """``rbbench studies shape-side-by-side`` on a coarse scene: both drivers from the same
-    J0, the RB driver's J is its HF-verified value, both designs feasible on raw residuals,
-    the printed table and the JSON agree."""
+    """``rbbench studies shape-side-by-side`` on two coarse body meshes: both drivers from the
+    same J0 on each, the RB driver's J is its HF-verified value, both designs feasible on
+    raw residuals, the dof count of each mesh, the printed tables and the JSON agree."""
     out = tmp_path / "s.json"
     assert main(["studies", "shape-side-by-side", "--set", "geometry.ny=8", "--set",
                  "geometry.contact_nodes=21", "--max-evals", "10", "--max-iter", "10",
-                 "--json", str(out)]) == 0
-    r = json.loads(out.read_text())
-    assert r["hf_evaluations"] <= 10 and r["rb_hf_solves"] >= 1
-    assert r["hf_J"] <= r["J0"] and r["rb_J_hf"] <= r["J0"]
-    assert max(r["hf_residuals"].values()) <= 1e-8 and max(r["rb_residuals"].values()) <= 1e-8
-    assert r["J_uniform_bound"] <= min(r["hf_J"], r["rb_J_hf"])  # sum lam = load: a bound
+                 "--ny", "4", "8", "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    assert [r["ny"] for r in res["runs"]] == [4, 8]
+    assert [r["dofs"] for r in res["runs"]] == [2 * 21 * 5, 2 * 21 * 9]
     text = capsys.readouterr().out
-    assert f"{r['hf_J']:.6e}" in text and "uniform-pressure bound" in text
+    for r in res["runs"]:
+        assert r["hf_evaluations"] <= 10 and r["rb_hf_solves"] >= 1
+        assert r["hf_J"] <= r["J0"] and r["rb_J_hf"] <= r["J0"]
+        assert max(r["hf_residuals"].values()) <= 1e-8
+        assert max(r["rb_residuals"].values()) <= 1e-8
+        assert r["J_uniform_bound"] <= min(r["hf_J"], r["rb_J_hf"])  # sum lam = load
+        assert f"{r['hf_J']:.6e}" in text and f"{r['wall_ratio']:.2f}" in text
+    assert "uniform-pressure bound" in text
+    assert res["runs"][0]["J0"] != res["runs"][1]["J0"]      # two different meshes ran
 
 
 @pytest.mark.parametrize("eps", ["nan", "-1", "0", "inf"])
