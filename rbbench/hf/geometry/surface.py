@@ -1,0 +1,354 @@
+"""3D contact geometry on triangulated surfaces: Gauss-point-to-triangle pairing of the slave
+surface with the master surface (or the rigid plane ``z = 0``) at mu, and the contact
+operators ``Un``, gap, weights and multipliers (:class:`~rbbench.interfaces.ContactOperators`).
+
+The 3D counterpart of :mod:`rbbench.hf.geometry.pairing`, with the same choices (docs,
+"Contact operators in 3D"):
+
+* **Geometry** is subparametric: each slave and master triangle is the flat triangle of its
+  3 vertices (mapped by the body's similarity ``x = s(mu) x_hat + c(mu)``), whatever the
+  displacement degree; P2 midpoint nodes carry displacement dofs only.
+* **Quadrature** on each slave triangle: a symmetric Gauss rule exact to degree
+  ``quad_order`` (Dunavant 1985, :func:`~rbbench.hf.geometry.surface_rules.triangle_rule`);
+  physical weights are the rule's weights times the mapped area (``s(mu)^2`` times the
+  reference area).
+* **Normals**: the unit normal of each flat slave triangle, oriented away from the body's
+  ``inside`` point (convex bodies).
+* **Pairing**: the line through each slave point along its normal is cast onto the master
+  triangles (Moller & Trumbore, "Fast, minimum storage ray-triangle intersection",
+  J. Graphics Tools 2 (1997) 21-28), the candidates coming from a k-d tree on the master
+  triangle centroids; of the hits, the one nearest the slave point is kept (the gap is the
+  signed line parameter, so a penetrating point has a negative gap).
+* **Jump**: ``Un`` row q is ``(u_1(x_q) - u_2(y_q)) . n_1(x_q)`` with the slave and master
+  Lagrange bases at the point and at its hit ``y_q``; ``Un u <= gap`` is the constraint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from rbbench.hf.geometry.chains import AffineMap
+from rbbench.hf.geometry.pairing import PairingError
+from rbbench.hf.geometry.surface_patches import lac_patches, radial_range
+from rbbench.hf.geometry.surface_rules import RULE_DEGREES, triangle_rule, triangle_shape
+from rbbench.interfaces import ContactOperators
+
+__all__ = ["SurfaceLayout", "SurfacePairing", "TriSurface", "contact_operators_3d",
+           "pair_surfaces", "ray_cast_triangles", "surface_rows"]
+
+#: (point, triangle) pairs per block of :func:`ray_cast_triangles` (bounds its work arrays)
+RAY_BLOCK = 1 << 15
+
+
+@dataclass
+class TriSurface:
+    """One body's potential contact surface, reference coordinates (small arrays only).
+
+    Attributes
+    ----------
+    points : (n_nodes, 3)
+        Reference coordinates of the surface nodes.
+    triangles : (n_tri, 3) or (n_tri, 6)
+        P1: the 3 vertices; P2: the 3 vertices, then the midpoint nodes of edges (0, 1),
+        (1, 2), (0, 2) (indices into ``points``).
+    dofs : (n_nodes, 3)
+        Global dof of the x, y, z displacement of each node.
+    inside : (3,)
+        A reference point inside the body: outward normals point away from it (convex
+        bodies).
+    map : AffineMap
+        The body's similarity map at mu (``shift`` is (3, p + 1)).
+    """
+
+    points: np.ndarray
+    triangles: np.ndarray
+    dofs: np.ndarray
+    inside: np.ndarray
+    map: AffineMap
+
+    @property
+    def n_tri(self) -> int:
+        return int(self.triangles.shape[0])
+
+    def vertices(self, mu: np.ndarray, tris: np.ndarray | slice = slice(None)
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Mapped vertices ``(v0, v1, v2)``, each (n, 3), of triangles ``tris``."""
+        t = self.triangles[tris, :3]
+        s, c = self.map.at(mu)
+        return tuple(s * self.points[t[:, i]] + c for i in range(3))
+
+    def outward_normals(self, mu: np.ndarray, tris: np.ndarray | slice = slice(None)
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """``(normals (n, 3), areas (n,))`` of the mapped flat triangles ``tris``; the
+        normals point away from the mapped ``inside`` point."""
+        v0, v1, v2 = self.vertices(mu, tris)
+        cr = np.cross(v1 - v0, v2 - v0)
+        area2 = np.linalg.norm(cr, axis=1)
+        s, c = self.map.at(mu)
+        side = np.einsum("ij,ij->i", cr, (v0 + v1 + v2) / 3.0 - (s * self.inside + c))
+        if np.any(area2 == 0.0) or np.any(side == 0.0):
+            bad = np.flatnonzero((area2 == 0.0) | (side == 0.0))[0]
+            raise ValueError(f"surface triangle {bad}: zero area or its plane passes through "
+                             "the body's inside point; cannot orient its normal")
+        return np.sign(side)[:, None] * cr / area2[:, None], 0.5 * area2
+
+
+@dataclass
+class SurfaceLayout:
+    """What the 3D pairing needs (the 3D counterpart of
+    :class:`~rbbench.hf.geometry.pairing.ContactLayout`).
+
+    ``master = None`` is the rigid plane ``z = 0`` (outward normal ``+z``). ``degree`` (1 or
+    2) is the displacement degree on the surface triangles, ``quad_order`` the exact degree
+    of the slave triangle rule, ``multiplier`` one of ``"p1"`` (continuous nodal hats on
+    slave vertices), ``"p0"`` (one per slave triangle), ``"lac"`` (P0 on patches of about
+    ``patch`` slave triangles, :func:`~rbbench.hf.geometry.surface_patches.lac_patches`).
+    ``symmetry`` names the planes (``"x"``: ``x = 0``, ``"y"``: ``y = 0``) that cut the
+    bodies; the weights are those of the part modelled.
+    """
+
+    slave: TriSurface
+    master: TriSurface | None
+    degree: int
+    quad_order: int
+    multiplier: str
+    patch: int
+    n_dofs: int
+    symmetry: tuple[str, ...] = ()
+    _columns: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        if self.degree not in (1, 2):
+            raise ValueError(f"SurfaceLayout: degree = {self.degree!r}; valid: 1, 2")
+        for name, surf in (("slave", self.slave), ("master", self.master)):
+            if surf is not None and surf.triangles.shape[1] != (3 if self.degree == 1 else 6):
+                raise ValueError(f"SurfaceLayout: {name} triangles have "
+                                 f"{surf.triangles.shape[1]} nodes; degree {self.degree} "
+                                 f"needs {3 if self.degree == 1 else 6}")
+        if self.quad_order not in RULE_DEGREES:
+            raise ValueError(f"SurfaceLayout: quad_order = {self.quad_order!r}; valid: "
+                             f"{list(RULE_DEGREES)}")
+        if self.multiplier not in ("p1", "p0", "lac"):
+            raise ValueError(f"SurfaceLayout: multiplier = {self.multiplier!r}; valid: "
+                             "'p1', 'p0', 'lac'")
+        if int(self.patch) != self.patch or self.patch < 1:
+            raise ValueError(f"SurfaceLayout: patch = {self.patch!r}; valid: an integer >= 1")
+        bad = [s for s in self.symmetry if s not in ("x", "y")]
+        if bad:
+            raise ValueError(f"SurfaceLayout: symmetry plane(s) {bad}; valid: 'x', 'y'")
+
+    @property
+    def n_points_per_triangle(self) -> int:
+        return int(triangle_rule(self.quad_order)[1].size)
+
+    @property
+    def n_quad(self) -> int:
+        return self.slave.n_tri * self.n_points_per_triangle
+
+    def multiplier_columns(self) -> np.ndarray:
+        """Column of each slave triangle (p0, lac: (n_tri,)) or of each triangle vertex
+        (p1: (n_tri, 3), the slave vertices numbered in increasing node order); fixed by
+        the reference surface, so computed once."""
+        if self._columns is None:
+            tri = self.slave.triangles[:, :3]
+            if self.multiplier == "p0":
+                cols = np.arange(tri.shape[0])
+            elif self.multiplier == "lac":
+                cen = self.slave.points[tri].mean(axis=1)
+                cols = lac_patches(tri, cen, int(self.patch))
+            else:
+                verts, inv = np.unique(tri, return_inverse=True)
+                cols = inv.reshape(tri.shape)
+            self._columns = cols
+        return self._columns
+
+    @property
+    def n_mult(self) -> int:
+        return int(self.multiplier_columns().max()) + 1
+
+
+def _moller_trumbore(x: np.ndarray, n: np.ndarray, v0: np.ndarray, e1: np.ndarray,
+                     e2: np.ndarray, idx: np.ndarray, tol: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Line-triangle intersections of the lines ``x + t n`` with candidate triangles
+    ``idx`` (m, k); returns ``(j, u, v, t)`` of the hit with the smallest ``|t|`` (column
+    ``j`` of ``idx``, -1 if none), ``x + t n = v0 + u e1 + v e2``."""
+    E1, E2 = e1[idx], e2[idx]  # (m, k, 3)
+    p = np.cross(n[:, None, :], E2)
+    det = np.einsum("mkd,mkd->mk", E1, p)
+    s = x[:, None, :] - v0[idx]
+    q = np.cross(s, E1)
+    scale = np.linalg.norm(E1, axis=2) * np.linalg.norm(E2, axis=2)
+    ok = np.abs(det) > 1e-12 * scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where(ok, 1.0 / det, 0.0)
+        u = np.einsum("mkd,mkd->mk", s, p) * inv
+        v = np.einsum("md,mkd->mk", n, q) * inv
+        t = np.einsum("mkd,mkd->mk", E2, q) * inv
+    ok &= (u >= -tol) & (v >= -tol) & (u + v <= 1.0 + tol)
+    score = np.where(ok, np.abs(t), np.inf)
+    j = np.argmin(score, axis=1)
+    rows = np.arange(idx.shape[0])
+    hit = np.isfinite(score[rows, j])
+    return np.where(hit, j, -1), u[rows, j], v[rows, j], np.where(hit, t[rows, j], np.nan)
+
+
+def ray_cast_triangles(x: np.ndarray, n: np.ndarray, v0: np.ndarray, v1: np.ndarray,
+                       v2: np.ndarray, tol: float = 1e-9, k0: int = 16
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cast the lines ``x + t n`` (points and directions (nq, 3)) onto the triangles
+    ``(v0, v1, v2)`` (each (nt, 3)); of the hits, the one with the smallest ``|t|``.
+
+    Returns ``(tri, bary, t)``: the triangle hit (-1 for none), the barycentric coordinates
+    (nq, 3) of the hit point in it and the line parameter (``nan`` for none). ``tol`` is
+    the barycentric tolerance (a line through an edge hits).
+
+    The candidates of each point are its ``k`` nearest triangle centroids (k-d tree), ``k``
+    doubling from ``k0`` until the nearest hit is certain: a hit at ``|t|`` is the nearest
+    once every centroid within ``|t| + r_max`` of the point is a candidate (``r_max``: the
+    largest centroid-to-vertex distance), or once all triangles are.
+    """
+    x, n = np.asarray(x, dtype=float), np.asarray(n, dtype=float)
+    nq, nt = x.shape[0], v0.shape[0]
+    tri, bary, t = np.full(nq, -1, dtype=np.int64), np.zeros((nq, 3)), np.full(nq, np.nan)
+    if nq == 0 or nt == 0:
+        return tri, bary, t
+    cen = (v0 + v1 + v2) / 3.0
+    rmax = float(np.sqrt(max(((v - cen) ** 2).sum(axis=1).max() for v in (v0, v1, v2))))
+    tree = cKDTree(cen)
+    e1, e2 = v1 - v0, v2 - v0
+    todo, k = np.arange(nq), min(max(int(k0), 1), nt)
+    while todo.size:
+        dist, idx = tree.query(x[todo], k=k)
+        dist, idx = dist.reshape(todo.size, k), idx.reshape(todo.size, k)
+        j, u, v, tt = (np.empty(todo.size, dtype=np.int64), np.empty(todo.size),
+                       np.empty(todo.size), np.empty(todo.size))
+        step = max(1, RAY_BLOCK // k)
+        for i in range(0, todo.size, step):
+            r = slice(i, i + step)
+            j[r], u[r], v[r], tt[r] = _moller_trumbore(x[todo[r]], n[todo[r]], v0, e1, e2,
+                                                       idx[r], tol)
+        hit = j >= 0
+        done = np.ones(todo.size, dtype=bool) if k == nt else (
+            hit & (dist[:, -1] > np.abs(np.where(hit, tt, 0.0)) + rmax))
+        sel = todo[done & hit]
+        tri[sel] = idx[done & hit, j[done & hit]]
+        b = np.clip(np.stack([1.0 - u - v, u, v], axis=1)[done & hit], 0.0, None)
+        bary[sel] = b / b.sum(axis=1, keepdims=True)
+        t[sel] = tt[done & hit]
+        todo, k = todo[~done], min(2 * k, nt)
+    return tri, bary, t
+
+
+@dataclass
+class SurfacePairing:
+    """Slave quadrature points at mu and their master hits (rows of the contact operators)."""
+
+    x: np.ndarray  # (nq, 3) physical points
+    nrm: np.ndarray  # (nq, 3) slave outward normals
+    w: np.ndarray  # (nq,) physical area weights
+    tq: np.ndarray  # (nq,) slave triangle of each point
+    bary: np.ndarray  # (nq, 3) barycentric coordinates in it
+    gap: np.ndarray  # (nq,)
+    mtri: np.ndarray | None  # (nq,) master triangle hit (None: rigid plane)
+    mbary: np.ndarray | None  # (nq, 3) barycentric coordinates of the hit
+
+    def jump(self, layout: SurfaceLayout, direction: np.ndarray | None = None
+             ) -> sp.csr_matrix:
+        """Rows q: ``(u_1(x_q) - u_2(y_q)) . direction_q`` (nq x n_dofs); default direction:
+        the slave normals (``Un``)."""
+        d = self.nrm if direction is None else direction
+        nq = self.w.size
+        coef = [(triangle_shape(self.bary, layout.degree)[:, :, None] * d[:, None, :])
+                .reshape(nq, -1)]
+        dofs = [layout.slave.dofs[layout.slave.triangles[self.tq]].reshape(nq, -1)]
+        if self.mtri is not None:
+            coef.append(-(triangle_shape(self.mbary, layout.degree)[:, :, None]
+                          * d[:, None, :]).reshape(nq, -1))
+            dofs.append(layout.master.dofs[layout.master.triangles[self.mtri]].reshape(nq, -1))
+        rows = np.repeat(np.arange(nq), coef[0].shape[1])
+        return sp.csr_matrix((np.concatenate([c.ravel() for c in coef]),
+                              (np.tile(rows, len(coef)),
+                               np.concatenate([c.ravel() for c in dofs]))),
+                             shape=(nq, layout.n_dofs))
+
+
+def pair_surfaces(layout: SurfaceLayout, mu: np.ndarray, rows: np.ndarray | None = None
+                  ) -> SurfacePairing:
+    """The slave quadrature points at mu (all, or the points ``rows``, numbered triangle by
+    triangle: point ``q`` is rule point ``q % n_g`` of slave triangle ``q // n_g``) and their
+    hits on the master (module docstring). Raises :class:`PairingError` with the number of
+    misses and an example point when a line hits no master triangle."""
+    bary_g, w_g = triangle_rule(layout.quad_order)
+    ng = w_g.size
+    if rows is None:
+        tq = np.repeat(np.arange(layout.slave.n_tri), ng)
+        kq = np.tile(np.arange(ng), layout.slave.n_tri)
+    else:
+        rows = np.asarray(rows, dtype=np.int64)
+        if rows.size and (rows.min() < 0 or rows.max() >= layout.n_quad):
+            raise ValueError(f"rows must lie in [0, {layout.n_quad}) (the slave quadrature "
+                             "points)")
+        tq, kq = rows // ng, rows % ng
+    tris, inv = np.unique(tq, return_inverse=True)
+    nrm_t, area_t = layout.slave.outward_normals(mu, tris)
+    v0, v1, v2 = layout.slave.vertices(mu, tris)
+    b = bary_g[kq]
+    x = b[:, :1] * v0[inv] + b[:, 1:2] * v1[inv] + b[:, 2:] * v2[inv]
+    nrm, w = nrm_t[inv], w_g[kq] * area_t[inv]
+    mtri = mbary = None
+    if layout.master is None:  # rigid plane z = 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gap = -x[:, 2] / nrm[:, 2]
+        miss = ~np.isfinite(gap) | (np.abs(nrm[:, 2]) < 1e-12)
+    else:
+        m0, m1, m2 = layout.master.vertices(mu)
+        mtri, mbary, gap = ray_cast_triangles(x, nrm, m0, m1, m2)
+        miss = mtri < 0
+    if np.any(miss):
+        raise PairingError(int(miss.sum()), x[miss][0])
+    return SurfacePairing(x=x, nrm=nrm, w=w, tq=tq, bary=b, gap=gap, mtri=mtri, mbary=mbary)
+
+
+def _multiplier_matrix(layout: SurfaceLayout, p: SurfacePairing) -> sp.csr_matrix:
+    """``Mlam`` (nq x n_mult): the multiplier basis at the points of ``p``."""
+    cols, nq = layout.multiplier_columns(), p.w.size
+    if layout.multiplier == "p1":
+        rows = np.repeat(np.arange(nq), 3)
+        return sp.csr_matrix((p.bary.ravel(), (rows, cols[p.tq].ravel())),
+                             shape=(nq, layout.n_mult))
+    return sp.csr_matrix((np.ones(nq), (np.arange(nq), cols[p.tq])),
+                         shape=(nq, layout.n_mult))
+
+
+def contact_operators_3d(layout: SurfaceLayout, mu: np.ndarray) -> ContactOperators:
+    """The 3D contact operators at mu: ``Un`` (n_q x n_dofs), gap, physical area weights,
+    points and slave normals (n_q, 3), ``Mlam`` (n_q x n_mult), ``mult_points`` (the
+    weighted centroid of each multiplier's support) and ``mult_extent`` (n_mult, 2): the
+    radial extent ``[r_min, r_max]``, ``r = sqrt(x^2 + y^2)``, of each multiplier's
+    support (the slave triangles where it is nonzero)."""
+    p = pair_surfaces(layout, mu)
+    Mlam = _multiplier_matrix(layout, p)
+    mw = np.asarray(Mlam.T @ p.w).ravel()
+    mpts = np.asarray(Mlam.T @ (p.w[:, None] * p.x)) / mw[:, None]
+    r_lo, r_hi = radial_range(*layout.slave.vertices(mu))
+    coo = Mlam.tocoo()
+    ext = np.empty((Mlam.shape[1], 2))
+    ext[:, 0], ext[:, 1] = np.inf, -np.inf
+    np.minimum.at(ext[:, 0], coo.col, r_lo[p.tq[coo.row]])
+    np.maximum.at(ext[:, 1], coo.col, r_hi[p.tq[coo.row]])
+    return ContactOperators(Un=p.jump(layout), gap=p.gap, weights=p.w, points=p.x,
+                            normals=p.nrm, Mlam=Mlam, multiplier=layout.multiplier,
+                            mult_points=mpts, mult_extent=ext)
+
+
+def surface_rows(layout: SurfaceLayout, mu: np.ndarray, rows: np.ndarray
+                 ) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``(Un[rows], gap[rows])`` at mu, pairing only the slave points ``rows`` (numbered as
+    in :func:`pair_surfaces`): the rows a hyper-reduced (EIM) evaluation needs."""
+    p = pair_surfaces(layout, mu, rows)
+    return p.jump(layout), p.gap
