@@ -172,29 +172,72 @@ class SurfaceLayout:
 
 
 def _moller_trumbore(x: np.ndarray, n: np.ndarray, v0: np.ndarray, e1: np.ndarray,
-                     e2: np.ndarray, idx: np.ndarray, tol: float
+                     e2: np.ndarray, pi: np.ndarray, ti: np.ndarray, tol: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Line-triangle intersections of the lines ``x + t n`` with candidate triangles
-    ``idx`` (m, k); returns ``(j, u, v, t)`` of the hit with the smallest ``|t|`` (column
-    ``j`` of ``idx``, -1 if none), ``x + t n = v0 + u e1 + v e2``."""
-    E1, E2 = e1[idx], e2[idx]  # (m, k, 3)
-    p = np.cross(n[:, None, :], E2)
-    det = np.einsum("mkd,mkd->mk", E1, p)
-    s = x[:, None, :] - v0[idx]
+    """Intersections of the lines ``x[pi] + t n[pi]`` with the triangles ``ti`` (pairs):
+    ``(ok, u, v, t)`` with ``x + t n = v0 + u e1 + v e2`` where ``ok``."""
+    E1, E2, d = e1[ti], e2[ti], n[pi]
+    p = np.cross(d, E2)
+    det = np.einsum("ij,ij->i", E1, p)
+    s = x[pi] - v0[ti]
     q = np.cross(s, E1)
-    scale = np.linalg.norm(E1, axis=2) * np.linalg.norm(E2, axis=2)
-    ok = np.abs(det) > 1e-12 * scale
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.where(ok, 1.0 / det, 0.0)
-        u = np.einsum("mkd,mkd->mk", s, p) * inv
-        v = np.einsum("md,mkd->mk", n, q) * inv
-        t = np.einsum("mkd,mkd->mk", E2, q) * inv
+    ok = np.abs(det) > 1e-12 * np.linalg.norm(E1, axis=1) * np.linalg.norm(E2, axis=1)
+    inv = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
+    u = np.einsum("ij,ij->i", s, p) * inv
+    v = np.einsum("ij,ij->i", d, q) * inv
+    t = np.einsum("ij,ij->i", E2, q) * inv
     ok &= (u >= -tol) & (v >= -tol) & (u + v <= 1.0 + tol)
-    score = np.where(ok, np.abs(t), np.inf)
-    j = np.argmin(score, axis=1)
-    rows = np.arange(idx.shape[0])
-    hit = np.isfinite(score[rows, j])
-    return np.where(hit, j, -1), u[rows, j], v[rows, j], np.where(hit, t[rows, j], np.nan)
+    return ok, u, v, t
+
+
+class _Nearest:
+    """The hit with the smallest ``|t|`` found so far for each line."""
+
+    def __init__(self, nq: int, x, n, v0, e1, e2, tol):
+        self.tri = np.full(nq, -1, dtype=np.int64)
+        self.u, self.v, self.t = np.zeros(nq), np.zeros(nq), np.full(nq, np.nan)
+        self.abs = np.full(nq, np.inf)
+        self.args = (x, n, v0, e1, e2)
+        self.tol = tol
+
+    def test(self, pi: np.ndarray, ti: np.ndarray) -> None:
+        """Intersect the pairs (line ``pi``, triangle ``ti``) in blocks; keep better hits."""
+        for i in range(0, pi.size, RAY_BLOCK):
+            p, tr = pi[i:i + RAY_BLOCK], ti[i:i + RAY_BLOCK]
+            ok, u, v, t = _moller_trumbore(*self.args, p, tr, self.tol)
+            idx = np.flatnonzero(ok)
+            if idx.size == 0:
+                continue
+            idx = idx[np.lexsort((np.abs(t[idx]), p[idx]))]
+            idx = idx[np.r_[True, p[idx][1:] != p[idx][:-1]]]  # per line, the smallest |t|
+            idx = idx[np.abs(t[idx]) < self.abs[p[idx]]]
+            q = p[idx]
+            self.tri[q], self.u[q], self.v[q], self.t[q] = tr[idx], u[idx], v[idx], t[idx]
+            self.abs[q] = np.abs(t[idx])
+
+
+def _knn_search(best: _Nearest, x: np.ndarray, tree: cKDTree, ids: np.ndarray,
+                todo: np.ndarray, k: int, k_max: int, radius: float | None) -> np.ndarray:
+    """Try the ``k`` nearest triangles ``ids`` (by centroid, ``tree``) of the lines
+    ``todo``, ``k`` doubling up to ``k_max``, until a line has a hit (``radius`` None) or
+    its nearest hit cannot lie in a triangle not tried (``radius``: the largest
+    centroid-to-vertex distance of ``ids``). Returns the lines left undecided."""
+    k = min(k, ids.size)
+    while todo.size:
+        dist, loc = tree.query(x[todo], k=k)
+        dist, loc = dist.reshape(todo.size, k), loc.reshape(todo.size, k)
+        best.test(np.repeat(todo, k), ids[loc].ravel())
+        if k == ids.size:
+            return todo[:0]
+        if radius is None:
+            done = best.tri[todo] >= 0
+        else:
+            done = dist[:, -1] > best.abs[todo] + radius
+        todo = todo[~done]
+        if k >= k_max:
+            return todo
+        k = min(2 * k, ids.size, k_max)
+    return todo
 
 
 def ray_cast_triangles(x: np.ndarray, n: np.ndarray, v0: np.ndarray, v1: np.ndarray,
@@ -207,41 +250,40 @@ def ray_cast_triangles(x: np.ndarray, n: np.ndarray, v0: np.ndarray, v1: np.ndar
     (nq, 3) of the hit point in it and the line parameter (``nan`` for none). ``tol`` is
     the barycentric tolerance (a line through an edge hits).
 
-    The candidates of each point are its ``k`` nearest triangle centroids (k-d tree), ``k``
-    doubling from ``k0`` until the nearest hit is certain: a hit at ``|t|`` is the nearest
-    once every centroid within ``|t| + r_max`` of the point is a candidate (``r_max``: the
-    largest centroid-to-vertex distance), or once all triangles are.
+    1. A first hit: the ``k`` triangles with the nearest centroids (k-d tree), ``k``
+       doubling from ``k0`` up to 256; lines still without a hit try every triangle whose
+       bounding sphere (centroid, largest centroid-to-vertex distance ``r_T``) they cross.
+    2. The nearest hit: a triangle holding a hit at ``|t|`` has its centroid within
+       ``|t| + r_T`` of the point. The triangles are grouped by ``r_T`` (classes of ratio
+       2, so a graded mesh's coarse triangles do not widen the search near its fine ones)
+       and, in each class, the nearest centroids are tried until the next one is farther
+       than ``|t_best| + max r_T`` of the class.
     """
     x, n = np.asarray(x, dtype=float), np.asarray(n, dtype=float)
     nq, nt = x.shape[0], v0.shape[0]
-    tri, bary, t = np.full(nq, -1, dtype=np.int64), np.zeros((nq, 3)), np.full(nq, np.nan)
-    if nq == 0 or nt == 0:
-        return tri, bary, t
-    cen = (v0 + v1 + v2) / 3.0
-    rmax = float(np.sqrt(max(((v - cen) ** 2).sum(axis=1).max() for v in (v0, v1, v2))))
-    tree = cKDTree(cen)
-    e1, e2 = v1 - v0, v2 - v0
-    todo, k = np.arange(nq), min(max(int(k0), 1), nt)
-    while todo.size:
-        dist, idx = tree.query(x[todo], k=k)
-        dist, idx = dist.reshape(todo.size, k), idx.reshape(todo.size, k)
-        j, u, v, tt = (np.empty(todo.size, dtype=np.int64), np.empty(todo.size),
-                       np.empty(todo.size), np.empty(todo.size))
-        step = max(1, RAY_BLOCK // k)
-        for i in range(0, todo.size, step):
-            r = slice(i, i + step)
-            j[r], u[r], v[r], tt[r] = _moller_trumbore(x[todo[r]], n[todo[r]], v0, e1, e2,
-                                                       idx[r], tol)
-        hit = j >= 0
-        done = np.ones(todo.size, dtype=bool) if k == nt else (
-            hit & (dist[:, -1] > np.abs(np.where(hit, tt, 0.0)) + rmax))
-        sel = todo[done & hit]
-        tri[sel] = idx[done & hit, j[done & hit]]
-        b = np.clip(np.stack([1.0 - u - v, u, v], axis=1)[done & hit], 0.0, None)
-        bary[sel] = b / b.sum(axis=1, keepdims=True)
-        t[sel] = tt[done & hit]
-        todo, k = todo[~done], min(2 * k, nt)
-    return tri, bary, t
+    best = _Nearest(nq, x, n, v0, v1 - v0, v2 - v0, tol)
+    if nq and nt:
+        cen = (v0 + v1 + v2) / 3.0
+        rad = np.sqrt(np.max([((v - cen) ** 2).sum(axis=1) for v in (v0, v1, v2)], axis=0))
+        every = np.arange(nt)
+        left = _knn_search(best, x, cKDTree(cen), every, np.arange(nq), max(int(k0), 1), 256,
+                           None)
+        slack = rad * (1.0 + 1e-6) + 1e-12 * rad.max()
+        step = max(1, (4 * RAY_BLOCK) // nt)
+        for i in range(0, left.size, step):  # bounding spheres crossed by the line
+            p = left[i:i + step]
+            cr = np.cross(cen[None, :, :] - x[p, None, :], n[p, None, :])
+            a, b = np.nonzero(np.einsum("ijk,ijk->ij", cr, cr) <= slack[None, :] ** 2)
+            best.test(p[a], b)
+        found = np.flatnonzero(best.tri >= 0)
+        cls = np.floor(np.log2(rad / rad.min())).astype(np.int64)
+        for c in np.unique(cls):
+            ids = np.flatnonzero(cls == c)
+            _knn_search(best, x, cKDTree(cen[ids]), ids, found, 8, ids.size, rad[ids].max())
+    b = np.clip(np.stack([1.0 - best.u - best.v, best.u, best.v], axis=1), 0.0, None)
+    hit = best.tri >= 0
+    bary = np.where(hit[:, None], b / np.maximum(b.sum(axis=1, keepdims=True), 1e-300), 0.0)
+    return best.tri, bary, best.t
 
 
 @dataclass

@@ -290,3 +290,23 @@ def test_bad_layout_options_name_the_valid_values(field, value, match):
     kw[field] = value
     with pytest.raises(ValueError, match=match):
         SurfaceLayout(**kw)
+
+
+def test_ray_cast_finds_far_hits_beyond_the_nearest_centroids_and_reports_misses():
+    """Lines whose hit lies beyond the 256 nearest centroids (oblique lines over a plate
+    of 3200 triangles) get it from the bounding-sphere search, as trying every triangle
+    does; a line parallel to the plate hits nothing."""
+    m = grid(40, (0.0, 0.0), (1.0, 1.0), _flat(0.0), 1, [0.5, 0.5, -1.0])
+    v0, v1, v2 = m.vertices(MU)
+    rng = np.random.default_rng(7)
+    x = np.column_stack([rng.uniform(0.02, 0.1, (20, 2)), rng.uniform(0.05, 0.2, 20)])
+    target = np.column_stack([rng.uniform(0.8, 0.98, (20, 2)), np.zeros(20)])
+    d = target - x
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    x, d = np.vstack([x, [[0.5, 0.5, 0.1]]]), np.vstack([d, [[1.0, 0.0, 0.0]]])
+    tri, bary, t = ray_cast_triangles(x, d, v0, v1, v2)
+    tri_b, _, t_b = ray_cast_triangles(x, d, v0, v1, v2, k0=v0.shape[0])
+    assert np.array_equal(tri, tri_b) and tri[-1] == -1 and np.isnan(t[-1])
+    y = x[:-1] + t[:-1, None] * d[:-1]
+    assert np.allclose(y, target, atol=1e-12)
+    assert np.allclose(t[:-1], t_b[:-1], rtol=1e-13)
