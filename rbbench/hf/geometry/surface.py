@@ -191,19 +191,30 @@ def _moller_trumbore(x: np.ndarray, n: np.ndarray, v0: np.ndarray, e1: np.ndarra
 
 
 class _Nearest:
-    """The hit with the smallest ``|t|`` found so far for each line."""
+    """The hit with the smallest ``|t|`` found so far for each line; pairs whose line misses
+    the triangle's bounding sphere (centroid ``cen``, radius ``rad``) are skipped."""
 
-    def __init__(self, nq: int, x, n, v0, e1, e2, tol):
+    def __init__(self, x, n, v0, v1, v2, tol):
+        nq = x.shape[0]
         self.tri = np.full(nq, -1, dtype=np.int64)
         self.u, self.v, self.t = np.zeros(nq), np.zeros(nq), np.full(nq, np.nan)
         self.abs = np.full(nq, np.inf)
-        self.args = (x, n, v0, e1, e2)
+        self.args = (x, n, v0, v1 - v0, v2 - v0)
         self.tol = tol
+        self.cen = (v0 + v1 + v2) / 3.0
+        self.rad = np.sqrt(np.max([((v - self.cen) ** 2).sum(axis=1) for v in (v0, v1, v2)],
+                                  axis=0)) if v0.shape[0] else np.zeros(0)
+        self.slack = self.rad * (1.0 + 1e-6) + 1e-12 * (self.rad.max() if nq else 0.0)
+        self.unit = n / np.linalg.norm(n, axis=1, keepdims=True) if nq else n
 
     def test(self, pi: np.ndarray, ti: np.ndarray) -> None:
         """Intersect the pairs (line ``pi``, triangle ``ti``) in blocks; keep better hits."""
+        x = self.args[0]
         for i in range(0, pi.size, RAY_BLOCK):
             p, tr = pi[i:i + RAY_BLOCK], ti[i:i + RAY_BLOCK]
+            cr = np.cross(self.cen[tr] - x[p], self.unit[p])
+            near = np.einsum("ij,ij->i", cr, cr) <= self.slack[tr] ** 2
+            p, tr = p[near], tr[near]
             ok, u, v, t = _moller_trumbore(*self.args, p, tr, self.tol)
             idx = np.flatnonzero(ok)
             if idx.size == 0:
@@ -240,6 +251,32 @@ def _knn_search(best: _Nearest, x: np.ndarray, tree: cKDTree, ids: np.ndarray,
     return todo
 
 
+def _capsule_search(best: _Nearest, x: np.ndarray, n: np.ndarray, cen: np.ndarray,
+                    ids: np.ndarray, radius: float, lines: np.ndarray,
+                    reach: np.ndarray | None = None) -> None:
+    """Try, for each line of ``lines``, every triangle ``ids`` (centroids ``cen``, largest
+    centroid-to-vertex distance ``radius``) that can hold a hit at ``|t| <= reach``
+    (default: nearer than the line's best): the centroid lies within ``radius`` of the
+    segment ``x + s n``, ``|s| <= reach``. The
+    segment is sampled every ``radius``; the centroids within ``1.12 radius`` of a sample
+    (``sqrt(1 + 1/4)``: the balls cover the capsule) come from a k-d tree pair query
+    (duplicates are harmless)."""
+    if lines.size == 0:
+        return
+    reach = best.abs[lines] if reach is None else reach
+    m = np.ceil(2.0 * reach / radius).astype(np.int64) + 1
+    owner = np.repeat(lines, m)
+    first = np.repeat(np.cumsum(m) - m, m)
+    step = np.repeat(2.0 * reach / np.maximum(m - 1, 1), m)
+    s = np.repeat(-reach, m) + (np.arange(owner.size) - first) * step
+    samples = x[owner] + s[:, None] * n[owner]
+    pairs = cKDTree(samples).sparse_distance_matrix(
+        cKDTree(cen), 1.12 * radius * (1.0 + 1e-6), output_type="ndarray")
+    if pairs.size == 0:
+        return
+    best.test(owner[pairs["i"]], ids[pairs["j"]])
+
+
 def ray_cast_triangles(x: np.ndarray, n: np.ndarray, v0: np.ndarray, v1: np.ndarray,
                        v2: np.ndarray, tol: float = 1e-9, k0: int = 16
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -251,35 +288,38 @@ def ray_cast_triangles(x: np.ndarray, n: np.ndarray, v0: np.ndarray, v1: np.ndar
     the barycentric tolerance (a line through an edge hits).
 
     1. A first hit: the ``k`` triangles with the nearest centroids (k-d tree), ``k``
-       doubling from ``k0`` up to 256; lines still without a hit try every triangle whose
-       bounding sphere (centroid, largest centroid-to-vertex distance ``r_T``) they cross.
-    2. The nearest hit: a triangle holding a hit at ``|t|`` has its centroid within
-       ``|t| + r_T`` of the point. The triangles are grouped by ``r_T`` (classes of ratio
-       2, so a graded mesh's coarse triangles do not widen the search near its fine ones)
-       and, in each class, the nearest centroids are tried until the next one is farther
-       than ``|t_best| + max r_T`` of the class.
+       doubling from ``k0`` up to 32; lines still without a hit try the triangles near
+       the line within a reach that doubles until a hit or past the triangles' bounding
+       box (:func:`_capsule_search`). Only triangles whose bounding sphere (centroid,
+       largest centroid-to-vertex distance ``r_T``) the line crosses are intersected.
+    2. The nearest hit: a triangle holding a hit at ``|t| <= |t_best|`` has its centroid
+       within ``r_T`` of the segment ``x + s n``, ``|s| <= |t_best|``. The triangles are
+       grouped by ``r_T`` (classes of ratio 2, so a graded mesh's coarse triangles do not
+       widen the search near its fine ones) and, in each class, every triangle whose
+       centroid is that close to the segment is tried (:func:`_capsule_search`).
     """
     x, n = np.asarray(x, dtype=float), np.asarray(n, dtype=float)
     nq, nt = x.shape[0], v0.shape[0]
-    best = _Nearest(nq, x, n, v0, v1 - v0, v2 - v0, tol)
+    best = _Nearest(x, n, v0, v1, v2, tol)
     if nq and nt:
-        cen = (v0 + v1 + v2) / 3.0
-        rad = np.sqrt(np.max([((v - cen) ** 2).sum(axis=1) for v in (v0, v1, v2)], axis=0))
+        cen, rad = best.cen, best.rad
         every = np.arange(nt)
-        left = _knn_search(best, x, cKDTree(cen), every, np.arange(nq), max(int(k0), 1), 256,
+        left = _knn_search(best, x, cKDTree(cen), every, np.arange(nq), max(int(k0), 1), 32,
                            None)
-        slack = rad * (1.0 + 1e-6) + 1e-12 * rad.max()
-        step = max(1, (4 * RAY_BLOCK) // nt)
-        for i in range(0, left.size, step):  # bounding spheres crossed by the line
-            p = left[i:i + step]
-            cr = np.cross(cen[None, :, :] - x[p, None, :], n[p, None, :])
-            a, b = np.nonzero(np.einsum("ijk,ijk->ij", cr, cr) <= slack[None, :] ** 2)
-            best.test(p[a], b)
+        # lines without a hit among the 32 nearest: the capsule of reach R around the line,
+        # R doubling until a hit or R passes the master's bounding box
+        lo, hi = np.min([v0, v1, v2], axis=(0, 1)), np.max([v0, v1, v2], axis=(0, 1))
+        far = np.linalg.norm(x[left] - 0.5 * (lo + hi), axis=1) + 0.5 * np.linalg.norm(hi - lo)
+        reach = np.full(left.size, 4.0 * rad.max())
+        while left.size:
+            _capsule_search(best, x, n, cen, every, rad.max(), left, reach)
+            done = (best.tri[left] >= 0) | (reach >= far)
+            left, reach, far = left[~done], 2.0 * reach[~done], far[~done]
         found = np.flatnonzero(best.tri >= 0)
         cls = np.floor(np.log2(rad / rad.min())).astype(np.int64)
         for c in np.unique(cls):
             ids = np.flatnonzero(cls == c)
-            _knn_search(best, x, cKDTree(cen[ids]), ids, found, 8, ids.size, rad[ids].max())
+            _capsule_search(best, x, n, cen[ids], ids, rad[ids].max(), found)
     b = np.clip(np.stack([1.0 - best.u - best.v, best.u, best.v], axis=1), 0.0, None)
     hit = best.tri >= 0
     bary = np.where(hit[:, None], b / np.maximum(b.sum(axis=1, keepdims=True), 1e-300), 0.0)

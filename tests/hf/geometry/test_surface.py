@@ -293,8 +293,8 @@ def test_bad_layout_options_name_the_valid_values(field, value, match):
 
 
 def test_ray_cast_finds_far_hits_beyond_the_nearest_centroids_and_reports_misses():
-    """Lines whose hit lies beyond the 256 nearest centroids (oblique lines over a plate
-    of 3200 triangles) get it from the bounding-sphere search, as trying every triangle
+    """Lines whose hit lies far beyond the nearest centroids (oblique lines over a plate
+    of 3200 triangles) get it from the widening search along the line, as trying every triangle
     does; a line parallel to the plate hits nothing."""
     m = grid(40, (0.0, 0.0), (1.0, 1.0), _flat(0.0), 1, [0.5, 0.5, -1.0])
     v0, v1, v2 = m.vertices(MU)
