@@ -16,9 +16,10 @@ The 3D counterpart of :mod:`rbbench.hf.geometry.pairing`, with the same choices 
   ``inside`` point (convex bodies).
 * **Pairing**: the line through each slave point along its normal is cast onto the master
   triangles (Moller & Trumbore, "Fast, minimum storage ray-triangle intersection",
-  J. Graphics Tools 2 (1997) 21-28), the candidates coming from a k-d tree on the master
-  triangle centroids; of the hits, the one nearest the slave point is kept (the gap is the
-  signed line parameter, so a penetrating point has a negative gap).
+  J. Graphics Tools 2 (1997) 21-28), the candidates coming from k-d trees on the master
+  triangle centroids (:func:`ray_cast_triangles`); of the hits, the one nearest the slave
+  point is kept (the gap is the signed line parameter, so a penetrating point has a
+  negative gap).
 * **Jump**: ``Un`` row q is ``(u_1(x_q) - u_2(y_q)) . n_1(x_q)`` with the slave and master
   Lagrange bases at the point and at its hit ``y_q``; ``Un u <= gap`` is the constraint.
 """
@@ -105,8 +106,9 @@ class SurfaceLayout:
     ``master = None`` is the rigid plane ``z = 0`` (outward normal ``+z``). ``degree`` (1 or
     2) is the displacement degree on the surface triangles, ``quad_order`` the exact degree
     of the slave triangle rule, ``multiplier`` one of ``"p1"`` (continuous nodal hats on
-    slave vertices), ``"p0"`` (one per slave triangle), ``"lac"`` (P0 on patches of about
-    ``patch`` slave triangles, :func:`~rbbench.hf.geometry.surface_patches.lac_patches`).
+    slave vertices), ``"p0"`` (one per slave triangle), ``"lac"`` (P0 on patches, each the
+    star of a vertex, of at least ``ceil(patch / 2)`` slave triangles,
+    :func:`~rbbench.hf.geometry.surface_patches.lac_patches`).
     ``symmetry`` names the planes (``"x"``: ``x = 0``, ``"y"``: ``y = 0``) that cut the
     bodies; the weights are those of the part modelled.
     """

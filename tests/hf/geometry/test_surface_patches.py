@@ -21,7 +21,7 @@ def _wavy(x, y):
 
 @settings(max_examples=30, deadline=None)
 @given(st.integers(2, 12), st.integers(3, 12))
-def test_lac_patches_cover_connected_and_of_about_the_asked_size(size, n):
+def test_lac_patches_cover_hold_a_vertex_star_and_are_connected_and_round(size, n):
     s = grid(n, (0.0, 0.0), (1.0, 1.3), _wavy, 1, [0.5, 0.5, -1.0])
     tri = s.triangles
     cen = s.points[tri].mean(axis=1)
@@ -30,16 +30,16 @@ def test_lac_patches_cover_connected_and_of_about_the_asked_size(size, n):
     assert np.array_equal(np.unique(lab), np.arange(lab.max() + 1))
     adj = triangle_adjacency(tri)
     counts = np.bincount(lab)
-    if tri.shape[0] >= size:
-        assert counts.min() >= int(np.ceil(size / 2))
-    assert counts.max() <= 2 * size
+    assert counts.min() >= int(np.ceil(size / 2))
+    h = np.hypot(1.0 / n, 1.3 / n)
     for p in range(lab.max() + 1):
         idx = np.flatnonzero(lab == p)
         assert connected_components(adj[idx][:, idx], directed=False)[0] == 1
-    # shape regularity on this uniform grid: diameter of order sqrt(size) h
-    h = np.hypot(1.0 / n, 1.3 / n)
-    for p in range(lab.max() + 1):
-        pts = s.points[np.unique(tri[lab == p])]
+        # some vertex has its whole star in the patch (an interior vertex of the patch)
+        verts = np.unique(tri[idx])
+        assert any(np.all(lab[np.any(tri == v, axis=1)] == p) for v in verts)
+        # round: diameter of order sqrt(triangles) h on this uniform grid
+        pts = s.points[verts]
         diam = np.max(np.linalg.norm(pts[:, None] - pts[None], axis=2))
         assert diam <= 2.5 * np.sqrt(counts[p]) * h
 
@@ -79,12 +79,14 @@ def _l2_inf_sup(n: int, degree: int, multiplier: str, patch: int) -> float:
     return float(np.sqrt(max(ev.min(), 0.0)))
 
 
-@pytest.mark.parametrize("patch", [4, 6])
-def test_lac_with_p2_displacements_is_inf_sup_stable_under_refinement(patch):
-    """LAC (P0 on patches) with P2 displacements: the L2 inf-sup constant stays put under
-    refinement (0.89 -> 0.87 -> 0.86 for patch 4 at n = 4, 8, 16)."""
-    b = [_l2_inf_sup(n, 2, "lac", patch) for n in (4, 8, 16)]
-    assert min(b) > 0.8, b
+@pytest.mark.parametrize(("degree", "patch", "floor"), [(1, 2, 0.75), (1, 6, 0.75),
+                                                        (2, 2, 0.85), (2, 6, 0.85)])
+def test_lac_is_inf_sup_stable_under_refinement(degree, patch, floor):
+    """LAC (P0 on vertex-star patches) with P1 or P2 displacements: the L2 inf-sup constant
+    stays put under refinement (P1: 0.80, 0.79, 0.78; P2: 0.91 at n = 4, 8, 16), where P0
+    per triangle loses it (below)."""
+    b = [_l2_inf_sup(n, degree, "lac", patch) for n in (4, 8, 16)]
+    assert min(b) > floor, b
     assert b[2] > 0.97 * b[1], b
 
 
