@@ -39,7 +39,7 @@ from rbbench.hf.geometry.surface_rules import RULE_DEGREES, triangle_rule, trian
 from rbbench.interfaces import ContactOperators
 
 __all__ = ["SurfaceLayout", "SurfacePairing", "TriSurface", "contact_operators_3d",
-           "pair_surfaces", "ray_cast_triangles", "surface_rows"]
+           "operators_from_pairing", "pair_surfaces", "ray_cast_triangles", "surface_rows"]
 
 #: (point, triangle) pairs per block of :func:`ray_cast_triangles` (bounds its work arrays)
 RAY_BLOCK = 1 << 15
@@ -415,7 +415,12 @@ def contact_operators_3d(layout: SurfaceLayout, mu: np.ndarray) -> ContactOperat
     weighted centroid of each multiplier's support) and ``mult_extent`` (n_mult, 2): the
     radial extent ``[r_min, r_max]``, ``r = sqrt(x^2 + y^2)``, of each multiplier's
     support (the slave triangles where it is nonzero)."""
-    p = pair_surfaces(layout, mu)
+    return operators_from_pairing(layout, pair_surfaces(layout, mu), mu)
+
+
+def operators_from_pairing(layout: SurfaceLayout, p: SurfacePairing, mu: np.ndarray
+                           ) -> ContactOperators:
+    """:func:`contact_operators_3d` from the pairing ``p`` of all slave points at mu."""
     Mlam = _multiplier_matrix(layout, p)
     mw = np.asarray(Mlam.T @ p.w).ravel()
     mpts = np.asarray(Mlam.T @ (p.w[:, None] * p.x)) / mw[:, None]
