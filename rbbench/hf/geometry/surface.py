@@ -361,12 +361,14 @@ class SurfacePairing:
                              shape=(nq, layout.n_dofs))
 
 
-def pair_surfaces(layout: SurfaceLayout, mu: np.ndarray, rows: np.ndarray | None = None
-                  ) -> SurfacePairing:
+def pair_surfaces(layout: SurfaceLayout, mu: np.ndarray, rows: np.ndarray | None = None,
+                  master_tris: np.ndarray | None = None) -> SurfacePairing:
     """The slave quadrature points at mu (all, or the points ``rows``, numbered triangle by
     triangle: point ``q`` is rule point ``q % n_g`` of slave triangle ``q // n_g``) and their
-    hits on the master (module docstring). Raises :class:`PairingError` with the number of
-    misses and an example point when a line hits no master triangle."""
+    hits on the master (module docstring), among the master triangles ``master_tris``
+    (default: all; a hyper-reduced evaluation passes the few its rows can hit). Raises
+    :class:`PairingError` with the number of misses and an example point when a line hits
+    no master triangle."""
     bary_g, w_g = triangle_rule(layout.quad_order)
     ng = w_g.size
     if rows is None:
@@ -390,9 +392,11 @@ def pair_surfaces(layout: SurfaceLayout, mu: np.ndarray, rows: np.ndarray | None
             gap = -x[:, 2] / nrm[:, 2]
         miss = ~np.isfinite(gap) | (np.abs(nrm[:, 2]) < 1e-12)
     else:
-        m0, m1, m2 = layout.master.vertices(mu)
-        mtri, mbary, gap = ray_cast_triangles(x, nrm, m0, m1, m2)
+        keep = (np.arange(layout.master.n_tri) if master_tris is None
+                else np.asarray(master_tris, dtype=np.int64))
+        mtri, mbary, gap = ray_cast_triangles(x, nrm, *layout.master.vertices(mu, keep))
         miss = mtri < 0
+        mtri = np.where(miss, -1, keep[np.maximum(mtri, 0)])
     if np.any(miss):
         raise PairingError(int(miss.sum()), x[miss][0])
     return SurfacePairing(x=x, nrm=nrm, w=w, tq=tq, bary=b, gap=gap, mtri=mtri, mbary=mbary)
@@ -435,9 +439,11 @@ def operators_from_pairing(layout: SurfaceLayout, p: SurfacePairing, mu: np.ndar
                             mult_points=mpts, mult_extent=ext)
 
 
-def surface_rows(layout: SurfaceLayout, mu: np.ndarray, rows: np.ndarray
-                 ) -> tuple[sp.csr_matrix, np.ndarray]:
+def surface_rows(layout: SurfaceLayout, mu: np.ndarray, rows: np.ndarray,
+                 master_tris: np.ndarray | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
     """``(Un[rows], gap[rows])`` at mu, pairing only the slave points ``rows`` (numbered as
-    in :func:`pair_surfaces`): the rows a hyper-reduced (EIM) evaluation needs."""
-    p = pair_surfaces(layout, mu, rows)
+    in :func:`pair_surfaces`) with the master triangles ``master_tris`` (default: all): the
+    rows a hyper-reduced (EIM) evaluation needs. With a subset, the result equals the full
+    rows' when the subset holds every triangle the full pairing hits and none nearer."""
+    p = pair_surfaces(layout, mu, rows, master_tris)
     return p.jump(layout), p.gap

@@ -253,6 +253,13 @@ def test_rows_evaluate_like_the_full_operators():
     assert (Un - full.Un[rows]).count_nonzero() == 0
     with pytest.raises(ValueError, match="rows must lie in"):
         surface_rows(lay, MU, np.array([lay.n_quad]))
+    # against the master triangles the rows hit (and their edge neighbours) only
+    hit = pair_surfaces(lay, MU, rows).mtri
+    near = np.flatnonzero(np.isin(m.triangles[:, :3], m.triangles[hit, :3]).sum(axis=1) >= 2)
+    Un_w, gap_w = surface_rows(lay, MU, rows, master_tris=near)
+    assert np.array_equal(gap_w, gap) and (Un_w - Un).count_nonzero() == 0
+    with pytest.raises(PairingError):
+        surface_rows(lay, MU, rows, master_tris=np.setdiff1d(near, hit[:1]))
 
 
 @settings(max_examples=30, deadline=None)
