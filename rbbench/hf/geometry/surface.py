@@ -39,7 +39,8 @@ from rbbench.hf.geometry.surface_rules import RULE_DEGREES, triangle_rule, trian
 from rbbench.interfaces import ContactOperators
 
 __all__ = ["SurfaceLayout", "SurfacePairing", "TriSurface", "contact_operators_3d",
-           "operators_from_pairing", "pair_surfaces", "ray_cast_triangles", "surface_rows"]
+           "operators_from_pairing", "pair_surfaces", "ray_cast_triangles", "surface_rows",
+           "tangent_frames", "tangential_jumps"]
 
 #: (point, triangle) pairs per block of :func:`ray_cast_triangles` (bounds its work arrays)
 RAY_BLOCK = 1 << 15
@@ -447,3 +448,23 @@ def surface_rows(layout: SurfaceLayout, mu: np.ndarray, rows: np.ndarray,
     rows' when the subset holds every triangle the full pairing hits and none nearer."""
     p = pair_surfaces(layout, mu, rows, master_tris)
     return p.jump(layout), p.gap
+
+
+def tangent_frames(nrm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit tangents ``(t1, t2)`` (each (n, 3)) of unit normals ``nrm``: ``t1`` the
+    projection of ``e_x`` on the tangent plane, normalised (``e_y`` where ``n`` is within
+    1e-6 rad of ``+-e_x``), ``t2 = n x t1``, so ``(t1, t2, n)`` is right-handed. The frame
+    depends continuously on ``n`` away from ``+-e_x``, so it does not flip between
+    parameter values for contact normals near ``+-e_z`` (the later 3D friction)."""
+    e = np.where((1.0 - np.abs(nrm[:, :1]) < 5e-13), [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    t1 = e - np.einsum("ij,ij->i", e, nrm)[:, None] * nrm
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return t1, np.cross(nrm, t1)
+
+
+def tangential_jumps(layout: SurfaceLayout, p: SurfacePairing
+                     ) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """``(Ut1, Ut2)`` (each n_q x n_dofs): ``(u_1(x_q) - u_2(y_q)) . t_k`` along the frame
+    of :func:`tangent_frames` at the points of ``p``."""
+    t1, t2 = tangent_frames(p.nrm)
+    return p.jump(layout, t1), p.jump(layout, t2)

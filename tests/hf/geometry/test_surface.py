@@ -20,6 +20,8 @@ from rbbench.hf.geometry.surface import (
     pair_surfaces,
     ray_cast_triangles,
     surface_rows,
+    tangent_frames,
+    tangential_jumps,
 )
 
 MU = np.array([1.0])
@@ -317,3 +319,28 @@ def test_ray_cast_finds_far_hits_beyond_the_nearest_centroids_and_reports_misses
     y = x[:-1] + t[:-1, None] * d[:-1]
     assert np.allclose(y, target, atol=1e-12)
     assert np.allclose(t[:-1], t_b[:-1], rtol=1e-13)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3))
+def test_tangent_frames_are_right_handed_orthonormal(v):
+    n = np.asarray(v) if np.linalg.norm(v) > 1e-3 else np.array([0.0, 0.0, -1.0])
+    n = np.vstack([n / np.linalg.norm(n), [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    t1, t2 = tangent_frames(n)
+    F = np.stack([t1, t2, n], axis=1)  # rows t1, t2, n per point
+    assert np.allclose(F @ np.swapaxes(F, 1, 2), np.eye(3), atol=1e-12)
+    assert np.allclose(np.linalg.det(F), 1.0)
+    assert np.allclose(t1[2], [1.0, 0.0, 0.0]) and np.allclose(t2[2], [0.0, -1.0, 0.0])
+
+
+def test_tangential_jumps_of_a_translation():
+    s, m = _plates(0.01, 2)
+    lay = _layout(s, m, 2)
+    p = pair_surfaces(lay, MU)
+    vs, vm = np.array([0.3, -0.7, 0.2]), np.array([-0.1, 0.4, 0.9])
+    u = np.zeros(lay.n_dofs)
+    u[s.dofs] = vs
+    u[m.dofs] = vm
+    Ut1, Ut2 = tangential_jumps(lay, p)
+    assert np.allclose(Ut1 @ u, 0.4, rtol=1e-13)   # t1 = e_x on n = -e_z
+    assert np.allclose(Ut2 @ u, 1.1, rtol=1e-13)   # t2 = n x t1 = -e_y
