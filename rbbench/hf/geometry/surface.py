@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
+from scipy import spatial
 
 from rbbench.hf.geometry.chains import AffineMap
 from rbbench.hf.geometry.pairing import PairingError
@@ -230,7 +230,7 @@ class _Nearest:
             self.abs[q] = np.abs(t[idx])
 
 
-def _knn_search(best: _Nearest, x: np.ndarray, tree: cKDTree, ids: np.ndarray,
+def _knn_search(best: _Nearest, x: np.ndarray, tree: spatial.cKDTree, ids: np.ndarray,
                 todo: np.ndarray, k: int, k_max: int, radius: float | None) -> np.ndarray:
     """Try the ``k`` nearest triangles ``ids`` (by centroid, ``tree``) of the lines
     ``todo``, ``k`` doubling up to ``k_max``, until a line has a hit (``radius`` None) or
@@ -273,8 +273,8 @@ def _capsule_search(best: _Nearest, x: np.ndarray, n: np.ndarray, cen: np.ndarra
     step = np.repeat(2.0 * reach / np.maximum(m - 1, 1), m)
     s = np.repeat(-reach, m) + (np.arange(owner.size) - first) * step
     samples = x[owner] + s[:, None] * n[owner]
-    pairs = cKDTree(samples).sparse_distance_matrix(
-        cKDTree(cen), 1.12 * radius * (1.0 + 1e-6), output_type="ndarray")
+    pairs = spatial.cKDTree(samples).sparse_distance_matrix(
+        spatial.cKDTree(cen), 1.12 * radius * (1.0 + 1e-6), output_type="ndarray")
     if pairs.size == 0:
         return
     best.test(owner[pairs["i"]], ids[pairs["j"]])
@@ -307,8 +307,8 @@ def ray_cast_triangles(x: np.ndarray, n: np.ndarray, v0: np.ndarray, v1: np.ndar
     if nq and nt:
         cen, rad = best.cen, best.rad
         every = np.arange(nt)
-        left = _knn_search(best, x, cKDTree(cen), every, np.arange(nq), max(int(k0), 1), 32,
-                           None)
+        left = _knn_search(best, x, spatial.cKDTree(cen), every, np.arange(nq),
+                           max(int(k0), 1), 32, None)
         # lines without a hit among the 32 nearest: the capsule of reach R around the line,
         # R doubling until a hit or R passes the master's bounding box
         lo, hi = np.min([v0, v1, v2], axis=(0, 1)), np.max([v0, v1, v2], axis=(0, 1))

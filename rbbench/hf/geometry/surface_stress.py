@@ -77,11 +77,11 @@ def tet_gradients(tets: np.ndarray, x: np.ndarray, degree: int) -> np.ndarray:
 def normal_stress_3d(layout: SurfaceLayout, solid: SlaveSolid, mu: np.ndarray,
                      pairing: SurfacePairing | None = None) -> sp.csr_matrix:
     """``Snn`` (n_q x n_dofs): ``sigma_nn(u)(x_q)`` of the slave body at the points of
-    ``pairing`` (default: all, :func:`pair_surfaces`). With ``g = grad phi_k / s(mu)``
-    (a similarity map scales gradients by ``1/s``)::
+    ``pairing`` (default: all, :func:`pair_surfaces`).
 
-        sigma_nn = lambda div u + 2 mu_L (n . grad u n)
-        coefficient of u_k,d = lambda g_d + 2 mu_L n_d (n . g)
+    ``sigma_nn = lambda div u + 2 mu_L (n . grad u n)``: the coefficient of component
+    ``d`` of node ``k`` is ``lambda g_d + 2 mu_L n_d (n . g)`` with
+    ``g = grad phi_k / s(mu)`` (a similarity map scales gradients by ``1/s``).
     """
     p = pair_surfaces(layout, mu) if pairing is None else pairing
     s, c = layout.slave.map.at(mu)
