@@ -47,16 +47,17 @@ def test_volume_deficit_falls_under_refinement():
 
 
 def test_graded_toward_the_pole():
-    """Netgen's maxh is a target, not a bound: the median edge near the pole stays within
-    1.3 h_contact (1.21 measured at h_contact = 0.08), the far edges are longer."""
+    """Netgen's maxh is a target, not a bound: the median edge near the pole is
+    1.21 / 1.32 / 1.27 h_contact at h_contact = 0.08 / 0.05 / 0.03 (measured), so 1.5 here;
+    the median edge far from the pole is 5 to 10 times longer (4 asserted)."""
     m = quarter_hemisphere(*FINER)
     t = m.tets
     edge = np.linalg.norm(m.points[t[:, 0]] - m.points[t[:, 1]], axis=1)
     dist = np.linalg.norm(m.points[t].mean(axis=1) - [0.0, 0.0, -1.0], axis=1)
     near = dist < 0.5 * cap_chord(FINER[0])
     assert near.sum() > 10
-    assert np.median(edge[near]) <= 1.3 * FINER[1]
-    assert np.median(edge[dist > 0.8]) > 2.0 * np.median(edge[near])
+    assert np.median(edge[near]) <= 1.5 * FINER[1]
+    assert np.median(edge[dist > 0.8]) > 4.0 * np.median(edge[near])
 
 
 def test_mirror_keeps_orientation_and_volume():
