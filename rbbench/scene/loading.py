@@ -28,10 +28,10 @@ from rbbench.scene.limits import tomllib  # noqa: F401 - the TOML reader (tomli 
 from rbbench.scene.parameters import ParameterSpace, SceneError  # noqa: F401 - SceneError lives here
 from rbbench.scene.schema import (
     _ELASTIC,
-    HALFDISK_ONLY,
-    HEMISPHERE_DEFAULTS,
     _KIND_REQUIRES,
     _PARAM_FIELDS,
+    HALFDISK_ONLY,
+    HEMISPHERE_DEFAULTS,
     SCHEMA,
     Parameter,
     _check_value,

@@ -184,7 +184,7 @@ _KIND_REQUIRES = {
 
 #: Defaults of the ``hemispheres`` keys that the other kinds do not have (filled by
 #: the kind's check, so the cache keys of the other kinds' scenes do not change).
-HEMISPHERE_DEFAULTS = {"contact_cap": 0.1, "master_cap": 0.15}
+HEMISPHERE_DEFAULTS = {"contact_cap": 0.1, "master_cap": 0.2}
 
 #: The geometry keys of the other kinds that a ``hemispheres`` scene does not read.
 HALFDISK_ONLY = ("contact_zone", "master_zone")

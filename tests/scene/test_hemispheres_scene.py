@@ -35,7 +35,7 @@ def test_hertz_sphere_loads_with_its_keys():
     s = load_scene("hertz_sphere")
     g = s.data["geometry"]
     assert g["kind"] == "hemispheres" and g["symmetry"] == "quarter"
-    assert g["contact_cap"] == 0.1 and g["master_cap"] == 0.15
+    assert g["contact_cap"] == 0.1 and g["master_cap"] == 0.2
     # the half-disk arcs are not part of a hemispheres scene (nor of its cache key)
     assert "contact_zone" not in g and "master_zone" not in g
     assert s.value("geometry", "upper_radius", [0.8]) == 0.8
@@ -56,7 +56,7 @@ def test_cap_defaults_are_filled(tmp_path):
     text = "\n".join(line for line in text.splitlines()
                      if not line.startswith(("contact_cap", "master_cap")))
     g = load_scene(_write(tmp_path, text)).data["geometry"]
-    assert (g["contact_cap"], g["master_cap"]) == (0.1, 0.15)
+    assert (g["contact_cap"], g["master_cap"]) == (0.1, 0.2)
 
 
 @pytest.mark.parametrize("edit, fragments", [

@@ -30,6 +30,7 @@ from rbbench.hf.geometry.surface import SurfaceLayout
 from rbbench.interfaces import BodyMesh, Discretization
 from rbbench.scene.loading import Scene
 
+
 @BilinearForm
 def _vector_h1(u, v, w):
     return (u * v).sum(axis=0) + (u.grad * v.grad).sum(axis=(0, 1))
