@@ -27,3 +27,4 @@ def test_3d_scene_takes_skfem_mixed_and_2d_scenes_are_unchanged():
     assert check_names(load_scene("hertz_sphere"), reg, "skfem", "mixed", None)
     for backend in ("skfem", "ngsolve"):
         assert check_names(load_scene("hertz_halfdisks"), reg, backend, "nitsche", None)
+
