@@ -10,12 +10,17 @@ Netgen rather than gmsh: it is already a dependency (the NGSolve backend), so bo
 backends can share one mesh, and its per-solid ``maxh`` grades the mesh as needed.
 
 Arrays only (no FEM library): points (n, 3), tetrahedra (m, 4), positively oriented.
+Meshes are also kept on disk (:func:`mesh_cache_dir`, one ``.npz`` per size set and Netgen
+version), so a level is meshed once per machine, not once per process.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -49,6 +54,39 @@ def cap_chord(cap: float) -> float:
     return 2.0 * float(np.sin(0.5 * np.pi * cap))
 
 
+#: Bump when the meshing changes: older cached meshes are then ignored.
+MESH_FORMAT = 1
+
+
+def mesh_cache_dir() -> Path | None:
+    """``$RBBENCH_MESH_CACHE`` (``"0"``: no disk cache), else
+    ``$XDG_CACHE_HOME/rbbench/meshes``, else ``~/.cache/rbbench/meshes``."""
+    env = os.environ.get("RBBENCH_MESH_CACHE")
+    if env == "0":
+        return None
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "rbbench" / "meshes"
+
+
+def _cache_file(cap: float, h_contact: float, h_max: float, grading: float) -> Path | None:
+    root = mesh_cache_dir()
+    if root is None:
+        return None
+    import netgen
+
+    key = repr((MESH_FORMAT, netgen.__version__, float(cap), float(h_contact), float(h_max),
+                float(grading)))
+    return root / f"quarter_hemisphere_{hashlib.sha256(key.encode()).hexdigest()[:16]}.npz"
+
+
+def _frozen(points: np.ndarray, tets: np.ndarray) -> TetMesh:
+    points.flags.writeable = False
+    tets.flags.writeable = False
+    return TetMesh(points, tets)
+
+
 @functools.lru_cache(maxsize=8)
 def quarter_hemisphere(cap: float, h_contact: float, h_max: float,
                        grading: float = 0.3) -> TetMesh:
@@ -67,9 +105,31 @@ def quarter_hemisphere(cap: float, h_contact: float, h_max: float,
     Returns
     -------
     TetMesh
-        Cached per argument set (meshing takes seconds to minutes); the arrays are
-        read-only.
+        Cached per argument set, in the process and on disk (:func:`mesh_cache_dir`;
+        meshing takes seconds to minutes); the arrays are read-only.
     """
+    path = _cache_file(cap, h_contact, h_max, grading)
+    if path is not None and path.exists():
+        try:
+            with np.load(path) as f:
+                return _frozen(f["points"], f["tets"])
+        except (OSError, ValueError, KeyError):
+            pass  # unreadable: mesh again and overwrite
+    mesh = _netgen_quarter_hemisphere(cap, h_contact, h_max, grading)
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+            np.savez(tmp, points=mesh.points, tets=mesh.tets)
+            os.replace(tmp, path)  # atomic: concurrent processes never read half a file
+        except OSError:
+            pass  # a read-only cache: the mesh stays in this process only
+    return mesh
+
+
+def _netgen_quarter_hemisphere(cap: float, h_contact: float, h_max: float,
+                               grading: float) -> TetMesh:
+    """Mesh the body with Netgen (see :func:`quarter_hemisphere`)."""
     from netgen.occ import Box, Glue, OCCGeometry, Pnt, Sphere
 
     body = Sphere(Pnt(0, 0, 0), 1.0) * Box(Pnt(0, 0, -1.5), Pnt(1.5, 1.5, 0))
@@ -91,9 +151,7 @@ def quarter_hemisphere(cap: float, h_contact: float, h_max: float,
         raise RuntimeError("netgen: degenerate tetrahedra in the hemisphere mesh")
     neg = vol < 0
     tets[neg] = tets[neg][:, [0, 2, 1, 3]]
-    points.flags.writeable = False
-    tets.flags.writeable = False
-    return TetMesh(points, tets)
+    return _frozen(points, tets)
 
 
 def mirror_z(mesh: TetMesh) -> TetMesh:

@@ -66,3 +66,24 @@ def test_mirror_keeps_orientation_and_volume():
     assert np.all(signed_volumes(up.points, up.tets) > 0)
     assert up.volume == pytest.approx(m.volume, rel=1e-14)
     assert up.points[:, 2].max() == pytest.approx(1.0, abs=1e-9)
+
+
+def test_disk_cache_returns_the_same_mesh(tmp_path, monkeypatch):
+    import rbbench_plugins.backends.hemisphere_mesh as hm
+
+    monkeypatch.setenv("RBBENCH_MESH_CACHE", str(tmp_path))
+    sizes = (0.1, 0.09, 0.45, 0.3)
+    hm.quarter_hemisphere.cache_clear()
+    first = hm.quarter_hemisphere(*sizes)
+    (cached,) = tmp_path.glob("quarter_hemisphere_*.npz")
+    hm.quarter_hemisphere.cache_clear()
+    calls = []
+    monkeypatch.setattr(hm, "_netgen_quarter_hemisphere", lambda *a: calls.append(a))
+    again = hm.quarter_hemisphere(*sizes)
+    assert not calls  # read from disk, not meshed
+    np.testing.assert_array_equal(again.points, first.points)
+    np.testing.assert_array_equal(again.tets, first.tets)
+    assert not again.points.flags.writeable
+    hm.quarter_hemisphere.cache_clear()
+    monkeypatch.setenv("RBBENCH_MESH_CACHE", "0")
+    assert hm.mesh_cache_dir() is None and cached.exists()
