@@ -19,14 +19,19 @@ Every body is meshed once on the unit quarter hemisphere
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
+from rbbench_plugins.backends.hemisphere_mesh import quarter_hemisphere
 
 from rbbench.hf.geometry.chains import AffineMap
 from rbbench.hf.geometry.pairing import PairingError
 from rbbench.hf.geometry.surface import SurfaceLayout, TriSurface, contact_operators_3d
-from rbbench.interfaces import ContactOperators
+from rbbench.interfaces import BodyMesh, ContactOperators, Discretization
 from rbbench.scene.loading import Scene, SceneError
 
 #: The symmetry planes of ``[geometry] symmetry`` (names of :class:`SurfaceLayout`).
@@ -154,6 +159,13 @@ def surface_contact(scene: Scene, layout: SurfaceLayout, mu: np.ndarray) -> Cont
             f"{scene.data['geometry']['master_cap']} (polar angle / pi); widen it") from None
 
 
+def node_groups(points: np.ndarray) -> dict[str, np.ndarray]:
+    """Masks of the nodes on the flat face ``z = 0`` and the symmetry planes ``x = 0``,
+    ``y = 0`` (exact zeros: the mesh snaps its planes)."""
+    return {"sym_x": points[:, 0] == 0.0, "sym_y": points[:, 1] == 0.0,
+            "flat": points[:, 2] == 0.0}
+
+
 def dirichlet_data(groups: dict[str, np.ndarray], upper: bool) -> dict[str, np.ndarray]:
     """Which nodes of a body carry which Dirichlet condition.
 
@@ -180,3 +192,113 @@ def dirichlet_data(groups: dict[str, np.ndarray], upper: bool) -> dict[str, np.n
     if upper:
         moving[flat, 2] = True
     return {"fixed": fixed, "moving": moving}
+
+
+class HemisphereModel:
+    """The reference bodies, their stiffness terms, Dirichlet data and contact layout of a
+    ``hemispheres`` scene; :meth:`discretize` gives the operators at mu.
+
+    ``make_body(spec, mesh, degree, offset)`` builds one body in a backend's numbering: it
+    has ``name``, ``spec``, ``offset``, ``ndofs``, ``node_points`` (n, 3) and
+    ``node_dofs`` (n, 3) (vertices, then P2 edge nodes), ``surface_triangles()``,
+    ``node_groups()``, ``lame_terms()`` and ``h1()`` (local matrices) and ``vertices``.
+    With the same mesh, two backends give the same operators up to dof numbering."""
+
+    def __init__(self, scene: Scene, degree: int, h_contact: float, h_max: float,
+                 grading: float, make_body: Callable[..., Any]):
+        self.scene, self.degree = scene, degree
+        mesh = quarter_hemisphere(mesh_cap(scene), h_contact, h_max, grading)
+        self.bodies: list[Any] = []
+        offset = 0
+        for spec in hemisphere_bodies(scene):
+            body = make_body(spec, mesh, degree, offset)
+            self.bodies.append(body)
+            offset += body.ndofs
+        self.ndofs = offset
+        self.maps = hemisphere_maps(scene)
+        fixed, moving = [], []
+        for body in self.bodies:
+            d = dirichlet_data(body.node_groups(), body.name == "upper")
+            fixed.append(body.node_dofs[d["fixed"]])
+            moving.append(body.node_dofs[d["moving"]])
+        self.dirichlet = np.concatenate(fixed)
+        self.moving = np.isin(self.dirichlet, np.concatenate(moving))
+        self._k_ref: list[tuple[sp.csr_matrix, sp.csr_matrix]] | None = None
+        self._layout: SurfaceLayout | None = None
+
+    # -------------------------------------------------------------- stiffness
+    def _global(self, body: Any, k: sp.spmatrix) -> sp.csr_matrix:
+        k = k.tocoo()
+        return sp.csr_matrix((k.data, (k.row + body.offset, k.col + body.offset)),
+                             shape=(self.ndofs, self.ndofs))
+
+    def reference_stiffness(self) -> list[tuple[sp.csr_matrix, sp.csr_matrix]]:
+        """``[(K_div, K_eps) per body]`` on the unit reference body, in global numbering
+        (the terms of lambda and of the shear modulus), assembled once."""
+        if self._k_ref is None:
+            self._k_ref = [tuple(self._global(b, k) for k in b.lame_terms())
+                           for b in self.bodies]
+        return self._k_ref
+
+    def lame(self, mu) -> list[tuple[float, float]]:
+        """``(lambda, mu)`` of each body at mu (3D)."""
+        out = []
+        for b in self.bodies:
+            E, nu = self.scene.material(b.name, mu)
+            out.append((E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))))
+        return out
+
+    def stiffness(self, mu) -> sp.csr_matrix:
+        """``A(mu) = sum_b s_b(mu) (lambda_b K_div,b + mu_b K_eps,b)`` (the 3D similarity
+        scaling; equal to the assembly on the mapped mesh up to round-off)."""
+        A = sp.csr_matrix((self.ndofs, self.ndofs))
+        for body, (k_div, k_eps), (lam, mu_l) in zip(self.bodies, self.reference_stiffness(),
+                                                     self.lame(mu), strict=True):
+            s = self.maps[body.name].at(mu)[0]
+            A = A + s * (lam * k_div + mu_l * k_eps)
+        return A.tocsr()
+
+    def inner_product(self, which: str) -> sp.csr_matrix:
+        """The energy product at the scene's default mu, or the vector H1 product of the
+        reference bodies (``[discretization] inner_product``)."""
+        if which == "energy":
+            return self.stiffness(self.scene.default_mu)
+        return sp.block_diag([b.h1() for b in self.bodies]).tocsr()
+
+    # ---------------------------------------------------------------- contact
+    def contact_layout(self) -> SurfaceLayout:
+        """The slave cap of the upper body and the master cap of the lower one (or the
+        rigid plane), built once."""
+        if self._layout is None:
+            surfaces = []
+            for body in self.bodies:
+                tri, curved = body.surface_triangles()
+                cap = cap_triangles(body.node_points, tri, curved, body.spec)
+                surfaces.append(tri_surface(body.node_points, tri[cap], body.node_dofs,
+                                               body.spec, self.maps[body.name]))
+            master = surfaces[1] if len(surfaces) > 1 else None
+            self._layout = surface_layout(self.scene, surfaces[0], master, self.degree,
+                                             self.ndofs)
+        return self._layout
+
+    def discretize(self, mu, backend: str, inner_product: sp.csr_matrix) -> Discretization:
+        """The operators at mu (frictionless: no tangential or stress operators yet)."""
+        t0 = time.perf_counter()
+        A = self.stiffness(mu)
+        t_asm = time.perf_counter() - t0
+        d = float(self.scene.value("load", "displacement", mu))
+        values = np.where(self.moving, -d, 0.0)
+        contact = surface_contact(self.scene, self.contact_layout(), mu)
+        bodies = []
+        for body in self.bodies:
+            E, nu = self.scene.material(body.name, mu)
+            points, tets, vertex_dofs = body.vertices
+            bodies.append(BodyMesh(body.name, self.maps[body.name](mu, points),
+                                   np.array(tets), np.array(vertex_dofs), E, nu))
+        info = {"geometry": hemisphere_geometry(self.scene, self.maps, mu),
+                "t_assemble_s": t_asm, "n_facets_slave": self.contact_layout().slave.n_tri,
+                "degree": self.degree, "backend": backend}
+        return Discretization(mu=mu, A=A, F=np.zeros(self.ndofs),
+                              dirichlet_dofs=self.dirichlet, dirichlet_values=values,
+                              X=inner_product, contact=contact, bodies=bodies,
+                              physics="elasticity", info=info)

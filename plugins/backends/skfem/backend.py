@@ -6,7 +6,7 @@ so dof counts do not depend on mu while ``B(mu)`` and the gap do.
 
 Scenes: ``halfdisks`` (plane-strain elasticity, two half-disks or a half-disk
 on a rigid flat), ``hemispheres`` (3D elasticity, handed to
-:class:`~rbbench_plugins.backends.skfem.hemispheres.HemisphereModel`) and ``unit_square``
+:func:`~rbbench_plugins.backends.skfem.hemispheres.skfem_hemisphere_model`) and ``unit_square``
 (scalar membrane obstacle problem).
 """
 
@@ -17,7 +17,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 from rbbench_plugins.backends import common
-from rbbench_plugins.backends.skfem.hemispheres import HemisphereModel
+from rbbench_plugins.backends.skfem.hemispheres import skfem_hemisphere_model
 from rbbench_plugins.backends.skfem.meshes import graded_half_disk, unit_square
 from skfem import (
     Basis,
@@ -116,7 +116,7 @@ class SkfemBackend(common.HalfDiskContact, Backend):
         if self.kind == "halfdisks":
             self._init_halfdisks()
         elif self.kind == "hemispheres":
-            self._hemi = HemisphereModel(scene, self.degree, self.h_contact, self.h_max,
+            self._hemi = skfem_hemisphere_model(scene, self.degree, self.h_contact, self.h_max,
                                          self.grading)
             self.ndofs = self._hemi.ndofs
         else:

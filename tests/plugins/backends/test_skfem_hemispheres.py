@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from rbbench_plugins.backends.skfem.hemispheres import HemisphereModel
+from rbbench_plugins.backends.skfem.hemispheres import skfem_hemisphere_model
 from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector, FacetBasis, LinearForm, MeshTet
 from skfem import asm as skasm
 from skfem.models.elasticity import lame_parameters, linear_elasticity
@@ -21,8 +21,8 @@ def _model(degree=1, extra=()):
     scene = load_scene("hertz_sphere", overrides=[*COARSE, f"discretization.degree={degree}",
                                                   *extra])
     disc = scene.data["discretization"]
-    return scene, HemisphereModel(scene, degree, disc["h_contact"], disc["h_max"],
-                                  disc["grading"])
+    return scene, skfem_hemisphere_model(scene, degree, disc["h_contact"], disc["h_max"],
+                                         disc["grading"])
 
 
 @pytest.mark.parametrize("degree", [1, 2])
