@@ -74,7 +74,7 @@ def _backends(add):
                       "linear_physics": _LINEAR_PHYSICS,
                       "linear_target":
                           "rbbench_plugins.backends.ngsolve.linear:NGSolveLinearBackend",
-                      "geometry": ("halfdisks", "unit_square")},
+                      "geometry": ("halfdisks", "hemispheres", "unit_square")},
         description="NGSolve: Netgen meshes (or arrays), P1/P2, sparse Cholesky, "
                     "GPTS contact pairing; linear scenes (P1, the scikit-fem mesh)",
     ))
