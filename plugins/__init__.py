@@ -76,7 +76,8 @@ def _backends(add):
                           "rbbench_plugins.backends.ngsolve.linear:NGSolveLinearBackend",
                       "geometry": ("halfdisks", "hemispheres", "unit_square")},
         description="NGSolve: Netgen meshes (or arrays), P1/P2, sparse Cholesky, "
-                    "GPTS contact pairing; linear scenes (P1, the scikit-fem mesh)",
+                    "GPTS contact pairing; 3D hemispheres (P1, frictionless mixed); linear "
+                    "scenes (P1, the scikit-fem mesh)",
     ))
 
 
