@@ -63,3 +63,21 @@ def test_level0_force_is_the_reaction_of_the_clamped_face(level0):
     assert np.isin(z_dofs, disc.dirichlet_dofs).all()
     force = level0.metrics["contact_force"]
     assert 4 * reaction[z_dofs].sum() == pytest.approx(force, rel=1e-8)  # support pushes up
+
+
+def test_rigid_flat_force_is_the_reaction_of_the_pressed_face():
+    """``lower = "rigid_flat"`` (coarse mesh): the contact force (whole body) equals 4
+    times the vertical reaction on the upper body's flat face, whose z dofs are imposed;
+    the Hertz block uses R* = R1 and E* of the upper body alone."""
+    scene = load_scene("hertz_sphere", overrides=[
+        'geometry.lower="rigid_flat"', "discretization.h_contact=0.06",
+        "discretization.h_max=0.4"])
+    sol = solve_hf(scene, scene.default_mu)
+    m, disc = sol.metrics, sol.disc
+    assert m["converged"] and len(disc.bodies) == 1
+    upper = disc.bodies[0]
+    z_dofs = upper.vertex_dofs[upper.points[:, 2] == upper.points[:, 2].max(), 2]
+    reaction = (disc.A @ sol.result.u)[z_dofs].sum()
+    assert -4 * reaction == pytest.approx(m["contact_force"], rel=1e-8)  # pushed down
+    h = m["hertz"]
+    assert h["R_star"] == pytest.approx(1.0) and h["E_star"] == pytest.approx(2e11 / 0.91)
