@@ -35,7 +35,7 @@ def test_symmetry_factor():
 
 @pytest.fixture(scope="module")
 def level0():
-    scene = load_scene("hertz_sphere")
+    scene = load_scene("hertz_sphere", overrides=["discretization.level=0"])
     return solve_hf(scene, scene.default_mu)
 
 
