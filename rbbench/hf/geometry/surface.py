@@ -16,9 +16,10 @@ The 3D counterpart of :mod:`rbbench.hf.geometry.pairing`, with the same choices 
   ``inside`` point (convex bodies).
 * **Pairing**: the line through each slave point along its normal is cast onto the master
   triangles (Moller & Trumbore, "Fast, minimum storage ray-triangle intersection",
-  J. Graphics Tools 2 (1997) 21-28), the candidates coming from a k-d tree on the master
-  triangle centroids; of the hits, the one nearest the slave point is kept (the gap is the
-  signed line parameter, so a penetrating point has a negative gap).
+  J. Graphics Tools 2 (1997) 21-28), the candidates coming from k-d trees on the master
+  triangle centroids (:func:`ray_cast_triangles`); of the hits, the one nearest the slave
+  point is kept (the gap is the signed line parameter, so a penetrating point has a
+  negative gap).
 * **Jump**: ``Un`` row q is ``(u_1(x_q) - u_2(y_q)) . n_1(x_q)`` with the slave and master
   Lagrange bases at the point and at its hit ``y_q``; ``Un u <= gap`` is the constraint.
 """
@@ -105,8 +106,9 @@ class SurfaceLayout:
     ``master = None`` is the rigid plane ``z = 0`` (outward normal ``+z``). ``degree`` (1 or
     2) is the displacement degree on the surface triangles, ``quad_order`` the exact degree
     of the slave triangle rule, ``multiplier`` one of ``"p1"`` (continuous nodal hats on
-    slave vertices), ``"p0"`` (one per slave triangle), ``"lac"`` (P0 on patches of about
-    ``patch`` slave triangles, :func:`~rbbench.hf.geometry.surface_patches.lac_patches`).
+    slave vertices), ``"p0"`` (one per slave triangle), ``"lac"`` (P0 on patches, each the
+    star of a vertex, of at least ``ceil(patch / 2)`` slave triangles,
+    :func:`~rbbench.hf.geometry.surface_patches.lac_patches`).
     ``symmetry`` names the planes (``"x"``: ``x = 0``, ``"y"``: ``y = 0``) that cut the
     bodies; the weights are those of the part modelled.
     """
@@ -172,29 +174,109 @@ class SurfaceLayout:
 
 
 def _moller_trumbore(x: np.ndarray, n: np.ndarray, v0: np.ndarray, e1: np.ndarray,
-                     e2: np.ndarray, idx: np.ndarray, tol: float
+                     e2: np.ndarray, pi: np.ndarray, ti: np.ndarray, tol: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Line-triangle intersections of the lines ``x + t n`` with candidate triangles
-    ``idx`` (m, k); returns ``(j, u, v, t)`` of the hit with the smallest ``|t|`` (column
-    ``j`` of ``idx``, -1 if none), ``x + t n = v0 + u e1 + v e2``."""
-    E1, E2 = e1[idx], e2[idx]  # (m, k, 3)
-    p = np.cross(n[:, None, :], E2)
-    det = np.einsum("mkd,mkd->mk", E1, p)
-    s = x[:, None, :] - v0[idx]
+    """Intersections of the lines ``x[pi] + t n[pi]`` with the triangles ``ti`` (pairs):
+    ``(ok, u, v, t)`` with ``x + t n = v0 + u e1 + v e2`` where ``ok``."""
+    E1, E2, d = e1[ti], e2[ti], n[pi]
+    p = np.cross(d, E2)
+    det = np.einsum("ij,ij->i", E1, p)
+    s = x[pi] - v0[ti]
     q = np.cross(s, E1)
-    scale = np.linalg.norm(E1, axis=2) * np.linalg.norm(E2, axis=2)
-    ok = np.abs(det) > 1e-12 * scale
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.where(ok, 1.0 / det, 0.0)
-        u = np.einsum("mkd,mkd->mk", s, p) * inv
-        v = np.einsum("md,mkd->mk", n, q) * inv
-        t = np.einsum("mkd,mkd->mk", E2, q) * inv
+    ok = np.abs(det) > 1e-12 * np.linalg.norm(E1, axis=1) * np.linalg.norm(E2, axis=1)
+    inv = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
+    u = np.einsum("ij,ij->i", s, p) * inv
+    v = np.einsum("ij,ij->i", d, q) * inv
+    t = np.einsum("ij,ij->i", E2, q) * inv
     ok &= (u >= -tol) & (v >= -tol) & (u + v <= 1.0 + tol)
-    score = np.where(ok, np.abs(t), np.inf)
-    j = np.argmin(score, axis=1)
-    rows = np.arange(idx.shape[0])
-    hit = np.isfinite(score[rows, j])
-    return np.where(hit, j, -1), u[rows, j], v[rows, j], np.where(hit, t[rows, j], np.nan)
+    return ok, u, v, t
+
+
+class _Nearest:
+    """The hit with the smallest ``|t|`` found so far for each line; pairs whose line misses
+    the triangle's bounding sphere (centroid ``cen``, radius ``rad``) are skipped."""
+
+    def __init__(self, x, n, v0, v1, v2, tol):
+        nq = x.shape[0]
+        self.tri = np.full(nq, -1, dtype=np.int64)
+        self.u, self.v, self.t = np.zeros(nq), np.zeros(nq), np.full(nq, np.nan)
+        self.abs = np.full(nq, np.inf)
+        self.args = (x, n, v0, v1 - v0, v2 - v0)
+        self.tol = tol
+        self.cen = (v0 + v1 + v2) / 3.0
+        self.rad = np.sqrt(np.max([((v - self.cen) ** 2).sum(axis=1) for v in (v0, v1, v2)],
+                                  axis=0)) if v0.shape[0] else np.zeros(0)
+        self.slack = self.rad * (1.0 + 1e-6) + 1e-12 * (self.rad.max() if nq else 0.0)
+        self.unit = n / np.linalg.norm(n, axis=1, keepdims=True) if nq else n
+
+    def test(self, pi: np.ndarray, ti: np.ndarray) -> None:
+        """Intersect the pairs (line ``pi``, triangle ``ti``) in blocks; keep better hits."""
+        x = self.args[0]
+        for i in range(0, pi.size, RAY_BLOCK):
+            p, tr = pi[i:i + RAY_BLOCK], ti[i:i + RAY_BLOCK]
+            cr = np.cross(self.cen[tr] - x[p], self.unit[p])
+            near = np.einsum("ij,ij->i", cr, cr) <= self.slack[tr] ** 2
+            p, tr = p[near], tr[near]
+            ok, u, v, t = _moller_trumbore(*self.args, p, tr, self.tol)
+            idx = np.flatnonzero(ok)
+            if idx.size == 0:
+                continue
+            idx = idx[np.lexsort((np.abs(t[idx]), p[idx]))]
+            idx = idx[np.r_[True, p[idx][1:] != p[idx][:-1]]]  # per line, the smallest |t|
+            idx = idx[np.abs(t[idx]) < self.abs[p[idx]]]
+            q = p[idx]
+            self.tri[q], self.u[q], self.v[q], self.t[q] = tr[idx], u[idx], v[idx], t[idx]
+            self.abs[q] = np.abs(t[idx])
+
+
+def _knn_search(best: _Nearest, x: np.ndarray, tree: cKDTree, ids: np.ndarray,
+                todo: np.ndarray, k: int, k_max: int, radius: float | None) -> np.ndarray:
+    """Try the ``k`` nearest triangles ``ids`` (by centroid, ``tree``) of the lines
+    ``todo``, ``k`` doubling up to ``k_max``, until a line has a hit (``radius`` None) or
+    its nearest hit cannot lie in a triangle not tried (``radius``: the largest
+    centroid-to-vertex distance of ``ids``). Returns the lines left undecided."""
+    k = min(k, ids.size)
+    while todo.size:
+        dist, loc = tree.query(x[todo], k=k)
+        dist, loc = dist.reshape(todo.size, k), loc.reshape(todo.size, k)
+        best.test(np.repeat(todo, k), ids[loc].ravel())
+        if k == ids.size:
+            return todo[:0]
+        if radius is None:
+            done = best.tri[todo] >= 0
+        else:
+            done = dist[:, -1] > best.abs[todo] + radius
+        todo = todo[~done]
+        if k >= k_max:
+            return todo
+        k = min(2 * k, ids.size, k_max)
+    return todo
+
+
+def _capsule_search(best: _Nearest, x: np.ndarray, n: np.ndarray, cen: np.ndarray,
+                    ids: np.ndarray, radius: float, lines: np.ndarray,
+                    reach: np.ndarray | None = None) -> None:
+    """Try, for each line of ``lines``, every triangle ``ids`` (centroids ``cen``, largest
+    centroid-to-vertex distance ``radius``) that can hold a hit at ``|t| <= reach``
+    (default: nearer than the line's best): the centroid lies within ``radius`` of the
+    segment ``x + s n``, ``|s| <= reach``. The
+    segment is sampled every ``radius``; the centroids within ``1.12 radius`` of a sample
+    (``sqrt(1 + 1/4)``: the balls cover the capsule) come from a k-d tree pair query
+    (duplicates are harmless)."""
+    if lines.size == 0:
+        return
+    reach = best.abs[lines] if reach is None else reach
+    m = np.ceil(2.0 * reach / radius).astype(np.int64) + 1
+    owner = np.repeat(lines, m)
+    first = np.repeat(np.cumsum(m) - m, m)
+    step = np.repeat(2.0 * reach / np.maximum(m - 1, 1), m)
+    s = np.repeat(-reach, m) + (np.arange(owner.size) - first) * step
+    samples = x[owner] + s[:, None] * n[owner]
+    pairs = cKDTree(samples).sparse_distance_matrix(
+        cKDTree(cen), 1.12 * radius * (1.0 + 1e-6), output_type="ndarray")
+    if pairs.size == 0:
+        return
+    best.test(owner[pairs["i"]], ids[pairs["j"]])
 
 
 def ray_cast_triangles(x: np.ndarray, n: np.ndarray, v0: np.ndarray, v1: np.ndarray,
@@ -207,41 +289,43 @@ def ray_cast_triangles(x: np.ndarray, n: np.ndarray, v0: np.ndarray, v1: np.ndar
     (nq, 3) of the hit point in it and the line parameter (``nan`` for none). ``tol`` is
     the barycentric tolerance (a line through an edge hits).
 
-    The candidates of each point are its ``k`` nearest triangle centroids (k-d tree), ``k``
-    doubling from ``k0`` until the nearest hit is certain: a hit at ``|t|`` is the nearest
-    once every centroid within ``|t| + r_max`` of the point is a candidate (``r_max``: the
-    largest centroid-to-vertex distance), or once all triangles are.
+    1. A first hit: the ``k`` triangles with the nearest centroids (k-d tree), ``k``
+       doubling from ``k0`` up to 32; lines still without a hit try the triangles near
+       the line within a reach that doubles until a hit or past the triangles' bounding
+       box (:func:`_capsule_search`). Only triangles whose bounding sphere (centroid,
+       largest centroid-to-vertex distance ``r_T``) the line crosses are intersected.
+    2. The nearest hit: a triangle holding a hit at ``|t| <= |t_best|`` has its centroid
+       within ``r_T`` of the segment ``x + s n``, ``|s| <= |t_best|``. The triangles are
+       grouped by ``r_T`` (classes of ratio 2, so a graded mesh's coarse triangles do not
+       widen the search near its fine ones) and, in each class, every triangle whose
+       centroid is that close to the segment is tried (:func:`_capsule_search`).
     """
     x, n = np.asarray(x, dtype=float), np.asarray(n, dtype=float)
     nq, nt = x.shape[0], v0.shape[0]
-    tri, bary, t = np.full(nq, -1, dtype=np.int64), np.zeros((nq, 3)), np.full(nq, np.nan)
-    if nq == 0 or nt == 0:
-        return tri, bary, t
-    cen = (v0 + v1 + v2) / 3.0
-    rmax = float(np.sqrt(max(((v - cen) ** 2).sum(axis=1).max() for v in (v0, v1, v2))))
-    tree = cKDTree(cen)
-    e1, e2 = v1 - v0, v2 - v0
-    todo, k = np.arange(nq), min(max(int(k0), 1), nt)
-    while todo.size:
-        dist, idx = tree.query(x[todo], k=k)
-        dist, idx = dist.reshape(todo.size, k), idx.reshape(todo.size, k)
-        j, u, v, tt = (np.empty(todo.size, dtype=np.int64), np.empty(todo.size),
-                       np.empty(todo.size), np.empty(todo.size))
-        step = max(1, RAY_BLOCK // k)
-        for i in range(0, todo.size, step):
-            r = slice(i, i + step)
-            j[r], u[r], v[r], tt[r] = _moller_trumbore(x[todo[r]], n[todo[r]], v0, e1, e2,
-                                                       idx[r], tol)
-        hit = j >= 0
-        done = np.ones(todo.size, dtype=bool) if k == nt else (
-            hit & (dist[:, -1] > np.abs(np.where(hit, tt, 0.0)) + rmax))
-        sel = todo[done & hit]
-        tri[sel] = idx[done & hit, j[done & hit]]
-        b = np.clip(np.stack([1.0 - u - v, u, v], axis=1)[done & hit], 0.0, None)
-        bary[sel] = b / b.sum(axis=1, keepdims=True)
-        t[sel] = tt[done & hit]
-        todo, k = todo[~done], min(2 * k, nt)
-    return tri, bary, t
+    best = _Nearest(x, n, v0, v1, v2, tol)
+    if nq and nt:
+        cen, rad = best.cen, best.rad
+        every = np.arange(nt)
+        left = _knn_search(best, x, cKDTree(cen), every, np.arange(nq), max(int(k0), 1), 32,
+                           None)
+        # lines without a hit among the 32 nearest: the capsule of reach R around the line,
+        # R doubling until a hit or R passes the master's bounding box
+        lo, hi = np.min([v0, v1, v2], axis=(0, 1)), np.max([v0, v1, v2], axis=(0, 1))
+        far = np.linalg.norm(x[left] - 0.5 * (lo + hi), axis=1) + 0.5 * np.linalg.norm(hi - lo)
+        reach = np.full(left.size, 4.0 * rad.max())
+        while left.size:
+            _capsule_search(best, x, n, cen, every, rad.max(), left, reach)
+            done = (best.tri[left] >= 0) | (reach >= far)
+            left, reach, far = left[~done], 2.0 * reach[~done], far[~done]
+        found = np.flatnonzero(best.tri >= 0)
+        cls = np.floor(np.log2(rad / rad.min())).astype(np.int64)
+        for c in np.unique(cls):
+            ids = np.flatnonzero(cls == c)
+            _capsule_search(best, x, n, cen[ids], ids, rad[ids].max(), found)
+    b = np.clip(np.stack([1.0 - best.u - best.v, best.u, best.v], axis=1), 0.0, None)
+    hit = best.tri >= 0
+    bary = np.where(hit[:, None], b / np.maximum(b.sum(axis=1, keepdims=True), 1e-300), 0.0)
+    return best.tri, bary, best.t
 
 
 @dataclass

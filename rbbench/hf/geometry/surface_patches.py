@@ -25,50 +25,59 @@ def triangle_adjacency(tri: np.ndarray) -> sp.csr_matrix:
 
 
 def lac_patches(tri: np.ndarray, centroids: np.ndarray, size: int) -> np.ndarray:
-    """Patch label (n_tri,) of each triangle: connected, compact patches of about ``size``
-    triangles (LAC multipliers; Abbas, Drouet & Hild, "The local average contact (LAC)
-    method", CMAME 339 (2018) 646-666, use P0 on patches of elements).
+    """Patch label (n_tri,) of each triangle: connected patches, each holding the whole
+    star (all triangles) of one vertex, of at least ``ceil(size / 2)`` triangles (LAC
+    multipliers; Abbas, Drouet & Hild, "The local average contact (LAC) method", CMAME 339
+    (2018) 646-666: P0 on patches; in 2D a patch of two facets is the star of a node).
 
-    Greedy aggregation on the edge adjacency (as in smoothed-aggregation multigrid):
-    triangles are visited breadth first from the one whose centroid is nearest the z axis
-    (the centre of the contact zone), so patches are laid ring by ring from the centre; the
-    first unassigned triangle seeds a patch, which grows by the unassigned edge neighbour
-    nearest its centroid until it holds ``size`` triangles. Patches left with fewer than
-    ``ceil(size / 2)`` (at the rim, where the front closes) join their smallest neighbour.
-    Growth towards the patch centroid keeps the patches round (shape-regular, diameter of
-    order ``sqrt(size) h``), which the inf-sup stability of P0-on-patches with the
-    displacement trace needs; ``size = 1`` is P0 per triangle.
+    The vertices are visited breadth first from the vertex nearest the z axis (the centre
+    of the contact zone); a vertex whose star is still free makes that star a patch (so
+    the seeds are about every other vertex, each patch is round, of diameter about 2 h).
+    Every triangle left over joins the smallest patch it shares an edge with; patches of
+    fewer than ``ceil(size / 2)`` triangles (at the rim) join their smallest neighbour.
+    The star's vertex is interior to its patch: its hat function, supported in the patch,
+    gives the Fortin argument of inf-sup stability with P1 (and P2) displacement traces,
+    which P0 per triangle lacks. ``size = 1`` is P0 per triangle.
     """
     n = tri.shape[0]
     if size <= 1 or n == 0:
         return np.arange(n)
     adj = triangle_adjacency(tri)
     ptr, nbr = adj.indptr, adj.indices
-    radial = np.hypot(centroids[:, 0], centroids[:, 1])
-    order, seen = [], np.zeros(n, dtype=bool)
-    for start in np.argsort(radial, kind="stable"):
+    n_v = int(tri.max()) + 1
+    star = sp.csr_matrix((np.ones(3 * n), (tri.ravel(), np.repeat(np.arange(n), 3))),
+                         shape=(n_v, n))
+    vgraph = star @ star.T
+    used = np.unique(tri)
+    pos = np.zeros((n_v, 3))
+    np.add.at(pos, tri.ravel(), np.repeat(centroids, 3, axis=0))
+    radial = np.hypot(pos[:, 0], pos[:, 1]) / np.maximum(np.diff(star.indptr), 1)
+    order, seen = [], np.zeros(n_v, dtype=bool)
+    for start in used[np.argsort(radial[used], kind="stable")]:
         if not seen[start]:
-            comp = breadth_first_order(adj, start, directed=False, return_predecessors=False)
+            comp = breadth_first_order(vgraph, start, directed=False, return_predecessors=False)
             seen[comp] = True
             order.append(comp)
     label = np.full(n, -1, dtype=np.int64)
     count: list[int] = []
-    for seed in np.concatenate(order):
-        if label[seed] >= 0:
-            continue
-        cur = len(count)
-        label[seed] = cur
-        members, total = 1, centroids[seed].copy()
-        cand = {int(j) for j in nbr[ptr[seed]:ptr[seed + 1]] if label[j] < 0}
-        while members < size and cand:
-            c = total / members
-            best = min(cand, key=lambda j: (float(((centroids[j] - c) ** 2).sum()), j))
-            cand.discard(best)
-            label[best] = cur
-            members += 1
-            total += centroids[best]
-            cand.update(int(j) for j in nbr[ptr[best]:ptr[best + 1]] if label[j] < 0)
-        count.append(members)
+    for v in np.concatenate(order):
+        mine = star.indices[star.indptr[v]:star.indptr[v + 1]]
+        if mine.size and np.all(label[mine] < 0):
+            label[mine] = len(count)
+            count.append(int(mine.size))
+    while np.any(label < 0):  # leftovers join the smallest neighbouring patch
+        progress = False
+        for i in np.flatnonzero(label < 0):
+            others = {int(label[j]) for j in nbr[ptr[i]:ptr[i + 1]] if label[j] >= 0}
+            if others:
+                q = min(others, key=lambda o: (count[o], o))
+                label[i] = q
+                count[q] += 1
+                progress = True
+        if not progress:  # a component without a free star
+            for i in np.flatnonzero(label < 0):
+                label[i] = len(count)
+                count.append(1)
     small = int(np.ceil(size / 2))
     for p in range(len(count)):
         if 0 < count[p] < small:
