@@ -1,11 +1,7 @@
 """The labelled numbers of a 3D HF contact solution (``summary.json``, frictionless mixed
 formulation): contact force (whole body), contact radius (quantised and from the pointwise
-gap), peak pressure, complementarity, penetration, and the 3D Hertz check.
-
-3D Hertz (Johnson, "Contact Mechanics", 1985, eqs. 4.22-4.23 with ``R* = R1 R2 / (R1 +
-R2)``, ``1 / E* = (1 - nu1^2) / E1 + (1 - nu2^2) / E2``): contact radius
-``a = (3 P R* / (4 E*))^(1/3)``, peak pressure ``p0 = 3 P / (2 pi a^2)``, pressure
-``p0 sqrt(1 - r^2 / a^2)``.
+gap), peak pressure, complementarity, penetration, and the 3D Hertz check
+(:mod:`rbbench.hf.references.hertz3d`, at the solver's own force).
 """
 
 from __future__ import annotations
@@ -16,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.geometry.checks import gap_tolerance, under_resolution
-from rbbench.hf.references.hertz import effective_modulus, effective_radius
+from rbbench.hf.references.hertz3d import hertz3d_of_bodies
 
 #: Relative threshold on lam (w.r.t. max lam) above which a multiplier counts as active
 #: (the 2D one, :data:`rbbench.hf.metrics.ACTIVE_THRESHOLD`).
@@ -37,17 +33,6 @@ def symmetry_factor(geometry: dict) -> int:
     """How many copies of the modelled part make the whole body: ``2 ** len(symmetry)``
     (quarter: 4)."""
     return 2 ** len(geometry.get("symmetry", ()))
-
-
-def hertz_3d(P: float, R1: float, R2: float | None, E1: float, nu1: float,
-             E2: float | None, nu2: float | None) -> dict[str, float]:
-    """3D Hertz at the whole-body normal force ``P`` (N): ``R_star``, ``E_star``, ``a``,
-    ``p0`` (Johnson 1985, eqs. 4.22-4.23; ``R2`` / ``E2`` ``None``: a rigid flat)."""
-    r_star = effective_radius(R1, R2)
-    e_star = effective_modulus(E1, nu1, E2, nu2)
-    a = (3.0 * P * r_star / (4.0 * e_star)) ** (1.0 / 3.0)
-    return {"P": P, "R_star": r_star, "E_star": e_star, "a": a,
-            "p0": 3.0 * P / (2.0 * math.pi * a**2)}
 
 
 def contact_metrics_3d(sol: Any) -> dict[str, Any]:
@@ -100,18 +85,15 @@ def contact_metrics_3d(sol: Any) -> dict[str, Any]:
         "radii": {"R1": geo["R1"], "R2": geo["R2"]},
     }
     if sol.scene.data["reference"]["hertz"] and force > 0:
-        m["hertz"] = _hertz_block(m, disc.bodies, geo)
+        m["hertz"] = _hertz_block(m, hertz3d_of_bodies(force, geo, disc.bodies).as_dict())
     m["units"] = dict(SI_UNITS_3D)
     m["definitions"] = DEFINITIONS_3D
     return m
 
 
-def _hertz_block(m: dict[str, Any], bodies: list, geo: dict) -> dict[str, Any]:
-    """3D Hertz at the solver's own force against the computed radii and peak pressure."""
-    upper = bodies[0]
-    lower = bodies[1] if len(bodies) > 1 else None
-    h = hertz_3d(m["contact_force"], geo["R1"], geo["R2"], upper.E, upper.nu,
-                 None if lower is None else lower.E, None if lower is None else lower.nu)
+def _hertz_block(m: dict[str, Any], h: dict[str, float]) -> dict[str, Any]:
+    """3D Hertz ``h`` (:func:`~rbbench.hf.references.hertz3d.hertz_3d` as a dict) at the
+    solver's own force against the computed radii and peak pressure."""
     return {**h, "a_rel_error": (m["contact_radius"] - h["a"]) / h["a"],
             "a_gap_rel_error": (m["contact_radius_gap"] - h["a"]) / h["a"],
             "p0_rel_error": (m["max_pressure"] - h["p0"]) / h["p0"],

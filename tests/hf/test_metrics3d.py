@@ -1,30 +1,14 @@
-"""3D HF metrics: the 3D Hertz formulas, and a level-0 solve of hertz_sphere against 3D
-Hertz and against its own equilibrium."""
+"""3D HF metrics: a level-0 solve of hertz_sphere against 3D Hertz and against its own
+equilibrium, and the rigid-flat variant."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from scipy.integrate import quad
 
-from rbbench.hf.metrics3d import hertz_3d, symmetry_factor
+from rbbench.hf.metrics3d import symmetry_factor
 from rbbench.hf.model import solve_hf
 from rbbench.scene.loading import load_scene
-
-
-@pytest.mark.parametrize("P, R1, R2, E2", [(1.0e3, 0.01, None, None),
-                                           (5.6e8, 1.0, 1.0, 2.0e11), (2.0e6, 0.7, 1.0, 7e10)])
-def test_hertz_3d_pressure_integrates_to_the_force(P, R1, R2, E2):
-    h = hertz_3d(P, R1, R2, 2.0e11, 0.3, E2, None if E2 is None else 0.25)
-    force = quad(lambda r: h["p0"] * math.sqrt(1 - (r / h["a"]) ** 2) * 2 * math.pi * r,
-                 0.0, h["a"])[0]
-    assert force == pytest.approx(P, rel=1e-8)
-    # a^3 = 3 P R* / (4 E*), with R* and E* written out here
-    r_star = R1 if R2 is None else R1 * R2 / (R1 + R2)
-    inv_e = (1 - 0.3**2) / 2.0e11 + (0.0 if E2 is None else (1 - 0.25**2) / E2)
-    assert h["a"] ** 3 == pytest.approx(3 * P * r_star * inv_e / 4, rel=1e-12)
 
 
 def test_symmetry_factor():
@@ -40,15 +24,16 @@ def level0():
 
 
 def test_level0_solve_against_3d_hertz(level0):
-    """Level 0 resolves the contact radius with about 4 elements. Measured (LAC, 3
-    triangles per patch): a +12.7 % (quantised), a from the gap -19.2 %, p0 +15.5 %; at
-    level 1 +3.7 %, -11.2 %, +2.4 %. The bounds are 1.3 times the level-0 errors."""
+    """Level 0 resolves the contact radius with about 4 elements. Measured (LAC on vertex
+    stars of at least 3 triangles): a +21.4 % (quantised to the patches), a from the gap
+    -22.4 %, p0 +9.2 %; at level 1 +3.6 %, -14.7 %, +0.3 %. The bounds are 1.3 times the
+    level-0 errors: a regression guard, not the accuracy claim (that is level 1's)."""
     m = level0.metrics
     assert m["converged"] and m["complementarity"] < 1e-12
     h = m["hertz"]
-    assert abs(h["a_rel_error"]) < 0.17
-    assert abs(h["a_gap_rel_error"]) < 0.25
-    assert abs(h["p0_rel_error"]) < 0.20
+    assert abs(h["a_rel_error"]) < 0.28
+    assert abs(h["a_gap_rel_error"]) < 0.30
+    assert abs(h["p0_rel_error"]) < 0.12
     assert 0.1 < h["a"] < 0.2  # the scene's design: a / R in [0.1, 0.2] at mu = 1
 
 
