@@ -58,9 +58,11 @@ def _backends(add):
                       "multiplier": ("lac", "p0", "p1", "nodal"),
                       "friction": ("none", "tresca", "coulomb"),
                       "linear_physics": _LINEAR_PHYSICS,
-                      "linear_target": "rbbench_plugins.backends.skfem.linear:SkfemLinearBackend"},
-        description="scikit-fem: graded triangle meshes, P1/P2, GPTS contact pairing; linear "
-                    "scenes (thermal, heat): unit square, no contact",
+                      "linear_target": "rbbench_plugins.backends.skfem.linear:SkfemLinearBackend",
+                      "geometry": ("halfdisks", "hemispheres", "unit_square")},
+        description="scikit-fem: graded triangle meshes, P1/P2, GPTS contact pairing; 3D "
+                    "hemispheres (tetrahedra, frictionless mixed); linear scenes (thermal, "
+                    "heat): unit square, no contact",
     ))
     add(ComponentSpec(
         name="ngsolve", role="backend",
@@ -71,9 +73,11 @@ def _backends(add):
                       "friction": ("none", "tresca", "coulomb"),
                       "linear_physics": _LINEAR_PHYSICS,
                       "linear_target":
-                          "rbbench_plugins.backends.ngsolve.linear:NGSolveLinearBackend"},
+                          "rbbench_plugins.backends.ngsolve.linear:NGSolveLinearBackend",
+                      "geometry": ("halfdisks", "hemispheres", "unit_square")},
         description="NGSolve: Netgen meshes (or arrays), P1/P2, sparse Cholesky, "
-                    "GPTS contact pairing; linear scenes (P1, the scikit-fem mesh)",
+                    "GPTS contact pairing; 3D hemispheres (P1, frictionless mixed); linear "
+                    "scenes (P1, the scikit-fem mesh)",
     ))
 
 

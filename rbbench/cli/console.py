@@ -137,7 +137,8 @@ def print_summary(m: dict, mu: dict, mu_units: dict | None = None) -> None:
     keys = ["n_dofs", "n_contact", "n_active", "iterations", "stop_reason", "final_residual",
             "solver_stop_reason", "solve_time_s", "floor_s", "solve_over_floor",
             "contact_force", "contact_half_width",
-            "contact_half_width_gap", "contact_half_width_gap_tol", "max_pressure",
+            "contact_half_width_gap", "contact_half_width_gap_tol", "contact_radius",
+            "contact_radius_gap", "contact_radius_gap_tol", "max_pressure",
             "complementarity", "penetration_max", "zone_saturated", "e_ac",
             "tangential_force", "n_stick", "n_slip", "n_open", "stick_half_width",
             "friction_residual"]
@@ -147,7 +148,10 @@ def print_summary(m: dict, mu: dict, mu_units: dict | None = None) -> None:
              "solve_over_floor": "  (solver time times_s.solve_s / floor_s)",
              "contact_half_width": "  (quantised to whole multiplier supports)",
              "contact_half_width_gap": "  (pointwise gap <= contact_half_width_gap_tol, "
-                                       "edges interpolated)"}
+                                       "edges interpolated)",
+             "contact_radius": "  (quantised to whole multiplier supports)",
+             "contact_radius_gap": "  (area of the closed cells, as a disc)",
+             "contact_force": "  (whole bodies)" if m.get("symmetry_copies", 1) > 1 else ""}
     for k in keys:
         if k in m and m[k] is not None:
             print(f"  {k:<26} {_valued(k, m[k], units)}{notes.get(k, '')}")
@@ -165,17 +169,18 @@ def print_summary(m: dict, mu: dict, mu_units: dict | None = None) -> None:
 
 
 def _print_hertz(m: dict, units: dict) -> None:
-    """The 2D Hertz lines of an HF solve (``summary.json`` ``hertz``)."""
+    """The 2D or 3D Hertz lines of an HF solve (``summary.json`` ``hertz``)."""
     h = m["hertz"]
+    width = "contact_radius" if m.get("dim") == 3 else "contact_half_width"
 
     def a(v):
-        return _valued("contact_half_width", v, units)
+        return _valued(width, v, units)
 
-    print("  2D Hertz at the computed force P:")
-    print(f"    a   = {a(h['a'])}   computed {a(m['contact_half_width'])}   "
+    print(f"  {'3D' if m.get('dim') == 3 else '2D'} Hertz at the computed force P:")
+    print(f"    a   = {a(h['a'])}   computed {a(m[width])}   "
           f"rel. error {100 * h['a_rel_error']:+.2f} % (quantised)")
     if h.get("a_gap_rel_error") is not None:
-        print(f"    a   = {a(h['a'])}   gap edge {a(m['contact_half_width_gap'])}   "
+        print(f"    a   = {a(h['a'])}   gap edge {a(m[width + '_gap'])}   "
               f"rel. error {100 * h['a_gap_rel_error']:+.2f} %")
     print(f"    p0  = {_valued('max_pressure', h['p0'], units)}  computed "
           f"{_valued('max_pressure', m['max_pressure'], units)}  "

@@ -76,6 +76,27 @@ def check_physics_support(scene: Scene, registry: Registry, formulation: str) ->
                          "(use the 'mixed' formulation)")
 
 
+def check_geometry_support(scene: Scene, registry: Registry, backend: str,
+                           formulation: str) -> None:
+    """Refuse a geometry kind the backend does not declare (``capabilities["geometry"]``;
+    undeclared: any), and, on the 3D ``hemispheres``, a formulation that needs more than
+    the normal contact operators (Nitsche's stress): the first 3D slice is frictionless
+    mixed."""
+    kind = scene.data["geometry"]["kind"]
+    kinds = registry.get("backend", backend).capabilities.get("geometry")
+    if kinds is not None and kind not in kinds:
+        ok = [s.name for s in registry.specs("backend")
+              if kind in s.capabilities.get("geometry", (kind,))]
+        raise SceneError(f"{scene.path}: [geometry] kind = {kind!r}: the {backend!r} backend "
+                         f"supports {', '.join(map(repr, kinds))}; backends for {kind!r}: "
+                         + ", ".join(map(repr, ok)))
+    needs = getattr(registry.load("formulation", formulation), "needs", frozenset())
+    if kind == "hemispheres" and needs:
+        raise SceneError(f"{scene.path}: [geometry] kind = 'hemispheres' (3D) is solved by the "
+                         f"'mixed' formulation for now; {formulation!r} needs "
+                         f"{', '.join(sorted(needs))} operators")
+
+
 def check_names(scene: Scene, registry: Registry, backend: str, formulation: str,
                 solver: str | None) -> str:
     """Check the three HF component names before any meshing (unknown names list the valid
@@ -92,6 +113,7 @@ def check_names(scene: Scene, registry: Registry, backend: str, formulation: str
         solver = default_solver(formulation, registry, friction_of(scene).law)
     for role, name in (("backend", backend), ("formulation", formulation), ("solver", solver)):
         registry.get(role, name)
+    check_geometry_support(scene, registry, backend, formulation)
     forms = registry.get("solver", solver).capabilities.get("formulations")
     if not solves(registry, solver, formulation):
         raise SceneError(f"solver {solver!r} solves the {', '.join(map(repr, forms))} "

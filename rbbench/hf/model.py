@@ -25,6 +25,7 @@ from rbbench.hf.components import (
 from rbbench.hf.condensation.dense import factorize
 from rbbench.hf.geometry.checks import flag
 from rbbench.hf.metrics import contact_metrics
+from rbbench.hf.metrics3d import contact_metrics_3d, is_3d
 from rbbench.interfaces import (
     ContactProblem,
     Discretization,
@@ -246,7 +247,7 @@ class HFModel:
         times = {"setup_s": t1 - t0, "discretize_s": t2 - t1, "formulate_s": t3 - t2,
                  "solve_s": t4 - t3, "total_s": t4 - t0}
         sol = HFSolution(scene, mu, dict(names), disc, problem, result, times)
-        sol.metrics = contact_metrics(sol)
+        sol.metrics = contact_metrics_3d(sol) if is_3d(disc) else contact_metrics(sol)
         flag(sol)  # zero force on an overlapping solution: stop_reason "flagged"
         return sol
 

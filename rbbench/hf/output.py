@@ -13,7 +13,9 @@ from typing import Any
 import numpy as np
 
 from rbbench.hf.metrics import normal_operators
+from rbbench.hf.metrics3d import is_3d
 from rbbench.hf.model import HFSolution
+from rbbench.hf.output3d import write_contact_csv_3d, write_png_3d, write_vtu_3d
 from rbbench.interfaces import FrictionProblem
 from rbbench.provenance import _jsonable, provenance
 
@@ -280,6 +282,9 @@ def write_png(sol: HFSolution, out: Path) -> Path:
 
 def write_all(sol: HFSolution, out: Path, plot: bool = True) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
+    if is_3d(sol.disc):
+        paths = [write_summary(sol, out), write_contact_csv_3d(sol, out), write_vtu_3d(sol, out)]
+        return paths + ([write_png_3d(sol, out)] if plot else [])
     paths = [write_summary(sol, out), write_contact_csv(sol, out), write_vtu(sol, out)]
     if plot:
         paths.append(write_png(sol, out))

@@ -155,6 +155,9 @@ def prepare_config(scene: Scene, config: ReduceConfig, registry: Registry
     an option of another formulation is an :class:`~rbbench.rb.config.OptionError`),
     the steps' own checks (``prepare``) and the hyper-reducer."""
     law = friction_of(scene).law
+    if scene.data.get("geometry", {}).get("kind") == "hemispheres":
+        raise SceneError(f"{scene.path}: [geometry] kind = 'hemispheres' (3D) has no reduced "
+                         "model yet; solve it with `rbbench solve` (HF)")
     for role in ("formulation", "backend", "primal", "solver"):  # names before anything
         name = getattr(config, role)
         if name is not None:

@@ -196,6 +196,10 @@ def estimate_dofs(data: dict[str, Any]) -> int:
         return (degree * n + 1) ** 2
     scale = 2.0 ** (-level)
     h_c, h_m = float(disc["h_contact"]) * scale, float(disc["h_max"]) * scale
+    if geo["kind"] == "hemispheres":
+        per_body = 3 * (8 if degree == 2 else 1) * _hemisphere_vertices(
+            float(geo["contact_cap"]), h_c, h_m)
+        return max(1, int(math.ceil(per_body * (1 if geo["lower"] == "rigid_flat" else 2))))
     zones = [tuple(float(x) for x in math.pi * np.asarray(geo["contact_zone"]))]
     if geo.get("lower") == "half_disk":
         mz = math.pi * np.asarray(geo["master_zone"])
@@ -204,6 +208,16 @@ def estimate_dofs(data: dict[str, Any]) -> int:
     vertices = sum(_COARSE_VERTICES + _VERTICES_PER_UNIT
                    * _size_integral(z, h_c, h_m, float(disc["grading"])) for z in zones)
     return max(1, int(math.ceil(per_node * vertices)))
+
+
+def _hemisphere_vertices(cap: float, h_contact: float, h_max: float) -> float:
+    """Vertices of the graded unit quarter hemisphere
+    (``plugins/backends/hemisphere_mesh.py``): ``200 + V_near / h_contact^3 + 4 V_far /
+    h_max^3``, ``V_near`` the quarter half-ball within the cap's chord of the pole;
+    within a factor 1.2 of Netgen's count at levels 0 to 2 of ``hertz_sphere``."""
+    chord = 2.0 * math.sin(0.5 * math.pi * cap)
+    v_near = min(math.pi / 6.0, math.pi * chord**3 / 6.0)
+    return 200.0 + v_near / h_contact**3 + 4.0 * (math.pi / 6.0 - v_near) / h_max**3
 
 
 def check_size(data: dict[str, Any]) -> str | None:

@@ -30,6 +30,8 @@ from rbbench.scene.schema import (
     _ELASTIC,
     _KIND_REQUIRES,
     _PARAM_FIELDS,
+    HALFDISK_ONLY,
+    HEMISPHERE_DEFAULTS,
     SCHEMA,
     Parameter,
     _check_value,
@@ -332,9 +334,18 @@ def _span(raw: Any, params: dict[str, Parameter]) -> tuple[float, float]:
     return float(params[name].low), float(params[name].high)
 
 
-def _check_kind(data: dict[str, Any], path: str, params: dict[str, Parameter]) -> None:
-    """The keys and the physics that the geometry kind requires."""
+def _check_kind(data: dict[str, Any], path: str, params: dict[str, Parameter],
+                given: frozenset[str] = frozenset()) -> None:
+    """The keys and the physics that the geometry kind requires (``given``: the
+    ``[geometry]`` keys the file sets, before defaults)."""
     kind = data["geometry"]["kind"]
+    if kind == "hemispheres":
+        _fill_hemispheres(data, path, given)
+    else:
+        for key in set(HEMISPHERE_DEFAULTS) | {"symmetry"}:
+            if key in given:
+                raise _err(path, f"[geometry] {key}", "is a key of geometry kind "
+                           f"'hemispheres' only; this scene's kind is {kind!r}")
     for section, keys in _KIND_REQUIRES[kind].items():
         for key in keys:
             if key not in data[section]:
@@ -342,7 +353,7 @@ def _check_kind(data: dict[str, Any], path: str, params: dict[str, Parameter]) -
                         else SCHEMA[section][key].describe())
                 raise _err(path, f"[{section}] {key}",
                            f"is required for geometry kind {kind!r}; expected {what}")
-    if kind == "halfdisks":
+    if kind in ("halfdisks", "hemispheres"):
         if data["geometry"]["lower"] == "half_disk":
             if "lower" not in data["material"]:
                 raise _err(path, "[material.lower]",
@@ -352,7 +363,7 @@ def _check_kind(data: dict[str, Any], path: str, params: dict[str, Parameter]) -
                            "is required when geometry.lower = 'half_disk'; expected "
                            + SCHEMA["geometry"]["lower_radius"].describe())
         if data["scene"]["physics"] != "elasticity":
-            raise _err(path, "[scene] physics", "geometry kind 'halfdisks' needs 'elasticity'")
+            raise _err(path, "[scene] physics", f"geometry kind {kind!r} needs 'elasticity'")
         d, r1 = data["load"]["displacement"], data["geometry"]["upper_radius"]
         if _span(d, params)[1] >= _span(r1, params)[0]:
             raise _err(path, "[load] displacement", f"{d!r} is out of range; the approach of "
@@ -360,6 +371,28 @@ def _check_kind(data: dict[str, Any], path: str, params: dict[str, Parameter]) -
                        f"{r1!r} (over the parameter domain)")
     if kind == "unit_square" and data["scene"]["physics"] != "poisson":
         raise _err(path, "[scene] physics", "geometry kind 'unit_square' needs 'poisson'")
+
+
+def _fill_hemispheres(data: dict[str, Any], path: str, given: frozenset[str]) -> None:
+    """``hemispheres``: refuse the half-disk zone keys (angles of 2D arcs), fill the cap
+    defaults (:data:`HEMISPHERE_DEFAULTS`), and keep the caps within the slave's half."""
+    geo = data["geometry"]
+    for key in HALFDISK_ONLY:
+        if key in given:
+            raise _err(path, f"[geometry] {key}", "is a key of geometry kind 'halfdisks'; "
+                       "for 'hemispheres' use contact_cap and master_cap (polar angle / pi)")
+        geo.pop(key, None)
+    for key, default in HEMISPHERE_DEFAULTS.items():
+        geo.setdefault(key, default)
+    grading = data["discretization"]["grading"]
+    if grading > 1.0:
+        raise _err(path, "[discretization] grading", f"{grading!r} is out of range for "
+                   "geometry kind 'hemispheres' (Netgen's grading); expected a number > 0 "
+                   "and <= 1")
+    law = data.get("friction", {}).get("law", "none")
+    if law != "none":
+        raise _err(path, "[friction] law", "geometry kind 'hemispheres' is frictionless "
+                   "for now; expected 'none'")
 
 
 #: Validators of scene kinds with their own schema, by physics: ``(data, path, overrides)
@@ -375,9 +408,10 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
         return PHYSICS_VALIDATORS[physics](data, path, tuple(overrides))
     _check_sections(data, path)
     params = _parameters(data, path)  # first: other keys may reference them
+    given = frozenset(data.get("geometry", {}))
     _fill_schema(data, path, params)
     _check_materials(data, path, params)
-    _check_kind(data, path, params)
+    _check_kind(data, path, params, given)
     check_friction(data, path, params)  # [friction], tangential load, load steps
     if not limits.check_name(data["scene"]["name"]):
         raise _err(path, "[scene] name", f"{data['scene']['name']!r} is not a valid name "

@@ -74,7 +74,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "friction": Field("str", default="none", choices=("none",)),
     },
     "geometry": {
-        "kind": Field("str", required=True, choices=("halfdisks", "unit_square")),
+        "kind": Field("str", required=True, choices=("halfdisks", "hemispheres", "unit_square")),
         "upper_radius": Field("float", low=0, low_open=True, parametric=True,
                               doc="radius R1 of the upper half-disk (m)"),
         "lower": Field("str", default="half_disk", choices=("half_disk", "rigid_flat"),
@@ -87,6 +87,16 @@ SCHEMA: dict[str, dict[str, Field]] = {
                               doc="potential contact zone on the upper body, theta/pi"),
         "master_zone": Field("pair", default=(0.25, 0.75), low=0.0, high=1.0,
                              doc="candidate master zone on the lower body, theta/pi"),
+        # hemispheres (3D); no default here: filled by the kind's check (loading.py)
+        "contact_cap": Field("float", low=0.0, high=0.5, low_open=True,
+                             doc="potential contact cap on the upper hemisphere: polar "
+                                 "angle from its pole, / pi"),
+        "master_cap": Field("float", low=0.0, high=0.5, low_open=True,
+                            doc="candidate master cap on the lower hemisphere: polar angle "
+                                "from its pole, / pi"),
+        "symmetry": Field("str", choices=("quarter",),
+                          doc="symmetry planes cutting the mesh: 'quarter' keeps x >= 0, "
+                              "y >= 0 (zero normal displacement on x = 0 and y = 0)"),
     },
     "material": {
         "plane": Field("str", default="strain", choices=("strain",)),
@@ -164,8 +174,20 @@ _KIND_REQUIRES = {
         "load": ("displacement",),
         "material": ("upper",),
     },
+    "hemispheres": {
+        "geometry": ("upper_radius", "symmetry"),
+        "load": ("displacement",),
+        "material": ("upper",),
+    },
     "unit_square": {"load": ("source",), "obstacle": ("height", "curvature")},
 }
+
+#: Defaults of the ``hemispheres`` keys that the other kinds do not have (filled by
+#: the kind's check, so the cache keys of the other kinds' scenes do not change).
+HEMISPHERE_DEFAULTS = {"contact_cap": 0.1, "master_cap": 0.2}
+
+#: The geometry keys of the other kinds that a ``hemispheres`` scene does not read.
+HALFDISK_ONLY = ("contact_zone", "master_zone")
 
 
 def _err(path: str, where: str, msg: str) -> SceneError:

@@ -50,6 +50,7 @@ from rbbench_plugins.backends.ngsolve.fe import (
     sparse_cholesky,
     vector_h1_form,
 )
+from rbbench_plugins.backends.ngsolve.hemispheres import ngsolve_hemisphere_model
 from rbbench_plugins.backends.ngsolve.meshes import (
     netgen_half_disk,
     netgen_unit_square,
@@ -146,6 +147,13 @@ class NGSolveBackend(common.HalfDiskContact, Backend):
         t0 = time.perf_counter()
         if self.kind == "halfdisks":
             self._init_halfdisks(mesh)
+        elif self.kind == "hemispheres":
+            if mesh != "netgen":
+                raise ValueError("ngsolve backend: option mesh: the 3D hemispheres take the "
+                                 "shared Netgen reference mesh only; expected 'netgen'")
+            self._hemi = ngsolve_hemisphere_model(scene, self.degree, self.h_contact,
+                                                  self.h_max, self.grading)
+            self.ndofs = self._hemi.ndofs
         else:
             self._init_square(mesh)
         self.t_mesh = time.perf_counter() - t0
@@ -234,6 +242,13 @@ class NGSolveBackend(common.HalfDiskContact, Backend):
         self.boundary_dofs = self.body.scalar_dofs_on(self.body.facets)
         self.body.check_dofs_on("boundary", self.boundary_dofs)
 
+    def contact_layout(self):
+        """The contact layout: a :class:`~rbbench.hf.geometry.surface.SurfaceLayout` for
+        ``hemispheres``, else :meth:`common.HalfDiskContact.contact_layout`."""
+        if self.kind == "hemispheres":
+            return self._hemi.contact_layout()
+        return super().contact_layout()
+
     def _bodies(self) -> list[Body]:
         if self.kind != "halfdisks":
             return [self.body]
@@ -261,6 +276,8 @@ class NGSolveBackend(common.HalfDiskContact, Backend):
             which = self.scene.data["discretization"]["inner_product"]
             if self.kind == "unit_square":
                 self._X = (self.A_lap + self.M).tocsr() if which == "h1" else self.A_lap
+            elif self.kind == "hemispheres":
+                self._X = self._hemi.inner_product(which)
             elif which == "energy":
                 self._X = self._elastic_operator(self.scene.default_mu)
             else:
@@ -286,6 +303,13 @@ class NGSolveBackend(common.HalfDiskContact, Backend):
         common.check_needs(self.name, self.scene, needs)
         if self.kind == "unit_square":
             return self._discretize_square(mu)
+        if self.kind == "hemispheres":
+            if needs:
+                raise ValueError(f"ngsolve backend: the 3D hemispheres have no {sorted(needs)} "
+                                 "operators yet (frictionless mixed formulation only)")
+            disc = self._hemi.discretize(mu, self.name, self.inner_product())
+            disc.factorize = self._factorize()
+            return disc
         return self._discretize_halfdisks(mu, common.scene_needs(self.scene, needs))
 
     def _discretize_halfdisks(self, mu: np.ndarray, needs=frozenset()) -> Discretization:

@@ -5,7 +5,9 @@ Reference meshes are built once (``__init__``) and mapped by mu in
 so dof counts do not depend on mu while ``B(mu)`` and the gap do.
 
 Scenes: ``halfdisks`` (plane-strain elasticity, two half-disks or a half-disk
-on a rigid flat) and ``unit_square`` (scalar membrane obstacle problem).
+on a rigid flat), ``hemispheres`` (3D elasticity, handed to
+:func:`~rbbench_plugins.backends.skfem.hemispheres.skfem_hemisphere_model`) and ``unit_square``
+(scalar membrane obstacle problem).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 from rbbench_plugins.backends import common
+from rbbench_plugins.backends.skfem.hemispheres import skfem_hemisphere_model
 from rbbench_plugins.backends.skfem.meshes import graded_half_disk, unit_square
 from skfem import (
     Basis,
@@ -112,6 +115,10 @@ class SkfemBackend(common.HalfDiskContact, Backend):
         t0 = time.perf_counter()
         if self.kind == "halfdisks":
             self._init_halfdisks()
+        elif self.kind == "hemispheres":
+            self._hemi = skfem_hemisphere_model(scene, self.degree, self.h_contact, self.h_max,
+                                         self.grading)
+            self.ndofs = self._hemi.ndofs
         else:
             self._init_square()
         self.t_mesh = time.perf_counter() - t0
@@ -167,6 +174,8 @@ class SkfemBackend(common.HalfDiskContact, Backend):
             which = self.scene.data["discretization"]["inner_product"]
             if self.kind == "unit_square":
                 self._X = self.A_lap + self.M if which == "h1" else self.A_lap
+            elif self.kind == "hemispheres":
+                self._X = self._hemi.inner_product(which)
             else:
                 mu0 = self.scene.default_mu
                 if which == "energy":
@@ -181,6 +190,13 @@ class SkfemBackend(common.HalfDiskContact, Backend):
         super().warm_up()
         if self.kind == "halfdisks":
             self._reference_stiffness()
+
+    def contact_layout(self):
+        """The contact layout: a :class:`~rbbench.hf.geometry.surface.SurfaceLayout` for
+        ``hemispheres``, else :meth:`common.HalfDiskContact.contact_layout`."""
+        if self.kind == "hemispheres":
+            return self._hemi.contact_layout()
+        return super().contact_layout()
 
     def _bodies(self) -> list[_Body]:
         return [self.upper] + ([self.lower] if self.lower is not None else [])
@@ -251,6 +267,11 @@ class SkfemBackend(common.HalfDiskContact, Backend):
         common.check_needs(self.name, self.scene, needs)
         if self.kind == "unit_square":
             return self._discretize_square(mu)
+        if self.kind == "hemispheres":
+            if needs:
+                raise ValueError(f"skfem backend: the 3D hemispheres have no {sorted(needs)} "
+                                 "operators yet (frictionless mixed formulation only)")
+            return self._hemi.discretize(mu, self.name, self.inner_product())
         return self._discretize_halfdisks(mu, common.scene_needs(self.scene, needs))
 
     def _discretize_halfdisks(self, mu, needs=frozenset()) -> Discretization:

@@ -1,0 +1,143 @@
+"""The labelled numbers of a 3D HF contact solution (``summary.json``, frictionless mixed
+formulation): contact force (whole body), contact radius (quantised and from the pointwise
+gap), peak pressure, complementarity, penetration, and the 3D Hertz check
+(:mod:`rbbench.hf.references.hertz3d`, at the solver's own force).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from rbbench.hf.geometry.checks import gap_tolerance, under_resolution
+from rbbench.hf.references.hertz3d import hertz3d_of_bodies
+
+#: Relative threshold on lam (w.r.t. max lam) above which a multiplier counts as active
+#: (the 2D one, :data:`rbbench.hf.metrics.ACTIVE_THRESHOLD`).
+ACTIVE_THRESHOLD = 1e-8
+
+#: The unit of each dimensional number of a 3D summary (SI; whole bodies).
+SI_UNITS_3D = {"contact_force": "N", "energy": "J", "max_pressure": "Pa",
+               "contact_radius": "m", "contact_radius_gap": "m", "contact_radius_gap_tol": "m",
+               "penetration_max": "m", "penetration_pointwise_max": "m"}
+
+
+def is_3d(disc: Any) -> bool:
+    """A 3D discretisation (its backend says ``info["geometry"]["dim"] == 3``)."""
+    return disc.info.get("geometry", {}).get("dim") == 3
+
+
+def symmetry_factor(geometry: dict) -> int:
+    """How many copies of the modelled part make the whole body: ``2 ** len(symmetry)``
+    (quarter: 4)."""
+    return 2 ** len(geometry.get("symmetry", ()))
+
+
+def contact_metrics_3d(sol: Any) -> dict[str, Any]:
+    """Labelled contact quantities of a 3D mixed HF solution (see ``definitions``)."""
+    disc, res, prob = sol.disc, sol.result, sol.problem
+    c, lam, u = disc.contact, res.lam, res.u
+    geo = disc.info["geometry"]
+    copies = symmetry_factor(geo)
+    B, G = c.B(), c.G()
+    s = G - B @ u
+    support = np.asarray(c.Mlam.T @ c.weights).ravel()
+    lam_q = np.asarray(c.Mlam @ lam).ravel()
+    force = copies * float(np.sum(c.weights * lam_q * -c.normals[:, 2]))
+    lam_max = float(np.max(lam)) if lam.size else 0.0
+    active = lam > ACTIVE_THRESHOLD * max(lam_max, np.finfo(float).tiny)
+    radius = float(c.mult_extent[active, 1].max()) if active.any() else 0.0
+    un = np.asarray(c.Un @ u).ravel()
+    gap_q = np.asarray(c.gap, float) - un
+    tol = gap_tolerance(un)
+    closed = gap_q <= tol
+    # projected area of the closed quadrature cells, whole body -> radius of that disc
+    area = copies * float(np.sum(c.weights[closed] * np.abs(c.normals[closed, 2])))
+    r_q = np.hypot(c.points[:, 0], c.points[:, 1])
+    denom = np.linalg.norm(lam) * np.linalg.norm(G)
+    msg, flagged = under_resolution(c.Mlam, active, gap_q, tol, c.multiplier,
+                                    sol.scene.data["discretization"].get("lac_patch"))
+    m: dict[str, Any] = {
+        "dim": 3, "n_dofs": int(disc.n_dofs), "n_free_dofs": int(prob.free.size),
+        "n_contact": int(c.Mlam.shape[1]), "n_contact_quadrature": int(c.n_quad),
+        "n_active": int(active.sum()), "multiplier": c.multiplier,
+        "iterations": int(res.iterations), "converged": bool(res.converged),
+        "stop_reason": res.stop_reason,
+        "solver_info": {k: v for k, v in res.info.items() if np.ndim(v) == 0},
+        "final_residual": float(res.residuals[-1]) if res.residuals else None,
+        "solve_time_s": float(sol.times["total_s"]), "times_s": {**sol.times, **res.times},
+        "symmetry_copies": copies,
+        "contact_force": force,
+        "contact_radius": radius,
+        "contact_radius_gap": math.sqrt(area / math.pi),
+        "contact_radius_gap_tol": tol,
+        "max_pressure": lam_max,
+        "complementarity": float(abs(lam @ s) / denom) if denom > 0 else 0.0,
+        "penetration_max": float(max(0.0, np.max(-s / support))) if s.size else 0.0,
+        "penetration_pointwise_max": float(max(0.0, -gap_q.min())) if gap_q.size else 0.0,
+        "min_multiplier": float(lam.min()) if lam.size else 0.0,
+        "energy": copies * float(0.5 * u @ (disc.A @ u) - disc.F @ u),
+        "zone_saturated": bool(closed.any() and r_q[closed].max() >= 0.95 * r_q.max()),
+        "warnings": [msg] if msg else [], "flagged": flagged,
+        "material": {b.name: {"E": b.E, "nu": b.nu} for b in disc.bodies},
+        "radii": {"R1": geo["R1"], "R2": geo["R2"]},
+    }
+    if sol.scene.data["reference"]["hertz"] and force > 0:
+        m["hertz"] = _hertz_block(m, hertz3d_of_bodies(force, geo, disc.bodies).as_dict())
+    m["units"] = dict(SI_UNITS_3D)
+    m["definitions"] = DEFINITIONS_3D
+    return m
+
+
+def _hertz_block(m: dict[str, Any], h: dict[str, float]) -> dict[str, Any]:
+    """3D Hertz ``h`` (:func:`~rbbench.hf.references.hertz3d.hertz_3d` as a dict) at the
+    solver's own force against the computed radii and peak pressure."""
+    return {**h, "a_rel_error": (m["contact_radius"] - h["a"]) / h["a"],
+            "a_gap_rel_error": (m["contact_radius_gap"] - h["a"]) / h["a"],
+            "p0_rel_error": (m["max_pressure"] - h["p0"]) / h["p0"],
+            "note": "3D Hertz evaluated at the solver's own whole-body force P; errors are "
+                    "signed, relative: (computed - theory) / theory; a_rel_error of "
+                    "contact_radius (quantised to multiplier supports), a_gap_rel_error of "
+                    "contact_radius_gap"}
+
+
+DEFINITIONS_3D = {
+    "dim": "space dimension of the scene (3)",
+    "n_dofs": "displacement degrees of freedom of the modelled part (quarter), constrained "
+              "ones included",
+    "n_free_dofs": "the degrees of freedom left after the Dirichlet conditions",
+    "n_contact": "columns of the multiplier basis",
+    "n_contact_quadrature": "contact quadrature points on the slave surface (modelled part)",
+    "n_active": "multipliers above 1e-8 of the largest: the active set",
+    "symmetry_copies": "copies of the modelled part that make the whole bodies (quarter: 4); "
+                       "forces and energies are of the whole bodies",
+    "contact_force": "total normal contact force on the whole body (N): vertical resultant "
+                     "int lam (-n_z) over the slave surface, times symmetry_copies",
+    "contact_radius": "largest radial extent r = sqrt(x^2 + y^2) of the supports of the "
+                      "active multipliers (m): QUANTISED to whole multiplier supports",
+    "contact_radius_gap": "radius of the disc whose area is the projected (onto z) area of "
+                          "the contact quadrature cells where the pointwise gap gap - Un u "
+                          "is <= contact_radius_gap_tol, whole body (m)",
+    "contact_radius_gap_tol": "the gap tolerance of contact_radius_gap and of the "
+                              "under-resolution check (m): 1e-3 max_q |Un u|_q",
+    "max_pressure": "largest multiplier value (Pa): the peak of the discrete pressure",
+    "complementarity": "|lam . (G - B u)| / (||lam||_2 ||G||_2), dimensionless",
+    "penetration_max": "largest mean penetration over one multiplier's support (m), "
+                       "clipped at 0",
+    "penetration_pointwise_max": "largest penetration (Un u - gap) at a contact quadrature "
+                                 "point (m), clipped at 0",
+    "min_multiplier": "smallest multiplier value (Pa; negative: a sign violation)",
+    "energy": "J(u) = 1/2 u^T A u - F^T u, whole bodies (J)",
+    "zone_saturated": "true if a closed contact point lies within 5 % of the outer radius "
+                      "of the potential contact cap: the contact reaches its edge",
+    "material": "E (Pa) and nu of each body (3D elasticity)",
+    "radii": "R1, R2 (m): the radii of the upper and lower bodies at this mu",
+    "hertz": "3D Hertz (Johnson 1985, eqs. 4.22-4.23) at the solver's own contact_force: "
+             "a = (3 P R* / (4 E*))^(1/3), p0 = 3 P / (2 pi a^2), signed relative errors "
+             "of contact_radius, contact_radius_gap and max_pressure",
+    "final_residual": "relative natural residual of the condensed LCP at the last iterate",
+    "stop_reason": "the solver's stop reason, or 'flagged' (zero force on an overlapping "
+                   "solution)",
+}

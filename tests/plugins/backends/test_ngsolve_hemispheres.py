@@ -1,0 +1,63 @@
+"""The NGSolve 3D operators of a ``hemispheres`` scene against the scikit-fem ones on the
+same reference mesh (equal up to dof numbering), and the P1-only refusal."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from rbbench_plugins.backends.ngsolve.hemispheres import ngsolve_hemisphere_model
+from rbbench_plugins.backends.skfem.hemispheres import skfem_hemisphere_model
+
+from rbbench.scene.loading import SceneError, load_scene
+
+COARSE = ["discretization.h_contact=0.08", "discretization.h_max=0.4"]
+
+
+def _models():
+    scene = load_scene("hertz_sphere", overrides=COARSE)
+    d = scene.data["discretization"]
+    args = (scene, 1, d["h_contact"], d["h_max"], d["grading"])
+    return scene, skfem_hemisphere_model(*args), ngsolve_hemisphere_model(*args)
+
+
+@pytest.mark.parametrize("mu", [0.7, 1.3])
+def test_operators_equal_skfem_on_one_mesh(mu):
+    scene, sk, ng = _models()
+    perm = np.empty(ng.ndofs, dtype=int)  # ngsolve dof -> skfem dof
+    for a, b in zip(sk.bodies, ng.bodies, strict=True):
+        np.testing.assert_array_equal(a.node_points, b.node_points)
+        perm[b.node_dofs.ravel()] = a.node_dofs.ravel()
+    A_sk, A_ng = sk.stiffness([mu]), ng.stiffness([mu])
+    scale = abs(A_sk).max()
+    assert abs(A_ng - A_sk[perm][:, perm]).max() <= 1e-10 * scale
+    X_sk, X_ng = sk.inner_product("h1"), ng.inner_product("h1")
+    assert abs(X_ng - X_sk[perm][:, perm]).max() <= 1e-10 * abs(X_sk).max()
+    c_sk = sk.discretize([mu], "skfem", A_sk).contact
+    c_ng = ng.discretize([mu], "ngsolve", A_ng).contact
+    for name in ("gap", "weights", "points", "normals", "mult_points", "mult_extent"):
+        np.testing.assert_allclose(getattr(c_ng, name), getattr(c_sk, name), rtol=0,
+                                   atol=1e-10 * np.abs(getattr(c_sk, name)).max())
+    Un_sk = c_sk.Un.tocsc()[:, perm]
+    assert abs(c_ng.Un - Un_sk).max() <= 1e-10
+    assert abs(c_ng.Mlam - c_sk.Mlam).max() == 0.0
+    d_sk = set(perm[np.isin(perm, sk.dirichlet)].tolist())
+    assert set(perm[ng.dirichlet].tolist()) == set(sk.dirichlet.tolist()) == d_sk
+
+
+def test_p2_is_refused_with_the_key():
+    scene = load_scene("hertz_sphere", overrides=[*COARSE, "discretization.degree=2"])
+    d = scene.data["discretization"]
+    with pytest.raises(SceneError, match=r"\[discretization\] degree = 2: the ngsolve backend"):
+        ngsolve_hemisphere_model(scene, 2, d["h_contact"], d["h_max"], d["grading"])
+
+
+def test_mixed_solves_agree():
+    """One mixed solve per backend (coarse mesh): the same force and peak pressure up to
+    the direct solvers' round-off (NGSolve's sparse Cholesky, SuperLU)."""
+    from rbbench.hf.model import solve_hf
+
+    scene = load_scene("hertz_sphere", overrides=COARSE)
+    m = [solve_hf(scene, scene.default_mu, backend=b).metrics for b in ("skfem", "ngsolve")]
+    assert m[0]["converged"] and m[1]["converged"]
+    assert m[1]["contact_force"] == pytest.approx(m[0]["contact_force"], rel=1e-8)
+    assert m[1]["max_pressure"] == pytest.approx(m[0]["max_pressure"], rel=1e-8)
