@@ -353,14 +353,18 @@ def _check_kind(data: dict[str, Any], path: str, params: dict[str, Parameter],
                         else SCHEMA[section][key].describe())
                 raise _err(path, f"[{section}] {key}",
                            f"is required for geometry kind {kind!r}; expected {what}")
+    if kind == "halfdisks" and data["geometry"]["lower"] == "hemisphere":
+        raise _err(path, "[geometry] lower", "'hemisphere' is a 3D body; for geometry kind "
+                   "'halfdisks' expected 'half_disk' or 'rigid_flat'")
     if kind in ("halfdisks", "hemispheres"):
-        if data["geometry"]["lower"] == "half_disk":
+        lower = data["geometry"]["lower"]
+        if lower != "rigid_flat":
             if "lower" not in data["material"]:
                 raise _err(path, "[material.lower]",
-                           "is required when geometry.lower = 'half_disk' (a table with E and nu)")
+                           f"is required when geometry.lower = {lower!r} (a table with E and nu)")
             if "lower_radius" not in data["geometry"]:
                 raise _err(path, "[geometry] lower_radius",
-                           "is required when geometry.lower = 'half_disk'; expected "
+                           f"is required when geometry.lower = {lower!r}; expected "
                            + SCHEMA["geometry"]["lower_radius"].describe())
         if data["scene"]["physics"] != "elasticity":
             raise _err(path, "[scene] physics", f"geometry kind {kind!r} needs 'elasticity'")
@@ -384,6 +388,11 @@ def _fill_hemispheres(data: dict[str, Any], path: str, given: frozenset[str]) ->
         geo.pop(key, None)
     for key, default in HEMISPHERE_DEFAULTS.items():
         geo.setdefault(key, default)
+    if "lower" not in given:
+        geo["lower"] = "hemisphere"
+    if geo["lower"] == "half_disk":
+        raise _err(path, "[geometry] lower", "'half_disk' is a 2D body; for geometry kind "
+                   "'hemispheres' expected 'hemisphere' or 'rigid_flat'")
     grading = data["discretization"]["grading"]
     if grading > 1.0:
         raise _err(path, "[discretization] grading", f"{grading!r} is out of range for "

@@ -77,8 +77,10 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "kind": Field("str", required=True, choices=("halfdisks", "hemispheres", "unit_square")),
         "upper_radius": Field("float", low=0, low_open=True, parametric=True,
                               doc="radius R1 of the upper half-disk (m)"),
-        "lower": Field("str", default="half_disk", choices=("half_disk", "rigid_flat"),
-                       doc="the lower body: an elastic half-disk or a rigid flat foundation"),
+        "lower": Field("str", default="half_disk",
+                       choices=("half_disk", "hemisphere", "rigid_flat"),
+                       doc="the lower body: an elastic half-disk (2D) or hemisphere (3D), or a "
+                           "rigid flat foundation"),
         "lower_radius": Field("float", low=0, low_open=True, parametric=True,
                               doc="radius R2 of the lower half-disk (m)"),
         "initial_gap": Field("float", default=0.0, low=0.0, parametric=True,

@@ -3,6 +3,7 @@ messages of bad values."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -42,7 +43,7 @@ def test_hertz_sphere_loads_with_its_keys():
 
 
 def test_rigid_flat_variant_needs_no_lower_body(tmp_path):
-    text = SPHERE.read_text().replace('lower = "half_disk"', 'lower = "rigid_flat"')
+    text = SPHERE.read_text().replace('lower = "hemisphere"', 'lower = "rigid_flat"')
     text = text.replace("[material.lower]\nE = 2.0e11\nnu = 0.3\n", "")
     text = text.replace("lower_radius = 1.0\n", "")
     s = load_scene(_write(tmp_path, text))
@@ -92,3 +93,16 @@ def test_estimated_dofs_grow_with_the_level():
             for k in range(3)]
     assert dofs[0] < 10_000 and dofs[2] >= 100_000
     assert dofs[0] < dofs[1] < dofs[2]
+
+
+@pytest.mark.parametrize("kind_file, lower, valid", [
+    ("hertz_sphere", "half_disk", "'hemisphere' or 'rigid_flat'"),
+    ("hertz_halfdisks", "hemisphere", "'half_disk' or 'rigid_flat'"),
+])
+def test_lower_body_of_the_other_dimension_is_refused(tmp_path, kind_file, lower, valid):
+    text = (PROBLEMS_DIR / f"{kind_file}.toml").read_text()
+    text = re.sub(r'(?m)^lower = "[a-z_]+"', f'lower = "{lower}"', text)
+    p = tmp_path / "s.toml"
+    p.write_text(text)
+    with pytest.raises(SceneError, match=r"\[geometry\] lower.*" + re.escape(valid)):
+        load_scene(str(p))
