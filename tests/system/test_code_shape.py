@@ -41,8 +41,8 @@ LAYERS = {"scene": 1, "hf": 2, "rb": 3, "bench": 4, "optim": 4, "studies": 5, "t
 #: solve -> snapshots; shared RB algorithms -> the offline skeleton -> the formulations)
 SUBLAYERS = {
     "rbbench.hf": {"geometry": 1, "references": 1, "condensation": 2, "algebra": 3,
-                   "solvers": 4, "components": 5, "metrics": 5, "model": 6, "output": 7,
-                   "snapshots": 7, "linear": 8},
+                   "solvers": 4, "components": 5, "metrics": 5, "metrics3d": 5, "model": 6,
+                   "output": 7, "output3d": 7, "snapshots": 7, "linear": 8},
     "rbbench.rb": {"algorithms": 1, "online": 1, "hyper": 2, "compressors": 2, "config": 3,
                    "validation": 3, "offline": 4, "mixed": 5, "nitsche": 5, "friction": 5,
                    "linear": 5},
