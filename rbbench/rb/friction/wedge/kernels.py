@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit
 
 from rbbench.rb.kernels import layout as K
-from rbbench.rb.kernels import nnls as DK
+from rbbench.rb.kernels import nnls as NN
 from rbbench.rb.kernels import pairing as KP
 from rbbench.runtime.numba_cache import drop_stale, use_user_cache
 
@@ -146,8 +146,8 @@ def _qp(ds, sc, g, c, warm, y):
     for i in range(r):
         gs[i] /= gm
         y[i] = c[i] / (sc[i] * gm) if warm else 0.0
-    status, it = DK.nnls_gram(ds, gs, y, QP_MAX_ITER, warm)
-    if status != DK.NNLS_OK or not DK.natural_residual(ds, gs, y) <= TOL:
+    status, it = NN.nnls_gram(ds, gs, y, QP_MAX_ITER, warm)
+    if status != NN.NNLS_OK or not NN.natural_residual(ds, gs, y) <= TOL:
         return False, it
     for i in range(r):
         c[i] = sc[i] * y[i] * gm
@@ -206,7 +206,7 @@ def _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, tm, sc, ds):
     kt c`` in the eigenbasis, the slip rows ``t0 + tm c`` and the Jacobi-scaled ``ds``
     (``sc`` its scaling); False when ``d`` has a non-positive diagonal."""
     n, r = bt2.shape
-    DK.condense(bt2, ft, sd, d, q, gn)
+    NN.condense(bt2, ft, sd, d, q, gn)
     for k in range(n):
         a0[k] = ft[k] / sd[k]
         for i in range(r):
@@ -322,7 +322,7 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
 
 #: the modules whose kernels :func:`wedge_online` compiles in (numba's cache checks only
 #: this file)
-DEPENDENCIES = (K.__file__, KP.__file__, DK.__file__)
+DEPENDENCIES = (K.__file__, KP.__file__, NN.__file__)
 
 
 def drop_stale_cache() -> bool:
