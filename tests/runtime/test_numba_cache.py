@@ -32,3 +32,96 @@ def test_kernels_cache_in_the_users_cache_dir(tmp_path):
 def test_numba_cache_dir_is_respected(tmp_path):
     path = _cache_path({"NUMBA_CACHE_DIR": str(tmp_path / "mine")})
     assert path.is_relative_to(tmp_path / "mine"), path
+
+
+def test_is_stale_compares_the_index_with_the_source(tmp_path):
+    from rbbench.runtime.numba_cache import is_stale
+
+    index, source = tmp_path / "k.nbi", tmp_path / "k.py"
+    index.write_text("")
+    source.write_text("")
+    os.utime(index, (1000, 1000))
+    os.utime(source, (2000, 2000))
+    assert is_stale(index, source) and not is_stale(source, index)
+    assert not is_stale(tmp_path / "missing.nbi", source)
+
+
+class _Cache:
+    """The two numba cache internals drop_stale reads: the index path and flush()."""
+
+    def __init__(self, index: Path) -> None:
+        self._cache_file = type("F", (), {"_index_path": str(index)})()
+        self.flushed = False
+
+    def flush(self) -> None:
+        self.flushed = True
+
+
+def test_drop_stale_flushes_only_kernels_older_than_a_dependency(tmp_path):
+    """numba would keep running a cached kernel after a change to a module whose kernels it
+    compiles in (it checks only its own file): its index is compared with theirs."""
+    from types import SimpleNamespace
+
+    from rbbench.runtime.numba_cache import drop_stale
+
+    old, new, dep = tmp_path / "old.nbi", tmp_path / "new.nbi", tmp_path / "dep.py"
+    for f, t in ((old, 1000), (dep, 2000), (new, 3000)):
+        f.write_text("")
+        os.utime(f, (t, t))
+    stale, fresh = SimpleNamespace(_cache=_Cache(old)), SimpleNamespace(_cache=_Cache(new))
+    never = SimpleNamespace(_cache=_Cache(tmp_path / "missing.nbi"))
+    uncached = SimpleNamespace(_cache=object())  # inline kernels: no disk cache
+    assert drop_stale([stale, fresh, never, uncached], [dep]) is True
+    assert stale._cache.flushed and not fresh._cache.flushed and not never._cache.flushed
+    assert drop_stale([fresh, never], [dep]) is False
+
+
+#: the kernel modules that compile in another module's kernels
+KERNEL_MODULES = ("rbbench.rb.kernels.pairing", "rbbench.rb.mixed.kernels",
+                  "rbbench.rb.mixed.dual_kernels", "rbbench.rb.friction.wedge.kernels")
+
+
+@pytest.mark.parametrize("name", KERNEL_MODULES)
+def test_every_kernel_module_it_imports_is_a_dependency(name):
+    """The staleness check of each kernel module names every rbbench module whose numba
+    kernels it imports (transitively), and nothing is stale right after the import; the
+    numba internals it reads exist in this numba."""
+    import ast
+    import importlib
+
+    def kernel_imports(mod_name: str) -> set[str]:
+        mod = importlib.import_module(mod_name)
+        tree = ast.parse(Path(mod.__file__).read_text())
+        found = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module and \
+                    node.module.startswith("rbbench.rb"):
+                for alias in node.names:
+                    full = f"{node.module}.{alias.name}"
+                    found.add(full if _is_module(full) else node.module)
+        out = set()
+        for dep in found:
+            if dep != mod_name and "njit" in Path(
+                    importlib.import_module(dep).__file__).read_text():
+                out |= {dep} | kernel_imports(dep)
+        return out
+
+    mod = importlib.import_module(name)
+    deps = {str(Path(f).resolve()) for f in mod.DEPENDENCIES}
+    wanted = {str(Path(importlib.import_module(d).__file__).resolve())
+              for d in kernel_imports(name)}
+    assert wanted and wanted <= deps, sorted(wanted - deps)
+    assert mod.drop_stale_cache() is False  # just imported: nothing stale left
+    kernel = next(v for v in vars(mod).values() if hasattr(v, "_cache")
+                  and getattr(v, "py_func", None) is not None
+                  and v.py_func.__module__ == name)
+    assert str(kernel._cache._cache_file._index_path).endswith(".nbi")
+
+
+def _is_module(name: str) -> bool:
+    import importlib.util
+
+    try:
+        return importlib.util.find_spec(name) is not None
+    except ModuleNotFoundError:
+        return False

@@ -38,25 +38,21 @@ LAYERS = {"scene": 1, "hf": 2, "rb": 3, "bench": 4, "optim": 4, "studies": 5, "t
 
 #: inside a layer, its folders and modules in import order: a module may import those of a
 #: lower or equal rank only (the data flow: geometry -> condensed problem -> solvers -> one HF
-#: solve -> snapshots; shared RB algorithms -> the offline skeleton -> the formulations)
+#: solve -> snapshots; shared RB algorithms and compiled kernels -> the offline skeleton ->
+#: the formulations)
 SUBLAYERS = {
     "rbbench.hf": {"geometry": 1, "references": 1, "condensation": 2, "algebra": 3,
                    "solvers": 4, "components": 5, "metrics": 5, "metrics3d": 5, "model": 6,
                    "output": 7, "output3d": 7, "snapshots": 7, "linear": 8},
-    "rbbench.rb": {"algorithms": 1, "online": 1, "hyper": 2, "compressors": 2, "config": 3,
-                   "validation": 3, "offline": 4, "mixed": 5, "nitsche": 5, "friction": 5,
-                   "linear": 5},
+    "rbbench.rb": {"algorithms": 1, "online": 1, "hyper": 2, "kernels": 2, "compressors": 2,
+                   "config": 3, "validation": 3, "offline": 4, "mixed": 5, "nitsche": 5,
+                   "friction": 5, "linear": 5},
 }
 #: folders of the same rank that must not import each other (one per formulation)
 PEERS = {"rbbench.rb": {"mixed", "nitsche", "friction", "linear"}}
-#: peer imports that stand for now, each named: the wedge friction model's compiled online
-#: path calls the frictionless model's numba kernels (contact pairing, magic entries, the
-#: warm-started NNLS, the plan packing) until they move to a shared kernels package
-PEER_IMPORTS_KEPT = {
-    "rbbench.rb.friction.wedge.compiled": {"rbbench.rb.mixed.compiled"},
-    "rbbench.rb.friction.wedge.kernels": {"rbbench.rb.mixed.kernels",
-                                          "rbbench.rb.mixed.dual_kernels"},
-}
+#: peer imports that stand for now, each named with its reason (none: what the formulations
+#: share lives below them, e.g. the compiled kernels in ``rbbench.rb.kernels``)
+PEER_IMPORTS_KEPT: dict[str, set[str]] = {}
 
 
 def _rel(p: Path) -> str:

@@ -96,7 +96,7 @@ def bound_terms(mu, T, qF, qA, qB, C, qC, Gq, qG, Vg, c, a, ip, ix, dv, L, spars
 def contact_jumps(s, w, gap, mphi, seg, sphi, n_hat, sdofs, mdofs, rows, uz, lam, d, b):
     """The constraint residual ``d = B(mu) uz - G(mu)`` (m rows) and ``b = B(mu)^T lam`` (on
     the contact dofs), written in place, from the pairing at mu
-    (:func:`rbbench.rb.mixed.kernels.pair_points`: weights ``w``, gaps, master shape values
+    (:func:`rbbench.rb.kernels.pairing.pair_points`: weights ``w``, gaps, master shape values
     ``mphi`` and facets ``seg``, slave scale ``s``): the normal jump ``(u1 - u2 o pi) .
     n`` at each point, ``n = sign(s) n_hat``, of the slave shape values ``sphi`` on the slave
     facet's dofs ``sdofs[q]`` and the master ones on ``mdofs[seg[q]]`` (each ``(k, 2)``);

@@ -8,9 +8,9 @@ all of it for one mu, per online method:
 
 * ``nnls`` (what the default ``auto`` takes): :func:`rbbench.rb.mixed.dual_kernels.online_nnls`
   condenses the reduced saddle point on the cone coefficients through a common eigenbasis
-  of ``A_N``'s affine terms (:func:`eigenbasis`, offline) and solves ``LCP(q, D)`` by
-  Lawson-Hanson's active set inside the same kernel: no factorisation and no Python call
-  online;
+  of ``A_N``'s affine terms (:func:`rbbench.rb.kernels.plan.eigenbasis`, offline) and
+  solves ``LCP(q, D)`` by Lawson-Hanson's active set inside the same kernel
+  (:mod:`rbbench.rb.kernels.nnls`): no factorisation and no Python call online;
 * ``daqp``: :func:`rbbench.rb.mixed.kernels.online_qp` writes the scaled QP of the Python path,
   daqp solves it (same tolerances), a second kernel unscales its answer.
 
@@ -36,12 +36,18 @@ from typing import Any
 
 import numpy as np
 
-try:  # optional: without numba the Python path is the online path
-    import numba
-
-    NUMBA_VERSION: str | None = numba.__version__
-except ImportError:  # pragma: no cover - exercised where numba is absent
-    NUMBA_VERSION = None
+from rbbench.rb.kernels.plan import (
+    NUMBA_VERSION,
+    centre,
+    centre_theta,
+    coefficient_map,
+    eigenbasis,
+    master_plan,
+    pack,
+    parameter_bounds,
+    reference_points,
+    slave_terms,
+)
 
 __all__ = ["COMPILE", "NUMBA_VERSION", "CompiledOnline", "path_reason", "plan_arrays",
            "prepare"]
@@ -85,22 +91,13 @@ def path_reason(model: Any, method: str = "daqp") -> str | None:
     return None
 
 
-def coefficient_map(lu_piv: tuple[np.ndarray, np.ndarray], T: np.ndarray) -> np.ndarray:
-    """``W = P^-T T`` (``P = lu_piv``, the EIM interpolation matrix at the magic entries,
-    ``T`` the EIM terms, first axis the term): online ``sum_j theta_j T[j]`` with
-    ``theta = P^-1 c`` is ``sum_i c_i W[i]``, one pass over the terms and no triangular
-    solves (the coefficient solve folded offline into the terms; measured 4.6 us of the
-    online solve at M = 81)."""
-    import scipy.linalg as sla
-
-    flat = sla.lu_solve(lu_piv, T.reshape(T.shape[0], -1), trans=1)
-    return flat.reshape(T.shape)
 
 
 def plan_arrays(model: Any, method: str = "daqp") -> dict[str, np.ndarray]:
-    """The arrays of the kernels' plan (:data:`rbbench.rb.mixed.kernels.FLOATS`, ``INTS``) from a
-    reduced model whose constraint is a :class:`~rbbench.rb.hyper.contact_eim.ContactEIM` or exact
-    affine (:func:`_affine_plan`); ``method = "nnls"`` adds the condensed arrays
+    """The arrays of the kernels' plan (:data:`rbbench.rb.kernels.layout.FLOATS`, ``INTS``)
+    from a reduced model whose constraint is a
+    :class:`~rbbench.rb.hyper.contact_eim.ContactEIM` or exact affine
+    (:func:`_affine_plan`); ``method = "nnls"`` adds the condensed arrays
     (:func:`_condensed_plan`)."""
     out = _eim_plan(model) if hasattr(model.constraint, "evaluator") else _affine_plan(model)
     if method == "nnls":
@@ -111,17 +108,17 @@ def plan_arrays(model: Any, method: str = "daqp") -> dict[str, np.ndarray]:
 def _eim_plan(model: Any) -> dict[str, np.ndarray]:
     """The plan of a :class:`~rbbench.rb.hyper.contact_eim.ContactEIM` constraint
     (:func:`plan_arrays`). What does not depend on mu is tabulated here: the reference slave
-    points, normals, weights (:func:`rbbench.rb.mixed.kernels.slave_points`), the monotonicity
-    test of each point's master window for both signs of the slave scale, the slave term of
-    every magic entry (``slave_b``) and ``Z^T`` on the master dofs of the windows
-    (``zt_m``)."""
+    points, normals, weights (:func:`rbbench.rb.kernels.plan.reference_points`), the
+    monotonicity test of each point's master window for both signs of the slave scale
+    (:func:`rbbench.rb.kernels.plan.master_plan`), the slave term of every magic entry
+    (``slave_b``) and ``Z^T`` on the master dofs of the windows (``zt_m``)."""
     ceim = model.constraint
     ev, lay = ceim.evaluator, ceim.evaluator.layout
     sl, ms = lay.slave, lay.master
     x_hat, n_hat, w_hat, sphi = reference_points(lay)
     pts_b, vals_b = ceim._support
     pts_g, vals_g = ev.support(ceim.pos_G)
-    out = {**_bounds(model), "s_scale": sl.map.scale, "s_shift": sl.map.shift,
+    out = {**parameter_bounds(model), "s_scale": sl.map.scale, "s_shift": sl.map.shift,
            "m_scale": sl.map.scale if ms is None else ms.map.scale,
            "m_shift": sl.map.shift if ms is None else ms.map.shift,
            "x_hat": x_hat, "n_hat": n_hat, "w_hat": w_hat,
@@ -133,17 +130,10 @@ def _eim_plan(model: Any) -> dict[str, np.ndarray]:
            "pts_b": pts_b, "cols_b": ceim.entry_col,
            "order_b": np.argsort(ceim.entry_col, kind="stable"), "pts_g": pts_g,
            "vt": np.zeros((1, 1)), "lam_a": np.zeros((1, 1))}
-    out.update(_master_plan(ceim, n_hat))
+    out.update(master_plan(ceim, n_hat))
     return out
 
 
-def _bounds(model: Any) -> dict[str, np.ndarray]:
-    """``mu_lo``, ``mu_hi``: the box D (unbounded without a parameter space)."""
-    p = int(model.A.terms.shape[0]) - 1
-    if model.parameters is not None:
-        return {"mu_lo": np.asarray(model.parameters.low, float),
-                "mu_hi": np.asarray(model.parameters.high, float)}
-    return {"mu_lo": np.full(p, -np.inf), "mu_hi": np.full(p, np.inf)}
 
 
 def _affine_plan(model: Any) -> dict[str, np.ndarray]:
@@ -151,48 +141,23 @@ def _affine_plan(model: Any) -> dict[str, np.ndarray]:
     theta_k G_k``: its terms take the places of the EIM maps (``w_b``, ``w_g``, combined
     with theta instead of the magic values, ``dims[2] = 1``); no pairing arrays (one-entry
     placeholders)."""
-    from rbbench.rb.mixed import kernels as _kernels
+    from rbbench.rb.kernels import layout
 
     one_f, one_i = np.zeros((1, 1)), np.zeros((1, 1), dtype=np.int64)
-    out = {name: one_f for name in _kernels.FLOATS}
-    out.update({name: one_i for name in _kernels.INTS})
-    out.update(_bounds(model), w_b=model.constraint.B.terms, w_g=model.constraint.G.terms,
+    out = {name: one_f for name in layout.FLOATS}
+    out.update({name: one_i for name in layout.INTS})
+    out.update(parameter_bounds(model), w_b=model.constraint.B.terms, w_g=model.constraint.G.terms,
                a_terms=model.A.terms, f_terms=model.F.terms, dims=np.array([1, 0, 1]))
     return out
 
 
-def eigenbasis(terms: np.ndarray, theta_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray] | str:
-    """``(V, lam)`` with ``V^T A_k V = diag(lam[k])`` for every affine term ``A_k`` of
-    ``A_N`` (``terms``, K x n x n), ``V^T A(theta_ref) V = I``: the generalised eigenvectors
-    of a combination of the terms against ``A(theta_ref)`` (scipy ``eigh``). Exists for one
-    term or two (one parameter) and for commuting families; otherwise the reason (a string).
-    Then ``A_N(mu)^-1 = V diag(1 / lam^T theta) V^T`` (:mod:`rbbench.rb.mixed.dual_kernels`)."""
-    import scipy.linalg as sla
-
-    ref = np.tensordot(theta_ref, terms, 1)
-    try:
-        if terms.shape[0] == 1:
-            V = sla.solve_triangular(sla.cholesky(ref, lower=True), np.eye(ref.shape[0]),
-                                     lower=True).T
-        else:  # fixed weights: a generic member of the span of the mu-dependent terms
-            mix = np.tensordot(1.0 / np.arange(1, terms.shape[0]), terms[1:], 1)
-            V = sla.eigh(0.5 * (mix + mix.T), ref)[1]
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        return f"A_N at the centre of D is not positive definite ({exc})"
-    proj = np.einsum("ai,kab,bj->kij", V, terms, V)
-    lam = np.einsum("kii->ki", proj)
-    off = proj - lam[:, :, None] * np.eye(ref.shape[0])
-    if np.abs(off).max() > 1e-10 * max(np.abs(lam).max(), 1.0):
-        return (f"A_N(mu) has no common eigenbasis (off-diagonal {np.abs(off).max():.1e}); "
-                "use online method 'daqp'")
-    return V, lam
 
 
 def _condensed_plan(model: Any, w_b: np.ndarray) -> dict[str, np.ndarray]:
     """The arrays of :func:`rbbench.rb.mixed.dual_kernels.online_nnls`: the EIM terms of
     ``B_N V`` transposed (n x R each), ``V^T F_k``, ``V^T`` and ``lam`` of
     :func:`eigenbasis` (raises ValueError with its reason where there is none)."""
-    basis = eigenbasis(model.A.terms, _centre_theta(model))
+    basis = eigenbasis(model.A.terms, centre_theta(model))
     if isinstance(basis, str):
         raise ValueError(basis)
     V, lam = basis
@@ -200,108 +165,18 @@ def _condensed_plan(model: Any, w_b: np.ndarray) -> dict[str, np.ndarray]:
             "f_terms": model.F.terms @ V, "vt": np.ascontiguousarray(V.T), "lam_a": lam}
 
 
-def _centre_theta(model: Any) -> np.ndarray:
-    """``[1, mu]`` at the centre of D (mu = 0 without a parameter space)."""
-    return np.concatenate([[1.0], _centre(model)])
 
 
-def _centre(model: Any) -> np.ndarray:
-    if model.parameters is not None:
-        return 0.5 * (np.asarray(model.parameters.low) + np.asarray(model.parameters.high))
-    return np.zeros(int(model.A.terms.shape[0]) - 1)
 
 
-def reference_points(lay: Any) -> tuple[np.ndarray, ...]:
-    """``(x, n, w, phi)`` of the slave Gauss points on the reference chain (the identity
-    map), :func:`rbbench.rb.mixed.kernels.slave_points`."""
-    from rbbench.rb.mixed import kernels as _kernels
-
-    sl = lay.slave
-    nq = sl.a.shape[0] * lay.n_gauss
-    x, n, w = np.empty((nq, 2)), np.empty((nq, 2)), np.empty(nq)
-    phi = np.empty((nq, lay.degree + 1))
-    none2 = np.zeros((1, 2))
-    sg, wg = gauss(lay.n_gauss)
-    _kernels.slave_points(np.asarray(sl.a, float), np.asarray(sl.b, float),
-                          np.asarray(sl.inner, float), none2 if sl.na is None else sl.na,
-                          none2 if sl.nb is None else sl.nb, sg, wg, lay.degree,
-                          sl.na is not None, x, n, w, phi)
-    return x, n, w, phi
 
 
-def slave_terms(Z_loc: np.ndarray, cols: np.ndarray, dofs: np.ndarray, phi: np.ndarray,
-                n: np.ndarray, pts: np.ndarray, n_gauss: int) -> np.ndarray:
-    """``S[e, p] = sum_(a, d) phi[q, a] n[q, d] Z[dofs[f, a, d], cols[e]]`` at ``q = pts[e,
-    p]`` on slave facet ``f = q // n_gauss``: the slave half of the jump along ``n`` (the
-    reference normals, or their tangents) of every magic entry on the reference chain
-    (:func:`rbbench.rb.mixed.kernels.jump_values`)."""
-    d = np.asarray(dofs).reshape(dofs.shape[0], -1, 2)[pts // n_gauss]  # (E, P, k, 2)
-    z = Z_loc[d, np.asarray(cols)[:, None, None, None]]
-    return np.einsum("epa,epd,epad->ep", phi[pts], n[pts], z)
 
 
-def _master_plan(ceim: Any, n_hat: np.ndarray) -> dict[str, np.ndarray]:
-    """The master chain (facet ends ``m_a``, ``m_b``, vertices ``m_v``), its windows, their
-    monotonicity test (the reference's :func:`~rbbench.hf.geometry.facets.ray_cast_window` formula
-    for ``sign(s) n_hat``: column 0 for ``s > 0``, 1 for ``s < 0``) and ``Z^T`` on the
-    master dofs the windows reach (``m_dofs`` numbered into ``zt_m``; facets outside every
-    window point at column 0)."""
-    from rbbench.hf.geometry.facets import window_monotone
-
-    ev, ms = ceim.evaluator, ceim.evaluator.layout.master
-    N = ceim.Z_loc.shape[1]
-    nq = n_hat.shape[0]
-    if ms is None:
-        none2 = np.zeros((1, 2))
-        return {"m_a": none2, "m_b": none2, "m_v": none2, "zt_m": np.zeros((N, 1)),
-                "mono": np.zeros((nq, 2), dtype=np.int64),
-                "m_dofs": np.zeros((1, 2), int),
-                "lo": np.zeros(1, int), "hi": np.zeros(1, int)}
-    lo, hi, ranges = ev.windows
-    mono = np.stack([window_monotone(n_hat, ranges), window_monotone(-n_hat, ranges)], axis=1)
-    dofs = np.asarray(ms.dofs).reshape(ms.dofs.shape[0], -1)
-    reached = np.zeros(dofs.shape[0], dtype=bool)
-    for a, b in zip(lo, hi, strict=True):
-        reached[a:b + 1] = True
-    used = np.unique(dofs[reached])
-    m_dofs = np.where(reached[:, None], np.searchsorted(used, dofs), 0)
-    return {"m_a": ms.a, "m_b": ms.b, "m_v": np.vstack([ms.a, ms.b[-1:]]),
-            "zt_m": np.ascontiguousarray(ceim.Z_loc[used].T),
-            "mono": mono.astype(np.int64),
-            "m_dofs": m_dofs, "lo": lo, "hi": hi}
 
 
-def gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The layout's Gauss rule on [0, 1] (:func:`rbbench.hf.geometry.facets.gauss_legendre_01`)."""
-    from rbbench.hf.geometry.facets import gauss_legendre_01
-
-    return gauss_legendre_01(n)
 
 
-def pack(arrays: dict[str, np.ndarray], floats: tuple[str, ...] | None = None,
-         ints: tuple[str, ...] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(fb, ib, meta)``: the float and int arrays of :func:`plan_arrays` in the kernels'
-    order (``floats``, ``ints``: another kernel's names, default
-    :data:`rbbench.rb.mixed.kernels.FLOATS`, ``INTS``), one row ``[offset, s0, s1, s2]`` of
-    ``meta`` per array (shape padded with 1)."""
-    from rbbench.rb.mixed import kernels as _kernels
-
-    meta, chunks = [], {"f": [], "i": []}
-    offsets = {"f": 0, "i": 0}
-    for kind, names in (("f", _kernels.FLOATS if floats is None else floats),
-                        ("i", _kernels.INTS if ints is None else ints)):
-        dtype = np.float64 if kind == "f" else np.int64
-        for name in names:
-            a = np.ascontiguousarray(arrays[name], dtype=dtype)
-            shape = (*a.shape, 1, 1, 1)[:3] if a.ndim else (1, 1, 1)
-            if a.ndim > 3 or int(np.prod(shape)) != a.size:
-                raise ValueError(f"plan array {name}: shape {a.shape} (at most 3 axes)")
-            meta.append([offsets[kind], *shape])
-            chunks[kind].append(a.ravel())
-            offsets[kind] += a.size
-    fb = np.concatenate(chunks["f"])
-    ib = np.concatenate(chunks["i"])
-    return fb, ib, np.asarray(meta, dtype=np.int64)
 
 
 class CompiledOnline:
@@ -384,5 +259,5 @@ def prepare(model: Any, method: str = "daqp") -> CompiledOnline | str:
         online = CompiledOnline(model, method)
     except ValueError as exc:  # no common eigenbasis of A_N's terms (method "nnls")
         return str(exc)
-    online.warm_up(_centre(model))
+    online.warm_up(centre(model))
     return online

@@ -226,12 +226,12 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
 
 def compiled_plan(ev: Any, Msp: sp.csr_matrix, bounds: np.ndarray) -> dict | None:
     """The arrays of the numba pairing of all contact rows
-    (:func:`rbbench.rb.mixed.kernels.pair_points`, the compiled online solve's) and of
+    (:func:`rbbench.rb.kernels.pairing.pair_points`, the compiled online solve's) and of
     :func:`rbbench.rb.mixed.bound_kernels.contact_jumps`; None without numba or with
     multipliers that are not one per point (P1)."""
     try:
-        from rbbench.rb.mixed import kernels
-        from rbbench.rb.mixed.compiled import _master_plan, pack, reference_points
+        from rbbench.rb.kernels import layout  # imports numba
+        from rbbench.rb.kernels.plan import master_plan, pack, reference_points
     except ImportError:  # pragma: no cover - numba absent
         return None
     lay = ev.layout
@@ -240,13 +240,13 @@ def compiled_plan(ev: Any, Msp: sp.csr_matrix, bounds: np.ndarray) -> dict | Non
         return None
     x_hat, n_hat, w_hat, sphi = reference_points(lay)
     one_f, one_i = np.zeros((1, 1)), np.zeros((1, 1), dtype=np.int64)
-    arrays = {**dict.fromkeys(kernels.FLOATS, one_f), **dict.fromkeys(kernels.INTS, one_i)}
+    arrays = {**dict.fromkeys(layout.FLOATS, one_f), **dict.fromkeys(layout.INTS, one_i)}
     arrays.update({"mu_lo": bounds[:, 0], "mu_hi": bounds[:, 1],
                    "s_scale": lay.slave.map.scale, "s_shift": lay.slave.map.shift,
                    "m_scale": lay.master.map.scale, "m_shift": lay.master.map.shift,
                    "x_hat": x_hat, "n_hat": n_hat, "w_hat": w_hat,
                    "dims": np.array([lay.degree, 1, 0])})
-    arrays.update(_master_plan(SimpleNamespace(evaluator=ev, Z_loc=np.zeros((lay.n_dofs, 1))),
+    arrays.update(master_plan(SimpleNamespace(evaluator=ev, Z_loc=np.zeros((lay.n_dofs, 1))),
                                n_hat))
     fb, ib, meta = pack(arrays)
     nq = x_hat.shape[0]
@@ -260,18 +260,18 @@ def _compiled_residuals(plan: dict, mu: np.ndarray, uz: np.ndarray, lam: np.ndar
                         n_c: int) -> tuple[np.ndarray, np.ndarray] | None:
     """``(d, b)`` of :meth:`ContactBound.residuals` by the numba kernels; None where they
     decline (mu outside D, a point leaving its window)."""
-    from rbbench.rb.mixed import kernels
+    from rbbench.rb.kernels import layout, pairing
     from rbbench.rb.mixed.bound_kernels import contact_jumps
 
     fb, ib, meta = plan["fb"], plan["ib"], plan["meta"]
-    status, th = kernels.theta(np.ascontiguousarray(mu, dtype=float), fb, meta)
-    if status != kernels.OK:
+    status, th = layout.theta(np.ascontiguousarray(mu, dtype=float), fb, meta)
+    if status != layout.OK:
         return None
     nq = plan["n_hat"].shape[0]
     w, gap = np.empty(nq), np.empty(nq)
     mphi, seg = np.zeros((nq, plan["k"])), np.zeros(nq, dtype=np.int64)
-    status, s = kernels.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
-    if status != kernels.OK:
+    status, s = pairing.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    if status != layout.OK:
         return None
     d, b = np.empty(m), np.empty(n_c)
     contact_jumps(s, w, gap, mphi, seg, plan["sphi"], plan["n_hat"], plan["sdofs"],

@@ -20,6 +20,8 @@ pytest.importorskip("numba")
 from rbbench.hf.components import make_components  # noqa: E402
 from rbbench.rb.algorithms.affine import AffineOperator, LinearInMu  # noqa: E402
 from rbbench.rb.hyper.contact_eim import HyperReductionError, contact_eim  # noqa: E402
+from rbbench.rb.kernels import layout, pairing  # noqa: E402
+from rbbench.rb.kernels.plan import coefficient_map, eigenbasis  # noqa: E402
 from rbbench.rb.mixed import compiled as compiled_online
 from rbbench.rb.mixed import kernels as _kernels  # noqa: E402
 from rbbench.rb.mixed.model import ReducedModel  # noqa: E402
@@ -85,13 +87,13 @@ def test_raw_values_equal_the_python_path(model):
     fb, ib, meta = online.fb, online.ib, online.meta
     k = ev.layout.degree + 1
     nq = ev.Mrows.shape[1]
-    n_hat = _kernels._f2(fb, meta, _kernels.N_HAT)
+    n_hat = layout.float_rows(fb, meta, layout.N_HAT)
     for mu in MUS:
         th = np.array([1.0, mu])
         w, gap, mphi = np.empty(nq), np.empty(nq), np.zeros((nq, k))
         seg = np.zeros(nq, dtype=np.int64)
-        status, s = _kernels.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
-        assert status == _kernels.OK
+        status, s = pairing.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+        assert status == layout.OK
         p = ev.pairing(np.array([mu]))
         # the online normals sign(s) n_hat and weights |s| w_hat, tabulated on the reference
         # chain; the reference maps the facet ends first and subtracts them, which costs it
@@ -107,9 +109,9 @@ def test_raw_values_equal_the_python_path(model):
                                 ceim.pos_G)
         assert _rel(c, c_py) <= 1e-12 and _rel(g, g_py) <= 1e-12
         theta = sla.lu_solve(ceim.lu_B, c_py)  # the folded map = the coefficient solve
-        w_b = compiled_online.coefficient_map(ceim.lu_B, ceim.T_B)
+        w_b = coefficient_map(ceim.lu_B, ceim.T_B)
         assert _rel(np.tensordot(c, w_b, 1), np.tensordot(theta, ceim.T_B, 1)) <= 1e-12
-        assert _kernels.online_qp(np.array([mu]), fb, ib, meta, online.qp) == _kernels.OK
+        assert _kernels.online_qp(np.array([mu]), fb, ib, meta, online.qp) == layout.OK
         ref = _python_qp(model, mu)
         n = model.N
         assert _rel(online.qp[:n * n], ref[:n * n]) <= 1e-12  # H = A_N
@@ -148,10 +150,10 @@ def test_nnls_without_a_common_eigenbasis_takes_the_python_path():
     X = rng.standard_normal(model.A.terms.shape[1:])
     extra = 0.05 * (X + X.T)
     terms = model.A.terms
-    reason = compiled_online.eigenbasis(np.stack([terms[0], terms[1], extra]),
+    reason = eigenbasis(np.stack([terms[0], terms[1], extra]),
                                         np.array([1.0, 1.0, 0.0]))
     assert isinstance(reason, str) and "no common eigenbasis" in reason
-    basis = compiled_online.eigenbasis(terms, np.array([1.0, 1.0]))
+    basis = eigenbasis(terms, np.array([1.0, 1.0]))
     V, lam = basis
     for mu in MUS:  # A_N(mu)^-1 = V diag(1 / lam^T theta) V^T
         th = np.array([1.0, mu])

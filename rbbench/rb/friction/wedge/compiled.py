@@ -4,8 +4,9 @@ On the Python path (:meth:`rbbench.rb.friction.wedge.hyper.WedgeHyperModel.solve
 friction EIM's pairing and magic entries, the coefficient solves and De Saxce's fixed point
 (daqp called from a Python loop) take ~10 ms on hertz_friction P2. Here
 :func:`rbbench.rb.friction.wedge.kernels.wedge_online` does all of it in one call, on the
-frictionless path's plan layout (:mod:`rbbench.rb.mixed.compiled`: the pairing arrays, the
-normal magic entries, the EIM maps with the coefficient solves folded in) and a second
+frictionless path's plan layout (:mod:`rbbench.rb.kernels.layout`, tabulated by
+:mod:`rbbench.rb.kernels.plan`: the pairing arrays, the normal magic entries, the EIM maps
+with the coefficient solves folded in) and a second
 buffer of the wedge's own arrays (tangential and slip entries, the slip DEIM's ``P``, the
 training solutions of the warm start).
 
@@ -23,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from rbbench.rb.mixed import compiled as mixed_compiled
-from rbbench.rb.mixed.compiled import NUMBA_VERSION
+from rbbench.rb.kernels import plan
+from rbbench.rb.kernels.plan import NUMBA_VERSION
 
 __all__ = ["COMPILE", "COMPILE_ESTIMATE_S", "CompiledWedge", "is_cached", "path_reason",
            "prepare", "wedge_plan"]
@@ -59,47 +60,48 @@ def path_reason(model: Any) -> str | None:
 
 def wedge_plan(model: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """``(shared, own)``: the kernel's plan. ``shared`` in the frictionless layout
-    (:data:`rbbench.rb.mixed.kernels.FLOATS`, ``INTS``): the pairing arrays of the friction
+    (:data:`rbbench.rb.kernels.layout.FLOATS`, ``INTS``): the pairing arrays of the friction
     EIM's evaluator, its normal magic entries as the ``b`` entries, Gn's rows as the ``g``
-    rows, ``w_b`` the normal then tangential EIM maps (:func:`~rbbench.rb.mixed.compiled.
-    coefficient_map`) times the eigenbasis ``V`` of ``A_N``'s terms, transposed (n x R
-    each); ``own``: :data:`rbbench.rb.friction.wedge.kernels.FLOATS`, ``INTS``. Raises
-    ValueError where ``A_N``'s terms have no common eigenbasis."""
+    rows, ``w_b`` the normal then tangential EIM maps
+    (:func:`~rbbench.rb.kernels.plan.coefficient_map`) times the eigenbasis ``V`` of
+    ``A_N``'s terms, transposed (n x R each); ``own``:
+    :data:`rbbench.rb.friction.wedge.kernels.FLOATS`, ``INTS``. Raises ValueError where
+    ``A_N``'s terms have no common eigenbasis."""
     feim = model.eim
     ev, lay = feim.evaluator, feim.evaluator.layout
     sl, ms = lay.slave, lay.master
-    basis = mixed_compiled.eigenbasis(model.A.terms, mixed_compiled._centre_theta(model))
+    basis = plan.eigenbasis(model.A.terms, plan.centre_theta(model))
     if isinstance(basis, str):
         raise ValueError(basis)
     V, lam = basis
-    x_hat, n_hat, w_hat, sphi = mixed_compiled.reference_points(lay)
+    x_hat, n_hat, w_hat, sphi = plan.reference_points(lay)
     t_hat = np.stack([-n_hat[:, 1], n_hat[:, 0]], axis=1)
     Z, Zv = feim.Z_loc, feim.Z_loc @ V
     nrm, tan, slip = feim.normal, feim.tangential, feim.slip
 
     def slave(part, direction, basis_loc):
-        return mixed_compiled.slave_terms(basis_loc, part.col, sl.dofs, sphi, direction,
+        return plan.slave_terms(basis_loc, part.col, sl.dofs, sphi, direction,
                                           part.support[0], lay.n_gauss)
 
-    w_b = np.concatenate([mixed_compiled.coefficient_map(nrm.lu, nrm.T),
-                          mixed_compiled.coefficient_map(tan.lu, tan.T)])
+    w_b = np.concatenate([plan.coefficient_map(nrm.lu, nrm.T),
+                          plan.coefficient_map(tan.lu, tan.T)])
     w_b = np.einsum("era,ak->ekr", w_b, V)
     w_u, w_b = compress_map(w_b.reshape(w_b.shape[0], -1), _sample_values(model))
     pts_g, vals_g = ev.support(feim.pos_G)
-    shared = {**mixed_compiled._bounds(model), "s_scale": sl.map.scale,
+    shared = {**plan.parameter_bounds(model), "s_scale": sl.map.scale,
               "s_shift": sl.map.shift,
               "m_scale": sl.map.scale if ms is None else ms.map.scale,
               "m_shift": sl.map.shift if ms is None else ms.map.shift,
               "x_hat": x_hat, "n_hat": n_hat, "w_hat": w_hat,
               "slave_b": slave(nrm, n_hat, Z), "vals_b": nrm.support[1], "vals_g": vals_g,
               "w_b": np.ascontiguousarray(w_b),
-              "w_g": mixed_compiled.coefficient_map(feim.lu_G, feim.T_G),
+              "w_g": plan.coefficient_map(feim.lu_G, feim.T_G),
               "a_terms": model.A.terms, "f_terms": model.F.terms @ V,
               "dims": np.array([lay.degree, ms is not None, 0]),
               "pts_b": nrm.support[0], "cols_b": nrm.col,
               "order_b": np.argsort(nrm.col, kind="stable"), "pts_g": pts_g,
               "vt": np.ascontiguousarray(V.T), "lam_a": lam}
-    master = mixed_compiled._master_plan(feim, n_hat)
+    master = plan.master_plan(feim, n_hat)
     shared.update(master)
     z_s = np.zeros((1, Zv.shape[1]))
     if ms is not None:  # the master dofs of the windows, in Z V (the slip rows' basis)
@@ -167,7 +169,7 @@ def _sample_values(model: Any, n: int = 33) -> np.ndarray:
 
 def _master_basis(feim: Any, basis_loc: np.ndarray) -> np.ndarray:
     """``basis_loc`` on the master dofs the windows reach (one row per dof), numbered as
-    :func:`rbbench.rb.mixed.compiled._master_plan` numbers them (``m_dofs``)."""
+    :func:`rbbench.rb.kernels.plan.master_plan` numbers them (``m_dofs``)."""
     ev, ms = feim.evaluator, feim.evaluator.layout.master
     lo, hi, _ = ev.windows
     dofs = np.asarray(ms.dofs).reshape(ms.dofs.shape[0], -1)
@@ -198,8 +200,8 @@ class CompiledWedge:
 
         self._k = kernels
         shared, own = wedge_plan(model)
-        self.fb, self.ib, self.meta = mixed_compiled.pack(shared)
-        self.fw, self.iw, self.mw = mixed_compiled.pack(own, kernels.FLOATS, kernels.INTS)
+        self.fb, self.ib, self.meta = plan.pack(shared)
+        self.fw, self.iw, self.mw = plan.pack(own, kernels.FLOATS, kernels.INTS)
         self.R = int(model.R)
         self.start = kernels.NEAREST if np.asarray(model.x_train).size else kernels.COLD
 
@@ -247,5 +249,5 @@ def prepare(model: Any) -> CompiledWedge | str:
         online = CompiledWedge(model)
     except ValueError as exc:  # no common eigenbasis of A_N's terms
         return str(exc)
-    online.warm_up(mixed_compiled._centre(model))
+    online.warm_up(plan.centre(model))
     return online

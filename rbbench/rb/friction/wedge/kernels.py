@@ -6,14 +6,14 @@ One call of :func:`wedge_online` does for one mu what
 
 1. the pairing of the magic rows' quadrature points in their master windows and the magic
    entries of ``Bn(mu) Z``, ``Bt(mu) Z``, the magic rows of ``Gn(mu)`` and the slip rows
-   ``(Bt(mu) Z)[I]`` (the frictionless kernels :func:`rbbench.rb.mixed.kernels.pair_points`,
-   :func:`~rbbench.rb.mixed.kernels.jump_values` along the normals and the tangents,
-   :func:`~rbbench.rb.mixed.kernels.gap_values`);
+   ``(Bt(mu) Z)[I]`` (the shared kernels :func:`rbbench.rb.kernels.pairing.pair_points`,
+   :func:`~rbbench.rb.kernels.pairing.jump_values` along the normals and the tangents,
+   :func:`~rbbench.rb.kernels.pairing.gap_values`);
 2. the EIM coefficient solves folded offline into the terms and the reduced ``B``, ``g``,
-   ``A_N``, ``F_N`` (:func:`rbbench.rb.mixed.kernels._combine`), written in a common
+   ``A_N``, ``F_N`` (:func:`rbbench.rb.kernels.layout.combine_terms`), written in a common
    eigenbasis ``V`` of ``A_N``'s affine terms, ``A_N(mu) = V^-T diag(s(mu)) V^-1``
-   (:func:`rbbench.rb.mixed.compiled.eigenbasis`), so that the condensation on ``c``
-   needs no factorisation (:func:`rbbench.rb.mixed.dual_kernels.condense`)::
+   (:func:`rbbench.rb.kernels.plan.eigenbasis`), so that the condensation on ``c``
+   needs no factorisation (:func:`rbbench.rb.kernels.nnls.condense`)::
 
        D = Bv diag(1/s) Bv^T,  q = g - Bv (Fv / s),  a = V (Fv - Bv^T c) / s,
 
@@ -23,7 +23,7 @@ One call of :func:`wedge_online` does for one mu what
 3. De Saxce's fixed point (:func:`rbbench.rb.friction.wedge.model.desaxce_coulomb`, the same
    stop rule and tolerance): each bound-constrained QP ``min 1/2 c^T D c + g^T c``,
    ``c >= 0``, by Lawson and Hanson's active set in Bro and de Jong's Gram form
-   (:func:`rbbench.rb.mixed.dual_kernels.nnls_gram`, warm-started from the previous
+   (:func:`rbbench.rb.kernels.nnls.nnls_gram`, warm-started from the previous
    iterate as daqp is on the Python path), on the Jacobi-scaled problem (daqp's scaling),
    accepted when its natural residual is below :data:`TOL`; the first iterate is the
    nearest training solution.
@@ -39,9 +39,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbbench.rb.mixed import dual_kernels as DK
-from rbbench.rb.mixed import kernels as K
-from rbbench.runtime.numba_cache import use_user_cache
+from rbbench.rb.kernels import layout as K
+from rbbench.rb.kernels import nnls as NN
+from rbbench.rb.kernels import pairing as KP
+from rbbench.runtime.numba_cache import drop_stale, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
@@ -55,7 +56,7 @@ INTS = ("pts_t", "cols_t", "order_t", "pts_s", "sizes")
  W_U) = range(11)
 (PTS_T, COLS_T, ORDER_T, PTS_S, SIZES) = range(11, 16)
 
-#: statuses: :mod:`rbbench.rb.mixed.kernels`' ``OK``, ``OUTSIDE_D``, ``NO_HIT``, and these
+#: statuses: :mod:`rbbench.rb.kernels.layout`'s ``OK``, ``OUTSIDE_D``, ``NO_HIT``, and these
 OK = K.OK
 NOT_SPD, QP_FAILED, NOT_FINITE = 3, 4, 5
 #: stop reasons of the fixed point (:func:`rbbench.rb.friction.qp.increment_stop`)
@@ -69,7 +70,7 @@ TOL, QP_MAX_ITER = 1e-10, 500
 @njit(cache=True)
 def jump_rows(s, dh, wh, zs, m_dofs, has_master, slave, vals, pts, mphi, seg, out):
     """Whole rows ``out[r] = (J(mu) Z)[row r]`` (the slip rows), as
-    :func:`rbbench.rb.mixed.kernels.jump_values` does entry by entry but a row at a time:
+    :func:`rbbench.rb.kernels.pairing.jump_values` does entry by entry but a row at a time:
     ``slave[r, p]`` the tabulated slave term of point ``p`` for every column, ``zs`` the
     basis on the master dofs of the windows, one contiguous row per dof (``out`` zeroed
     by the caller)."""
@@ -145,8 +146,8 @@ def _qp(ds, sc, g, c, warm, y):
     for i in range(r):
         gs[i] /= gm
         y[i] = c[i] / (sc[i] * gm) if warm else 0.0
-    status, it = DK.nnls_gram(ds, gs, y, QP_MAX_ITER, warm)
-    if status != DK.NNLS_OK or not DK._natural_residual(ds, gs, y) <= TOL:
+    status, it = NN.nnls_gram(ds, gs, y, QP_MAX_ITER, warm)
+    if status != NN.NNLS_OK or not NN.natural_residual(ds, gs, y) <= TOL:
         return False, it
     for i in range(r):
         c[i] = sc[i] * y[i] * gm
@@ -160,38 +161,42 @@ def _reduced_arrays(th, fb, ib, meta, fw, iw, mw, n, r, ms, n_map):
     ``gn`` (r): ``(status, B, gn, slip rows (ms x n))``."""
     bt, gn, rv = np.empty(n * r), np.empty(r), np.zeros((ms, n))
     nq = meta[K.X_HAT, 1]
-    dims = K._i(ib, meta, K.DIMS)
+    dims = K.flat_ints(ib, meta, K.DIMS)
     w, gap = np.empty(nq), np.empty(nq)
     mphi, seg = np.zeros((nq, dims[0] + 1)), np.zeros(nq, dtype=np.int64)
-    status, s = K.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    status, s = KP.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
     if status != K.OK:
         return status, bt.reshape((n, r)), gn, rv
     mn, mt = meta[K.PTS_B, 1], mw[PTS_T, 1]
-    wh, zt, m_dofs = K._f(fb, meta, K.W_HAT), K._f2(fb, meta, K.ZT_M), K._i2(ib, meta, K.M_DOFS)
-    nh, tangent = K._f2(fb, meta, K.N_HAT), K._f2(fw, mw, T_HAT)
+    wh, zt = K.flat_floats(fb, meta, K.W_HAT), K.float_rows(fb, meta, K.ZT_M)
+    m_dofs = K.int_rows(ib, meta, K.M_DOFS)
+    nh, tangent = K.float_rows(fb, meta, K.N_HAT), K.float_rows(fw, mw, T_HAT)
     vals = np.empty(mn + mt)
-    K.jump_values(s, nh, wh, zt, m_dofs, dims[1], K._f2(fb, meta, K.SLAVE_B),
-                  K._f2(fb, meta, K.VALS_B), K._i2(ib, meta, K.PTS_B),
-                  K._i(ib, meta, K.COLS_B), K._i(ib, meta, K.ORDER_B), mphi, seg, vals[:mn])
-    K.jump_values(s, tangent, wh, zt, m_dofs, dims[1], K._f2(fw, mw, SLAVE_T),
-                  K._f2(fw, mw, VALS_T), K._i2(iw, mw, PTS_T), K._i(iw, mw, COLS_T),
-                  K._i(iw, mw, ORDER_T), mphi, seg, vals[mn:])
+    KP.jump_values(s, nh, wh, zt, m_dofs, dims[1], K.float_rows(fb, meta, K.SLAVE_B),
+                   K.float_rows(fb, meta, K.VALS_B), K.int_rows(ib, meta, K.PTS_B),
+                   K.flat_ints(ib, meta, K.COLS_B), K.flat_ints(ib, meta, K.ORDER_B), mphi,
+                   seg, vals[:mn])
+    KP.jump_values(s, tangent, wh, zt, m_dofs, dims[1], K.float_rows(fw, mw, SLAVE_T),
+                   K.float_rows(fw, mw, VALS_T), K.int_rows(iw, mw, PTS_T),
+                   K.flat_ints(iw, mw, COLS_T), K.flat_ints(iw, mw, ORDER_T), mphi, seg,
+                   vals[mn:])
     gvals = np.empty(meta[K.PTS_G, 1])
-    K.gap_values(w, gap, K._f2(fb, meta, K.VALS_G), K._i2(ib, meta, K.PTS_G), gvals)
-    jump_rows(s, tangent, wh, K._f2(fw, mw, Z_S), m_dofs, dims[1],
-              K._f(fw, mw, SLAVE_S).reshape((ms, mw[VALS_S, 2], n)), K._f2(fw, mw, VALS_S),
-              K._i2(iw, mw, PTS_S), mphi, seg, rv)
+    KP.gap_values(w, gap, K.float_rows(fb, meta, K.VALS_G), K.int_rows(ib, meta, K.PTS_G),
+                  gvals)
+    jump_rows(s, tangent, wh, K.float_rows(fw, mw, Z_S), m_dofs, dims[1],
+              K.flat_floats(fw, mw, SLAVE_S).reshape((ms, mw[VALS_S, 2], n)),
+              K.float_rows(fw, mw, VALS_S), K.int_rows(iw, mw, PTS_S), mphi, seg, rv)
     if n_map > 0:  # the compressed map: B = (c^T U) W_k
-        wu = K._f2(fw, mw, W_U)
+        wu = K.float_rows(fw, mw, W_U)
         y = np.zeros(n_map)
         for e in range(vals.size):
             ce = vals[e]
             for j in range(y.size):
                 y[j] += ce * wu[e, j]
-        K._combine(y, K._f2(fb, meta, K.W_B), bt)
+        K.combine_terms(y, K.float_rows(fb, meta, K.W_B), bt)
     else:
-        K._combine(vals, K._f2(fb, meta, K.W_B), bt)
-    K._combine(gvals, K._f2(fb, meta, K.W_G), gn)
+        K.combine_terms(vals, K.float_rows(fb, meta, K.W_B), bt)
+    K.combine_terms(gvals, K.float_rows(fb, meta, K.W_G), gn)
     return K.OK, bt.reshape((n, r)), gn, rv
 
 
@@ -201,7 +206,7 @@ def _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, tm, sc, ds):
     kt c`` in the eigenbasis, the slip rows ``t0 + tm c`` and the Jacobi-scaled ``ds``
     (``sc`` its scaling); False when ``d`` has a non-positive diagonal."""
     n, r = bt2.shape
-    DK.condense(bt2, ft, sd, d, q, gn)
+    NN.condense(bt2, ft, sd, d, q, gn)
     for k in range(n):
         a0[k] = ft[k] / sd[k]
         for i in range(r):
@@ -264,12 +269,12 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
     relative increments of the linear term; ``start`` one of :data:`NEAREST`,
     :data:`GIVEN` (``x0``), :data:`COLD`.
 
-    ``fb, ib, meta``: the frictionless plan (:mod:`rbbench.rb.mixed.kernels`) with the normal
+    ``fb, ib, meta``: the frictionless plan (:mod:`rbbench.rb.kernels.layout`) with the normal
     magic entries in its ``b`` arrays, ``w_b`` the combined normal and tangential EIM maps
     (``(W_e V)^T``), ``w_g`` Gn's, ``f_terms``, ``vt``, ``lam_a`` those of
     :func:`rbbench.rb.mixed.dual_kernels.online_nnls`; ``fw, iw, mw``: the wedge arrays
     (:data:`FLOATS`, :data:`INTS`)."""
-    sizes = K._i(iw, mw, SIZES)
+    sizes = K.flat_ints(iw, mw, SIZES)
     n, r, ms, max_iter = meta[K.VT, 1], meta[K.W_G, 2], sizes[0], sizes[1]
     a, c = np.zeros(n), np.zeros(r)
     hist = np.zeros(max_iter)
@@ -281,8 +286,8 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
     if status != K.OK:
         return status, 0, 0, 0, a, c, hist[:0]
     sd, ft = np.empty(n), np.empty(n)
-    K._combine(th, K._f2(fb, meta, K.LAM_A), sd)
-    K._combine(th, K._f2(fb, meta, K.F_TERMS), ft)
+    K.combine_terms(th, K.float_rows(fb, meta, K.LAM_A), sd)
+    K.combine_terms(th, K.float_rows(fb, meta, K.F_TERMS), ft)
     for k in range(n):
         if not sd[k] > 0.0:  # A_N(mu) not positive definite: the reference decides
             return NOT_SPD, 0, 0, 0, a, c, hist[:0]
@@ -292,20 +297,20 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
         return NOT_SPD, 0, 0, 0, a, c, hist[:0]
     # 3. De Saxce's fixed point
     if start == NEAREST:
-        _nearest(mu, K._f2(fw, mw, MUS_TRAIN), K._f2(fw, mw, X_TRAIN), c)
+        _nearest(mu, K.float_rows(fw, mw, MUS_TRAIN), K.float_rows(fw, mw, X_TRAIN), c)
     elif start == GIVEN:
         c[:] = x0
     for i in range(r):
         c[i] = max(c[i], 0.0)
-    ok, it, stop, inner = _desaxce(ds, sc, q, K._f2(fw, mw, PQ), t0, tm, c,
-                                   K._f(fw, mw, SETTINGS)[0], start != COLD, hist)
+    ok, it, stop, inner = _desaxce(ds, sc, q, K.float_rows(fw, mw, PQ), t0, tm, c,
+                                   K.flat_floats(fw, mw, SETTINGS)[0], start != COLD, hist)
     if not ok:
         return QP_FAILED, it, 0, inner, a, c, hist[:it]
     av = a0.copy()
     for k in range(n):
         for i in range(r):
             av[k] -= kt[k, i] * c[i]
-    vt = K._f2(fb, meta, K.VT)
+    vt = K.float_rows(fb, meta, K.VT)
     for k in range(n):
         for j in range(n):
             a[j] += vt[k, j] * av[k]
@@ -315,18 +320,17 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
     return K.OK, it, stop, inner, a, c, hist[:it]
 
 
+#: the modules whose kernels :func:`wedge_online` compiles in (numba's cache checks only
+#: this file)
+DEPENDENCIES = (K.__file__, KP.__file__, NN.__file__)
+
+
 def drop_stale_cache() -> bool:
-    """Forget the cached :func:`wedge_online` when a module whose functions it inlines
-    (:mod:`rbbench.rb.mixed.kernels`, :mod:`rbbench.rb.mixed.dual_kernels`) changed after it
-    was cached (numba checks only this file's stamp: the frictionless kernel's
-    :func:`~rbbench.rb.mixed.dual_kernels.drop_stale_cache`). Returns whether it flushed.
-    Called at import."""
-    cache = wedge_online._cache
-    index = cache._cache_file._index_path
-    if any(DK.is_stale(index, dep) for dep in (K.__file__, DK.__file__)):
-        cache.flush()
-        return True
-    return False
+    """Forget the cached :func:`wedge_online` when one of :data:`DEPENDENCIES`, whose
+    functions it inlines, changed after it was cached
+    (:func:`rbbench.runtime.numba_cache.drop_stale`). Returns whether it flushed. Called
+    at import."""
+    return drop_stale([wedge_online], DEPENDENCIES)
 
 
 drop_stale_cache()

@@ -1,4 +1,4 @@
-"""The compiled NNLS of the condensed online solve (rbbench.rb.mixed.dual_kernels) on its own.
+"""The Gram-form NNLS and the condensation of the compiled online solves, on their own.
 
 Against an independent reference: on small problems every active set is enumerated and the
 unique one satisfying the KKT conditions of LCP(q, D) gives the exact solution; on larger
@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 pytest.importorskip("numba")
 
-from rbbench.rb.mixed import dual_kernels as dk  # noqa: E402
+from rbbench.rb.kernels import nnls as dk  # noqa: E402
 
 
 def _problem(seed: int, r: int, spread: float) -> tuple[np.ndarray, np.ndarray]:
@@ -67,7 +67,7 @@ def test_nnls_gram_satisfies_kkt(seed, r, spread):
     assert x.min() >= 0.0
     assert s.min() >= -1e-10 * scale
     assert np.abs(x * s).max() <= 1e-10 * scale * max(np.abs(x).max(), 1e-300)
-    assert dk._natural_residual(D, q, x) <= 1e-10
+    assert dk.natural_residual(D, q, x) <= 1e-10
 
 
 @settings(max_examples=60, deadline=None)
@@ -109,39 +109,3 @@ def test_condense_equals_the_dense_formula():
     dk.condense(bt, ft, s, d, q, g)
     np.testing.assert_allclose(d, bt.T @ np.diag(1 / s) @ bt, rtol=1e-14, atol=1e-14)
     np.testing.assert_allclose(q, g - bt.T @ (ft / s), rtol=1e-14, atol=1e-14)
-
-
-def test_eigenbasis_one_term_and_commuting_terms():
-    """``V^T A_k V = diag(lam[k])`` and ``V^T A(theta_ref) V = I``: one constant term
-    (V = L^-T), and three terms that are polynomials of one SPD matrix (they commute, so a
-    common eigenbasis exists although there are two parameters)."""
-    from rbbench.rb.mixed.compiled import eigenbasis
-
-    rng = np.random.default_rng(5)
-    X = rng.standard_normal((7, 7))
-    S = X @ X.T + 7 * np.eye(7)
-    poly = np.stack([S, 0.1 * S @ S / 7, 0.01 * np.eye(7)])
-    for terms, th in ((S[None], np.array([1.0])), (poly, np.array([1.0, 0.5, 2.0]))):
-        V, lam = eigenbasis(terms, th)
-        for k in range(terms.shape[0]):
-            np.testing.assert_allclose(V.T @ terms[k] @ V, np.diag(lam[k]), atol=1e-12)
-        np.testing.assert_allclose(V.T @ np.tensordot(th, terms, 1) @ V, np.eye(7), atol=1e-12)
-    bad = eigenbasis(np.stack([S, -10 * S]), np.array([1.0, 1.0]))  # A(theta_ref) = -9 S
-    assert isinstance(bad, str) and "not positive definite" in bad
-
-
-def test_a_cache_older_than_the_kernels_it_inlines_is_dropped(tmp_path):
-    """numba would keep running the cached online_nnls after a change to _kernels.py alone
-    (it checks only _dual_kernels.py): the index is compared with _kernels.py's time."""
-    import os
-
-    index, source = tmp_path / "k.nbi", tmp_path / "k.py"
-    index.write_text("")
-    source.write_text("")
-    os.utime(index, (1000, 1000))
-    os.utime(source, (2000, 2000))
-    assert dk.is_stale(index, source) and not dk.is_stale(source, index)
-    assert not dk.is_stale(tmp_path / "missing.nbi", source)
-    # the numba internals it reads exist in this numba
-    assert str(dk.online_nnls._cache._cache_file._index_path).endswith(".nbi")
-    assert dk.drop_stale_cache() is False  # just imported: nothing stale left
