@@ -110,22 +110,25 @@ def mirror_y(points: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.
     return points * np.array([1.0, -1.0]), triangles[:, [0, 2, 1]]
 
 
-def body_maps(scene: Scene) -> dict[str, AffineMap]:
-    """The mu-map of each body, the one source of the geometry of a ``halfdisks`` scene.
+def body_maps(scene: Scene, dim: int = 2) -> dict[str, AffineMap]:
+    """The mu-map of each body, the one source of the geometry of a ``halfdisks`` (``dim =
+    2``) or ``hemispheres`` (``dim = 3``) scene.
 
-    The upper half-disk is ``R1 x_hat + (0, top + g0 + R1)`` with ``top = R2``
-    (two bodies) or ``0`` (rigid flat), the lower one ``R2 x_hat``. Coefficients
-    on ``theta(mu) = [1, mu]`` (:meth:`rbbench.scene.loading.Scene.affine_coefficients`).
+    The upper body is ``R1 x_hat + (0, [0,] top + g0 + R1)`` with ``top = R2`` (two bodies)
+    or ``0`` (rigid flat), the lower one ``R2 x_hat``: the vertical axis is the last.
+    Coefficients on ``theta(mu) = [1, mu]``
+    (:meth:`rbbench.scene.loading.Scene.affine_coefficients`).
     """
     coef = scene.affine_coefficients
     rigid = is_rigid(scene)
     r1 = coef("geometry", "upper_radius")
-    top = np.zeros_like(r1) if rigid else coef("geometry", "lower_radius")
-    maps = {"upper": AffineMap(r1, np.stack([
-        np.zeros_like(r1), top + coef("geometry", "initial_gap") + r1]))}
+    zero = np.zeros_like(r1)
+    top = zero if rigid else coef("geometry", "lower_radius")
+    shift = [zero] * (dim - 1) + [top + coef("geometry", "initial_gap") + r1]
+    maps = {"upper": AffineMap(r1, np.stack(shift))}
     if not rigid:
         r2 = coef("geometry", "lower_radius")
-        maps["lower"] = AffineMap(r2, np.zeros((2, r2.size)))
+        maps["lower"] = AffineMap(r2, np.zeros((dim, r2.size)))
     return maps
 
 

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from rbbench_plugins.backends.common import body_maps, is_rigid
 from rbbench_plugins.backends.hemisphere_mesh import quarter_hemisphere
 
 from rbbench.hf.geometry.chains import AffineMap
@@ -58,11 +59,6 @@ class HemisphereBody:
         return -0.5 * self.pole
 
 
-def is_rigid(scene: Scene) -> bool:
-    """The lower body is the rigid plane ``z = 0`` (``geometry.lower = "rigid_flat"``)."""
-    return scene.data["geometry"]["lower"] == "rigid_flat"
-
-
 def hemisphere_bodies(scene: Scene) -> list[HemisphereBody]:
     """The upper body, then (two elastic bodies) the lower one."""
     g = scene.data["geometry"]
@@ -81,18 +77,8 @@ def mesh_cap(scene: Scene) -> float:
 
 def hemisphere_maps(scene: Scene) -> dict[str, AffineMap]:
     """The mu-map of each body: upper ``R1 x_hat + (0, 0, top + g0 + R1)`` with ``top = R2``
-    (two bodies) or ``0`` (rigid flat), lower ``R2 x_hat``; coefficients on
-    ``theta(mu) = [1, mu]``."""
-    coef = scene.affine_coefficients
-    r1 = coef("geometry", "upper_radius")
-    zero = np.zeros_like(r1)
-    top = zero if is_rigid(scene) else coef("geometry", "lower_radius")
-    maps = {"upper": AffineMap(r1, np.stack([zero, zero, top + coef("geometry", "initial_gap")
-                                             + r1]))}
-    if not is_rigid(scene):
-        r2 = coef("geometry", "lower_radius")
-        maps["lower"] = AffineMap(r2, np.zeros((3, r2.size)))
-    return maps
+    (two bodies) or ``0`` (rigid flat), lower ``R2 x_hat`` (:func:`body_maps` in 3D)."""
+    return body_maps(scene, dim=3)
 
 
 def hemisphere_geometry(scene: Scene, maps: dict[str, AffineMap], mu: np.ndarray) -> dict:
