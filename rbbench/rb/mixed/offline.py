@@ -210,7 +210,7 @@ class MixedStage(ReducedStage):
                         raise
                     self.histories["affine_refused"] = str(exc)
                     hyper = ("eim" if hasattr(ctx.backend, "contact_layout") and fixed_points
-                             else "none")
+                             and scene.data["geometry"]["kind"] != "hemispheres" else "none")
             if hyper == "eim":
                 ctx.progress("EIM on the contact rows (B(mu) Z, G(mu))")
                 constraint = _contact_eim(ctx.backend, scene, config.backend, options,
