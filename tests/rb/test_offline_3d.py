@@ -61,3 +61,17 @@ def test_errors_fall_as_n_grows(sphere, cache):
 def test_3d_refuses_what_it_does_not_reduce(sphere, field, value, match):
     with pytest.raises(SceneError, match=match):
         prepare_config(sphere, ReduceConfig(**{field: value}), default_registry())
+
+
+def test_rigid_flat_cubic_decomposition_matches_the_assembled_model(cache):
+    """Rigid flat: B(mu), G(mu) are exact cubics in mu (a similarity map against z = 0), so
+    the ``affine`` model (no HF data online) solves as the model assembling the HF
+    operators at mu, at parameters off the training set."""
+    flat = load_scene("hertz_sphere", [*LEVEL0, "geometry.lower=rigid_flat"])
+    models = {h: offline(flat, make_config(N=3, R=3, hyper=h, n_jobs=1, cache_dir=cache,
+                                           n_valid=1), progress=_quiet,
+                         validation_snapshots=False).model for h in ("affine", "none")}
+    assert models["affine"].info["affine_degree"] == 3
+    for mu in ([0.77], [1.21]):
+        u = {h: m.reconstruct(m.solve(np.array(mu))).u for h, m in models.items()}
+        assert np.linalg.norm(u["affine"] - u["none"]) <= 1e-8 * np.linalg.norm(u["none"])

@@ -197,20 +197,22 @@ class MixedStage(ReducedStage):
         config, options, scene = ctx.config, ctx.options, ctx.scene
         t1 = time.perf_counter()
         hyper, model = config.hyper, None
+        surface = scene.data["geometry"]["kind"] == "hemispheres"  # 3D: a cubic map in mu
         if not self.stabilizer.online and hyper in ("auto", "affine", "eim"):
             reduced_ops = projector(ctx.problem_at, self.Z_off, self.Vg)
             if hyper in ("auto", "affine"):
                 ctx.progress("exact affine decomposition (verified by probing)")
                 try:
                     model = build_affine_model(reduced_ops, scene.bounds,
-                                               is_cone=self.dual.is_cone)
+                                               is_cone=self.dual.is_cone,
+                                               max_degree=3 if surface else 1)
                     hyper = "affine"
                 except NotAffineError as exc:
                     if hyper == "affine":
                         raise
                     self.histories["affine_refused"] = str(exc)
                     hyper = ("eim" if hasattr(ctx.backend, "contact_layout") and fixed_points
-                             and scene.data["geometry"]["kind"] != "hemispheres" else "none")
+                             and not surface else "none")
             if hyper == "eim":
                 ctx.progress("EIM on the contact rows (B(mu) Z, G(mu))")
                 constraint = _contact_eim(ctx.backend, scene, config.backend, options,
