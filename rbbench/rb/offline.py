@@ -144,7 +144,7 @@ def check_hyper_name(config: ReduceConfig, registry: Registry) -> None:
                                     f"{', '.join(valid)}")
 
 
-SURFACE_HYPERS = ("auto", "none", "affine")
+SURFACE_HYPERS = ("auto", "none", "affine", "eim")
 """Hyper-reducers of the 3D (surface contact) reduced model."""
 
 

@@ -118,9 +118,11 @@ class MixedReduction:
         if is_online(registry, options.stabilizer) and config.hyper in ("affine", "eim"):
             raise SceneError(f"stabilizer {options.stabilizer!r} builds its space online from "
                              f"the HF B(mu): use hyper 'none' or 'auto', not {config.hyper!r}")
-        if config.hyper == "eim" and scene.data["geometry"]["kind"] != "halfdisks":
+        if config.hyper == "eim" and scene.data["geometry"]["kind"] not in ("halfdisks",
+                                                                            "hemispheres"):
             raise SceneError(f"{scene.path}: hyper 'eim' (the contact EIM of B(mu) and "
-                             "g(mu)) needs a two-body scene (geometry kind 'halfdisks'); here: "
+                             "g(mu)) needs a two-body scene (geometry kind 'halfdisks' or "
+                             "'hemispheres'); here: "
                              "hyper 'auto', 'affine' or 'none'")
         self.fixed_points = fixed_contact_points(scene, config.hyper)
         return config
@@ -212,7 +214,7 @@ class MixedStage(ReducedStage):
                         raise
                     self.histories["affine_refused"] = str(exc)
                     hyper = ("eim" if hasattr(ctx.backend, "contact_layout") and fixed_points
-                             and not surface else "none")
+                             else "none")
             if hyper == "eim":
                 ctx.progress("EIM on the contact rows (B(mu) Z, G(mu))")
                 constraint = _contact_eim(ctx.backend, scene, config.backend, options,
@@ -301,6 +303,7 @@ def _contact_eim(backend, scene: Scene, backend_name: str, options: MixedOptions
     """hyper = "eim": :func:`rbbench.rb.hyper.contact_eim.contact_eim`, its error curves and
     validation."""
     from rbbench.hf.geometry.operators import contact_operators
+    from rbbench.hf.geometry.surface import SurfaceLayout, contact_operators_3d
     from rbbench.rb.hyper.contact_eim import contact_eim, entrywise_eim_error
 
     if not hasattr(backend, "contact_layout"):
@@ -310,13 +313,18 @@ def _contact_eim(backend, scene: Scene, backend_name: str, options: MixedOptions
     p0 = problem_at(mus_train[0])
     mus_eim = eim_training_set(scene, options, mus_train)
     dirichlet = np.setdiff1d(np.arange(layout.n_dofs), p0.free)
+    # the lifting at the ends of the training set (cached problems)
+    lifts = np.stack([p0.u_lift, problem_at(mus_train[-1]).u_lift])
     B_eim, G_eim = [], []
     for mu in mus_eim:
-        c = contact_operators(layout, mu)
+        c = (contact_operators_3d(layout, mu) if isinstance(layout, SurfaceLayout)
+             else contact_operators(layout, mu))
         Bfull = c.B()
-        if Bfull[:, dirichlet].nnz:
-            raise ValueError("hyper 'eim': the contact rows touch Dirichlet dofs; the contact "
-                             "EIM assumes the contact zone is away from the Dirichlet boundary")
+        touched = dirichlet[np.asarray(abs(Bfull[:, dirichlet]).sum(axis=0)).ravel() > 0]
+        if touched.size and np.any(lifts[:, touched] != 0):  # symmetry planes: zero, allowed
+            raise ValueError("hyper 'eim': the contact rows touch Dirichlet dofs of nonzero "
+                             "imposed value; the contact EIM assumes the contact zone is away "
+                             "from a nonhomogeneous Dirichlet boundary")
         B_eim.append(Bfull[:, p0.free])
         G_eim.append(c.G())
     ceim = contact_eim(layout, B_eim, np.stack(G_eim, axis=1), Z, Vg, p0.free, mus_eim,
