@@ -31,7 +31,9 @@ window of master facets, from a restricted
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -39,9 +41,7 @@ import scipy.sparse as sp
 
 from rbbench.hf.geometry.facets import multiplier_basis, window_tangent_ranges
 from rbbench.hf.geometry.pairing import ContactLayout, pair
-from rbbench.hf.geometry.surface import SurfaceLayout
 from rbbench.rb.algorithms.eim import EIMResult, deim, eim_error, matrix_eim
-from rbbench.rb.hyper.surface_eim import build_surface_row_evaluator
 
 __all__ = ["ContactEIM", "HyperReductionError", "RowEvaluator", "build_row_evaluator",
            "column_eim", "contact_eim", "entrywise_eim_error", "local_free_rows",
@@ -136,6 +136,16 @@ class RowEvaluator:
     @property
     def n_local(self) -> int:
         return int(self.local_dofs.size)
+
+    @property
+    def window_max_width(self) -> int:
+        """The most master facets in one point's window (0 for a rigid plane)."""
+        return 0 if self.windows is None else int((self.windows[1] - self.windows[0]).max()) + 1
+
+    @property
+    def n_master(self) -> int:
+        """Master facets of the restricted layout (0 for a rigid plane)."""
+        return 0 if self.layout.master is None else int(self.layout.master.n)
 
 
 def tangent(nrm: np.ndarray) -> np.ndarray:
@@ -271,16 +281,17 @@ class ContactEIM:
         return int(self.T_G.shape[1])
 
 
-def contact_eim(layout: ContactLayout | SurfaceLayout, B_train: list, G_train: np.ndarray,
+def contact_eim(layout: Any, B_train: list, G_train: np.ndarray,
                 Z: np.ndarray, Vg: np.ndarray, free: np.ndarray, mus_sample: np.ndarray,
-                tol: float = 1e-8, m_max: int | None = None) -> ContactEIM:
+                tol: float = 1e-8, m_max: int | None = None,
+                row_evaluator: Callable | None = None) -> ContactEIM:
     """Build :class:`ContactEIM` from the training constraint operators.
 
     Parameters
     ----------
     layout : ContactLayout or SurfaceLayout
-        The backend's reference contact data (2D chains, or 3D triangulated surfaces:
-        :func:`~rbbench.rb.hyper.surface_eim.build_surface_row_evaluator`).
+        The backend's reference contact data (2D chains, or 3D triangulated surfaces with
+        ``row_evaluator`` :func:`~rbbench.rb.hyper.surface_eim.build_surface_row_evaluator`).
     B_train : list of (m, n_free) sparse
         ``B(mu)`` on the free dofs (the formulation's), one per training mu.
     G_train : (m, P)
@@ -295,17 +306,17 @@ def contact_eim(layout: ContactLayout | SurfaceLayout, B_train: list, G_train: n
         Dense sample of D for the master windows (:func:`build_row_evaluator`).
     tol, m_max
         EIM stopping: relative max-norm training error, and largest size.
+    row_evaluator : callable, optional
+        ``(layout, rows, mus_sample) -> evaluator`` of the magic rows (default
+        :func:`build_row_evaluator`, 2D).
     """
     res_B, e_row, e_col, T_B = column_eim(B_train, Z, Vg, tol, m_max)
     res_G = deim(np.asarray(G_train), tol=tol, m_max=m_max)
     if res_B.m == 0 or res_G.m == 0:
         raise HyperReductionError("EIM found no term: the training B(mu) Z or G(mu) is zero")
     rows_B = np.unique(e_row)
-    if isinstance(layout, SurfaceLayout):  # 3D: the rows on triangulated surfaces
-        ev = build_surface_row_evaluator(layout, np.concatenate([rows_B, res_G.magic]),
-                                         mus_sample)
-    else:
-        ev = build_row_evaluator(layout, np.concatenate([rows_B, res_G.magic]), mus_sample)
+    ev = (row_evaluator or build_row_evaluator)(layout, np.concatenate([rows_B, res_G.magic]),
+                                                mus_sample)
     # homogeneous Dirichlet dofs in the rows (3D symmetry planes): zero rows of Z
     loc = local_free_rows(ev, free, layout.n_dofs, dirichlet_ok=True)
     Z_loc = np.where((loc >= 0)[:, None], Z[np.maximum(loc, 0)], 0.0)
@@ -313,13 +324,7 @@ def contact_eim(layout: ContactLayout | SurfaceLayout, B_train: list, G_train: n
     info = {"M_B": res_B.m, "M_G": res_G.m, "rows": int(ev.rows.size),
             "n_local_dofs": ev.n_local, "tol": tol,
             "errors_B": res_B.errors.tolist(), "errors_G": res_G.errors.tolist(),
-            "window_max_width": (0 if ev.windows is None
-                                 else int(np.bincount(ev.windows[0]).max())
-                                 if isinstance(layout, SurfaceLayout)
-                                 else int((ev.windows[1] - ev.windows[0]).max()) + 1),
-            "master_facets": (0 if ev.layout.master is None
-                              else ev.layout.master.n_tri if isinstance(layout, SurfaceLayout)
-                              else ev.layout.master.n)}
+            "window_max_width": ev.window_max_width, "master_facets": ev.n_master}
     return ContactEIM(ev, np.searchsorted(ev.rows, rows_B),  # ev.rows: sorted, unique
                       np.searchsorted(rows_B, e_row), e_col,
                       np.searchsorted(ev.rows, res_G.magic),

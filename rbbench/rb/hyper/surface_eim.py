@@ -23,6 +23,7 @@ import scipy.sparse as sp
 
 from rbbench.hf.geometry.pairing import PairingError
 from rbbench.hf.geometry.surface import SurfaceLayout, SurfacePairing, TriSurface, pair_surfaces
+from rbbench.rb.hyper.contact_eim import HyperReductionError
 
 __all__ = ["SurfaceRowEvaluator", "build_surface_row_evaluator", "master_window"]
 
@@ -56,8 +57,6 @@ class SurfaceRowEvaluator:
 
     def pairing(self, mu: np.ndarray) -> SurfacePairing:
         """The pairing of the rows' slave points at mu, against the master window."""
-        from rbbench.rb.hyper.contact_eim import HyperReductionError
-
         try:
             return pair_surfaces(self.layout, mu, candidates=self.windows)
         except PairingError as exc:
@@ -90,6 +89,16 @@ class SurfaceRowEvaluator:
     @property
     def n_local(self) -> int:
         return int(self.local_dofs.size)
+
+    @property
+    def window_max_width(self) -> int:
+        """The most candidate master triangles of one slave point (0 for a rigid plane)."""
+        return 0 if self.windows is None else int(np.bincount(self.windows[0]).max())
+
+    @property
+    def n_master(self) -> int:
+        """Master triangles of the restricted layout (0 for a rigid plane)."""
+        return 0 if self.layout.master is None else self.layout.master.n_tri
 
 
 def _row_triangles(layout: SurfaceLayout, rows: np.ndarray) -> np.ndarray:
