@@ -6,8 +6,8 @@ The 3D counterpart of :class:`~rbbench.rb.hyper.contact_eim.RowEvaluator`: a mul
 its support (Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order reduction methods:
 parametric variational inequalities" (talk), slide "EIM"). Offline, the slave points of the
 magic rows are paired with the whole master cap over a dense sample of D; their hits, widened
-by ``margin`` rings of neighbouring triangles, are the master window. Online, only those slave
-triangles are paired against the window
+by ``margin`` rings of edge-neighbouring triangles, are each point's candidates. Online,
+only those slave triangles are paired, each point against its candidates
 (:func:`~rbbench.hf.geometry.surface.pair_surfaces` on a restricted
 :class:`~rbbench.hf.geometry.surface.SurfaceLayout`), on local dofs; a point leaving the window
 raises :class:`~rbbench.rb.hyper.contact_eim.HyperReductionError`. Python path only (the
@@ -108,21 +108,13 @@ def _row_triangles(layout: SurfaceLayout, rows: np.ndarray) -> np.ndarray:
     return np.flatnonzero(hit.any(axis=1) if hit.ndim == 2 else hit)
 
 
-def _neighbours(tri: np.ndarray, keep: np.ndarray, rings: int) -> np.ndarray:
-    """``keep`` (triangle indices) widened by ``rings`` rings of vertex neighbours."""
-    mask = np.zeros(tri.shape[0], dtype=bool)
-    mask[keep] = True
-    for _ in range(rings):
-        nodes = np.unique(tri[mask, :3])
-        mask |= np.isin(tri[:, :3], nodes).any(axis=1)
-    return np.flatnonzero(mask)
-
-
 def master_window(layout: SurfaceLayout, tris: np.ndarray, mus: np.ndarray,
                   margin: int = 1) -> sp.csr_matrix:
     """Candidate master triangles of the slave points of triangles ``tris`` (boolean
     (points x master triangles), points triangle by triangle): those each point hits over
-    ``mus`` (a dense sample of D), widened by ``margin`` rings of vertex neighbours."""
+    ``mus`` (a dense sample of D), widened by ``margin`` rings of edge neighbours. A point
+    moving continuously from one hit to the next between two samples crosses edges, so
+    with samples much closer than a triangle's size its hit stays among these."""
     ng = layout.n_points_per_triangle
     pts = (tris[:, None] * ng + np.arange(ng)[None, :]).ravel()
     tri = layout.master.triangles[:, :3]
@@ -131,7 +123,8 @@ def master_window(layout: SurfaceLayout, tris: np.ndarray, mus: np.ndarray,
     W = sp.csr_matrix((np.ones(q.size), (q, hits.ravel())), shape=(pts.size, tri.shape[0]))
     inc = sp.csr_matrix((np.ones(tri.size), (np.repeat(np.arange(tri.shape[0]), 3),
                                               tri.ravel())))
-    adj = (inc @ inc.T).astype(bool).astype(float)  # triangles sharing a vertex
+    shared = (inc @ inc.T).tocsr()
+    adj = (shared >= 2).astype(float)  # triangles sharing an edge (and each itself)
     for _ in range(margin):
         W = W @ adj
     return (W > 0).astype(bool).tocsr()
