@@ -144,6 +144,25 @@ def check_hyper_name(config: ReduceConfig, registry: Registry) -> None:
                                     f"{', '.join(valid)}")
 
 
+SURFACE_HYPERS = ("auto", "none", "affine", "eim")
+"""Hyper-reducers of the 3D (surface contact) reduced model."""
+
+
+def check_surface_reduction(scene: Scene, config: ReduceConfig) -> None:
+    """The 3D scene (``[geometry] kind = 'hemispheres'``) is reduced by the frictionless
+    ``mixed`` formulation with the hyper-reducers of :data:`SURFACE_HYPERS`; anything else
+    is a :class:`SceneError` naming the option and the valid values."""
+    if scene.data.get("geometry", {}).get("kind") != "hemispheres":
+        return
+    if config.formulation != "mixed":
+        raise SceneError(f"{scene.path}: [geometry] kind = 'hemispheres' (3D) is reduced by "
+                         f"the formulation 'mixed' only, not {config.formulation!r}")
+    if config.hyper not in SURFACE_HYPERS:
+        raise SceneError(f"{scene.path}: [geometry] kind = 'hemispheres' (3D): hyper "
+                         f"{config.hyper!r} is not available in 3D; valid hypers: "
+                         f"{', '.join(map(repr, SURFACE_HYPERS))}")
+
+
 def prepare_config(scene: Scene, config: ReduceConfig, registry: Registry
                    ) -> tuple[Any, ReduceConfig]:
     """The formulation's offline steps and the configuration they will run, checked before
@@ -155,9 +174,6 @@ def prepare_config(scene: Scene, config: ReduceConfig, registry: Registry
     an option of another formulation is an :class:`~rbbench.rb.config.OptionError`),
     the steps' own checks (``prepare``) and the hyper-reducer."""
     law = friction_of(scene).law
-    if scene.data.get("geometry", {}).get("kind") == "hemispheres":
-        raise SceneError(f"{scene.path}: [geometry] kind = 'hemispheres' (3D) has no reduced "
-                         "model yet; solve it with `rbbench solve` (HF)")
     for role in ("formulation", "backend", "primal", "solver"):  # names before anything
         name = getattr(config, role)
         if name is not None:
@@ -173,6 +189,7 @@ def prepare_config(scene: Scene, config: ReduceConfig, registry: Registry
                          f"formulation 'linear', not {config.formulation!r}")
     if not is_linear(scene):
         check_physics_support(scene, registry, config.formulation)
+    check_surface_reduction(scene, config)
     steps = reduction_steps(config, registry, law)
     laws = getattr(steps, "friction_laws", ("none",))
     if law not in laws:

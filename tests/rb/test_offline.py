@@ -171,13 +171,3 @@ def test_a_plugin_stabilizer_is_taken_by_its_capabilities(scene, tmp_path_factor
     assert got["histories"]["pga_delta"] == ref["histories"]["pga_delta"]
     assert got["K_pga"] == ref["K_pga"] > 0
     assert got["dim_primal_online"] == got["N"] + got["K_pga"]
-
-
-def test_3d_scene_has_no_reduced_model_yet():
-    from rbbench.rb.config import ReduceConfig
-    from rbbench.rb.offline import prepare_config
-    from rbbench.registry import default_registry
-    from rbbench.scene.loading import SceneError, load_scene
-
-    with pytest.raises(SceneError, match="'hemispheres' .3D. has no reduced model yet"):
-        prepare_config(load_scene("hertz_sphere"), ReduceConfig(), default_registry())

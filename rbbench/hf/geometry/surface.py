@@ -39,8 +39,8 @@ from rbbench.hf.geometry.surface_rules import RULE_DEGREES, triangle_rule, trian
 from rbbench.interfaces import ContactOperators
 
 __all__ = ["SurfaceLayout", "SurfacePairing", "TriSurface", "contact_operators_3d",
-           "operators_from_pairing", "pair_surfaces", "ray_cast_triangles", "surface_rows",
-           "tangent_frames", "tangential_jumps"]
+           "operators_from_pairing", "pair_surfaces", "ray_cast_pairs", "ray_cast_triangles",
+           "surface_rows", "tangent_frames", "tangential_jumps"]
 
 #: (point, triangle) pairs per block of :func:`ray_cast_triangles` (bounds its work arrays)
 RAY_BLOCK = 1 << 15
@@ -329,6 +329,22 @@ def ray_cast_triangles(x: np.ndarray, n: np.ndarray, v0: np.ndarray, v1: np.ndar
     return best.tri, bary, best.t
 
 
+def ray_cast_pairs(x: np.ndarray, n: np.ndarray, v0: np.ndarray, v1: np.ndarray,
+                   v2: np.ndarray, pi: np.ndarray, ti: np.ndarray, tol: float = 1e-9
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`ray_cast_triangles` restricted to the candidate pairs (line ``pi``, triangle
+    ``ti``) given by the caller (e.g. a hyper-reduced evaluation's windows sampled
+    offline): of each line's hits among its candidates, the one with the smallest ``|t|``."""
+    x, n = np.asarray(x, dtype=float), np.asarray(n, dtype=float)
+    best = _Nearest(x, n, v0, v1, v2, tol)
+    if x.shape[0] and v0.shape[0]:
+        best.test(np.asarray(pi, dtype=np.int64), np.asarray(ti, dtype=np.int64))
+    b = np.clip(np.stack([1.0 - best.u - best.v, best.u, best.v], axis=1), 0.0, None)
+    hit = best.tri >= 0
+    bary = np.where(hit[:, None], b / np.maximum(b.sum(axis=1, keepdims=True), 1e-300), 0.0)
+    return best.tri, bary, best.t
+
+
 @dataclass
 class SurfacePairing:
     """Slave quadrature points at mu and their master hits (rows of the contact operators)."""
@@ -363,11 +379,13 @@ class SurfacePairing:
 
 
 def pair_surfaces(layout: SurfaceLayout, mu: np.ndarray, rows: np.ndarray | None = None,
-                  master_tris: np.ndarray | None = None) -> SurfacePairing:
+                  master_tris: np.ndarray | None = None,
+                  candidates: tuple[np.ndarray, np.ndarray] | None = None) -> SurfacePairing:
     """The slave quadrature points at mu (all, or the points ``rows``, numbered triangle by
     triangle: point ``q`` is rule point ``q % n_g`` of slave triangle ``q // n_g``) and their
     hits on the master (module docstring), among the master triangles ``master_tris``
-    (default: all; a hyper-reduced evaluation passes the few its rows can hit). Raises
+    (default: all; a hyper-reduced evaluation passes the few its rows can hit), or only the
+    pairs ``candidates = (point, master triangle)`` (:func:`ray_cast_pairs`). Raises
     :class:`PairingError` with the number of misses and an example point when a line hits
     no master triangle."""
     bary_g, w_g = triangle_rule(layout.quad_order)
@@ -395,7 +413,11 @@ def pair_surfaces(layout: SurfaceLayout, mu: np.ndarray, rows: np.ndarray | None
     else:
         keep = (np.arange(layout.master.n_tri) if master_tris is None
                 else np.asarray(master_tris, dtype=np.int64))
-        mtri, mbary, gap = ray_cast_triangles(x, nrm, *layout.master.vertices(mu, keep))
+        if candidates is None:
+            mtri, mbary, gap = ray_cast_triangles(x, nrm, *layout.master.vertices(mu, keep))
+        else:
+            mtri, mbary, gap = ray_cast_pairs(x, nrm, *layout.master.vertices(mu, keep),
+                                              *candidates)
         miss = mtri < 0
         mtri = np.where(miss, -1, keep[np.maximum(mtri, 0)])
     if np.any(miss):

@@ -31,7 +31,9 @@ window of master facets, from a restricted
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -134,6 +136,16 @@ class RowEvaluator:
     @property
     def n_local(self) -> int:
         return int(self.local_dofs.size)
+
+    @property
+    def window_max_width(self) -> int:
+        """The most master facets in one point's window (0 for a rigid plane)."""
+        return 0 if self.windows is None else int((self.windows[1] - self.windows[0]).max()) + 1
+
+    @property
+    def n_master(self) -> int:
+        """Master facets of the restricted layout (0 for a rigid plane)."""
+        return 0 if self.layout.master is None else int(self.layout.master.n)
 
 
 def tangent(nrm: np.ndarray) -> np.ndarray:
@@ -269,15 +281,17 @@ class ContactEIM:
         return int(self.T_G.shape[1])
 
 
-def contact_eim(layout: ContactLayout, B_train: list, G_train: np.ndarray, Z: np.ndarray,
-                Vg: np.ndarray, free: np.ndarray, mus_sample: np.ndarray,
-                tol: float = 1e-8, m_max: int | None = None) -> ContactEIM:
+def contact_eim(layout: Any, B_train: list, G_train: np.ndarray,
+                Z: np.ndarray, Vg: np.ndarray, free: np.ndarray, mus_sample: np.ndarray,
+                tol: float = 1e-8, m_max: int | None = None,
+                row_evaluator: Callable | None = None) -> ContactEIM:
     """Build :class:`ContactEIM` from the training constraint operators.
 
     Parameters
     ----------
-    layout : ContactLayout
-        The backend's reference contact data.
+    layout : ContactLayout or SurfaceLayout
+        The backend's reference contact data (2D chains, or 3D triangulated surfaces with
+        ``row_evaluator`` :func:`~rbbench.rb.hyper.surface_eim.build_surface_row_evaluator`).
     B_train : list of (m, n_free) sparse
         ``B(mu)`` on the free dofs (the formulation's), one per training mu.
     G_train : (m, P)
@@ -292,25 +306,29 @@ def contact_eim(layout: ContactLayout, B_train: list, G_train: np.ndarray, Z: np
         Dense sample of D for the master windows (:func:`build_row_evaluator`).
     tol, m_max
         EIM stopping: relative max-norm training error, and largest size.
+    row_evaluator : callable, optional
+        ``(layout, rows, mus_sample) -> evaluator`` of the magic rows (default
+        :func:`build_row_evaluator`, 2D).
     """
     res_B, e_row, e_col, T_B = column_eim(B_train, Z, Vg, tol, m_max)
     res_G = deim(np.asarray(G_train), tol=tol, m_max=m_max)
     if res_B.m == 0 or res_G.m == 0:
         raise HyperReductionError("EIM found no term: the training B(mu) Z or G(mu) is zero")
     rows_B = np.unique(e_row)
-    ev = build_row_evaluator(layout, np.concatenate([rows_B, res_G.magic]), mus_sample)
-    loc = local_free_rows(ev, free, layout.n_dofs)
+    ev = (row_evaluator or build_row_evaluator)(layout, np.concatenate([rows_B, res_G.magic]),
+                                                mus_sample)
+    # homogeneous Dirichlet dofs in the rows (3D symmetry planes): zero rows of Z
+    loc = local_free_rows(ev, free, layout.n_dofs, dirichlet_ok=True)
+    Z_loc = np.where((loc >= 0)[:, None], Z[np.maximum(loc, 0)], 0.0)
     T_G = (Vg.T @ res_G.Q).T
     info = {"M_B": res_B.m, "M_G": res_G.m, "rows": int(ev.rows.size),
             "n_local_dofs": ev.n_local, "tol": tol,
             "errors_B": res_B.errors.tolist(), "errors_G": res_G.errors.tolist(),
-            "window_max_width": (0 if ev.windows is None
-                                 else int((ev.windows[1] - ev.windows[0]).max()) + 1),
-            "master_facets": 0 if ev.layout.master is None else ev.layout.master.n}
+            "window_max_width": ev.window_max_width, "master_facets": ev.n_master}
     return ContactEIM(ev, np.searchsorted(ev.rows, rows_B),  # ev.rows: sorted, unique
                       np.searchsorted(rows_B, e_row), e_col,
                       np.searchsorted(ev.rows, res_G.magic),
-                      np.ascontiguousarray(Z[loc]), sla.lu_factor(res_B.Q[res_B.magic]),
+                      np.ascontiguousarray(Z_loc), sla.lu_factor(res_B.Q[res_B.magic]),
                       sla.lu_factor(res_G.Q[res_G.magic]), T_B, T_G, info)
 
 
@@ -329,13 +347,15 @@ def column_eim(B_train: list, Z: np.ndarray, Vg: np.ndarray, tol: float | None,
                                         for k in range(res.m)])
 
 
-def local_free_rows(ev: RowEvaluator, free: np.ndarray, n_dofs: int) -> np.ndarray:
+def local_free_rows(ev: RowEvaluator, free: np.ndarray, n_dofs: int,
+                    dirichlet_ok: bool = False) -> np.ndarray:
     """Position among the free dofs of each local dof of ``ev`` (a
-    :class:`HyperReductionError` when one is a Dirichlet dof)."""
+    :class:`HyperReductionError` when one is a Dirichlet dof; with ``dirichlet_ok``, -1
+    there: the caller has checked that those dofs are homogeneous)."""
     free_of = np.full(n_dofs, -1, dtype=np.int64)
     free_of[free] = np.arange(free.size)
     loc = free_of[ev.local_dofs]
-    if np.any(loc < 0):
+    if np.any(loc < 0) and not dirichlet_ok:
         raise HyperReductionError(
             f"{int(np.sum(loc < 0))} dof(s) of the magic contact rows are Dirichlet dofs; "
             "the contact EIM assumes the contact zone is away from the Dirichlet boundary")

@@ -84,6 +84,8 @@ def path_reason(model: Any, method: str = "daqp") -> str | None:
         return (f"constraint {type(ceim).__name__} (compiled: the contact EIM and exact "
                 "affine constraints)")
     lay = ceim.evaluator.layout
+    if not hasattr(lay, "integration"):
+        return "3D surface rows (the compiled contact EIM is 2D)"
     if lay.degree not in (1, 2) or lay.integration != "gauss":
         return f"facet degree {lay.degree}, integration {lay.integration!r}"
     if lay.master is not None and ceim.evaluator.windows is None:

@@ -34,9 +34,9 @@ from rbbench.hf.solvers import lcp
 from rbbench.interfaces import HFVectors
 from rbbench.rb.algorithms.affine import (
     AffineOperator,
-    LinearInMu,
     NotAffineError,
     affine_decomposition,
+    coefficient_map,
 )
 from rbbench.rb.algorithms.saddle import condense_dense
 from rbbench.rb.mixed.options import ONLINE_METHODS
@@ -353,7 +353,8 @@ class ReducedModel:
 
 def build_affine_model(reduced_operators: Callable[[np.ndarray], tuple], bounds: np.ndarray,
                        is_cone: bool = True, rtol: float = 1e-10, info: dict | None = None,
-                       constraint: Callable | None = None) -> ReducedModel:
+                       constraint: Callable | None = None, max_degree: int = 1
+                       ) -> ReducedModel:
     """Reduced model with the exact affine decomposition in mu ("exact-affine" hyper-reducer).
 
     ``reduced_operators(mu)`` returns the projected ``(A_N, F_N, B_N, G_N)`` at
@@ -361,7 +362,8 @@ def build_affine_model(reduced_operators: Callable[[np.ndarray], tuple], bounds:
     :func:`affine_decomposition`, which raises :class:`NotAffineError` when the
     scene has no affine decomposition (then EIM is needed). With a given
     ``constraint`` (a hyper-reduced ``mu -> (B_N, G_N)``), only A and F are
-    decomposed.
+    decomposed. ``max_degree > 1`` (one parameter): else the lowest polynomial degree
+    in mu that decomposes them all (:class:`PolynomialInMu`; a 3D similarity map is cubic).
     """
     cache: dict[bytes, tuple] = {}
 
@@ -372,18 +374,26 @@ def build_affine_model(reduced_operators: Callable[[np.ndarray], tuple], bounds:
         return cache[key]
 
     names = ("A", "F", "B", "G") if constraint is None else ("A", "F")
-    ops = {}
-    for k, name in enumerate(names):
+    p = np.asarray(bounds).shape[0]
+    for degree in range(1, (max_degree if p == 1 else 1) + 1):  # the lowest that decomposes
         try:
-            ops[name] = AffineOperator(affine_decomposition(lambda mu, k=k: at(mu)[k], bounds,
-                                                            rtol=rtol))
+            ops = {}
+            for k, name in enumerate(names):
+                ops[name] = AffineOperator(affine_decomposition(
+                    lambda mu, k=k: at(mu)[k], bounds, rtol=rtol, degree=degree))
+            break
         except NotAffineError as exc:
-            raise NotAffineError(f"reduced {name}(mu) is {exc}") from None
-    theta = LinearInMu(np.asarray(bounds).shape[0])
+            if degree == 1:
+                first = f"reduced {name}(mu) is {exc}"
+            if degree == (max_degree if p == 1 else 1):
+                raise NotAffineError(first + (f" (nor polynomial in mu of degree <= "
+                                              f"{max_degree})" if degree > 1 else "")
+                                     ) from None
+    theta = coefficient_map(p, degree)
     if constraint is None:
         constraint = AffineConstraint(ops.pop("B"), ops.pop("G"), theta)
     return ReducedModel(coefficients=theta, constraint=constraint, is_cone=is_cone,
-                        info=info or {}, **ops)
+                        info={**(info or {}), "affine_degree": degree}, **ops)
 
 
 def projector(problem_at: Callable[[np.ndarray], object], Z: np.ndarray, Vg: np.ndarray

@@ -118,9 +118,11 @@ class MixedReduction:
         if is_online(registry, options.stabilizer) and config.hyper in ("affine", "eim"):
             raise SceneError(f"stabilizer {options.stabilizer!r} builds its space online from "
                              f"the HF B(mu): use hyper 'none' or 'auto', not {config.hyper!r}")
-        if config.hyper == "eim" and scene.data["geometry"]["kind"] != "halfdisks":
+        if config.hyper == "eim" and scene.data["geometry"]["kind"] not in ("halfdisks",
+                                                                            "hemispheres"):
             raise SceneError(f"{scene.path}: hyper 'eim' (the contact EIM of B(mu) and "
-                             "g(mu)) needs a two-body scene (geometry kind 'halfdisks'); here: "
+                             "g(mu)) needs a two-body scene (geometry kind 'halfdisks' or "
+                             "'hemispheres'); here: "
                              "hyper 'auto', 'affine' or 'none'")
         self.fixed_points = fixed_contact_points(scene, config.hyper)
         return config
@@ -197,13 +199,15 @@ class MixedStage(ReducedStage):
         config, options, scene = ctx.config, ctx.options, ctx.scene
         t1 = time.perf_counter()
         hyper, model = config.hyper, None
+        surface = scene.data["geometry"]["kind"] == "hemispheres"  # 3D: a cubic map in mu
         if not self.stabilizer.online and hyper in ("auto", "affine", "eim"):
             reduced_ops = projector(ctx.problem_at, self.Z_off, self.Vg)
             if hyper in ("auto", "affine"):
                 ctx.progress("exact affine decomposition (verified by probing)")
                 try:
                     model = build_affine_model(reduced_ops, scene.bounds,
-                                               is_cone=self.dual.is_cone)
+                                               is_cone=self.dual.is_cone,
+                                               max_degree=3 if surface else 1)
                     hyper = "affine"
                 except NotAffineError as exc:
                     if hyper == "affine":
@@ -299,7 +303,9 @@ def _contact_eim(backend, scene: Scene, backend_name: str, options: MixedOptions
     """hyper = "eim": :func:`rbbench.rb.hyper.contact_eim.contact_eim`, its error curves and
     validation."""
     from rbbench.hf.geometry.operators import contact_operators
+    from rbbench.hf.geometry.surface import SurfaceLayout, contact_operators_3d
     from rbbench.rb.hyper.contact_eim import contact_eim, entrywise_eim_error
+    from rbbench.rb.hyper.surface_eim import build_surface_row_evaluator
 
     if not hasattr(backend, "contact_layout"):
         raise ValueError(f"hyper 'eim': backend {backend_name!r} provides no contact layout "
@@ -308,17 +314,24 @@ def _contact_eim(backend, scene: Scene, backend_name: str, options: MixedOptions
     p0 = problem_at(mus_train[0])
     mus_eim = eim_training_set(scene, options, mus_train)
     dirichlet = np.setdiff1d(np.arange(layout.n_dofs), p0.free)
+    # the lifting at the ends of the training set (cached problems)
+    lifts = np.stack([p0.u_lift, problem_at(mus_train[-1]).u_lift])
     B_eim, G_eim = [], []
     for mu in mus_eim:
-        c = contact_operators(layout, mu)
+        c = (contact_operators_3d(layout, mu) if isinstance(layout, SurfaceLayout)
+             else contact_operators(layout, mu))
         Bfull = c.B()
-        if Bfull[:, dirichlet].nnz:
-            raise ValueError("hyper 'eim': the contact rows touch Dirichlet dofs; the contact "
-                             "EIM assumes the contact zone is away from the Dirichlet boundary")
+        touched = dirichlet[np.asarray(abs(Bfull[:, dirichlet]).sum(axis=0)).ravel() > 0]
+        if touched.size and np.any(lifts[:, touched] != 0):  # symmetry planes: zero, allowed
+            raise ValueError("hyper 'eim': the contact rows touch Dirichlet dofs of nonzero "
+                             "imposed value; the contact EIM assumes the contact zone is away "
+                             "from a nonhomogeneous Dirichlet boundary")
         B_eim.append(Bfull[:, p0.free])
         G_eim.append(c.G())
     ceim = contact_eim(layout, B_eim, np.stack(G_eim, axis=1), Z, Vg, p0.free, mus_eim,
-                       tol=options.tol_eim, m_max=options.m_eim)
+                       tol=options.tol_eim, m_max=options.m_eim,
+                       row_evaluator=(build_surface_row_evaluator
+                                      if isinstance(layout, SurfaceLayout) else None))
     ceim.info["n_eim_train"] = len(mus_eim)
     # validation e_EIM of the reduced constraint (Benaceur et al.'s ratio of maxima over the set)
     num_b = den_b = num_g = den_g = 0.0
