@@ -114,7 +114,7 @@ SPLIT = {
     "rbbench.hf.lcp": ("rbbench.hf.solvers.lcp", "rbbench.hf.condensation.dense"),
     "rbbench.output": ("rbbench.hf.output", "rbbench.provenance"),
     "rbbench.reduced": ("rbbench.rb.mixed.model", "rbbench.rb.algorithms.saddle",
-                        "rbbench.rb.online"),
+                        "rbbench.rb.online", "rbbench.rb.algorithms.affine"),
     "rbbench.rb.mixed_model": ("rbbench.rb.mixed.model", "rbbench.rb.algorithms.saddle",
                                "rbbench.rb.online"),
     "rbbench.nitsche_reduced": ("rbbench.rb.nitsche.model", "rbbench.rb.nitsche.offline"),
