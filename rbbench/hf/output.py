@@ -15,7 +15,12 @@ import numpy as np
 from rbbench.hf.metrics import normal_operators
 from rbbench.hf.metrics3d import is_3d
 from rbbench.hf.model import HFSolution
-from rbbench.hf.output3d import write_contact_csv_3d, write_png_3d, write_vtu_3d
+from rbbench.hf.output3d import (
+    save_solution_figure,
+    write_contact_csv_3d,
+    write_png_3d,
+    write_vtu_3d,
+)
 from rbbench.interfaces import FrictionProblem
 from rbbench.provenance import _jsonable, provenance
 
@@ -270,14 +275,7 @@ def write_png(sol: HFSolution, out: Path) -> Path:
         axes[2].set_title("multiplier distribution")
     if friction:
         _draw_friction(axes[3], sol, table)
-    mu_txt = ", ".join(f"{k} = {v:g}" for k, v in sol.scene.mu_dict(sol.mu).items())
-    fig.suptitle(f"{sol.scene.name}: {mu_txt}; {m['n_dofs']} dofs, {m['stop_reason']} "
-                 f"in {m['iterations']} iterations")
-    fig.tight_layout()
-    path = out / "solution.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_solution_figure(fig, sol, out)
 
 
 def write_all(sol: HFSolution, out: Path, plot: bool = True) -> list[Path]:

@@ -86,6 +86,15 @@ def write_png_3d(sol: Any, out: Path) -> Path:
     axes[1].set_xlim(0, max(2.0 * m.get("contact_radius", 0.0), 1e-3))
     axes[1].legend(fontsize=8)
     axes[1].set_title("radial pressure profile")
+    return save_solution_figure(fig, sol, out)
+
+
+def save_solution_figure(fig: Any, sol: Any, out: Path) -> Path:
+    """Title ``fig`` with the scene, mu, size and stop reason of ``sol``, write it to
+    ``out / "solution.png"`` and close it (2D and 3D solution figures alike)."""
+    import matplotlib.pyplot as plt
+
+    m = sol.metrics
     mu_txt = ", ".join(f"{k} = {v:g}" for k, v in sol.scene.mu_dict(sol.mu).items())
     fig.suptitle(f"{sol.scene.name}: {mu_txt}; {m['n_dofs']} dofs, {m['stop_reason']} "
                  f"in {m['iterations']} iterations")
