@@ -1,10 +1,12 @@
-"""Shared pytest setup: ``--runslow`` enables tests marked ``slow`` (see pyproject.toml).
+"""Shared pytest setup: ``--runslow`` enables tests marked ``slow``; tests marked
+``netgen`` (the 3D meshes) are skipped when Netgen is not installed (see pyproject.toml).
 
 Hypothesis runs derandomized (fixed seed) by default, so CI is reproducible;
 ``HYPOTHESIS_PROFILE=explore pytest`` searches with fresh random examples (and
 more of them). Counterexamples it finds become ``@example`` cases.
 """
 
+import importlib.util
 import os
 
 import pytest
@@ -21,6 +23,11 @@ def pytest_addoption(parser):
 
 
 def pytest_collection_modifyitems(config, items):
+    if importlib.util.find_spec("netgen") is None:
+        no_netgen = pytest.mark.skip(reason='3D meshes need Netgen: pip install "rbbench[ngsolve]"')
+        for item in items:
+            if "netgen" in item.keywords:
+                item.add_marker(no_netgen)
     if config.getoption("--runslow"):
         return
     skip = pytest.mark.skip(reason="slow: run with --runslow")

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import importlib.util
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -108,6 +109,9 @@ def quarter_hemisphere(cap: float, h_contact: float, h_max: float,
         Cached per argument set, in the process and on disk (:func:`mesh_cache_dir`;
         meshing takes seconds to minutes); the arrays are read-only.
     """
+    if importlib.util.find_spec("netgen") is None:
+        raise ModuleNotFoundError('the 3D hemisphere meshes are made by Netgen, which comes '
+                                  'with NGSolve: pip install "rbbench[ngsolve]"')
     path = _cache_file(cap, h_contact, h_max, grading)
     if path is not None and path.exists():
         try:

@@ -3,6 +3,7 @@ checked against the scene (friction law, declared solvers) before any meshing, a
 
 from __future__ import annotations
 
+import importlib.util
 import inspect
 from typing import Any
 
@@ -76,6 +77,18 @@ def check_physics_support(scene: Scene, registry: Registry, formulation: str) ->
                          "(use the 'mixed' formulation)")
 
 
+def check_mesher(scene: Scene) -> None:
+    """Refuse, before any work, a 3D scene (``[geometry] kind = 'hemispheres'``) when Netgen,
+    its mesher, is not installed (it comes with the ``ngsolve`` extra, whichever backend
+    solves): a :class:`SceneError` naming the kind and the install command."""
+    if scene.data.get("geometry", {}).get("kind") != "hemispheres":
+        return
+    if importlib.util.find_spec("netgen") is None:
+        raise SceneError(f"{scene.path}: [geometry] kind = 'hemispheres' (3D) is meshed by "
+                         "Netgen, which comes with NGSolve and is not installed: "
+                         'pip install "rbbench[ngsolve]"')
+
+
 def check_geometry_support(scene: Scene, registry: Registry, backend: str,
                            formulation: str) -> None:
     """Refuse a geometry kind the backend does not declare (``capabilities["geometry"]``;
@@ -95,6 +108,7 @@ def check_geometry_support(scene: Scene, registry: Registry, backend: str,
         raise SceneError(f"{scene.path}: [geometry] kind = 'hemispheres' (3D) is solved by the "
                          f"'mixed' formulation for now; {formulation!r} needs "
                          f"{', '.join(sorted(needs))} operators")
+    check_mesher(scene)
 
 
 def check_names(scene: Scene, registry: Registry, backend: str, formulation: str,

@@ -24,6 +24,7 @@ import numpy as np
 from rbbench._compat import deprecated_names
 from rbbench.hf.components import (
     check_component_options,
+    check_mesher,
     check_physics_support,
     default_solver,
     make_components,
@@ -161,6 +162,7 @@ def check_surface_reduction(scene: Scene, config: ReduceConfig) -> None:
         raise SceneError(f"{scene.path}: [geometry] kind = 'hemispheres' (3D): hyper "
                          f"{config.hyper!r} is not available in 3D; valid hypers: "
                          f"{', '.join(map(repr, SURFACE_HYPERS))}")
+    check_mesher(scene)
 
 
 def prepare_config(scene: Scene, config: ReduceConfig, registry: Registry

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib.util
+
 import pytest
 
 from rbbench.hf.components import check_names
@@ -32,10 +34,40 @@ def test_3d_scene_refuses_nitsche():
         check_names(scene, default_registry(), "skfem", "nitsche", None)
 
 
-def test_3d_scene_takes_skfem_mixed_and_2d_scenes_are_unchanged():
+HAS_NETGEN = importlib.util.find_spec("netgen") is not None
+
+
+@pytest.mark.skipif(not HAS_NETGEN, reason='Netgen not installed: pip install "rbbench[ngsolve]"')
+def test_3d_scene_takes_skfem_and_ngsolve_mixed():
     reg = default_registry()
     for backend in ("skfem", "ngsolve"):
         assert check_names(load_scene("hertz_sphere"), reg, backend, "mixed", None)
+
+
+def test_3d_scene_without_netgen_is_refused_before_meshing(monkeypatch):
+    """Without Netgen (a base install), the 3D scene is refused by the HF name check and by
+    the reduction's configuration check, naming the extra that brings it; 2D scenes are
+    not affected."""
+    import rbbench
+    from rbbench.rb.config import ReduceConfig
+    from rbbench.rb.offline import prepare_config
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "netgen" else real(name, *a))
+    reg = default_registry()
+    msg = r"meshed by Netgen, which comes with NGSolve and is not installed: pip install"
+    with pytest.raises(SceneError, match=msg):
+        check_names(load_scene("hertz_sphere"), reg, "skfem", "mixed", None)
+    with pytest.raises(SceneError, match=msg):
+        rbbench.solve("hertz_sphere")
+    with pytest.raises(SceneError, match=msg):
+        prepare_config(load_scene("hertz_sphere"), ReduceConfig(), reg)
+    assert check_names(load_scene("hertz_halfdisks"), reg, "skfem", "mixed", None) == "ssn"
+
+
+def test_2d_scenes_take_both_backends_with_nitsche():
+    reg = default_registry()
     for backend in ("skfem", "ngsolve"):
         assert check_names(load_scene("hertz_halfdisks"), reg, backend, "nitsche", None)
 

@@ -23,6 +23,7 @@ def level0():
     return solve_hf(scene, scene.default_mu)
 
 
+@pytest.mark.netgen
 def test_level0_solve_against_3d_hertz(level0):
     """Level 0 resolves the contact radius with about 4 elements. Measured (LAC on vertex
     stars of at least 3 triangles): a +21.4 % (quantised to the patches), a from the gap
@@ -37,6 +38,7 @@ def test_level0_solve_against_3d_hertz(level0):
     assert 0.1 < h["a"] < 0.2  # the scene's design: a / R in [0.1, 0.2] at mu = 1
 
 
+@pytest.mark.netgen
 def test_level0_force_is_the_reaction_of_the_clamped_face(level0):
     """Equilibrium of the lower body: the contact force (whole body) equals 4 times the
     vertical reaction ``(A u)_z`` on its clamped flat face (the quarter's)."""
@@ -50,6 +52,7 @@ def test_level0_force_is_the_reaction_of_the_clamped_face(level0):
     assert 4 * reaction[z_dofs].sum() == pytest.approx(force, rel=1e-8)  # support pushes up
 
 
+@pytest.mark.netgen
 def test_rigid_flat_force_is_the_reaction_of_the_pressed_face():
     """``lower = "rigid_flat"`` (coarse mesh): the contact force (whole body) equals 4
     times the vertical reaction on the upper body's flat face, whose z dofs are imposed;

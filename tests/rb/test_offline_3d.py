@@ -13,6 +13,8 @@ from rbbench.rb.offline import offline, prepare_config, reduce
 from rbbench.registry import default_registry
 from rbbench.scene.loading import SceneError, load_scene
 
+pytestmark = pytest.mark.netgen
+
 LEVEL0 = ["discretization.level=0", "sampling.n_train=4"]
 
 

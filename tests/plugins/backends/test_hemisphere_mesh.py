@@ -13,6 +13,8 @@ from rbbench_plugins.backends.hemisphere_mesh import (
     signed_volumes,
 )
 
+pytestmark = pytest.mark.netgen
+
 COARSE = (0.1, 0.08, 0.4, 0.3)  # cap, h_contact, h_max, grading
 FINER = (0.1, 0.05, 0.25, 0.3)
 

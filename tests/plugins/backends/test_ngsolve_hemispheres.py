@@ -5,10 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from rbbench_plugins.backends.ngsolve.hemispheres import ngsolve_hemisphere_model
-from rbbench_plugins.backends.skfem.hemispheres import skfem_hemisphere_model
 
-from rbbench.scene.loading import SceneError, load_scene
+pytest.importorskip("ngsolve",
+                    reason='NGSolve backend not installed: pip install "rbbench[ngsolve]"')
+
+from rbbench_plugins.backends.ngsolve.hemispheres import ngsolve_hemisphere_model  # noqa: E402
+from rbbench_plugins.backends.skfem.hemispheres import skfem_hemisphere_model  # noqa: E402
+
+from rbbench.scene.loading import SceneError, load_scene  # noqa: E402
 
 COARSE = ["discretization.h_contact=0.08", "discretization.h_max=0.4"]
 

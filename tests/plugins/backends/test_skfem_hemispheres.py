@@ -14,6 +14,8 @@ from skfem.models.elasticity import lame_parameters, linear_elasticity
 
 from rbbench.scene.loading import load_scene
 
+pytestmark = pytest.mark.netgen
+
 COARSE = ["discretization.h_contact=0.08", "discretization.h_max=0.4"]
 
 

@@ -12,6 +12,8 @@ from rbbench.rb.hyper.contact_eim import HyperReductionError
 from rbbench.rb.hyper.surface_eim import build_surface_row_evaluator
 from rbbench.scene.loading import load_scene
 
+pytestmark = pytest.mark.netgen
+
 
 @pytest.fixture(scope="module", params=["hemisphere", "rigid_flat"])
 def layout(request):
