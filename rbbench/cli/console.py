@@ -138,7 +138,7 @@ def print_summary(m: dict, mu: dict, mu_units: dict | None = None) -> None:
             "solver_stop_reason", "solve_time_s", "floor_s", "solve_over_floor",
             "contact_force", "contact_half_width",
             "contact_half_width_gap", "contact_half_width_gap_tol", "contact_radius",
-            "contact_radius_gap", "contact_radius_gap_tol", "max_pressure",
+            "contact_radius_max", "contact_radius_gap", "contact_radius_gap_tol", "max_pressure",
             "complementarity", "penetration_max", "zone_saturated", "e_ac",
             "tangential_force", "n_stick", "n_slip", "n_open", "stick_half_width",
             "friction_residual"]
@@ -149,7 +149,8 @@ def print_summary(m: dict, mu: dict, mu_units: dict | None = None) -> None:
              "contact_half_width": "  (quantised to whole multiplier supports)",
              "contact_half_width_gap": "  (pointwise gap <= contact_half_width_gap_tol, "
                                        "edges interpolated)",
-             "contact_radius": "  (quantised to whole multiplier supports)",
+             "contact_radius": "  (area of the active multiplier supports, as a disc)",
+             "contact_radius_max": "  (outermost active multiplier support)",
              "contact_radius_gap": "  (area of the closed cells, as a disc)",
              "contact_force": "  (whole bodies)" if m.get("symmetry_copies", 1) > 1 else ""}
     for k in keys:
@@ -185,6 +186,10 @@ def _print_hertz(m: dict, units: dict) -> None:
     print(f"    p0  = {_valued('max_pressure', h['p0'], units)}  computed "
           f"{_valued('max_pressure', m['max_pressure'], units)}  "
           f"rel. error {100 * h['p0_rel_error']:+.2f} %")
+    if "profile_fit_a" in h:
+        print(f"    profile fit p^2 = p0^2 (1 - r^2/a^2): a rel. error "
+              f"{100 * h['profile_fit_a_rel_error']:+.2f} %, p0 rel. error "
+              f"{100 * h['profile_fit_p0_rel_error']:+.2f} %")
 
 
 def _print_mindlin(b: dict | None, units: dict) -> None:

@@ -20,7 +20,8 @@ ACTIVE_THRESHOLD = 1e-8
 
 #: The unit of each dimensional number of a 3D summary (SI; whole bodies).
 SI_UNITS_3D = {"contact_force": "N", "energy": "J", "max_pressure": "Pa",
-               "contact_radius": "m", "contact_radius_gap": "m", "contact_radius_gap_tol": "m",
+               "contact_radius": "m", "contact_radius_max": "m", "contact_radius_gap": "m",
+               "contact_radius_gap_tol": "m",
                "penetration_max": "m", "penetration_pointwise_max": "m"}
 
 
@@ -48,7 +49,11 @@ def contact_metrics_3d(sol: Any) -> dict[str, Any]:
     force = copies * float(np.sum(c.weights * lam_q * -c.normals[:, 2]))
     lam_max = float(np.max(lam)) if lam.size else 0.0
     active = lam > ACTIVE_THRESHOLD * max(lam_max, np.finfo(float).tiny)
-    radius = float(c.mult_extent[active, 1].max()) if active.any() else 0.0
+    radius_max = float(c.mult_extent[active, 1].max()) if active.any() else 0.0
+    # projected area of the union of the active multipliers' supports, whole body
+    in_support = np.asarray(abs(c.Mlam[:, np.flatnonzero(active)]).sum(axis=1)).ravel() > 0
+    area_active = copies * float(np.sum(c.weights[in_support]
+                                        * np.abs(c.normals[in_support, 2])))
     un = np.asarray(c.Un @ u).ravel()
     gap_q = np.asarray(c.gap, float) - un
     tol = gap_tolerance(un)
@@ -70,7 +75,8 @@ def contact_metrics_3d(sol: Any) -> dict[str, Any]:
         "solve_time_s": float(sol.times["total_s"]), "times_s": {**sol.times, **res.times},
         "symmetry_copies": copies,
         "contact_force": force,
-        "contact_radius": radius,
+        "contact_radius": math.sqrt(area_active / math.pi),
+        "contact_radius_max": radius_max,
         "contact_radius_gap": math.sqrt(area / math.pi),
         "contact_radius_gap_tol": tol,
         "max_pressure": lam_max,
@@ -86,6 +92,7 @@ def contact_metrics_3d(sol: Any) -> dict[str, Any]:
     }
     if sol.scene.data["reference"]["hertz"] and force > 0:
         m["hertz"] = _hertz_block(m, hertz3d_of_bodies(force, geo, disc.bodies).as_dict())
+        m["hertz"].update(_profile_fit(c, lam, active, m["hertz"]))
     m["units"] = dict(SI_UNITS_3D)
     m["definitions"] = DEFINITIONS_3D
     return m
@@ -99,8 +106,36 @@ def _hertz_block(m: dict[str, Any], h: dict[str, float]) -> dict[str, Any]:
             "p0_rel_error": (m["max_pressure"] - h["p0"]) / h["p0"],
             "note": "3D Hertz evaluated at the solver's own whole-body force P; errors are "
                     "signed, relative: (computed - theory) / theory; a_rel_error of "
-                    "contact_radius (quantised to multiplier supports), a_gap_rel_error of "
+                    "contact_radius (the area of the active multiplier supports, as a "
+                    "disc: quantised to whole supports), a_gap_rel_error of "
                     "contact_radius_gap"}
+
+
+def hertz_profile_fit(r: np.ndarray, p: np.ndarray) -> tuple[float, float]:
+    """Least-squares fit of the 3D Hertz profile ``p(r) = p0 sqrt(1 - r^2 / a^2)``
+    (Johnson 1985, eq. 4.22) to pressures ``p`` at radii ``r``, linear in ``r^2`` as
+    ``p^2 = p0^2 - (p0 / a)^2 r^2``: ``(a, p0)``, or NaNs when fewer than two radii or a
+    profile that does not fall with r."""
+    r, p = np.asarray(r, float), np.asarray(p, float)
+    if r.size < 2 or np.ptp(r) == 0:
+        return math.nan, math.nan
+    c0, c1 = np.linalg.lstsq(np.c_[np.ones(r.size), r ** 2], p ** 2, rcond=None)[0]
+    if c0 <= 0 or c1 >= 0:
+        return math.nan, math.nan
+    return math.sqrt(-c0 / c1), math.sqrt(c0)
+
+
+def _profile_fit(c: Any, lam: np.ndarray, active: np.ndarray, h: dict) -> dict[str, float]:
+    """:func:`hertz_profile_fit` of the active multipliers at their supports' centroids
+    (projected onto z = const), with errors relative to ``h``'s a and p0."""
+    S = abs(c.Mlam[:, np.flatnonzero(active)]).tocsc()
+    w = np.asarray(S.T @ c.weights).ravel()
+    cx = np.asarray(S.T @ (c.weights * c.points[:, 0])).ravel() / w
+    cy = np.asarray(S.T @ (c.weights * c.points[:, 1])).ravel() / w
+    a, p0 = hertz_profile_fit(np.hypot(cx, cy), lam[active])
+    return {"profile_fit_a": a, "profile_fit_p0": p0,
+            "profile_fit_a_rel_error": (a - h["a"]) / h["a"],
+            "profile_fit_p0_rel_error": (p0 - h["p0"]) / h["p0"]}
 
 
 DEFINITIONS_3D = {
@@ -115,8 +150,12 @@ DEFINITIONS_3D = {
                        "forces and energies are of the whole bodies",
     "contact_force": "total normal contact force on the whole body (N): vertical resultant "
                      "int lam (-n_z) over the slave surface, times symmetry_copies",
-    "contact_radius": "largest radial extent r = sqrt(x^2 + y^2) of the supports of the "
-                      "active multipliers (m): QUANTISED to whole multiplier supports",
+    "contact_radius": "radius of the disc whose area is the projected (onto z) area of the "
+                      "union of the active multipliers' supports, whole body (m): QUANTISED "
+                      "to whole multiplier supports",
+    "contact_radius_max": "largest radial extent r = sqrt(x^2 + y^2) of the supports of the "
+                          "active multipliers (m): quantised, and biased outward by up to "
+                          "one support diameter (the outermost support on the rim)",
     "contact_radius_gap": "radius of the disc whose area is the projected (onto z) area of "
                           "the contact quadrature cells where the pointwise gap gap - Un u "
                           "is <= contact_radius_gap_tol, whole body (m)",
@@ -136,7 +175,9 @@ DEFINITIONS_3D = {
     "radii": "R1, R2 (m): the radii of the upper and lower bodies at this mu",
     "hertz": "3D Hertz (Johnson 1985, eqs. 4.22-4.23) at the solver's own contact_force: "
              "a = (3 P R* / (4 E*))^(1/3), p0 = 3 P / (2 pi a^2), signed relative errors "
-             "of contact_radius, contact_radius_gap and max_pressure",
+             "of contact_radius, contact_radius_gap and max_pressure; profile_fit_a and "
+             "profile_fit_p0: the least-squares fit of p^2 = p0^2 (1 - r^2 / a^2) to the "
+             "active multipliers at their supports' centroids",
     "final_residual": "relative natural residual of the condensed LCP at the last iterate",
     "stop_reason": "the solver's stop reason, or 'flagged' (zero force on an overlapping "
                    "solution)",
