@@ -172,14 +172,21 @@ def _xdual(r: np.ndarray, x_solve: Callable[[np.ndarray], np.ndarray]) -> float:
 
 
 def riesz_factor(pieces: np.ndarray, X: Any, x_solve: Callable[[np.ndarray], np.ndarray],
-                 rtol: float = 1e-13) -> np.ndarray:
+                 rtol: float = 1e-13, return_ranks: bool = False
+                 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """``T`` (k x q) with ``||pieces @ w||_X' = ||T w||_2`` for every ``w``: the Riesz
     representers ``X^{-1} pieces`` orthonormalised in X (Gram-Schmidt, twice), ``T`` their
     coordinates. Unlike the Gram form ``w^T G w`` this does not square the residual, so a
     residual 1e-8 of the load is still resolved (Buhr, Engwer, Ohlberger & Rave 2014).
-    Directions below ``rtol`` of the largest are dropped (dependent pieces)."""
+    Directions below ``rtol`` of the largest are dropped (dependent pieces).
+
+    ``return_ranks``: also, per piece, the rows of ``T`` its column needs: the number of
+    directions after it when it added one (``T[i, j]`` is round-off below: ``T`` is upper
+    trapezoidal), all ``k`` when it was dropped (its remainder below ``rtol``, not zero,
+    has components on later directions, which a large coefficient can make matter)."""
     V = np.asarray(x_solve(np.asfortranarray(pieces)), dtype=float).reshape(pieces.shape)
     Q = np.zeros_like(V)
+    ranks = np.zeros(V.shape[1], dtype=np.int64)
     k = 0
     scale = 0.0
     for j in range(V.shape[1]):
@@ -192,5 +199,10 @@ def riesz_factor(pieces: np.ndarray, X: Any, x_solve: Callable[[np.ndarray], np.
         if nv > rtol * max(scale, np.finfo(float).tiny) and nv > 0:
             Q[:, k] = v / nv
             k += 1
+            ranks[j] = k
+        else:
+            ranks[j] = -1
+    ranks[ranks < 0] = k
     Q = Q[:, :k]
-    return Q.T @ (X @ V)
+    T = Q.T @ (X @ V)
+    return (T, ranks) if return_ranks else T
