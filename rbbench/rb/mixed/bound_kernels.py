@@ -124,7 +124,7 @@ def contact_jumps(s, w, gap, mphi, seg, sphi, n_hat, sdofs, mdofs, rows, uz, lam
             b[mdofs[f, a, 1]] -= lw * mphi[q, a] * n1
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"reassoc", "contract"})  # SIMD sums: round-off only
 def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, Cs, Zl, c, U,
                          T, kj, j_lam, Linv, w, gap, mphi, seg, mark, uz, b, touched, d, out):
     """The terms of :meth:`rbbench.rb.mixed.contact_bound.ContactBound.terms` in one call,
