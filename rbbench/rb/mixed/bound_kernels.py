@@ -1,4 +1,5 @@
-"""numba kernel of the online error bound (:meth:`rbbench.rb.mixed.bounds.MixedBound.terms`).
+"""numba kernels of the online error bounds (:meth:`rbbench.rb.mixed.bounds.MixedBound.terms`;
+with a moving contact :meth:`rbbench.rb.mixed.contact_bound.ContactBound.terms`).
 
 The same formulas as the numpy reference, written as loops: one call instead of a dozen
 numpy calls (each ~1-10 us of overhead on arrays this small). Imports numba at the top:

@@ -9,17 +9,19 @@ numbers (1)-(6) of that module). Its terms at mu, for ``u_N = Z c`` and ``lam_N 
   ``G(mu)`` are evaluated exactly online from the restricted contact layout
   (:class:`~rbbench.rb.hyper.contact_eim.RowEvaluator`, O(m) work, no HF vector): so
   ``d = B(mu) Z c - G(mu)`` (``sigma``, ``kappa``: (2), (3)) and ``b = B(mu)^T lam_N`` (on the
-  contact dofs) are exact;
-* ``rho = ||F - A Z c - P b||_X'`` (1), ``P`` the contact dofs among the free ones: ``b`` is
+  contact dofs) are exact. Off the master chain ``B(mu) = s_r(mu) B(mu_0)`` (below): the
+  slave half of ``d`` is ``s_r (B_S(mu_0) Z) c`` and of ``b`` is ``s_r B_S(mu_0)^T Vg a``,
+  both from offline arrays; the master half ``b_M`` is non-zero only where ``lam_N`` is;
+* ``rho = ||F - A Z c - P b||_X'`` (1), ``P`` the contact dofs among the free ones: ``b_M`` is
   split into ``U g`` (``U``: an l2-orthonormal POD basis of the training vectors
-  ``B(mu)^T Vg``, ``g = U^T b``) and the remainder ``e = b - U g``. The Riesz representers
-  of ``F``, ``A Z`` and ``P U`` are orthonormalised offline
-  (:func:`~rbbench.rb.algorithms.bounds.riesz_factor`): ``||F - A Z c - P U g||_X' = ||T
-  w||``; the remainder by ``||P e||_X' <= lambda_c^(1/2) ||e||_2``, ``lambda_c`` the largest
-  eigenvalue of ``P^T X^{-1} P`` (Lanczos, with the margin of the coercivity constants).
-  By the triangle inequality ``rho <= ||T w|| + lambda_c^(1/2) ||e||_2``: the compression
-  leaves nothing out, it only loosens the bound by the remainder term, which is reported
-  (``bound_eim_residual``);
+  ``B_M(mu)^T Vg`` on the master dofs, ``g = U^T b_M``) and the remainder ``e = b_M - U g``.
+  The Riesz representers of ``F``, ``A Z``, ``P_S B_S(mu_0)^T Vg`` and ``P_M U`` are
+  orthonormalised offline (:func:`~rbbench.rb.algorithms.bounds.riesz_factor`): ``||F - A Z c
+  - P_S b_S - P_M U g||_X' = ||T w||``; the remainder by ``||P_M e||_X' <= lambda_c^(1/2)
+  ||e||_2``, ``lambda_c`` the largest eigenvalue of ``P_M^T X^{-1} P_M`` (Lanczos, with the
+  margin of the coercivity constants). By the triangle inequality ``rho <= ||T w|| +
+  lambda_c^(1/2) ||e||_2``: the compression leaves nothing out, it only loosens the bound
+  by the remainder term, which is reported (``bound_eim_residual``);
 * ``sigma = ||[d]_+||_*'`` without ``D(mu)^{-1} = (B(mu) X^{-1} B(mu)^T)^{-1}``: any ``v`` with
   ``B(mu) v = [d]_+`` gives ``||[d]_+||_*' <= ||v||_X`` (``sup_eta eta^T B v /
   ||B^T eta||_X' <= ||v||_X``). On the dofs off the master chain ``B(mu)`` is the slave
@@ -29,7 +31,10 @@ numbers (1)-(6) of that module). Its terms at mu, for ``u_N = Z c`` and ``lam_N 
 * ``alpha_LB``, ``gamma_UB``: the extreme eigenvalues of ``(A, X)`` (``A`` mu-independent,
   checked: a dilation leaves the 2D stiffness invariant).
 
-Online cost: O(m + n_c (N + K)) (the contact rows and dofs), independent of the HF size.
+Online (:func:`rbbench.rb.mixed.bound_kernels.moving_contact_terms`, one numba call; the
+numpy evaluation from the Python pairing is the reference): O(m N + n_p N + n_l K + k q),
+``n_p`` the master dofs of the facets paired at mu, ``n_l`` those under a non-zero
+multiplier, ``T`` (k x q) used as upper trapezoidal: independent of the HF size.
 """
 
 from __future__ import annotations
@@ -134,6 +139,9 @@ class ContactBound:
         kernel (:func:`rbbench.rb.mixed.bound_kernels.moving_contact_terms`) where
         available, else (``compiled=False``, or where the kernel declines) by numpy from the
         Python pairing, the reference."""
+        if self.Cs is None:
+            raise RuntimeError("this error bound was built by an earlier rbbench (its pieces "
+                               "are laid out differently): rebuild the reduced model")
         mu = np.atleast_1d(np.asarray(mu, dtype=float))
         out = self._fast_terms(mu, c, a) if compiled and self.plan is not None else None
         if out is not None:
@@ -160,26 +168,27 @@ class ContactBound:
                     ) -> np.ndarray | None:
         """The kernel's ``[||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2, sigma, kappa]``;
         None where it declines (mu outside D, a point leaving its window)."""
-        from rbbench.rb.kernels import layout
-        from rbbench.rb.mixed.bound_kernels import moving_contact_terms
-
         pl = self.plan
         if self._work is None:
+            from rbbench.rb.kernels import layout
+            from rbbench.rb.mixed.bound_kernels import moving_contact_terms
+
             nq, n_c = pl["n_hat"].shape[0], self.Z_loc.shape[0]
             self._work = {"w": np.empty(nq), "gap": np.empty(nq),
                           "mphi": np.zeros((nq, pl["k"])),
                           "seg": np.zeros(nq, dtype=np.int64),
                           "mark": np.zeros(n_c, dtype=np.int64), "uz": np.zeros(n_c),
                           "b": np.zeros(n_c), "touched": np.zeros(n_c, dtype=np.int64),
-                          "d": np.zeros(self.Cs.shape[0]), "out": np.zeros(6)}
+                          "d": np.zeros(self.Cs.shape[0]), "out": np.zeros(6),
+                          "kernel": moving_contact_terms, "ok": layout.OK}
         k = self._work
-        status = moving_contact_terms(
+        status = k["kernel"](
             mu, pl["fb"], pl["ib"], pl["meta"], pl["n_hat"], pl["mdofs"], pl["rows"],
             self.s_terms, self.Vg, np.ascontiguousarray(a, dtype=float), self.Cs, self.Z_loc,
             np.ascontiguousarray(c, dtype=float), self.U, self.T, self.kj, 1 + c.size,
             self.Linv, k["w"], k["gap"], k["mphi"], k["seg"], k["mark"], k["uz"], k["b"],
             k["touched"], k["d"], k["out"])
-        return k["out"].copy() if status == layout.OK else None
+        return k["out"].copy() if status == k["ok"] else None
 
     def __call__(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray,
                  compiled: bool = True) -> VIBound:
