@@ -216,11 +216,14 @@ def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, C
             wj = -sr * a[j - 1 - N]
         else:
             wj = -g[j - 1 - N - R]
-        for i in range(kj[j]):
-            y[i] += T[i, j] * wj
         if j >= j_lam:
             for i in range(kj[j]):
-                yl[i] += T[i, j] * wj
+                tw = T[i, j] * wj
+                y[i] += tw
+                yl[i] += tw
+        else:
+            for i in range(kj[j]):
+                y[i] += T[i, j] * wj
     rho2 = 0.0
     l2 = 0.0
     for i in range(y.size):
