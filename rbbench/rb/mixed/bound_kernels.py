@@ -1,4 +1,5 @@
-"""numba kernel of the online error bound (:meth:`rbbench.rb.mixed.bounds.MixedBound.terms`).
+"""numba kernels of the online error bounds (:meth:`rbbench.rb.mixed.bounds.MixedBound.terms`;
+with a moving contact :meth:`rbbench.rb.mixed.contact_bound.ContactBound.terms`).
 
 The same formulas as the numpy reference, written as loops: one call instead of a dozen
 numpy calls (each ~1-10 us of overhead on arrays this small). Imports numba at the top:
@@ -10,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rbbench.rb.kernels import layout, pairing
 from rbbench.runtime.numba_cache import use_user_cache
 
 use_user_cache()  # before any @njit(cache=True)
@@ -121,3 +123,127 @@ def contact_jumps(s, w, gap, mphi, seg, sphi, n_hat, sdofs, mdofs, rows, uz, lam
         for a in range(mphi.shape[1]):
             b[mdofs[f, a, 0]] -= lw * mphi[q, a] * n0
             b[mdofs[f, a, 1]] -= lw * mphi[q, a] * n1
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})  # SIMD sums: round-off only
+def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, Cs, Zl, c, U,
+                         T, kj, j_lam, Linv, w, gap, mphi, seg, mark, uz, b, touched, d, out):
+    """The terms of :meth:`rbbench.rb.mixed.contact_bound.ContactBound.terms` in one call,
+    touching only the data the pairing at mu needs. Returns the pairing's status (``out``
+    is valid when it is ``OK``): ``out = [||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2,
+    sigma, kappa]``.
+
+    The slave part of ``d`` is ``s_r(mu) Cs c`` (``s_r = [1, mu] . s_terms``), the master
+    part sums over the points with ``uz = Zl c`` evaluated only at the master dofs of the
+    paired facets; ``b_M = B_M(mu)^T lam`` only where ``lam`` is non-zero, and ``g = U^T
+    b_M`` over that support; ``T`` (Fortran order) is used on rows ``< kj[j]`` of column
+    ``j`` (it is upper trapezoidal: Gram-Schmidt); ``w = [1, -c, -s_r a, -g]``, its
+    multiplier part from column ``j_lam``. ``mark``, ``b`` must be zero on entry (left so).
+    """
+    status, th = layout.theta(mu, fb, meta)
+    if status != layout.OK:
+        return status
+    status, s = pairing.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    if status != layout.OK:
+        return status
+    sr = s_terms[0]
+    for i in range(mu.size):
+        sr += s_terms[i + 1] * mu[i]
+    N = c.size
+    R = a.size
+    m = Cs.shape[0]
+    lam = np.zeros(m)
+    for r in range(m):
+        v = 0.0
+        for j in range(R):
+            v += Vg[r, j] * a[j]
+        lam[r] = v
+        v = 0.0
+        for j in range(N):
+            v += Cs[r, j] * c[j]
+        d[r] = sr * v
+    sign = 1.0 if s > 0 else -1.0
+    nt = 0
+    k = mphi.shape[1]
+    for q in range(w.size):
+        n0, n1 = sign * n_hat[q, 0], sign * n_hat[q, 1]
+        f = seg[q]
+        jm = 0.0
+        for e in range(k):
+            for t in range(2):
+                dof = mdofs[f, e, t]
+                if mark[dof] == 0:
+                    mark[dof] = 1
+                    touched[nt] = dof
+                    nt += 1
+                    v = 0.0
+                    for j in range(N):
+                        v += Zl[dof, j] * c[j]
+                    uz[dof] = v
+            jm += mphi[q, e] * (n0 * uz[mdofs[f, e, 0]] + n1 * uz[mdofs[f, e, 1]])
+        r = rows[q]
+        d[r] += w[q] * (-jm - gap[q])
+        lw = w[q] * lam[r]
+        if lw != 0.0:
+            for e in range(k):
+                b[mdofs[f, e, 0]] -= lw * mphi[q, e] * n0
+                b[mdofs[f, e, 1]] -= lw * mphi[q, e] * n1
+                mark[mdofs[f, e, 0]] = 2
+                mark[mdofs[f, e, 1]] = 2
+    K = U.shape[1]
+    g = np.zeros(K)
+    bb = 0.0
+    for i in range(nt):
+        dof = touched[i]
+        if mark[dof] == 2:
+            bd = b[dof]
+            bb += bd * bd
+            for j in range(K):
+                g[j] += U[dof, j] * bd
+            b[dof] = 0.0
+        mark[dof] = 0
+    gg = 0.0
+    for j in range(K):
+        gg += g[j] * g[j]
+    y = np.zeros(T.shape[0])
+    yl = np.zeros(T.shape[0])
+    for j in range(T.shape[1]):
+        if j == 0:
+            wj = 1.0
+        elif j <= N:
+            wj = -c[j - 1]
+        elif j <= N + R:
+            wj = -sr * a[j - 1 - N]
+        else:
+            wj = -g[j - 1 - N - R]
+        if j >= j_lam:
+            for i in range(kj[j]):
+                tw = T[i, j] * wj
+                y[i] += tw
+                yl[i] += tw
+        else:
+            for i in range(kj[j]):
+                y[i] += T[i, j] * wj
+    rho2 = 0.0
+    l2 = 0.0
+    for i in range(y.size):
+        rho2 += y[i] * y[i]
+        l2 += yl[i] * yl[i]
+    v = np.zeros(m)
+    kappa = 0.0
+    for r in range(m):
+        if d[r] > 0.0:
+            for i in range(r, m):
+                v[i] += Linv[i, r] * d[r]
+        elif d[r] < 0.0:
+            kappa -= lam[r] * d[r]
+    sig2 = 0.0
+    for i in range(m):
+        sig2 += v[i] * v[i]
+    out[0] = np.sqrt(rho2)
+    out[1] = np.sqrt(l2)
+    out[2] = bb
+    out[3] = gg
+    out[4] = np.sqrt(sig2) / abs(sr)
+    out[5] = max(kappa, 0.0)
+    return layout.OK

@@ -49,9 +49,10 @@ BOUND_DEFINITIONS = {
                  "= ||r_u||_X' (primal residual), bound_sigma = ||[B u_N - G]_+||_*' (the "
                  "violated constraint in the dual natural norm)",
     "bound_eim_residual": "two-body online bound only: the part of rho from the compression "
-                          "of B(mu)^T lam_N, lambda_c^(1/2) ||b - U U^T b||_2 (an upper "
-                          "bound of its X' norm), per validation mu, divided by the HF "
-                          "||u||_X; it is INCLUDED in bound_rho and err_bound_u",
+                          "of the master half b_M of B(mu)^T lam_N, lambda_c^(1/2) ||b_M - "
+                          "U U^T b_M||_2 (an upper bound of its X' norm; the slave half is "
+                          "exact), per validation mu, divided by the HF ||u||_X; it is "
+                          "INCLUDED in bound_rho and err_bound_u",
     "t_bound": "t_bound_median_s: median wall time of one online bound evaluation (one BLAS "
                "thread, numba kernel) over validation mus x repeats; t_bound_ratio: that over "
                "t_online_median_s (the reduced solve); t_bound_hf_median_s: certified = "

@@ -9,17 +9,19 @@ numbers (1)-(6) of that module). Its terms at mu, for ``u_N = Z c`` and ``lam_N 
   ``G(mu)`` are evaluated exactly online from the restricted contact layout
   (:class:`~rbbench.rb.hyper.contact_eim.RowEvaluator`, O(m) work, no HF vector): so
   ``d = B(mu) Z c - G(mu)`` (``sigma``, ``kappa``: (2), (3)) and ``b = B(mu)^T lam_N`` (on the
-  contact dofs) are exact;
-* ``rho = ||F - A Z c - P b||_X'`` (1), ``P`` the contact dofs among the free ones: ``b`` is
+  contact dofs) are exact. Off the master chain ``B(mu) = s_r(mu) B(mu_0)`` (below): the
+  slave half of ``d`` is ``s_r (B_S(mu_0) Z) c`` and of ``b`` is ``s_r B_S(mu_0)^T Vg a``,
+  both from offline arrays; the master half ``b_M`` is non-zero only where ``lam_N`` is;
+* ``rho = ||F - A Z c - P b||_X'`` (1), ``P`` the contact dofs among the free ones: ``b_M`` is
   split into ``U g`` (``U``: an l2-orthonormal POD basis of the training vectors
-  ``B(mu)^T Vg``, ``g = U^T b``) and the remainder ``e = b - U g``. The Riesz representers
-  of ``F``, ``A Z`` and ``P U`` are orthonormalised offline
-  (:func:`~rbbench.rb.algorithms.bounds.riesz_factor`): ``||F - A Z c - P U g||_X' = ||T
-  w||``; the remainder by ``||P e||_X' <= lambda_c^(1/2) ||e||_2``, ``lambda_c`` the largest
-  eigenvalue of ``P^T X^{-1} P`` (Lanczos, with the margin of the coercivity constants).
-  By the triangle inequality ``rho <= ||T w|| + lambda_c^(1/2) ||e||_2``: the compression
-  leaves nothing out, it only loosens the bound by the remainder term, which is reported
-  (``bound_eim_residual``);
+  ``B_M(mu)^T Vg`` on the master dofs, ``g = U^T b_M``) and the remainder ``e = b_M - U g``.
+  The Riesz representers of ``F``, ``A Z``, ``P_S B_S(mu_0)^T Vg`` and ``P_M U`` are
+  orthonormalised offline (:func:`~rbbench.rb.algorithms.bounds.riesz_factor`): ``||F - A Z c
+  - P_S b_S - P_M U g||_X' = ||T w||``; the remainder by ``||P_M e||_X' <= lambda_c^(1/2)
+  ||e||_2``, ``lambda_c`` the largest eigenvalue of ``P_M^T X^{-1} P_M`` (Lanczos, with the
+  margin of the coercivity constants). By the triangle inequality ``rho <= ||T w|| +
+  lambda_c^(1/2) ||e||_2``: the compression leaves nothing out, it only loosens the bound
+  by the remainder term, which is reported (``bound_eim_residual``);
 * ``sigma = ||[d]_+||_*'`` without ``D(mu)^{-1} = (B(mu) X^{-1} B(mu)^T)^{-1}``: any ``v`` with
   ``B(mu) v = [d]_+`` gives ``||[d]_+||_*' <= ||v||_X`` (``sup_eta eta^T B v /
   ||B^T eta||_X' <= ||v||_X``). On the dofs off the master chain ``B(mu)`` is the slave
@@ -29,7 +31,10 @@ numbers (1)-(6) of that module). Its terms at mu, for ``u_N = Z c`` and ``lam_N 
 * ``alpha_LB``, ``gamma_UB``: the extreme eigenvalues of ``(A, X)`` (``A`` mu-independent,
   checked: a dilation leaves the 2D stiffness invariant).
 
-Online cost: O(m + n_c (N + K)) (the contact rows and dofs), independent of the HF size.
+Online (:func:`rbbench.rb.mixed.bound_kernels.moving_contact_terms`, one numba call; the
+numpy evaluation from the Python pairing is the reference): O(m N + n_p N + n_l K + k q),
+``n_p`` the master dofs of the facets paired at mu, ``n_l`` those under a non-zero
+multiplier, ``T`` (k x q) used as upper trapezoidal: independent of the HF size.
 """
 
 from __future__ import annotations
@@ -84,6 +89,12 @@ class ContactBound:
     s_terms: np.ndarray
     alpha: float
     gamma: float
+    #: ``Cs`` (m, N): the slave part of ``B(mu) Z`` over ``s_r(mu)``
+    Cs: np.ndarray | None = None
+    #: the local master dofs (``U`` is zero on the others)
+    mloc: np.ndarray | None = None
+    #: rows of ``T`` used in each column (Gram-Schmidt: ``T`` is upper trapezoidal)
+    kj: np.ndarray | None = None
     #: ``lambda_c^(1/2) ||e||_2`` of the last evaluation (the remainder in ``rho``)
     last_remainder: float = 0.0
     #: the packed arrays of the numba pairing (:func:`compiled_plan`), None without numba
@@ -91,6 +102,7 @@ class ContactBound:
 
     def __post_init__(self) -> None:
         self.MspT = sp.csr_matrix(self.Msp.T)
+        self._work: dict | None = None
 
     def rows(self, mu: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
         """``(B(mu), G(mu))`` on the contact rows and dofs (exact)."""
@@ -116,24 +128,67 @@ class ContactBound:
                 for cf, dof in terms)
         return d, b, lam
 
+    def s_ratio(self, mu: np.ndarray) -> float:
+        """``s_r(mu)``: ``B(mu)`` off the master chain is ``s_r(mu)`` times its value at the
+        centre of D."""
+        return float(np.concatenate([[1.0], mu]) @ self.s_terms)
+
     def terms(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray, compiled: bool = True
               ) -> BoundTerms:
-        """The terms (1)-(4), ``rho`` with the remainder (module docstring)."""
+        """The terms (1)-(4), ``rho`` with the remainder (module docstring): by one numba
+        kernel (:func:`rbbench.rb.mixed.bound_kernels.moving_contact_terms`) where
+        available, else (``compiled=False``, or where the kernel declines) by numpy from the
+        Python pairing, the reference."""
+        if self.Cs is None:
+            raise RuntimeError("this error bound was built by an earlier rbbench (its pieces "
+                               "are laid out differently): rebuild the reduced model")
         mu = np.atleast_1d(np.asarray(mu, dtype=float))
-        d, b, lam = self.residuals(mu, c, a, compiled)
-        g = self.U.T @ b
-        # ||b - U g||_2 by Pythagoras (U orthonormal): one product with U instead of two
-        rem = float(np.sqrt(self.lam_c * max(float(b @ b - g @ g), 0.0)))
+        out = self._fast_terms(mu, c, a) if compiled and self.plan is not None else None
+        if out is not None:
+            rho_t, lam_t, bb, gg, sigma, kappa = out
+        else:
+            d, b, lam = self.residuals(mu, c, a, compiled=False)
+            sr = self.s_ratio(mu)
+            bm = b[self.mloc]
+            g = self.U[self.mloc].T @ bm
+            bb, gg = float(bm @ bm), float(g @ g)
+            w = np.concatenate([[1.0], -c, -sr * a, -g])
+            jl = 1 + c.size
+            rho_t = float(np.linalg.norm(self.T @ w))
+            lam_t = float(np.linalg.norm(self.T[:, jl:] @ w[jl:]))
+            up = np.flatnonzero(d > 0)  # the violated rows
+            sigma = float(np.linalg.norm(self.Linv[:, up] @ d[up])) / abs(sr)
+            kappa = max(float(lam @ np.maximum(-d, 0.0)), 0.0)
+        # ||b_M - U g||_2 by Pythagoras (U orthonormal): one product with U instead of two
+        rem = float(np.sqrt(self.lam_c * max(bb - gg, 0.0)))
         self.last_remainder = rem
-        N = c.size
-        w = np.concatenate([[1.0], -c, -g])
-        rho = float(np.linalg.norm(self.T @ w)) + rem
-        lam_norm = float(np.linalg.norm(self.T[:, 1 + N:] @ g)) + rem
-        s = float(np.concatenate([[1.0], mu]) @ self.s_terms)
-        up = np.flatnonzero(d > 0)  # the violated rows: usually few
-        sigma = float(np.linalg.norm(self.Linv[:, up] @ d[up])) / abs(s)
-        kappa = float(lam @ np.maximum(-d, 0.0))
-        return BoundTerms(rho, sigma, max(kappa, 0.0), lam_norm)
+        return BoundTerms(rho_t + rem, sigma, kappa, lam_t + rem)
+
+    def _fast_terms(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray
+                    ) -> np.ndarray | None:
+        """The kernel's ``[||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2, sigma, kappa]``;
+        None where it declines (mu outside D, a point leaving its window)."""
+        pl = self.plan
+        if self._work is None:
+            from rbbench.rb.kernels import layout
+            from rbbench.rb.mixed.bound_kernels import moving_contact_terms
+
+            nq, n_c = pl["n_hat"].shape[0], self.Z_loc.shape[0]
+            self._work = {"w": np.empty(nq), "gap": np.empty(nq),
+                          "mphi": np.zeros((nq, pl["k"])),
+                          "seg": np.zeros(nq, dtype=np.int64),
+                          "mark": np.zeros(n_c, dtype=np.int64), "uz": np.zeros(n_c),
+                          "b": np.zeros(n_c), "touched": np.zeros(n_c, dtype=np.int64),
+                          "d": np.zeros(self.Cs.shape[0]), "out": np.zeros(6),
+                          "kernel": moving_contact_terms, "ok": layout.OK}
+        k = self._work
+        status = k["kernel"](
+            mu, pl["fb"], pl["ib"], pl["meta"], pl["n_hat"], pl["mdofs"], pl["rows"],
+            self.s_terms, self.Vg, np.ascontiguousarray(a, dtype=float), self.Cs, self.Z_loc,
+            np.ascontiguousarray(c, dtype=float), self.U, self.T, self.kj, 1 + c.size,
+            self.Linv, k["w"], k["gap"], k["mphi"], k["seg"], k["mark"], k["uz"], k["b"],
+            k["touched"], k["d"], k["out"])
+        return k["out"].copy() if status == k["ok"] else None
 
     def __call__(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray,
                  compiled: bool = True) -> VIBound:
@@ -145,6 +200,7 @@ class ContactBound:
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
         state.pop("MspT", None)
+        state.pop("_work", None)
         return state
 
     def __setstate__(self, state: dict) -> None:
@@ -201,27 +257,54 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
     if not err <= 1e-10:
         raise BoundUnsupported(f"the contact rows evaluated online differ from the HF B, G "
                                f"(max relative deviation {err:.3g}): no online bound")
-    progress("error bound: POD of B(mu)^T Vg on the contact dofs")
-    S = np.hstack([np.asarray(contact_rows(ev, Msp, mu)[0].T @ Vg) for mu in mus_sample])
-    Uf, sv, _ = np.linalg.svd(S, full_matrices=False)
-    K = int(min(POD_MAX, np.sum(sv > POD_RTOL * sv[0])))
-    U = np.ascontiguousarray(Uf[:, :K])
+    Linv, s_terms = _slave_lifting(problem_at, layout, free, X, bounds)
+    # the slave part of B(mu) (local dofs off the master chain) is s_r(mu) times its value
+    # at the centre of D: exact affine pieces; the master part is compressed
+    mloc = np.unique(np.asarray(ev.layout.master.dofs).ravel())
+    sloc = np.setdiff1d(np.arange(ev.n_local), mloc)
+    s0 = float(np.concatenate([[1.0], bounds.mean(axis=1)]) @ s_terms)
+    BS = sp.csr_matrix(Bc[:, sloc]) / s0
+    Cs = np.ascontiguousarray(BS @ Z[loc][sloc])
+    progress("error bound: POD of B_M(mu)^T Vg on the master dofs")
+    S = np.hstack([np.asarray(contact_rows(ev, Msp, mu)[0][:, mloc].T @ Vg)
+                   for mu in mus_sample])
+    Um = _pod(S, POD_MAX, POD_RTOL)
+    U = np.zeros((ev.n_local, Um.shape[1]))
+    U[mloc] = Um
     n = free.size
 
-    def embed(V: np.ndarray) -> np.ndarray:
+    def embed(V: np.ndarray, at: np.ndarray) -> np.ndarray:
         out = np.zeros((n, V.shape[1]))
-        out[loc] = V
+        out[loc[at]] = V
         return out
 
-    progress(f"error bound: Riesz representers ({1 + Z.shape[1] + K} pieces)")
-    T = riesz_factor(np.hstack([p0.F[:, None], p0.A @ Z, embed(U)]), X, x_solve)
-    lam_c = _local_dual_max(loc, n, x_solve)
-    Linv, s_terms = _slave_lifting(problem_at, layout, free, X, bounds)
+    q = 1 + Z.shape[1] + Vg.shape[1] + U.shape[1]
+    progress(f"error bound: Riesz representers ({q} pieces)")
+    T, kj = riesz_factor(np.hstack([p0.F[:, None], p0.A @ Z,
+                                    embed(np.asarray(BS.T @ Vg), sloc), embed(Um, mloc)]),
+                         X, x_solve, return_ranks=True)
+    lam_c = _local_dual_max(loc[mloc], n, x_solve)
     alpha, gamma = coercivity_constants(p0.A, X)
     return ContactBound(ev=ev, Msp=Msp, Z_loc=np.ascontiguousarray(Z[loc]),
-                        Vg=np.ascontiguousarray(Vg), U=U, T=T, lam_c=lam_c, Linv=Linv,
-                        s_terms=s_terms, alpha=alpha, gamma=gamma,
+                        Vg=np.ascontiguousarray(Vg), U=U, T=np.asfortranarray(T),
+                        lam_c=lam_c, Linv=np.asfortranarray(Linv), s_terms=s_terms,
+                        alpha=alpha, gamma=gamma, Cs=Cs, mloc=mloc,
+                        kj=np.ascontiguousarray(kj, dtype=np.int64),
                         plan=compiled_plan(ev, Msp, bounds))
+
+
+def _pod(S: np.ndarray, k_max: int, rtol: float) -> np.ndarray:
+    """An l2-orthonormal basis of the leading left singular vectors of ``S`` (at most
+    ``k_max``, singular values above ``rtol`` of the largest), from the eigenvectors of the
+    smaller Gram matrix; orthonormalised again by QR (the bound needs ``U^T U = I``, not
+    exact singular vectors)."""
+    G = S @ S.T if S.shape[0] <= S.shape[1] else S.T @ S
+    ev, W = np.linalg.eigh(G)
+    ev, W = ev[::-1], W[:, ::-1]
+    sv = np.sqrt(np.maximum(ev, 0.0))
+    k = int(min(k_max, np.sum(sv > rtol * sv[0])))
+    V = W[:, :k] if S.shape[0] <= S.shape[1] else S @ W[:, :k]
+    return np.ascontiguousarray(np.linalg.qr(V)[0])
 
 
 def compiled_plan(ev: Any, Msp: sp.csr_matrix, bounds: np.ndarray) -> dict | None:

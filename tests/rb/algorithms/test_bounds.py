@@ -126,19 +126,28 @@ def test_quadratic_root():
         pytest.approx(0.3 / alpha)  # no violation: the linear bound rho / alpha
 
 
-def test_riesz_factor_matches_the_dual_norm():
+@pytest.mark.parametrize("block", [1, 3, 64])
+def test_riesz_factor_matches_the_dual_norm(block):
     rng = np.random.default_rng(4)
-    n = 15
+    n = 30
     X = _spd(rng, n)
-    P = rng.standard_normal((n, 6))
+    P = rng.standard_normal((n, 10))
     P[:, 5] = P[:, 0] - 2 * P[:, 1]  # a dependent piece
+    P[:, 8] = 3 * P[:, 6] + P[:, 2]  # one more, within a later block
     xs = _solver(X)
-    T = riesz_factor(P, X, xs)
-    assert T.shape[0] == 5
+    T, ranks = riesz_factor(P, X, xs, block=block, return_ranks=True)
+    assert T.shape[0] == 8
+    assert ranks.tolist() == [1, 2, 3, 4, 5, 8, 6, 7, 8, 8]  # dropped pieces: all rows
+    # upper trapezoidal: the rows below ranks[j] are round-off
+    Tcut = T.copy()
+    for j, r in enumerate(ranks):
+        Tcut[r:, j] = 0.0
     for _ in range(5):
-        w = rng.standard_normal(6)
+        w = rng.standard_normal(10)
         r = P @ w
-        assert np.linalg.norm(T @ w) == pytest.approx(np.sqrt(r @ xs(r)), rel=1e-10)
+        exact = np.sqrt(r @ xs(r))
+        assert np.linalg.norm(T @ w) == pytest.approx(exact, rel=1e-10)
+        assert np.linalg.norm(Tcut @ w) == pytest.approx(exact, rel=1e-10)
 
 
 def test_natural_dual_refuses_a_dependent_b():

@@ -149,3 +149,30 @@ def test_compiled_pairing_matches_the_python_one_and_pickles(hertz):
     assert again(mus[1], c, a).delta_u == pytest.approx(res.delta_u, rel=1e-12)
     # outside D the kernels decline and the Python pairing decides (here: it still pairs)
     assert np.isfinite(bound(np.array([1.31]), c, a).delta_u)
+
+
+@settings(max_examples=8, deadline=None, derandomize=True)
+@given(x=st.floats(0, 1), seed=st.integers(0, 2**16))
+def test_fast_terms_equal_the_reference(hertz, x, seed):
+    """The kernel (pairing, slave rows from their affine form, master rows at the paired
+    facets only, g over the support of b_M, T used as upper trapezoidal) against the numpy
+    reference from the Python pairing: the same terms to round-off at random mu, c, a."""
+    sc, _, _, _, Z, Vg, _, _, bound, _ = hertz
+    mu = sc.bounds[:, 0] + x * (sc.bounds[:, 1] - sc.bounds[:, 0])
+    rng = np.random.default_rng(seed)
+    c, a = rng.standard_normal(Z.shape[1]), rng.random(Vg.shape[1])
+    a[rng.random(a.size) < 0.3] = 0.0  # a sparser multiplier: rows with lam = 0
+    assert bound._fast_terms(mu, c, a) is not None  # the kernel ran (did not decline)
+    fast = bound.terms(mu, c, a, compiled=True)
+    rem_f = bound.last_remainder
+    ref = bound.terms(mu, c, a, compiled=False)
+    rem_r = bound.last_remainder
+    tiny = 1e-12 * ref.lam_norm
+    for f, r in ((fast.rho - rem_f, ref.rho - rem_r), (fast.lam_norm - rem_f,
+                                                       ref.lam_norm - rem_r)):
+        assert f == pytest.approx(r, rel=1e-10, abs=tiny)
+    # the remainder sqrt(lambda_c (|b_M|^2 - |g|^2)) is resolved to sqrt(round-off) of b_M
+    assert rem_f == pytest.approx(rem_r, rel=1e-6, abs=1e-7 * ref.lam_norm)
+    assert fast.sigma == pytest.approx(ref.sigma, rel=1e-10, abs=1e-14 * ref.lam_norm)
+    # kappa: a sum of lam_N [-d]_+ where d cancels terms of size lam |B| |u_N|
+    assert fast.kappa == pytest.approx(ref.kappa, rel=1e-9, abs=tiny)
