@@ -125,33 +125,10 @@ def contact_jumps(s, w, gap, mphi, seg, sphi, n_hat, sdofs, mdofs, rows, uz, lam
             b[mdofs[f, a, 1]] -= lw * mphi[q, a] * n1
 
 
-@njit(cache=True, fastmath={"reassoc", "contract"})  # SIMD sums: round-off only
-def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, Cs, Zl, c, U,
-                         T, kj, j_lam, Linv, w, gap, mphi, seg, mark, uz, b, touched, d, out):
-    """The terms of :meth:`rbbench.rb.mixed.contact_bound.ContactBound.terms` in one call,
-    touching only the data the pairing at mu needs. Returns the pairing's status (``out``
-    is valid when it is ``OK``): ``out = [||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2,
-    sigma, kappa]``.
-
-    The slave part of ``d`` is ``s_r(mu) Cs c`` (``s_r = [1, mu] . s_terms``), the master
-    part sums over the points with ``uz = Zl c`` evaluated only at the master dofs of the
-    paired facets; ``b_M = B_M(mu)^T lam`` only where ``lam`` is non-zero, and ``g = U^T
-    b_M`` over that support; ``T`` (Fortran order) is used on rows ``< kj[j]`` of column
-    ``j`` (it is upper trapezoidal: Gram-Schmidt); ``w = [1, -c, -s_r a, -g]``, its
-    multiplier part from column ``j_lam``. ``mark``, ``b`` must be zero on entry (left so).
-    """
-    status, th = layout.theta(mu, fb, meta)
-    if status != layout.OK:
-        return status
-    status, s = pairing.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
-    if status != layout.OK:
-        return status
-    sr = s_terms[0]
-    for i in range(mu.size):
-        sr += s_terms[i + 1] * mu[i]
-    N = c.size
-    R = a.size
-    m = Cs.shape[0]
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _slave_terms(sr, Vg, a, Cs, c, d):
+    """The multipliers ``lam = Vg a`` and the slave part ``d = s_r Cs c``."""
+    m, N, R = Cs.shape[0], c.size, a.size
     lam = np.zeros(m)
     for r in range(m):
         v = 0.0
@@ -162,6 +139,16 @@ def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, C
         for j in range(N):
             v += Cs[r, j] * c[j]
         d[r] = sr * v
+    return lam
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _master_terms(s, n_hat, mdofs, rows, Zl, c, U, w, gap, mphi, seg, mark, uz, b, touched,
+                  lam, d):
+    """Add the master part of ``d`` (``uz = Zl c`` at the paired facets' dofs only) and
+    return ``(||b_M||^2, g = U^T b_M)`` with ``b_M = B_M(mu)^T lam`` on ``lam``'s support;
+    ``mark`` and ``b`` are left zero."""
+    N = c.size
     sign = 1.0 if s > 0 else -1.0
     nt = 0
     k = mphi.shape[1]
@@ -202,9 +189,14 @@ def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, C
                 g[j] += U[dof, j] * bd
             b[dof] = 0.0
         mark[dof] = 0
-    gg = 0.0
-    for j in range(K):
-        gg += g[j] * g[j]
+    return bb, g
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _residual_norms(T, kj, j_lam, sr, c, a, g):
+    """``(||T w||, ||T_lam w_lam||)`` for ``w = [1, -c, -s_r a, -g]``, ``T`` used on rows
+    ``< kj[j]`` of column ``j`` (upper trapezoidal), the multiplier part from ``j_lam``."""
+    N, R = c.size, a.size
     y = np.zeros(T.shape[0])
     yl = np.zeros(T.shape[0])
     for j in range(T.shape[1]):
@@ -229,6 +221,13 @@ def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, C
     for i in range(y.size):
         rho2 += y[i] * y[i]
         l2 += yl[i] * yl[i]
+    return np.sqrt(rho2), np.sqrt(l2)
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})
+def _violation_terms(Linv, d, lam):
+    """``(||Linv d_+||, kappa = -sum_{d < 0} lam d)``, kappa clipped at 0."""
+    m = d.size
     v = np.zeros(m)
     kappa = 0.0
     for r in range(m):
@@ -240,10 +239,39 @@ def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, C
     sig2 = 0.0
     for i in range(m):
         sig2 += v[i] * v[i]
-    out[0] = np.sqrt(rho2)
-    out[1] = np.sqrt(l2)
+    return np.sqrt(sig2), max(kappa, 0.0)
+
+
+@njit(cache=True, fastmath={"reassoc", "contract"})  # SIMD sums: round-off only
+def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, Cs, Zl, c, U,
+                         T, kj, j_lam, Linv, w, gap, mphi, seg, mark, uz, b, touched, d, out):
+    """The terms of :meth:`rbbench.rb.mixed.contact_bound.ContactBound.terms` in one call,
+    touching only the data the pairing at mu needs. Returns the pairing's status (``out``
+    is valid when it is ``OK``): ``out = [||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2,
+    sigma, kappa]``.
+
+    The slave part of ``d`` is ``s_r(mu) Cs c`` (``s_r = [1, mu] . s_terms``), the master
+    part sums over the points with ``uz = Zl c`` evaluated only at the master dofs of the
+    paired facets; ``b_M = B_M(mu)^T lam`` only where ``lam`` is non-zero, and ``g = U^T
+    b_M`` over that support; ``T`` (Fortran order) is used on rows ``< kj[j]`` of column
+    ``j`` (it is upper trapezoidal: Gram-Schmidt); ``w = [1, -c, -s_r a, -g]``, its
+    multiplier part from column ``j_lam``. ``mark``, ``b`` must be zero on entry (left so).
+    """
+    status, th = layout.theta(mu, fb, meta)
+    if status != layout.OK:
+        return status
+    status, s = pairing.pair_points(th, fb, ib, meta, w, gap, mphi, seg)
+    if status != layout.OK:
+        return status
+    sr = s_terms[0]
+    for i in range(mu.size):
+        sr += s_terms[i + 1] * mu[i]
+    lam = _slave_terms(sr, Vg, a, Cs, c, d)
+    bb, g = _master_terms(s, n_hat, mdofs, rows, Zl, c, U, w, gap, mphi, seg, mark, uz, b,
+                          touched, lam, d)
+    out[0], out[1] = _residual_norms(T, kj, j_lam, sr, c, a, g)
     out[2] = bb
-    out[3] = gg
-    out[4] = np.sqrt(sig2) / abs(sr)
-    out[5] = max(kappa, 0.0)
+    out[3] = float(np.sum(g * g))
+    out[4], out[5] = _violation_terms(Linv, d, lam)
+    out[4] /= abs(sr)
     return layout.OK
