@@ -207,10 +207,10 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
     status and returns the case's details (per-mu values, histories, validation mus)."""
     from rbbench.rb.offline import reduce
 
+    row["dim"] = _scene_dim(scene)  # also on a row whose reduction fails
     res = reduce(scene, case.reduce_config(cache_dir), progress=progress or _quiet,
                  registry=registry)
     s = res.summary()
-    row["dim"] = _scene_dim(scene)
     reg, stab = registry or default_registry(), s["config"].get("stabilizer")
     _fill(row, s, bool(stab in reg.names("stabilizer")
                        and reg.get("stabilizer", stab).capabilities.get("online_hf")))

@@ -55,7 +55,7 @@ _TITLES = {"pareto": "Error against online time (Pareto fronts)",
            "offline": "Offline cost against online time",
            "error_vs_size": "Error against RB size", "infsup": "Inf-sup constants",
            "histories": "Offline histories", "bound": "Certified error bound",
-           "speedup": "Speed-up",
+           "speedup": "Speed-up", "hf": "HF solves: time and Hertz errors",
            "gcns": "GCNS curves (reduced friction)", "status": "Status counts",
            "lam_t": "lam_t, HF against RB (reduced friction)"}
 _KIND_PREFIX = {"cone-upper": "≤ ", "span-lower-bound": "≥ "}
@@ -510,8 +510,9 @@ def _summary(ctx: _Ctx, drawn: _Drawn, img_fmt: str) -> tuple[str, str]:
     _intro(d, ctx, run_id)
     _status_section(d, ctx)
     _flags_section(d, ctx)
-    for col in ("err_u_max", "err_lam_max"):
-        _best_section(d, ctx, col)
+    if any(r.get("mode") != "hf" for r in ctx.records):  # an HF-only run has no errors
+        for col in ("err_u_max", "err_lam_max"):
+            _best_section(d, ctx, col)
     _friction_section(d, ctx)
     _hf_section(d, ctx)
     _figures_section(d, drawn, img_fmt)
