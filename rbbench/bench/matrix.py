@@ -453,8 +453,8 @@ def _solver_grids(params: dict, axes: dict[str, list[str]], registry: Registry |
             for opts in combos:
                 try:
                     registry.create("solver", cname, **opts)
-                except (TypeError, ValueError) as exc:
-                    raise MatrixError(f"{w}: {opts}: {exc}") from None
+                except Exception as exc:  # noqa: BLE001 - any refusal (int(inf): Overflow)
+                    raise MatrixError(f"{w}: {opts}: {type(exc).__name__}: {exc}") from None
         grids[("solver", cname)] = combos
     return grids
 

@@ -65,8 +65,10 @@ def test_the_3d_matrices_validate():
 
 @pytest.mark.parametrize("table, match", [
     ('[params.solver.ssn]\ncondensation = ["schur", "nope"]\n',
-     r"\[params.solver.ssn\]: \{'condensation': 'nope'\}: option condensation = 'nope' is "
-     r"not valid; expected one of 'schur', 'columns'"),
+     r"\[params.solver.ssn\]: \{'condensation': 'nope'\}: ValueError: option condensation = "
+     r"'nope' is not valid; expected one of 'schur', 'columns'"),
+    ('[params.solver.ssn]\nmax_iter = [inf]\n',
+     r"\[params.solver.ssn\]: \{'max_iter': inf\}: OverflowError"),
     ('[params.solver.ssn]\ncondensaton = ["schur"]\n',
      r"\[params.solver.ssn\]: \{'condensaton': 'schur'\}: .*condensaton"),
     ('[params.solver.newton]\ntol = [1e-9]\n',
