@@ -76,7 +76,7 @@ def _backends(add):
                           "rbbench_plugins.backends.ngsolve.linear:NGSolveLinearBackend",
                       "geometry": ("halfdisks", "hemispheres", "unit_square")},
         description="NGSolve: Netgen meshes (or arrays), P1/P2, sparse Cholesky, "
-                    "GPTS contact pairing; 3D hemispheres (P1, frictionless mixed); linear "
+                    "GPTS contact pairing; 3D hemispheres (P1/P2, frictionless mixed); linear "
                     "scenes (P1, the scikit-fem mesh)",
     ))
 

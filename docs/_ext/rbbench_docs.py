@@ -115,7 +115,8 @@ def matrix_header() -> str:
          "per-case time limit, enforced (the case's process is killed: status `timeout`)"],
         ["`seed`", "an integer >= 0", "each scene's", "seed of the random parameter sets"],
         ["`mode`", " or ".join(f"`{m}`" for m in c._MODES), '`"rb"`',
-         "`hf`: each case is an HF solve only (backend x formulation x solver)"],
+         "`hf`: each case is an HF solve only (backend x formulation x solver; "
+         "`[params.solver.NAME]`: the solver's options)"],
     ]
     return (_table(["key", "valid values", "default", "meaning"], rows)
             + f"\nA matrix expands to at most {c.MAX_CASES:,} cases; sizes (`[sizes]`, N, R, S) "

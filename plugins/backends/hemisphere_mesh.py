@@ -172,6 +172,22 @@ def boundary_triangles(tets: np.ndarray) -> np.ndarray:
     return faces[np.sort(index[count == 1])]
 
 
+def edge_lookup(edges: np.ndarray, n_vertices: int):
+    """``f(a, b)``: the index of the edge with vertices ``a``, ``b`` (either order)."""
+    key = np.sort(edges, axis=1) @ np.array([n_vertices, 1])
+    order = np.argsort(key)
+
+    def index(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        k = np.minimum(a, b) * n_vertices + np.maximum(a, b)
+        pos = np.searchsorted(key, k, sorter=order)
+        found = order[np.minimum(pos, key.size - 1)]
+        if not np.array_equal(key[found], k):
+            raise RuntimeError("hemispheres: a boundary triangle edge is not a mesh edge")
+        return found
+
+    return index
+
+
 def face_groups(points: np.ndarray, triangles: np.ndarray) -> dict[str, np.ndarray]:
     """Boolean masks of boundary triangles: ``"flat"`` (z = 0), ``"sym_x"`` (x = 0),
     ``"sym_y"`` (y = 0), ``"curved"`` (the rest: the sphere)."""

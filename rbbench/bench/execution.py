@@ -51,6 +51,16 @@ _ESTIMATOR = ("err_est_max", "effectivity_min", "effectivity_max", "effectivity_
               "err_bound_u_max", "certified", "t_bound_median_s")
 #: Summary entries of a friction reduction kept in the case details (report figures).
 _FRICTION_DETAILS = ("gcns_history", "lam_t_profiles")
+#: HF summary keys (rbbench.hf.metrics, rbbench.hf.metrics3d) copied into a mode-hf row as
+#: they are when the summary has them: friction, the floor, the contact extent (2D
+#: half-widths, 3D radii).
+_HF_COPIED = ("tangential_force", "n_stick", "n_slip", "friction_residual", "floor_s",
+              "solve_over_floor", "contact_half_width", "contact_half_width_gap",
+              "contact_radius", "contact_radius_gap", "max_pressure")
+#: The Hertz block's signed relative errors copied into a mode-hf row (``hertz_<key>``).
+_HERTZ = ("a_rel_error", "a_gap_rel_error", "p0_rel_error")
+#: Scene geometry kinds in 3D.
+_GEOMETRIES_3D = ("hemispheres",)
 _TIMINGS = {"t_snapshots_s": "snapshots_s", "t_primal_s": "primal_s", "t_dual_s": "dual_s",
             "t_stabilizer_s": "stabilizer_s", "t_hyper_s": "hyper_s"}
 
@@ -182,6 +192,11 @@ def execute_case(case: Case, run_id: str, cache_dir: str, executor: str = "seria
     return {"row": schema.normalise_row(row), "details": _jsonable(details)}
 
 
+def _scene_dim(scene: Any) -> int:
+    """The space dimension of a scene: 3 for the 3D geometry kinds (hemispheres), else 2."""
+    return 3 if scene.data.get("geometry", {}).get("kind") in _GEOMETRIES_3D else 2
+
+
 def _quiet(msg: str) -> None:
     return None
 
@@ -192,6 +207,7 @@ def _execute_rb(case: Case, scene: Any, row: dict, cache_dir: str, registry: Reg
     status and returns the case's details (per-mu values, histories, validation mus)."""
     from rbbench.rb.offline import reduce
 
+    row["dim"] = _scene_dim(scene)  # also on a row whose reduction fails
     res = reduce(scene, case.reduce_config(cache_dir), progress=progress or _quiet,
                  registry=registry)
     s = res.summary()
@@ -221,25 +237,31 @@ def _execute_hf(case: Case, scene: Any, row: dict, registry: Registry | None) ->
     from rbbench.scene.linear import is_linear
 
     c = case.components
+    row["dim"] = _scene_dim(scene)
     if is_linear(scene):
         from rbbench.hf.linear.model import hf_row
 
         row.update(hf_row(scene, c["backend"], int(case.params.get("hf_repeats", 3)),
                           registry))
         return
-    comps = make_components(scene, c["backend"], c["formulation"], c["solver"], registry)
+    opts = case.solver_options
+    comps = make_components(scene, c["backend"], c["formulation"], c["solver"], registry,
+                            solver_options=opts)
     times, sol = [], None
     repeats = int(case.params.get("hf_repeats", 3))
     for k in range(repeats):  # the floor (factorise + solve of A) once, after the last solve
         sol = solve_hf(scene, None, c["backend"], c["formulation"], c["solver"],
-                       registry=registry, components=comps, floor=k == repeats - 1)
+                       registry=registry, solver_options=opts, components=comps,
+                       floor=k == repeats - 1)
         times.append(sol.times["total_s"])
     m = sol.metrics
     row.update(n_hf_dofs=m["n_dofs"], n_contact=m["n_contact"],
                contact_force=m["contact_force"], hf_iterations=m["iterations"],
-               t_hf_median_s=float(np.median(times)))
-    row.update({k: m[k] for k in ("tangential_force", "n_stick", "n_slip", "friction_residual",
-                                  "floor_s", "solve_over_floor") if k in m})
+               t_hf_median_s=float(np.median(times)),
+               hf_final_residual=m.get("final_residual"))
+    row.update({k: m[k] for k in _HF_COPIED if k in m})
+    hertz = m.get("hertz") or {}
+    row.update({f"hertz_{k}": hertz.get(k) for k in _HERTZ})
     if not sol.result.converged:
         row.update(status="diverged", reason=f"HF solver stopped: {sol.result.stop_reason}")
     elif not np.isfinite(m["contact_force"]):

@@ -38,7 +38,9 @@ A scene entry ``name@variant`` is the scene ``name`` under its own
 ``[scene_overrides]`` entry (e.g. two mesh sizes: ``hertz_halfdisks@fine``).
 ``[matrix] mode = "hf"`` makes each case an HF solve only (components
 backend, formulation, solver; ``[hf] repeats`` solves at the scene's default
-mu, timed without meshing): the backend x solver timing tables.
+mu, timed without meshing): the backend x solver timing tables; there
+``[params.solver.NAME]`` sweeps the solver's options (e.g. ``condensation =
+["schur", "columns"]``), checked by making the solver with each set.
 
 Selectors (``-s role=a,b``, globs allowed, ``scene`` too) narrow the matrix;
 ``--set`` overrides ``[reduce]`` fields (``--set n_valid=5``). Every error
@@ -123,6 +125,13 @@ class Case:
         return f"{self.case_id}-r{self.repetition}"
 
     @property
+    def solver_options(self) -> dict[str, Any]:
+        """Mode hf: the solver's options of the case (``[params.solver.NAME]``)."""
+        if self.mode != "hf":
+            return {}
+        return {k: v for k, v in self.params.items() if k != "hf_repeats"}
+
+    @property
     def base_scene(self) -> str:
         """The scene file's name (``name`` of a ``name@variant`` entry)."""
         return self.scene.split("@", 1)[0]
@@ -131,7 +140,8 @@ class Case:
     def label(self) -> str:
         c = self.components
         if self.mode == "hf":
-            return f"{self.scene} HF {c['backend']}/{c['formulation']}/{c['solver']}"
+            opts = "".join(f" {k}={v}" for k, v in sorted(self.solver_options.items()))
+            return f"{self.scene} HF {c['backend']}/{c['formulation']}/{c['solver']}{opts}"
         if not c["dual"]:  # no dual space (linear formulation)
             return (f"{self.scene} {c['backend']}/{c['formulation']}/{c['primal']} N={self.N}"
                     + (f" rep {self.repetition}" if self.repetition else ""))
@@ -253,7 +263,9 @@ def load_matrix(path: str | Path, selectors: list[str] | tuple[str, ...] = (),
     for axis in set(MODEL_AXES) & set(plan.axes) & set(plan.base):
         raise MatrixError(f"{where}: {axis} is swept in [components] and set in [reduce] / "
                           "--set; give it in one place")
-    plan.grids = _param_grids(data.get("params", {}), plan.axes, rfields, where)
+    plan.grids = (_param_grids(data.get("params", {}), plan.axes, rfields, where)
+                  if plan.mode == "rb" else
+                  _solver_grids(data.get("params", {}), plan.axes, registry, where))
     plan.overrides = _scene_overrides(data.get("scene_overrides", {}), plan.scenes, where)
     checks.check_case_count(_case_count(plan), where)
     sel = _selectors(selectors)
@@ -302,7 +314,7 @@ def _hf_repeats(data: dict, mode: str, where: str) -> Any:
     """The ``[hf]`` table's ``repeats`` (checked in mode ``hf``, whose matrices have no
     ``[sizes]``, ``[params]`` nor ``[reduce]``)."""
     if mode == "hf":
-        for t in ("sizes", "params", "reduce"):
+        for t in ("sizes", "reduce"):
             if t in data:
                 raise MatrixError(f"{where}: [{t}] does not apply to mode 'hf' (HF solves "
                                   "only); remove it")
@@ -411,6 +423,42 @@ def _param_grids(params: dict, axes: dict[str, list[str]], rfields: set[str],
     return grids
 
 
+def _solver_grids(params: dict, axes: dict[str, list[str]], registry: Registry | None,
+                  where: str) -> dict[tuple[str, str], list[dict]]:
+    """Mode ``hf``: ``{("solver", name): [options, ...]}``, the product of each
+    ``[params.solver.NAME]`` table of solver options (e.g. ``condensation = ["schur",
+    "columns"]``); each option set is checked by making the solver with it (an unknown or
+    invalid option is an error naming the table, the option and the solver's message)."""
+    _check_keys(params, {"solver"}, f"{where}: [params] (mode hf: solver options only)")
+    per_name = params.get("solver", {})
+    if not isinstance(per_name, dict):
+        raise MatrixError(f"{where}: [params] solver = {per_name!r}; expected tables "
+                          "[params.solver.NAME] of option = [values]")
+    grids: dict[tuple[str, str], list[dict]] = {}
+    for cname, grid in per_name.items():
+        w = f"{where}: [params.solver.{cname}]"
+        if cname not in axes["solver"]:
+            raise MatrixError(f"{w}: {cname!r} is not in [components] solver {axes['solver']}")
+        if not isinstance(grid, dict):
+            raise MatrixError(f"{w}: {grid!r}; expected a table of option = [values]")
+        keys = sorted(grid)
+        for k in keys:
+            for v in _as_list(grid[k], f"{w} {k}"):
+                if not isinstance(v, (str, int, float, bool)):
+                    raise MatrixError(f"{w}: {k} = {v!r}; expected a string, number or "
+                                      "boolean (or a list of them)")
+        combos = [dict(zip(keys, c, strict=True))
+                  for c in itertools.product(*(_as_list(grid[k], w) for k in keys))]
+        if registry is not None and registry.availability(registry.get("solver", cname))[0]:
+            for opts in combos:
+                try:
+                    registry.create("solver", cname, **opts)
+                except Exception as exc:  # noqa: BLE001 - any refusal (int(inf): Overflow)
+                    raise MatrixError(f"{w}: {opts}: {type(exc).__name__}: {exc}") from None
+        grids[("solver", cname)] = combos
+    return grids
+
+
 def _scene_overrides(overrides: dict, scenes: list[str], where: str) -> dict[str, list[str]]:
     """The ``[scene_overrides]`` table, checked against the scenes."""
     for sname, ov in overrides.items():
@@ -474,6 +522,7 @@ def _case_params(plan: _Plan, opts: tuple[dict, ...]) -> dict[str, Any]:
     """A case's parameters: the ``[reduce]`` fields (mode ``hf``: the HF repeats) updated
     by its component options."""
     p = dict(plan.base) if plan.mode == "rb" else {"hf_repeats": plan.hf_repeats}
+    # mode hf: the solver options of [params.solver.NAME] (rbbench.bench.execution)
     for o in opts:
         p.update(o)
     return p

@@ -108,9 +108,33 @@ COLUMNS: tuple[Column, ...] = (
     _c("dim_v_off", "int", "sizes", "", "friction scenes, mode rb: N + K, the primal space "
        "after PGA on the combined form b^n + b^tau (published: 70)"),
     # HF solve (mode hf; contact force also for reference in rb mode: not filled)
-    _c("contact_force", "float", "accuracy", "N/m", "mode hf: total normal contact force per "
-       "unit thickness at the scene's default mu (rbbench.hf.model contact_force)"),
+    _c("dim", "int", "sizes", "", "space dimension of the scene (2, or 3 for the hemispheres)"),
+    _c("contact_force", "float", "accuracy", "N/m (2D), N (3D)", "mode hf: total normal "
+       "contact force at the scene's default mu (rbbench.hf.model contact_force): 2D per unit "
+       "thickness (N/m), 3D of the whole bodies when symmetry planes cut the mesh (N)"),
+    _c("max_pressure", "float", "accuracy", "Pa", "mode hf: largest multiplier value, the "
+       "peak of the discrete contact pressure"),
+    _c("contact_half_width", "float", "accuracy", "m", "mode hf, 2D: half the horizontal "
+       "extent of the supports of the active multipliers (quantised to whole supports)"),
+    _c("contact_half_width_gap", "float", "accuracy", "m", "mode hf, 2D: half the horizontal "
+       "extent of the set where the pointwise gap is closed (edges interpolated)"),
+    _c("contact_radius", "float", "accuracy", "m", "mode hf, 3D: largest radial extent "
+       "sqrt(x^2 + y^2) of the supports of the active multipliers (quantised to whole "
+       "supports)"),
+    _c("contact_radius_gap", "float", "accuracy", "m", "mode hf, 3D: radius of the disc of the "
+       "projected area where the pointwise gap is closed, whole body"),
+    _c("hertz_a_rel_error", "float", "accuracy", "1", "mode hf, Hertz scenes: signed relative "
+       "error (computed - theory) / theory of the contact extent (2D contact_half_width, 3D "
+       "contact_radius) against Hertz (2D, or 3D a = (3 P R* / (4 E*))^(1/3)) at the "
+       "solver's own contact_force"),
+    _c("hertz_a_gap_rel_error", "float", "accuracy", "1", "mode hf, Hertz scenes: as "
+       "hertz_a_rel_error, of contact_half_width_gap (2D) or contact_radius_gap (3D)"),
+    _c("hertz_p0_rel_error", "float", "accuracy", "1", "mode hf, Hertz scenes: signed "
+       "relative error of max_pressure against the Hertz peak pressure p0 (3D: 3 P / (2 pi "
+       "a^2)) at the solver's own contact_force"),
     _c("hf_iterations", "int", "accuracy", "", "mode hf: iterations of the HF VI solver"),
+    _c("hf_final_residual", "float", "accuracy", "1", "mode hf: the solver's final relative "
+       "residual (its stopping measure; summary.json final_residual)"),
     _c("tangential_force", "float", "accuracy", "N/m", "mode hf, friction scenes: total "
        "tangential force per unit thickness (sum of lam_t times the friction node weights)"),
     _c("n_stick", "int", "accuracy", "", "mode hf, friction scenes: stick collocation nodes"),

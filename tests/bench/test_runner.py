@@ -204,6 +204,9 @@ repeats = 2
     run_matrix(m, tmp_path / "run", jobs=2, cache_dir=tmp_path / "cache", progress=False)
     df = pd.read_parquet(tmp_path / "run" / "results.parquet")
     assert set(df["status"]) == {"ok"} and df["dual"].isna().all()
+    # a 2D row: the half-width, no 3D radius, no Hertz check on this scene
+    assert (df["dim"] == 2).all() and (df["contact_half_width"] > 0).all()
+    assert df["contact_radius"].isna().all() and df["hertz_a_rel_error"].isna().all()
     dofs = df.groupby("scene")["n_hf_dofs"].first()
     assert dofs["membrane_obstacle@b"] > dofs["membrane_obstacle@a"]
     # both solvers solve the same problem: same force on each mesh (Uzawa to its tolerance)

@@ -19,6 +19,7 @@ from rbbench_plugins.backends import hemispheres as hs
 from rbbench_plugins.backends.hemisphere_mesh import (
     TetMesh,
     boundary_triangles,
+    edge_lookup,
     mirror_z,
 )
 from skfem import Basis, BilinearForm, ElementTetP1, ElementTetP2, ElementVector, MeshTet, asm
@@ -70,7 +71,7 @@ class HemisphereBody:
         on_plane = [np.all(m.p[k, tri] == 0.0, axis=1) for k in range(3)]
         curved = ~(on_plane[0] | on_plane[1] | on_plane[2])
         if self.degree == 2:
-            lookup = _edge_lookup(m.edges.T, m.nvertices)
+            lookup = edge_lookup(m.edges.T, m.nvertices)
             mids = [lookup(tri[:, a], tri[:, b]) + m.nvertices
                     for a, b in ((0, 1), (1, 2), (0, 2))]
             tri = np.column_stack([tri, *mids])
@@ -94,19 +95,3 @@ class HemisphereBody:
     def vertices(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(points (n, 3), tetrahedra (m, 4), global dofs (n, 3))`` of the vertices."""
         return self.mesh.p.T, self.mesh.t.T, self.basis.nodal_dofs.T + self.offset
-
-
-def _edge_lookup(edges: np.ndarray, n_vertices: int):
-    """``f(a, b)``: the index of the edge with vertices ``a``, ``b`` (either order)."""
-    key = np.sort(edges, axis=1) @ np.array([n_vertices, 1])
-    order = np.argsort(key)
-
-    def index(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        k = np.minimum(a, b) * n_vertices + np.maximum(a, b)
-        pos = np.searchsorted(key, k, sorter=order)
-        found = order[np.minimum(pos, key.size - 1)]
-        if not np.array_equal(key[found], k):
-            raise RuntimeError("skfem hemispheres: a boundary triangle edge is not a mesh edge")
-        return found
-
-    return index

@@ -5,6 +5,7 @@ captions, rows not ok, every row, column definitions)."""
 from __future__ import annotations
 
 import html
+import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -46,13 +47,15 @@ _ROW_COLUMNS = ("scene", "backend", "formulation", "solver", "primal", "dual",
                 "friction_residual_max", "friction_law_residual_max",
                 "penetration_max", "beta_dec_min", "beta_on_min", "beta_off_min",
                 "contact_force", "tangential_force", "n_stick", "n_slip",
-                "friction_residual", "hf_iterations", "t_hf_median_s", "t_offline_s",
+                "friction_residual", "hf_iterations", "max_pressure", "contact_half_width",
+                "contact_radius", "hertz_a_rel_error", "hertz_p0_rel_error",
+                "t_hf_median_s", "solve_over_floor", "t_offline_s",
                 "t_online_median_s", "speedup", "floor_s", "speedup_floor", "case_id")
 _TITLES = {"pareto": "Error against online time (Pareto fronts)",
            "offline": "Offline cost against online time",
            "error_vs_size": "Error against RB size", "infsup": "Inf-sup constants",
            "histories": "Offline histories", "bound": "Certified error bound",
-           "speedup": "Speed-up",
+           "speedup": "Speed-up", "hf": "HF solves: time and Hertz errors",
            "gcns": "GCNS curves (reduced friction)", "status": "Status counts",
            "lam_t": "lam_t, HF against RB (reduced friction)"}
 _KIND_PREFIX = {"cone-upper": "≤ ", "span-lower-bound": "≥ "}
@@ -357,6 +360,52 @@ def _friction_section(d: _Doc, ctx: _Ctx) -> None:
     d.use(*used, "status")
 
 
+#: The columns of the HF solves table: the contact extent is the half-width in 2D, the
+#: radius in 3D (one column each, by the row's dim).
+_HF_EXTENT = {2: ("contact_half_width", "contact_half_width_gap"),
+              3: ("contact_radius", "contact_radius_gap")}
+
+
+def _hf_section(d: _Doc, ctx: _Ctx) -> None:
+    """The HF solves side by side (mode hf rows; only when the run has some): sizes,
+    force, contact extent and Hertz errors, HF time and its floor."""
+    hf = [r for r in ctx.records if r.get("mode") == "hf"]
+    if not hf:
+        return
+    d.heading(f"HF solves ({len(hf)})")
+    dims = sorted({int(r["dim"]) for r in hf if r.get("dim") in (2, 3)}) or [2]
+    extent = [c for dim in dims for c in _HF_EXTENT[dim]]
+    cols = ["n_hf_dofs", "n_contact", "hf_iterations", "hf_final_residual", "contact_force",
+            "max_pressure", *extent, "hertz_a_rel_error", "hertz_a_gap_rel_error",
+            "hertz_p0_rel_error", "t_hf_median_s", "floor_s", "solve_over_floor"]
+    ok = [r for r in hf if r.get("status") == "ok"]
+    cols = [c for c in cols if any(r.get(c) is not None for r in ok)]
+    rows = sorted(hf, key=lambda r: (str(r.get("scene")), str(r.get("backend")),
+                                      str(r.get("solver")), str(r.get("params"))))
+    d.table(["scene", "backend", "formulation", "solver", "solver options", "status",
+             *[_header(c) for c in cols]],
+            [[str(r.get("scene")), str(r.get("backend")), str(r.get("formulation")),
+              str(r.get("solver")), _solver_options(r.get("params")), str(r.get("status")),
+              *[_fmt(r.get(c)) if r.get("status") == "ok" else "" for c in cols]]
+             for r in rows])
+    if 3 in dims:
+        d.para("3D rows: contact_force of the whole bodies (N) when symmetry planes cut the "
+               "mesh; contact_radius (quantised to multiplier supports) and "
+               "contact_radius_gap (from the pointwise gap) in place of the 2D half-widths; "
+               "the Hertz errors against 3D Hertz at each row's own force.")
+    d.use("dim", *cols, "params")
+
+
+def _solver_options(params: Any) -> str:
+    """The solver options of a mode-hf row's parameters (its JSON ``params`` without
+    ``hf_repeats``)."""
+    try:
+        p = json.loads(params) if isinstance(params, str) else dict(params or {})
+    except (ValueError, TypeError):
+        return ""
+    return ", ".join(f"{k}={v}" for k, v in sorted(p.items()) if k != "hf_repeats")
+
+
 def _figure_entry(d: _Doc, drawn: _Drawn, name: str, img_fmt: str) -> None:
     paths = drawn.figures[name]
     src = next((p.name for p in paths if p.suffix == f".{img_fmt}"), paths[0].name)
@@ -461,9 +510,11 @@ def _summary(ctx: _Ctx, drawn: _Drawn, img_fmt: str) -> tuple[str, str]:
     _intro(d, ctx, run_id)
     _status_section(d, ctx)
     _flags_section(d, ctx)
-    for col in ("err_u_max", "err_lam_max"):
-        _best_section(d, ctx, col)
+    if any(r.get("mode") != "hf" for r in ctx.records):  # an HF-only run has no errors
+        for col in ("err_u_max", "err_lam_max"):
+            _best_section(d, ctx, col)
     _friction_section(d, ctx)
+    _hf_section(d, ctx)
     _figures_section(d, drawn, img_fmt)
     _not_ok_section(d, ctx)
     _rows_section(d, ctx)

@@ -14,6 +14,7 @@ from rbbench.bench.report.common import _COL, _axis_label, _num, _pos
 from rbbench.bench.report.cost_figures import _fig_offline, _fig_pareto
 from rbbench.bench.report.detail_figures import _fig_histories, _fig_infsup
 from rbbench.bench.report.friction_figures import _fig_gcns
+from rbbench.bench.report.hf_figures import _fig_hf
 from rbbench.bench.report.plotting import _combo_handles, _dodge, _empty, _figure, _Skip
 
 _FLOOR_LABEL = "lam_best_max: best approximation\nin the dual's cone (floor)"
@@ -198,4 +199,5 @@ def _fig_status(ctx: _Ctx):
 _FIGURES = (("pareto", _fig_pareto), ("offline", _fig_offline),
             ("error_vs_size", _fig_error_vs_size),
             ("infsup", _fig_infsup), ("histories", _fig_histories), ("bound", _fig_bound),
-            ("speedup", _fig_speedup), ("gcns", _fig_gcns), ("status", _fig_status))
+            ("speedup", _fig_speedup), ("gcns", _fig_gcns), ("hf", _fig_hf),
+            ("status", _fig_status))

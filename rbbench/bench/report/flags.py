@@ -16,13 +16,17 @@ from typing import Any
 
 from rbbench.bench.report.common import IDENTITY, _num
 
-__all__ = ["FLAG_RULES", "FLOOR_FACTOR", "GROWTH_FACTOR", "case_flags"]
+__all__ = ["FLAG_RULES", "FLOOR_FACTOR", "GROWTH_FACTOR", "NEGLIGIBLE", "case_flags"]
 
 #: an error counts as grown when it exceeds this factor times the smallest error of the same
 #: configuration at a smaller N
 GROWTH_FACTOR = 1.5
 #: an error counts as far above its floor beyond this factor times the floor
 FLOOR_FACTOR = 10.0
+#: errors at or below this (relative) are never flagged: at that level they are round-off and
+#: solver tolerances (an exactly representable case, e.g. a rigid-flat scene, has floors of
+#: 1e-14 and online errors of 1e-10), not a defect of the reduction
+NEGLIGIBLE = 1e-8
 #: (error column, its floor column) pairs of the floor rule
 FLOORS = (("err_lam_max", "lam_best_max"), ("err_lam_t_max", "lam_t_best_max"))
 #: the error columns of the growth rule
@@ -39,6 +43,7 @@ FLAG_RULES = (
     f"above floor: err_lam_max > {FLOOR_FACTOR:g} x lam_best_max (the W-projection of the "
     f"validation multipliers onto the reduced cone: the floor of err_lam on that dual space), "
     f"or err_lam_t_max > {FLOOR_FACTOR:g} x lam_t_best_max (friction)",
+    f"neither rule flags an error <= {NEGLIGIBLE:g} (round-off and solver tolerances)",
 )
 
 
@@ -76,7 +81,7 @@ def _growth(ok: list[dict[str, Any]], out: dict[int, list[str]]) -> None:
                 if v is None or not smaller:
                     continue
                 e_min, n_min = min(smaller)
-                if v > GROWTH_FACTOR * e_min:
+                if v > GROWTH_FACTOR * e_min and v > NEGLIGIBLE:
                     out.setdefault(i, []).append(
                         f"{col} grows with N: {e_min:.3g} (N = {n_min:g}) -> {v:.3g} "
                         f"(N = {n:g})")
@@ -87,7 +92,8 @@ def _above_floor(ok: list[dict[str, Any]], out: dict[int, list[str]]) -> None:
     for i, r in enumerate(ok):
         for col, floor_col in FLOORS:
             v, floor = _finite_pos(r.get(col)), _finite_pos(r.get(floor_col))
-            if v is not None and floor is not None and v > FLOOR_FACTOR * floor:
+            if v is not None and floor is not None and v > max(FLOOR_FACTOR * floor,
+                                                                NEGLIGIBLE):
                 ratio = f"{v / floor:.3g} x" if floor > 0 else "its floor is 0"
                 out.setdefault(i, []).append(
                     f"{col} far above its floor: {v:.3g} against {floor_col} {floor:.3g} "

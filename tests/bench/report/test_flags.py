@@ -9,7 +9,7 @@ from support.run_records import write_run_dir
 
 from rbbench.bench import schema
 from rbbench.bench.report import report
-from rbbench.bench.report.flags import FLOOR_FACTOR, GROWTH_FACTOR, case_flags
+from rbbench.bench.report.flags import FLOOR_FACTOR, GROWTH_FACTOR, NEGLIGIBLE, case_flags
 
 
 def write_run(d: Path, rows: list[dict]) -> Path:
@@ -67,6 +67,19 @@ def test_thresholds_are_the_documented_ones():
     assert case_flags(below) == [[], []]
     fa, fb = case_flags(above)
     assert len(fa) == 1 and len(fb) == 2 and fb[0].startswith("err_u_max grows with N")
+
+
+def test_errors_at_round_off_are_not_flagged():
+    """An exactly representable case (the rigid-flat 3D variant: floor 1e-14, online err_lam
+    1e-10): far above its floor and grown in ratio, but at or below NEGLIGIBLE; just above
+    NEGLIGIBLE the rules apply again."""
+    tiny = [_row("a", "pga", 4, 1e-14, 1.4e-10, 1.25e-14),
+            _row("b", "pga", 8, 3e-12, NEGLIGIBLE, 1.25e-14)]
+    assert case_flags(tiny) == [[], []]
+    above = [_row("a", "pga", 4, 1e-14, 1.4e-10, 1.25e-14),
+             _row("b", "pga", 8, 3e-12, 1.001 * NEGLIGIBLE, 1.25e-14)]
+    fa, fb = case_flags(above)
+    assert fa == [] and len(fb) == 2 and fb[0].startswith("err_lam_max grows with N")
 
 
 def test_repetitions_are_combined_by_their_max():
