@@ -73,6 +73,13 @@ def compatibility(scene: Scene, comp: dict[str, str],
             ok, why = registry.availability(registry.get(r, comp[r]))
             if not ok:
                 return "not_installed", f"{r} {comp[r]!r}: {why}"
+    from rbbench.hf.components import check_mesher
+    from rbbench.scene.loading import SceneError
+
+    try:
+        check_mesher(scene)  # the scene's own mesher (3D: Netgen, the ngsolve extra)
+    except SceneError as exc:
+        return "not_installed", str(exc)
     return "run", ""
 
 

@@ -25,7 +25,7 @@ from rbbench.hf.model import solve_hf
 from rbbench.registry import default_registry
 from rbbench.scene.loading import load_scene
 
-pytestmark = pytest.mark.timeout(600)
+pytestmark = [pytest.mark.timeout(600), pytest.mark.netgen]
 
 #: (solver, options, the stopping tolerance on r / (c |q|) or None: the PETSc solvers stop
 #: on their own measures, checked through their stop reason)
