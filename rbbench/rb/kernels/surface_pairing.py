@@ -42,7 +42,9 @@ from rbbench.rb.kernels.layout import (
     SLAVE_B,
     VALS_B,
     VALS_G,
+    W_AXIS,
     W_HAT,
+    W_KEY,
     W_PTR,
     W_TRI,
     X_HAT,
@@ -160,6 +162,19 @@ def _cast(x0, x1, x2, n0, n1, n2, T, j):
 
 
 @njit(cache=True)
+def _first_at_least(key, first, last, value):
+    """The first ``k`` in ``first .. last`` with ``key[k] >= value`` (``key`` sorted there;
+    ``last`` when none): bisection."""
+    while first < last:
+        mid = (first + last) // 2
+        if key[mid] < value:
+            first = mid + 1
+        else:
+            last = mid
+    return first
+
+
+@njit(cache=True)
 def pair_surface_points(th, fb, ib, meta, w, gap, mphi, mtri):
     """The pairing at ``th = [1, mu]`` of the plan's slave points: weights ``w``, gaps
     ``gap``, master shape values ``mphi`` (row per point) and master triangles ``mtri``
@@ -167,13 +182,21 @@ def pair_surface_points(th, fb, ib, meta, w, gap, mphi, mtri):
     Returns ``(status, s)``, ``s`` the slave map's scale (the normals are ``sign(s)
     n_hat``).
 
-    Per point, the line along its normal is cast on every candidate triangle of its window
-    (``w_tri[w_ptr[q]:w_ptr[q + 1]]``, in the order of the reference's pairs) and the hit
-    with the smallest ``|t|`` is kept, the first on ties; its clipped, renormalised
-    barycentric coordinates give the master shape values. The window's triangles are
-    mapped once per call (:func:`_window_triangles`). The rigid plane ``z = 0``: ``gap =
-    -x_z / n_z``. ``NO_HIT`` when a point hits no candidate (it left its window), meets the
-    plane at a grazing angle, or the slave map is degenerate: the reference then decides."""
+    Per point, the line along its normal is cast on the candidate triangles of its window
+    (``w_tri[w_ptr[q]:w_ptr[q + 1]]``, sorted by the key ``e_q . centroid_hat`` along an
+    axis ``e_q`` normal to the line,
+    :func:`rbbench.rb.kernels.surface_plan.surface_master_plan`)
+    whose mapped key ``sm key + e_q . cm`` lies within the largest bounding radius of the
+    point's candidates (``w_axis[q, 3]``, mapped, with the reference's slack) of
+    ``e_q . x``: found by bisection, a superset of the triangles the reference's
+    bounding-sphere test keeps, and a few per point whatever the mesh size (the window of a
+    point is a band along its trace; the key range cuts the band across). Of the hits, the
+    smallest ``|t|``, on ties the first in the reference's order (``rank``); its clipped,
+    renormalised barycentric coordinates give the master shape values. The window's
+    triangles are mapped once per call (:func:`_window_triangles`). The rigid plane ``z =
+    0``: ``gap = -x_z / n_z``. ``NO_HIT`` when a point hits no candidate (it left its
+    window), meets the plane at a grazing angle, or the slave map is degenerate: the
+    reference then decides."""
     xh, nh = float_rows(fb, meta, X_HAT), float_rows(fb, meta, N_HAT)
     wh = flat_floats(fb, meta, W_HAT)
     dims = flat_ints(ib, meta, DIMS)
@@ -194,16 +217,33 @@ def pair_surface_points(th, fb, ib, meta, w, gap, mphi, mtri):
             mtri[q] = -1
         return OK, s
     T = _window_triangles(th, fb, ib, meta)
-    ptr, cand = flat_ints(ib, meta, W_PTR), flat_ints(ib, meta, W_TRI)
+    r_all = 0.0  # the largest bounding radius (the reference's slack has 1e-12 of it)
+    for j in range(T.shape[0]):
+        r_all = max(r_all, T[j, 13])
+    sm, cm = _map3(th, flat_floats(fb, meta, M_SCALE), flat_floats(fb, meta, M_SHIFT))
+    ptr, cand = flat_ints(ib, meta, W_PTR), int_rows(ib, meta, W_TRI)
+    axis, key = float_rows(fb, meta, W_AXIS), flat_floats(fb, meta, W_KEY)
     for q in range(nq):
         x0, x1, x2 = s * xh[q, 0] + c[0], s * xh[q, 1] + c[1], s * xh[q, 2] + c[2]
         n0, n1, n2 = sign * nh[q, 0], sign * nh[q, 1], sign * nh[q, 2]
-        best, bj, bu, bv, bt = np.inf, -1, 0.0, 0.0, np.nan
-        for k in range(ptr[q], ptr[q + 1]):
-            j = cand[k]
+        first, last = ptr[q], ptr[q + 1]
+        if sm != 0.0:  # the candidates whose key can pass the bounding-sphere test
+            half = 1.001 * (abs(sm) * axis[q, 3] * (1.0 + 1e-6) + 1e-12 * r_all)
+            a = axis[q, 0] * (x0 - cm[0]) + axis[q, 1] * (x1 - cm[1]) + axis[q, 2] * (x2 - cm[2])
+            lo, hi = (a - half) / sm, (a + half) / sm
+            if sm < 0:
+                lo, hi = hi, lo
+            first = _first_at_least(key, first, last, lo)
+        else:
+            hi = np.inf
+        best, bj, bu, bv, bt, br = np.inf, -1, 0.0, 0.0, np.nan, 0
+        for k in range(first, last):
+            if key[k] > hi:
+                break
+            j = cand[k, 0]
             ok, u, v, t = _cast(x0, x1, x2, n0, n1, n2, T, j)
-            if ok and abs(t) < best:
-                best, bj, bu, bv, bt = abs(t), j, u, v, t
+            if ok and (abs(t) < best or (abs(t) == best and cand[k, 1] < br)):
+                best, bj, bu, bv, bt, br = abs(t), j, u, v, t, cand[k, 1]
         if bj < 0:
             return NO_HIT, s
         l0, l1, l2 = max(1.0 - bu - bv, 0.0), max(bu, 0.0), max(bv, 0.0)

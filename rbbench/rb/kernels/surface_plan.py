@@ -78,13 +78,18 @@ def surface_slave_terms(lay: Any, Z_loc: np.ndarray, cols: np.ndarray, sphi: np.
     return np.einsum("epa,epd,epad->ep", sphi[pts], n_hat[pts], z)
 
 
-def surface_master_plan(ev: Any, Z_loc: np.ndarray) -> dict[str, np.ndarray]:
+def surface_master_plan(ev: Any, Z_loc: np.ndarray, x_hat: np.ndarray | None = None,
+                        n_hat: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The master window of ``ev`` (a
     :class:`~rbbench.rb.hyper.surface_eim.SurfaceRowEvaluator`): reference vertices
     ``m_v`` (the window triangles' vertices only), triangles ``m_tri`` into them, each
-    point's candidates as lists ``w_tri[w_ptr[q]:w_ptr[q + 1]]`` (in the order the
-    reference tests them, which breaks ties alike), ``Z^T`` on the window's master dofs
-    (``zt_m``) and ``m_dofs`` (triangle, node x component) numbered into it. A rigid plane:
+    point's candidates as rows ``w_tri[w_ptr[q]:w_ptr[q + 1]]`` of ``[triangle, rank]``
+    (``rank``: the position in the order the reference tests them, which breaks ties
+    alike), sorted by ``w_key = e_q . centroid`` along the axis ``e_q``
+    (:func:`_trace_axes`; ``w_axis[q] = [e_q, the largest bounding radius of q's
+    candidates]``), ``Z^T`` on the window's master dofs (``zt_m``) and ``m_dofs``
+    (triangle, node x component) numbered into it. ``x_hat``, ``n_hat``: the reference
+    points (:func:`reference_surface_points`, computed when not given). A rigid plane:
     one-entry placeholders."""
     ms = ev.layout.master
     N = Z_loc.shape[1]
@@ -92,18 +97,54 @@ def surface_master_plan(ev: Any, Z_loc: np.ndarray) -> dict[str, np.ndarray]:
         return {"m_v": np.zeros((1, 3)), "zt_m": np.zeros((N, 1)),
                 "m_dofs": np.zeros((1, 3), dtype=np.int64),
                 "m_tri": np.zeros((1, 3), dtype=np.int64),
-                "w_ptr": np.zeros(2, dtype=np.int64), "w_tri": np.zeros(1, dtype=np.int64)}
+                "w_ptr": np.zeros(2, dtype=np.int64),
+                "w_tri": np.zeros((1, 2), dtype=np.int64), "w_axis": np.zeros((1, 4)),
+                "w_key": np.zeros(1)}
     pi, ti = (np.asarray(a, dtype=np.int64) for a in ev.windows)
-    order = np.argsort(pi, kind="stable")  # grouped by point, each point's order kept
+    rank = np.arange(pi.size)  # the reference's order of the pairs (its ties)
+    axis = _trace_axes(ev.layout, n_hat if n_hat is not None
+                       else reference_surface_points(ev.layout)[1], x_hat)
+    corners = ms.points[ms.triangles[:, :3]]
+    cen = corners.mean(axis=1)
+    rad = np.sqrt(((corners - cen[:, None]) ** 2).sum(axis=2).max(axis=1))
+    key = np.einsum("kd,kd->k", axis[pi], cen[ti])
+    r_max = np.zeros(ev.Mrows.shape[1])
+    np.maximum.at(r_max, pi, rad[ti])
+    order = np.lexsort((key, pi))  # by point, then by the key along its axis
     nq = ev.Mrows.shape[1]
     ptr = np.concatenate([[0], np.cumsum(np.bincount(pi, minlength=nq))])
     verts, inv = np.unique(ms.triangles[:, :3], return_inverse=True)
     dofs = ms.dofs[ms.triangles].reshape(ms.n_tri, -1)  # (tri, nodes x 3)
     used, m_dofs = np.unique(dofs, return_inverse=True)
     return {"m_v": ms.points[verts], "m_tri": inv.reshape(-1, 3).astype(np.int64),
-            "w_ptr": ptr.astype(np.int64), "w_tri": ti[order],
+            "w_ptr": ptr.astype(np.int64),
+            "w_tri": np.stack([ti[order], rank[order]], axis=1),
+            "w_axis": np.column_stack([axis, r_max]), "w_key": key[order],
             "zt_m": np.ascontiguousarray(Z_loc[used].T),
             "m_dofs": m_dofs.reshape(dofs.shape).astype(np.int64)}
+
+
+def _trace_axes(lay: Any, n_hat: np.ndarray, x_hat: np.ndarray | None) -> np.ndarray:
+    """A unit axis ``e_q`` normal to each point's line direction ``n_hat[q]``: the
+    direction in which the line moves with mu (the slave map is affine in mu, so the line's
+    trace on the plane normal to ``n_hat[q]`` is straight), or any normal axis where it
+    does not move. Candidates sorted by ``e_q . centroid`` are searched by bisection
+    online: ``|e_q . (centroid - x)|`` is at most the distance from the centroid to the
+    line, so every triangle the reference's bounding-sphere test keeps lies in the range
+    searched (:func:`rbbench.rb.kernels.surface_pairing.pair_surface_points`)."""
+    sl = lay.slave
+    x = reference_surface_points(lay)[0] if x_hat is None else x_hat
+    scale, shift = np.asarray(sl.map.scale, float), np.asarray(sl.map.shift, float)
+    # x(mu) = s(mu) x_hat + c(mu): d/dmu_1 (one direction; several parameters: the first)
+    move = scale[1] * x + shift[:, 1][None, :] if scale.size > 1 else np.zeros_like(x)
+    move = move - np.einsum("qd,qd->q", move, n_hat)[:, None] * n_hat
+    norm = np.linalg.norm(move, axis=1)
+    e = np.where(np.abs(n_hat[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e = e - np.einsum("qd,qd->q", e, n_hat)[:, None] * n_hat
+    e /= np.linalg.norm(e, axis=1, keepdims=True)
+    big = norm > 1e-12 * max(float(norm.max(initial=0.0)), 1e-300)
+    e[big] = move[big] / norm[big, None]
+    return np.ascontiguousarray(e)
 
 
 def surface_eim_arrays(ceim: Any) -> dict[str, np.ndarray]:
@@ -132,5 +173,5 @@ def surface_eim_arrays(ceim: Any) -> dict[str, np.ndarray]:
            "m_a": np.zeros((1, 2)), "m_b": np.zeros((1, 2)),
            "mono": np.zeros((1, 2), dtype=np.int64), "lo": np.zeros(1, dtype=np.int64),
            "hi": np.zeros(1, dtype=np.int64)}
-    out.update(surface_master_plan(ev, ceim.Z_loc))
+    out.update(surface_master_plan(ev, ceim.Z_loc, x_hat, n_hat))
     return out
