@@ -65,18 +65,28 @@ def pack(arrays: dict[str, np.ndarray], floats: tuple[str, ...] | None = None,
 
 def parameter_bounds(model: Any) -> dict[str, np.ndarray]:
     """``mu_lo``, ``mu_hi``: the box D (unbounded without a parameter space)."""
-    p = int(model.A.terms.shape[0]) - 1
     if model.parameters is not None:
         return {"mu_lo": np.asarray(model.parameters.low, float),
                 "mu_hi": np.asarray(model.parameters.high, float)}
+    p = _n_parameters(model)
     return {"mu_lo": np.full(p, -np.inf), "mu_hi": np.full(p, np.inf)}
+
+
+def _n_parameters(model: Any) -> int:
+    """The number of parameters of a model without a parameter space: one for a polynomial
+    coefficient map, else one less than ``A_N``'s terms (``theta = [1, mu]``)."""
+    from rbbench.rb.algorithms.affine import PolynomialInMu
+
+    if isinstance(getattr(model, "coefficients", None), PolynomialInMu):
+        return 1
+    return int(model.A.terms.shape[0]) - 1
 
 
 def centre(model: Any) -> np.ndarray:
     """The centre of D (mu = 0 without a parameter space)."""
     if model.parameters is not None:
         return 0.5 * (np.asarray(model.parameters.low) + np.asarray(model.parameters.high))
-    return np.zeros(int(model.A.terms.shape[0]) - 1)
+    return np.zeros(_n_parameters(model))
 
 
 def centre_theta(model: Any) -> np.ndarray:
