@@ -12,6 +12,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 pytest.importorskip("numba")
 
@@ -149,3 +151,15 @@ def test_a_point_outside_its_window_is_no_hit():
     nq = ev.Mrows.shape[1]
     assert _pair(plan, 0.7, nq, 3)[0] == L.OK
     assert _pair(plan, 1.3, nq, 3)[0] == L.NO_HIT
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(-1e3, 1e3), max_size=40), st.floats(-2e3, 2e3),
+       st.integers(0, 40), st.integers(0, 40))
+def test_first_at_least_is_a_left_bisection(keys, value, a, b):
+    """The kernel's bisection on a sorted segment ``first .. last`` equals numpy's
+    left ``searchsorted`` there."""
+    key = np.sort(np.asarray(keys, dtype=float))
+    first, last = sorted((min(a, key.size), min(b, key.size)))
+    want = first + int(np.searchsorted(key[first:last], value, side="left"))
+    assert SP._first_at_least(key, first, last, value) == want
