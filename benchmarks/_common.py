@@ -12,7 +12,9 @@ Cases (the ``scene`` parameter of the suites):
   (the contract suite's coarse mesh: 8888 dofs, 64 multipliers);
 * ``hertz_default``: ``hertz_halfdisks`` on its default mesh (36910 dofs; HF solve only);
 * ``friction_p1_h04``, ``friction_p1_h02``: ``hertz_friction`` at P1 on two coarse meshes
-  (the friction online suite: the wedge model hyper-reduced by its EIM).
+  (the friction online suite: the wedge model hyper-reduced by its EIM);
+* ``sphere_l0``, ``sphere_l1``: ``hertz_sphere`` at mesh levels 0 and 1 (the 3D online
+  suite: the contact EIM on triangulated surfaces).
 
 This module holds no benchmark (no ``time_`` / ``track_`` / ``peakmem_`` names).
 """
@@ -35,6 +37,8 @@ CASES: dict[str, tuple[str, tuple[str, ...]]] = {
     "friction_p1_h02": ("hertz_friction", ("discretization.degree=1",
                                            "discretization.h_contact=0.02",
                                            "discretization.h_max=0.25")),
+    "sphere_l0": ("hertz_sphere", ("discretization.level=0",)),
+    "sphere_l1": ("hertz_sphere", ("discretization.level=1",)),
 }
 
 #: the cases of the reduced-basis suites (small training / validation sets)
@@ -48,7 +52,13 @@ RB_OPTIONS: dict[str, dict] = {
     **{case: {"n_train": 5, "n_valid": 2, "N": 8, "R": 4, "S": 4, "k_pga_max": 6,
               "hyper": "eim", "friction_dual": "wedge"}
        for case in ("friction_p1_h04", "friction_p1_h02")},
+    **{case: {"n_train": 11, "n_valid": 2, "N": 20, "R": 20, "hyper": "eim"}
+       for case in ("sphere_l0", "sphere_l1")},
 }
+
+#: the 3D cases of the online suite: hertz_sphere (two hemispheres, the contact EIM on
+#: triangulated surfaces) at mesh levels 0 and 1 (5,352 and 31,764 dofs)
+SPHERE_CASES = ["sphere_l0", "sphere_l1"]
 
 #: the friction cases of the online suite: hertz_friction, P1, two contact mesh sizes
 #: (h_contact 0.04 and 0.02: 65 and 129 contact nodes), the wedge model with its EIM

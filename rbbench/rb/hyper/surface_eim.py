@@ -10,8 +10,9 @@ by ``margin`` rings of edge-neighbouring triangles, are each point's candidates.
 only those slave triangles are paired, each point against its candidates
 (:func:`~rbbench.hf.geometry.surface.pair_surfaces` on a restricted
 :class:`~rbbench.hf.geometry.surface.SurfaceLayout`), on local dofs; a point leaving the window
-raises :class:`~rbbench.rb.hyper.contact_eim.HyperReductionError`. Python path only (the
-compiled contact EIM kernels are 2D).
+raises :class:`~rbbench.rb.hyper.contact_eim.HyperReductionError`. This is the reference of
+the compiled online path (:mod:`rbbench.rb.kernels.surface_pairing`, the same pairing per
+point on a plan tabulated by :mod:`rbbench.rb.kernels.surface_plan`).
 """
 
 from __future__ import annotations

@@ -5,9 +5,10 @@ table ``meta`` (one row ``[offset, s0, s1, s2]`` per array, in the order of :dat
 then :data:`INTS`; :func:`rbbench.rb.kernels.plan.pack`): a numba call costs ~0.2 us per
 array argument, so five arguments instead of thirty. A kernel reads array ``k`` back with
 :func:`flat_floats`, :func:`float_rows`, :func:`flat_ints`, :func:`int_rows`. Also here:
-``theta = [1, mu]`` on the box D (:func:`theta`) and the affine or EIM combination of
-terms (:func:`combine_terms`). The module imports numba at the top: import it only when
-numba is installed.
+``theta = [1, mu]`` on the box D (:func:`theta`), the coefficients of the affine terms
+(:func:`coefficients`: ``theta`` or the powers of one parameter) and the affine or EIM
+combination of terms (:func:`combine_terms`). The module imports numba at the top: import
+it only when numba is installed.
 """
 
 from __future__ import annotations
@@ -23,14 +24,19 @@ use_user_cache()  # before any @njit(cache=True): the cache lives in the user's 
 #: :func:`rbbench.rb.mixed.compiled.plan_arrays`)
 FLOATS = ("mu_lo", "mu_hi", "s_scale", "s_shift", "m_scale", "m_shift", "x_hat", "n_hat",
           "w_hat", "m_a", "m_b", "m_v", "zt_m", "slave_b", "vals_b", "vals_g", "w_b", "w_g",
-          "a_terms", "f_terms", "vt", "lam_a")
-#: int arrays of the plan: ``dims = [degree, has_master, affine]`` (``affine``: an exact
-#: affine constraint, whose terms are ``w_b``, ``w_g``: no pairing)
-INTS = ("dims", "mono", "m_dofs", "lo", "hi", "pts_b", "cols_b", "order_b", "pts_g")
+          "a_terms", "f_terms", "vt", "lam_a", "w_axis", "w_key")
+#: int arrays of the plan: ``dims = [degree, has_master, affine(, space)]`` (``affine``: an
+#: exact affine constraint, whose terms are ``w_b``, ``w_g``: no pairing; ``space``: 3 for
+#: triangulated contact surfaces (:mod:`rbbench.rb.kernels.surface_pairing`), 2 or absent
+#: for facet chains). ``m_tri``, ``w_ptr``, ``w_tri`` (and the floats ``w_axis``,
+#: ``w_key``): the 3D master window (one-entry placeholders in 2D plans,
+#: :func:`rbbench.rb.kernels.plan.master_plan`)
+INTS = ("dims", "mono", "m_dofs", "lo", "hi", "pts_b", "cols_b", "order_b", "pts_g",
+        "m_tri", "w_ptr", "w_tri")
 
 (MU_LO, MU_HI, S_SCALE, S_SHIFT, M_SCALE, M_SHIFT, X_HAT, N_HAT, W_HAT, M_A, M_B, M_V, ZT_M,
- SLAVE_B, VALS_B, VALS_G, W_B, W_G, A_TERMS, F_TERMS, VT, LAM_A) = range(22)
-(DIMS, MONO, M_DOFS, LO, HI, PTS_B, COLS_B, ORDER_B, PTS_G) = range(22, 31)
+ SLAVE_B, VALS_B, VALS_G, W_B, W_G, A_TERMS, F_TERMS, VT, LAM_A, W_AXIS, W_KEY) = range(24)
+(DIMS, MONO, M_DOFS, LO, HI, PTS_B, COLS_B, ORDER_B, PTS_G, M_TRI, W_PTR, W_TRI) = range(24, 36)
 
 #: statuses of the kernels on a plan (anything but OK: the caller reruns the Python path,
 #: which raises the reference's error)
@@ -89,6 +95,31 @@ def combine_terms(coef, terms, out):
         cj = coef[j]
         for i in range(n):
             out[i] += cj * terms[j, i]
+
+
+@njit(cache=True)
+def is_surface(ib, meta):
+    """Whether the plan pairs triangulated 3D contact surfaces (``dims[3] == 3``)."""
+    dims = flat_ints(ib, meta, DIMS)
+    return dims.size > 3 and dims[3] == 3
+
+
+@njit(cache=True)
+def coefficients(th, meta):
+    """The coefficients of the affine terms (``a_terms``, ``f_terms``, ``lam_a``, and the
+    terms of an exact affine constraint) at ``th = [1, mu]`` (:func:`theta`): ``th``
+    itself when there are ``p + 1`` terms (:class:`~rbbench.rb.algorithms.affine.LinearInMu`),
+    else, one parameter and K terms, ``[1, mu, ..., mu^(K-1)]``
+    (:class:`~rbbench.rb.algorithms.affine.PolynomialInMu`: a 3D similarity map is cubic).
+    The maps of the bodies (``s_scale``, ``m_shift``, ...) always take ``th``."""
+    k = meta[A_TERMS, 1]
+    if k == th.size:
+        return th
+    out = np.empty(k)
+    out[0] = 1.0
+    for j in range(1, k):
+        out[j] = out[j - 1] * th[1]
+    return out
 
 
 @njit(cache=True)

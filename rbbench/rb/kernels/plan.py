@@ -25,9 +25,15 @@ try:  # optional: without numba the Python path is the online path
 except ImportError:  # pragma: no cover - exercised where numba is absent
     NUMBA_VERSION = None
 
-__all__ = ["NUMBA_VERSION", "centre", "centre_theta", "coefficient_map", "eigenbasis",
+__all__ = ["NO_SURFACE", "NUMBA_VERSION", "centre", "centre_theta", "coefficient_map", "eigenbasis",
            "gauss", "master_plan", "pack", "parameter_bounds", "reference_points",
            "slave_terms"]
+
+
+#: the 3D master window arrays of the plan, as one-entry placeholders in 2D plans
+NO_SURFACE = {"m_tri": np.zeros((1, 3), dtype=np.int64), "w_ptr": np.zeros(2, dtype=np.int64),
+              "w_tri": np.zeros((1, 2), dtype=np.int64), "w_axis": np.zeros((1, 4)),
+              "w_key": np.zeros(1)}
 
 
 def pack(arrays: dict[str, np.ndarray], floats: tuple[str, ...] | None = None,
@@ -59,23 +65,37 @@ def pack(arrays: dict[str, np.ndarray], floats: tuple[str, ...] | None = None,
 
 def parameter_bounds(model: Any) -> dict[str, np.ndarray]:
     """``mu_lo``, ``mu_hi``: the box D (unbounded without a parameter space)."""
-    p = int(model.A.terms.shape[0]) - 1
     if model.parameters is not None:
         return {"mu_lo": np.asarray(model.parameters.low, float),
                 "mu_hi": np.asarray(model.parameters.high, float)}
+    p = _n_parameters(model)
     return {"mu_lo": np.full(p, -np.inf), "mu_hi": np.full(p, np.inf)}
+
+
+def _n_parameters(model: Any) -> int:
+    """The number of parameters of a model without a parameter space: one for a polynomial
+    coefficient map, else one less than ``A_N``'s terms (``theta = [1, mu]``)."""
+    from rbbench.rb.algorithms.affine import PolynomialInMu
+
+    if isinstance(getattr(model, "coefficients", None), PolynomialInMu):
+        return 1
+    return int(model.A.terms.shape[0]) - 1
 
 
 def centre(model: Any) -> np.ndarray:
     """The centre of D (mu = 0 without a parameter space)."""
     if model.parameters is not None:
         return 0.5 * (np.asarray(model.parameters.low) + np.asarray(model.parameters.high))
-    return np.zeros(int(model.A.terms.shape[0]) - 1)
+    return np.zeros(_n_parameters(model))
 
 
 def centre_theta(model: Any) -> np.ndarray:
-    """``[1, mu]`` at the centre of D (mu = 0 without a parameter space)."""
-    return np.concatenate([[1.0], centre(model)])
+    """The coefficients of ``A_N``'s terms at the centre of D (mu = 0 without a parameter
+    space): ``model.coefficients`` there (``[1, mu]``, or the powers of mu of a
+    polynomial map), ``[1, mu]`` for a model without a coefficient map."""
+    mu = centre(model)
+    coef = getattr(model, "coefficients", None)
+    return np.asarray(coef(mu), dtype=float) if coef is not None else np.concatenate([[1.0], mu])
 
 
 def coefficient_map(lu_piv: tuple[np.ndarray, np.ndarray], T: np.ndarray) -> np.ndarray:
@@ -169,7 +189,7 @@ def master_plan(ceim: Any, n_hat: np.ndarray) -> dict[str, np.ndarray]:
         return {"m_a": none2, "m_b": none2, "m_v": none2, "zt_m": np.zeros((N, 1)),
                 "mono": np.zeros((nq, 2), dtype=np.int64),
                 "m_dofs": np.zeros((1, 2), int),
-                "lo": np.zeros(1, int), "hi": np.zeros(1, int)}
+                "lo": np.zeros(1, int), "hi": np.zeros(1, int), **NO_SURFACE}
     lo, hi, ranges = ev.windows
     mono = np.stack([window_monotone(n_hat, ranges), window_monotone(-n_hat, ranges)], axis=1)
     dofs = np.asarray(ms.dofs).reshape(ms.dofs.shape[0], -1)
@@ -181,4 +201,4 @@ def master_plan(ceim: Any, n_hat: np.ndarray) -> dict[str, np.ndarray]:
     return {"m_a": ms.a, "m_b": ms.b, "m_v": np.vstack([ms.a, ms.b[-1:]]),
             "zt_m": np.ascontiguousarray(ceim.Z_loc[used].T),
             "mono": mono.astype(np.int64),
-            "m_dofs": m_dofs, "lo": lo, "hi": hi}
+            "m_dofs": m_dofs, "lo": lo, "hi": hi, **NO_SURFACE}

@@ -65,27 +65,32 @@ METHODS = ("nnls", "daqp")
 
 def path_reason(model: Any, method: str = "daqp") -> str | None:
     """Why ``model`` cannot take the compiled path (None when it can)."""
-    from rbbench.rb.algorithms.affine import AffineOperator, LinearInMu
+    from rbbench.rb.algorithms.affine import AffineOperator
     from rbbench.rb.hyper.contact_eim import ContactEIM
+    from rbbench.rb.hyper.surface_eim import SurfaceRowEvaluator
 
     if NUMBA_VERSION is None:
         return "numba is not installed"
     if method not in METHODS:
         return f"online method {method!r} (compiled: {', '.join(METHODS)})"
     ceim = model.constraint
-    if not isinstance(model.coefficients, LinearInMu):
-        return f"coefficient map {type(model.coefficients).__name__} (not theta = [1, mu])"
+    n_terms = int(model.A.terms.shape[0])
+    why = _coefficients_reason(model.coefficients, n_terms)
+    if why is not None:
+        return why
     if isinstance(getattr(ceim, "B", None), AffineOperator):  # mixed_model.AffineConstraint
-        if not isinstance(ceim.coefficients, LinearInMu):
-            return (f"constraint coefficient map {type(ceim.coefficients).__name__} "
-                    "(not theta = [1, mu])")
-        return None
+        why = _coefficients_reason(ceim.coefficients, n_terms)
+        return None if why is None else f"constraint {why}"
     if not isinstance(ceim, ContactEIM):
         return (f"constraint {type(ceim).__name__} (compiled: the contact EIM and exact "
                 "affine constraints)")
     lay = ceim.evaluator.layout
-    if not hasattr(lay, "integration"):
-        return "3D surface rows (the compiled contact EIM is 2D)"
+    if isinstance(ceim.evaluator, SurfaceRowEvaluator):  # 3D: triangulated surfaces
+        if lay.degree not in (1, 2):
+            return f"surface degree {lay.degree}"
+        if lay.master is not None and ceim.evaluator.windows is None:
+            return "a master surface without windows"
+        return None
     if lay.degree not in (1, 2) or lay.integration != "gauss":
         return f"facet degree {lay.degree}, integration {lay.integration!r}"
     if lay.master is not None and ceim.evaluator.windows is None:
@@ -93,6 +98,20 @@ def path_reason(model: Any, method: str = "daqp") -> str | None:
     return None
 
 
+
+
+def _coefficients_reason(coef: Any, n_terms: int) -> str | None:
+    """Why the kernels cannot evaluate the coefficient map ``coef`` of ``n_terms`` affine
+    terms (:func:`rbbench.rb.kernels.layout.coefficients`: ``[1, mu]``, or the powers of
+    one parameter), None when they can."""
+    from rbbench.rb.algorithms.affine import LinearInMu, PolynomialInMu
+
+    if isinstance(coef, LinearInMu) and coef.n_terms == n_terms:
+        return None
+    if isinstance(coef, PolynomialInMu) and coef.n_terms == n_terms:
+        return None
+    return (f"coefficient map {type(coef).__name__} (compiled: theta = [1, mu] or the "
+            f"powers of one parameter, as many as the {n_terms} affine terms)")
 
 
 def plan_arrays(model: Any, method: str = "daqp") -> dict[str, np.ndarray]:
@@ -116,6 +135,13 @@ def _eim_plan(model: Any) -> dict[str, np.ndarray]:
     (``slave_b``) and ``Z^T`` on the master dofs of the windows (``zt_m``)."""
     ceim = model.constraint
     ev, lay = ceim.evaluator, ceim.evaluator.layout
+    if not hasattr(lay, "integration"):  # 3D: triangulated surfaces
+        from rbbench.rb.kernels.surface_plan import surface_eim_arrays
+
+        return {**parameter_bounds(model), **surface_eim_arrays(ceim),
+                "w_b": coefficient_map(ceim.lu_B, ceim.T_B),
+                "w_g": coefficient_map(ceim.lu_G, ceim.T_G), "a_terms": model.A.terms,
+                "f_terms": model.F.terms, "vt": np.zeros((1, 1)), "lam_a": np.zeros((1, 1))}
     sl, ms = lay.slave, lay.master
     x_hat, n_hat, w_hat, sphi = reference_points(lay)
     pts_b, vals_b = ceim._support

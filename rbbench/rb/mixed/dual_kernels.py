@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from rbbench.rb.kernels import layout as L
-from rbbench.rb.kernels import nnls, pairing
+from rbbench.rb.kernels import nnls, pairing, surface_pairing
 from rbbench.rb.kernels.nnls import (
     NNLS_DEPENDENT,
     NNLS_OK,
@@ -57,8 +57,9 @@ def online_nnls(mu, fb, ib, meta):
         return status, 0, 0.0, c, alpha
     bt2 = bt.reshape((n, r))
     s, ft = np.empty(n), np.empty(n)
-    L.combine_terms(th, L.float_rows(fb, meta, L.LAM_A), s)
-    L.combine_terms(th, L.float_rows(fb, meta, L.F_TERMS), ft)
+    coef = L.coefficients(th, meta)
+    L.combine_terms(coef, L.float_rows(fb, meta, L.LAM_A), s)
+    L.combine_terms(coef, L.float_rows(fb, meta, L.F_TERMS), ft)
     for k in range(n):
         if not s[k] > 0.0:  # A_N(mu) not positive definite: the reference decides
             return NNLS_DEPENDENT, 0, 0.0, c, alpha
@@ -101,7 +102,8 @@ def online_nnls(mu, fb, ib, meta):
 
 #: the modules whose kernels :func:`online_nnls` compiles in (numba's cache checks only
 #: this file)
-DEPENDENCIES = (K.__file__, L.__file__, pairing.__file__, nnls.__file__)
+DEPENDENCIES = (K.__file__, L.__file__, pairing.__file__, surface_pairing.__file__,
+                nnls.__file__)
 
 
 def drop_stale_cache() -> bool:

@@ -4,7 +4,8 @@
 One call of :func:`online_qp` does, for one mu, what the Python reference does in about 500
 Python calls: the pairing of the EIM magic rows' quadrature points in their master windows
 and the magic entries of ``C(mu) = B(mu) Z`` and the magic rows of ``G(mu)`` (the shared
-kernels :func:`rbbench.rb.kernels.pairing.pair_points`, :func:`magic_values`), the EIM
+kernels :func:`rbbench.rb.kernels.pairing.pair_points`, :func:`magic_values`; in 3D
+:func:`rbbench.rb.kernels.surface_pairing.surface_magic_values`), the EIM
 coefficient solves, the reduced ``B_N``, ``G_N``, ``A_N``, ``F_N``
 (:class:`rbbench.rb.hyper.contact_eim.ContactEIM`) and the scaled QP data of
 :func:`rbbench.rb.mixed.model._solve_daqp`. The formulas are the reference's, written per
@@ -18,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbbench.rb.kernels import layout, pairing
+from rbbench.rb.kernels import layout, pairing, surface_pairing
 from rbbench.rb.kernels.layout import (
     A_TERMS,
     COLS_B,
@@ -38,14 +39,17 @@ from rbbench.rb.kernels.layout import (
     W_HAT,
     X_HAT,
     ZT_M,
+    coefficients,
     combine_terms,
     flat_floats,
     flat_ints,
     float_rows,
     int_rows,
+    is_surface,
     theta,
 )
 from rbbench.rb.kernels.pairing import gap_values, jump_values, pair_points
+from rbbench.rb.kernels.surface_pairing import surface_magic_values
 from rbbench.runtime.numba_cache import drop_stale, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
@@ -69,13 +73,24 @@ def magic_values(fb, ib, meta, s, w, gap, mphi, seg, c, g):
 def constraint_rows(th, fb, ib, meta, b, gn):
     """The reduced constraint at ``th``: ``b = sum_e c_e W_B[e]`` (flat, in the layout of
     the plan's ``w_b``) and ``gn = sum_r g_r W_G[r]`` from the pairing and the magic
-    entries ``c``, rows ``g`` (:func:`pair_points`, :func:`magic_values`; an exact affine
-    constraint: ``c = g = th``). Returns a status
+    entries ``c``, rows ``g`` (:func:`pair_points`, :func:`magic_values`; on triangulated
+    surfaces :func:`~rbbench.rb.kernels.surface_pairing.surface_magic_values`; an exact
+    affine constraint: ``c = g`` = the terms' coefficients,
+    :func:`~rbbench.rb.kernels.layout.coefficients`). Returns a status
     (:data:`~rbbench.rb.kernels.layout.NO_HIT`: a point left its master window, or a
     degenerate map)."""
     if flat_ints(ib, meta, DIMS)[2]:  # exact affine: B_N = sum_k theta_k B_k, G_N likewise
-        combine_terms(th, float_rows(fb, meta, W_B), b)
-        combine_terms(th, float_rows(fb, meta, W_G), gn)
+        coef = coefficients(th, meta)
+        combine_terms(coef, float_rows(fb, meta, W_B), b)
+        combine_terms(coef, float_rows(fb, meta, W_G), gn)
+        return OK
+    if is_surface(ib, meta):  # 3D: triangulated surfaces
+        c, g = np.empty(meta[PTS_B, 1]), np.empty(meta[PTS_G, 1])
+        status = surface_magic_values(th, fb, ib, meta, c, g)
+        if status != OK:
+            return status
+        combine_terms(c, float_rows(fb, meta, W_B), b)
+        combine_terms(g, float_rows(fb, meta, W_G), gn)
         return OK
     nq = meta[X_HAT, 1]
     w, gap = np.empty(nq), np.empty(nq)
@@ -111,9 +126,10 @@ def online_qp(mu, fb, ib, meta, qp):
     status = constraint_rows(th, fb, ib, meta, b, gn)
     if status != OK:
         return status
-    combine_terms(th, float_rows(fb, meta, A_TERMS), qp[:n * n])
+    coef = coefficients(th, meta)
+    combine_terms(coef, float_rows(fb, meta, A_TERMS), qp[:n * n])
     f = np.empty(n)
-    combine_terms(th, float_rows(fb, meta, F_TERMS), f)
+    combine_terms(coef, float_rows(fb, meta, F_TERMS), f)
     _scale(f, b.reshape((m, n)), gn, qp[n * n:], n, m)
     return OK
 
@@ -154,7 +170,7 @@ def unscale(y, lam, qp, n, m):
 
 
 #: the modules whose kernels this one's compile in (numba's cache checks only this file)
-DEPENDENCIES = (layout.__file__, pairing.__file__)
+DEPENDENCIES = (layout.__file__, pairing.__file__, surface_pairing.__file__)
 
 
 def drop_stale_cache() -> bool:

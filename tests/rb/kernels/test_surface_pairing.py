@@ -1,0 +1,165 @@
+"""The numba 3D pairing and magic entries (rbbench.rb.kernels.surface_pairing) against the
+Python reference on hertz_sphere level 0 (two hemispheres, and the rigid plane): the rows of
+``Un`` and ``gap`` of :func:`~rbbench.hf.geometry.surface.surface_rows` (the full HF
+pairing, every master triangle), the weights, and the magic entries of
+:meth:`~rbbench.rb.hyper.surface_eim.SurfaceRowEvaluator.entries`, raw values to 1e-12, at
+random mu off the sample the windows were built on."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+pytest.importorskip("numba")
+
+from rbbench.hf.components import make_components  # noqa: E402
+from rbbench.hf.geometry.surface import pair_surfaces, surface_rows  # noqa: E402
+from rbbench.hf.geometry.surface_rules import triangle_rule  # noqa: E402
+from rbbench.rb.hyper.surface_eim import (  # noqa: E402
+    _row_triangles,
+    build_surface_row_evaluator,
+)
+from rbbench.rb.kernels import layout as L  # noqa: E402
+from rbbench.rb.kernels import surface_pairing as SP  # noqa: E402
+from rbbench.rb.kernels.plan import pack  # noqa: E402
+from rbbench.rb.kernels.surface_plan import (  # noqa: E402
+    reference_surface_points,
+    surface_eim_arrays,
+)
+from rbbench.scene.loading import load_scene  # noqa: E402
+
+SAMPLE = np.linspace(0.7, 1.3, 9)[:, None]
+
+
+@pytest.fixture(scope="module", params=["hemisphere", "rigid_flat"])
+def case(request):
+    """A layout, an evaluator of 7 rows spread over the cap, a random local basis and
+    magic entries (fixed seed), and the packed plan of the kernels."""
+    sc = load_scene("hertz_sphere", ["discretization.level=0",
+                                     f"geometry.lower={request.param}"])
+    lay = make_components(sc)[0].contact_layout()
+    rows = np.unique(np.linspace(0, lay.n_mult - 1, 7).astype(int))
+    ev = build_surface_row_evaluator(lay, rows, SAMPLE)
+    rng = np.random.default_rng(3)
+    N, E = 5, 12
+    ceim = SimpleNamespace(evaluator=ev, Z_loc=rng.standard_normal((ev.n_local, N)),
+                           pos_B=np.arange(rows.size), entry_row=rng.integers(0, rows.size, E),
+                           entry_col=rng.integers(0, N, E), pos_G=np.array([0, 3, 6]))
+    return lay, rows, ceim, _pack(surface_eim_arrays(ceim))
+
+
+def _pack(arrays: dict) -> tuple[np.ndarray, ...]:
+    one_f, one_i = np.zeros((1, 1)), np.zeros((1, 1), dtype=np.int64)
+    full = {**dict.fromkeys(L.FLOATS, one_f), **dict.fromkeys(L.INTS, one_i),
+            "mu_lo": np.array([0.7]), "mu_hi": np.array([1.3]), **arrays}
+    return pack(full)
+
+
+def _pair(plan, mu: float, nq: int, k: int):
+    w, gap, mphi = np.empty(nq), np.empty(nq), np.zeros((nq, k))
+    mtri = np.zeros(nq, dtype=np.int64)
+    status, s = SP.pair_surface_points(np.array([1.0, mu]), *plan, w, gap, mphi, mtri)
+    return status, s, w, gap, mphi, mtri
+
+
+def _mus() -> np.ndarray:
+    return np.random.default_rng(11).uniform(0.7, 1.3, 4)
+
+
+def test_pairing_equals_the_full_hf_rows(case):
+    """The kernel's points against ``surface_rows`` (all master triangles): ``Un`` rows
+    rebuilt from its hits and ``gap`` to 1e-12 of their largest entry, weights to 1e-12."""
+    lay, rows, ceim, plan = case
+    ev = ceim.evaluator
+    small = ev.layout
+    ng = triangle_rule(lay.quad_order)[1].size
+    nq = ev.Mrows.shape[1]
+    q = np.arange(nq)
+    glob = _row_triangles(lay, rows)[q // ng] * ng + q % ng  # the same points, HF numbering
+    _, n_hat, _, sphi = reference_surface_points(small)
+    k = sphi.shape[1]
+    for mu in _mus():
+        status, s, w, gap, mphi, mtri = _pair(plan, mu, nq, k)
+        assert status == L.OK
+        Un, g = surface_rows(lay, np.array([mu]), glob)
+        Un = Un.toarray()
+        nrm = np.sign(s) * n_hat
+        sd = small.slave.dofs[small.slave.triangles[q // ng]].reshape(nq, -1)
+        vals = [(sphi[:, :, None] * nrm[:, None, :]).reshape(nq, -1)]
+        dofs = [sd]
+        if small.master is not None:
+            md = small.master.dofs[small.master.triangles[mtri]].reshape(nq, -1)
+            vals.append(-(mphi[:, :, None] * nrm[:, None, :]).reshape(nq, -1))
+            dofs.append(md)
+        mine = sp.csr_matrix((np.concatenate([v.ravel() for v in vals]),
+                              (np.tile(np.repeat(q, vals[0].shape[1]), len(vals)),
+                               ev.local_dofs[np.concatenate([d.ravel() for d in dofs])])),
+                             shape=Un.shape).toarray()
+        assert np.abs(mine - Un).max() <= 1e-12 * np.abs(Un).max()
+        assert np.abs(gap - g).max() <= 1e-12 * np.abs(g).max()
+        ref_w = pair_surfaces(lay, np.array([mu]), rows=glob).w
+        np.testing.assert_allclose(w, ref_w, rtol=1e-12, atol=0)
+
+
+def test_magic_entries_equal_the_python_evaluator(case):
+    """``B(mu) Z`` entries and ``G(mu)`` rows: the kernel against
+    :meth:`SurfaceRowEvaluator.entries`, 1e-12 relative."""
+    _, _, ceim, plan = case
+    ev = ceim.evaluator
+    for mu in _mus():
+        c, g = np.empty(ceim.entry_col.size), np.empty(ceim.pos_G.size)
+        assert SP.surface_magic_values(np.array([1.0, mu]), *plan, c, g) == L.OK
+        c_py, g_py = ev.entries(np.array([mu]), ceim.Z_loc,
+                                *ev.support(ceim.pos_B[ceim.entry_row]), ceim.entry_col,
+                                ceim.pos_G)
+        assert np.abs(c - c_py).max() <= 1e-12 * np.abs(c_py).max()
+        assert np.abs(g - g_py).max() <= 1e-12 * np.abs(g_py).max()
+
+
+def test_the_key_range_search_equals_the_whole_window(case):
+    """The bisection on the sorted keys keeps every hit: the same outputs, bit for bit, as
+    a plan whose key range covers each point's whole window (radius column huge)."""
+    lay, _, ceim, _ = case
+    if lay.master is None:
+        pytest.skip("no master surface")
+    arrays = surface_eim_arrays(ceim)
+    plan = _pack(arrays)
+    wide = dict(arrays, w_axis=np.column_stack([arrays["w_axis"][:, :3],
+                                                np.full(arrays["w_axis"].shape[0], 1e3)]))
+    nq, k = arrays["x_hat"].shape[0], 3 * lay.degree
+    for mu in _mus():
+        a, b = _pair(plan, mu, nq, k), _pair(_pack(wide), mu, nq, k)
+        for x, y in zip(a[2:], b[2:], strict=True):
+            np.testing.assert_array_equal(x, y)
+
+
+def test_a_point_outside_its_window_is_no_hit():
+    """Windows sampled at mu = 0.7 only, no margin: at mu = 1.3 a point misses them and
+    the kernel says so (the caller then runs the reference, which raises)."""
+    sc = load_scene("hertz_sphere", ["discretization.level=0"])
+    lay = make_components(sc)[0].contact_layout()
+    ev = build_surface_row_evaluator(lay, np.arange(lay.n_mult), np.array([[0.7]]), margin=0)
+    ceim = SimpleNamespace(evaluator=ev, Z_loc=np.zeros((ev.n_local, 1)),
+                           pos_B=np.arange(1), entry_row=np.zeros(1, int),
+                           entry_col=np.zeros(1, int), pos_G=np.arange(1))
+    plan = _pack(surface_eim_arrays(ceim))
+    nq = ev.Mrows.shape[1]
+    assert _pair(plan, 0.7, nq, 3)[0] == L.OK
+    assert _pair(plan, 1.3, nq, 3)[0] == L.NO_HIT
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(-1e3, 1e3), max_size=40), st.floats(-2e3, 2e3),
+       st.integers(0, 40), st.integers(0, 40))
+def test_first_at_least_is_a_left_bisection(keys, value, a, b):
+    """The kernel's bisection on a sorted segment ``first .. last`` equals numpy's
+    left ``searchsorted`` there."""
+    key = np.sort(np.asarray(keys, dtype=float))
+    first, last = sorted((min(a, key.size), min(b, key.size)))
+    want = first + int(np.searchsorted(key[first:last], value, side="left"))
+    assert SP._first_at_least(key, first, last, value) == want
