@@ -71,6 +71,7 @@ def _mus() -> np.ndarray:
     return np.random.default_rng(11).uniform(0.7, 1.3, 4)
 
 
+@pytest.mark.netgen
 def test_pairing_equals_the_full_hf_rows(case):
     """The kernel's points against ``surface_rows`` (all master triangles): ``Un`` rows
     rebuilt from its hits and ``gap`` to 1e-12 of their largest entry, weights to 1e-12."""
@@ -106,6 +107,7 @@ def test_pairing_equals_the_full_hf_rows(case):
         np.testing.assert_allclose(w, ref_w, rtol=1e-12, atol=0)
 
 
+@pytest.mark.netgen
 def test_magic_entries_equal_the_python_evaluator(case):
     """``B(mu) Z`` entries and ``G(mu)`` rows: the kernel against
     :meth:`SurfaceRowEvaluator.entries`, 1e-12 relative."""
@@ -121,6 +123,7 @@ def test_magic_entries_equal_the_python_evaluator(case):
         assert np.abs(g - g_py).max() <= 1e-12 * np.abs(g_py).max()
 
 
+@pytest.mark.netgen
 def test_the_key_range_search_equals_the_whole_window(case):
     """The bisection on the sorted keys keeps every hit: the same outputs, bit for bit, as
     a plan whose key range covers each point's whole window (radius column huge)."""
@@ -138,6 +141,7 @@ def test_the_key_range_search_equals_the_whole_window(case):
             np.testing.assert_array_equal(x, y)
 
 
+@pytest.mark.netgen
 def test_a_point_outside_its_window_is_no_hit():
     """Windows sampled at mu = 0.7 only, no margin: at mu = 1.3 a point misses them and
     the kernel says so (the caller then runs the reference, which raises)."""

@@ -62,11 +62,13 @@ def _surface_rows(layout, rows, mus):
     return build_surface_row_evaluator(layout, rows, np.linspace(0.7, 1.3, 13)[:, None])
 
 
+@pytest.mark.netgen
 def test_the_3d_contact_eim_takes_the_compiled_path(model):
     assert compiled_online.path_reason(model, "nnls") is None
     assert model.online_path().startswith("compiled")
 
 
+@pytest.mark.netgen
 @pytest.mark.parametrize("method", compiled_online.METHODS)
 def test_reduced_solution_equals_the_python_path(model, method):
     """Each compiled method against the Python path of the same method; some constraints
