@@ -157,13 +157,20 @@ def test_ac_residual_converges_at_order_one_on_non_matching_meshes(mu):
     """The published order 1 (docs: user guide, Nitsche, the published e_AC table): two
     bodies, non-matching contact meshes, P2, smooth normals and segment-to-segment
     quadrature; GPTS with facet normals (the default setting, which warns) stagnates on the
-    same meshes. mu = 0.7 (30 s) runs with ``--runslow``."""
+    same meshes (:func:`test_gpts_with_facet_normals_stagnates_on_the_same_meshes`).
+    mu = 0.7 (30 s) runs with ``--runslow``."""
     order, e = _e_ac_order(PUBLISHED_TABLE, mu)
     assert 0.7 < order < 1.6, (order, e)
     assert e[1] < 0.015
-    if mu == 1.3:
-        order_gpts, e_gpts = _e_ac_order(TABLE, mu)
-        assert order_gpts < 0.3 and e_gpts[1] > 3 * e[1], (order_gpts, e_gpts)
+
+
+@pytest.mark.slow
+def test_gpts_with_facet_normals_stagnates_on_the_same_meshes():
+    """The default GPTS setting on the published table's meshes (mu = 1.3): e_AC does not
+    fall (observed order < 0.3) and stays above 3x the published setting's."""
+    _, e = _e_ac_order(PUBLISHED_TABLE, 1.3)
+    order_gpts, e_gpts = _e_ac_order(TABLE, 1.3)
+    assert order_gpts < 0.3 and e_gpts[1] > 3 * e[1], (order_gpts, e_gpts)
 
 
 def test_nodal_ac_residual_is_zero_for_an_exact_alart_curnier_field():
@@ -197,7 +204,7 @@ def test_ac_residual_variants_on_a_rigid_obstacle():
     assert e[0] > e[1] > e[2], e
 
 
-@pytest.mark.parametrize("theta", [1.0, -1.0])
+@pytest.mark.parametrize("theta", [1.0, pytest.param(-1.0, marks=pytest.mark.slow)])
 def test_gamma_sweep_converges_or_reports_why(theta):
     sc = _scene()
     b = default_registry().create("backend", "skfem", scene=sc)

@@ -212,7 +212,8 @@ def test_coulomb_extremes_converge_or_stop_with_a_reason(shear, method):
     assert slipping == sorted(slipping, reverse=True) and slipping[-1] < slipping[0]
 
 
-@pytest.mark.parametrize("solver", ["friction-ssn", "friction-uzawa"])
+@pytest.mark.parametrize("solver", ["friction-ssn",
+                                    pytest.param("friction-uzawa", marks=pytest.mark.slow)])
 def test_tresca_thresholds(shear, solver):
     """Tresca s in {0, 1e9 Pa (stick and slip), 1e15 (friction-ssn only: Uzawa is slow on
     full stick)}: each converges."""

@@ -116,6 +116,7 @@ def _reference_tree(tmp: Path) -> str:
     return str(ref)
 
 
+@pytest.mark.slow  # a guard of one past refactoring: checks out and runs an older commit
 def test_frictionless_operators_bitwise_as_before(tmp_path):
     """B, G, W, Un, gap, A and the Dirichlet values of both shipped scenes (default mesh,
     mu at the default and the upper bound, each installed backend) and the fingerprints
