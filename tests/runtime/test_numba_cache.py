@@ -77,8 +77,33 @@ def test_drop_stale_flushes_only_kernels_older_than_a_dependency(tmp_path):
 
 
 #: the kernel modules that compile in another module's kernels
-KERNEL_MODULES = ("rbbench.rb.kernels.pairing", "rbbench.rb.mixed.kernels",
-                  "rbbench.rb.mixed.dual_kernels", "rbbench.rb.friction.wedge.kernels")
+def _kernel_modules_calling_other_kernels() -> list[str]:
+    """Every rbbench module with cached numba kernels that imports another module's
+    kernels (found in the sources, so a new kernel module cannot be forgotten)."""
+    import ast
+
+    root = Path(__file__).resolve().parents[2] / "rbbench"
+    src = {".".join(f.relative_to(root.parent).with_suffix("").parts)
+           .removesuffix(".__init__"): f.read_text() for f in root.rglob("*.py")}
+    kernels = {m for m, text in src.items() if "@njit(cache=True" in text}
+    out = []
+    for m in sorted(kernels):
+        for node in ast.walk(ast.parse(src[m])):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module in src:
+                names = {node.module} | {f"{node.module}.{a.name}" for a in node.names}
+                if names & (kernels - {m}):
+                    out.append(m)
+                    break
+    return out
+
+
+KERNEL_MODULES = _kernel_modules_calling_other_kernels()
+
+
+def test_the_kernel_modules_are_found():
+    assert {"rbbench.rb.kernels.pairing", "rbbench.rb.mixed.kernels",
+            "rbbench.rb.mixed.bound_kernels",
+            "rbbench.rb.friction.wedge.kernels"} <= set(KERNEL_MODULES)
 
 
 @pytest.mark.parametrize("name", KERNEL_MODULES)

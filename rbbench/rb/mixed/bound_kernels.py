@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from rbbench.rb.kernels import layout, pairing
-from rbbench.runtime.numba_cache import use_user_cache
+from rbbench.runtime.numba_cache import drop_stale, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True)
 
@@ -275,3 +275,17 @@ def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, C
     out[4], out[5] = _violation_terms(Linv, d, lam)
     out[4] /= abs(sr)
     return layout.OK
+
+
+#: the modules whose kernels this one's compile in (numba's cache checks only this file)
+DEPENDENCIES = (layout.__file__, pairing.__file__)
+
+
+def drop_stale_cache() -> bool:
+    """Forget the cached kernels of this module that predate one of :data:`DEPENDENCIES`
+    (:func:`rbbench.runtime.numba_cache.drop_stale`). Returns whether it flushed. Called
+    at import."""
+    return drop_stale([moving_contact_terms], DEPENDENCIES)
+
+
+drop_stale_cache()
