@@ -12,17 +12,22 @@ numba checks only the source file of a cached function, yet a kernel that calls 
 module's kernels compiles them into its own cache entry (numba's documented
 cache-invalidation limit): after a change there alone (an editable install updated) the
 cache would run the old code. :func:`drop_stale` forgets such entries; every kernel module
-that calls another's calls it at import, naming the files it depends on.
+that calls another's calls it at import, naming the files it depends on. It keeps, beside
+each kernel's cache index, a digest of those files' contents as they were when the cache
+was last flushed (the entries compiled since used them): an index's own time says nothing
+of its older entries, since numba rewrites it whenever it adds one.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["cache_dir", "drop_stale", "is_stale", "use_user_cache"]
+__all__ = ["cache_dir", "dependency_digest", "drop_stale", "module_kernels",
+           "use_user_cache"]
 
 
 def cache_dir() -> Path:
@@ -45,27 +50,56 @@ def use_user_cache() -> str:
     return config.CACHE_DIR
 
 
-def is_stale(index: str | os.PathLike, dependency: str | os.PathLike) -> bool:
-    """Whether numba's cache index ``index`` predates the source file ``dependency``."""
-    try:
-        return os.path.getmtime(index) < os.path.getmtime(dependency)
-    except OSError:  # no index yet (nothing cached) or no source file (frozen install)
-        return False
+def module_kernels(name: str) -> list[Any]:
+    """The numba dispatchers with a disk cache defined in module ``name`` (all of them: a
+    kernel's cached callees in the same module are loaded from their own entries)."""
+    import sys
+
+    return [v for v in vars(sys.modules[name]).values()
+            if getattr(getattr(v, "py_func", None), "__module__", None) == name
+            and getattr(getattr(v, "_cache", None), "_cache_file", None) is not None]
+
+
+def dependency_digest(dependencies: Iterable[str | os.PathLike]) -> str:
+    """SHA-256 of the dependency files' contents, in order (a missing file counts as
+    empty: a frozen install without sources)."""
+    h = hashlib.sha256()
+    for dep in dependencies:
+        try:
+            h.update(Path(dep).read_bytes())
+        except OSError:
+            pass
+        h.update(b"\0")
+    return h.hexdigest()
 
 
 def drop_stale(kernels: Iterable[Any], dependencies: Iterable[str | os.PathLike]) -> bool:
     """Flush the on-disk cache of every kernel of ``kernels`` (numba dispatchers; those
-    without a disk cache are skipped) whose cache index predates one of the source files
-    ``dependencies``, the modules whose kernels it compiles in. Returns whether it flushed
-    any."""
-    deps = list(dependencies)
+    without a disk cache are skipped) whose cache was not made with the current contents
+    of ``dependencies``, the modules whose kernels it compiles in: its digest file
+    (``<index>.deps``, :func:`dependency_digest`) is missing or differs. Then the digest
+    file is written. Returns whether it flushed any."""
+    digest = dependency_digest(list(dependencies))
     flushed = False
     for kernel in kernels:
         cache = getattr(kernel, "_cache", None)
         cache_file = getattr(cache, "_cache_file", None)
         if cache_file is None:
             continue
-        if any(is_stale(cache_file._index_path, dep) for dep in deps):
+        index = Path(cache_file._index_path)
+        stamp = index.with_name(index.name + ".deps")
+        try:
+            known = stamp.read_text()
+        except OSError:
+            known = None
+        if known == digest:
+            continue
+        if index.exists():
             cache.flush()
             flushed = True
+        try:
+            stamp.parent.mkdir(parents=True, exist_ok=True)
+            stamp.write_text(digest)
+        except OSError:
+            pass  # a read-only cache: checked again next time
     return flushed

@@ -34,16 +34,21 @@ def test_numba_cache_dir_is_respected(tmp_path):
     assert path.is_relative_to(tmp_path / "mine"), path
 
 
-def test_is_stale_compares_the_index_with_the_source(tmp_path):
-    from rbbench.runtime.numba_cache import is_stale
+def test_dependency_digest_follows_the_contents_not_the_times(tmp_path):
+    from rbbench.runtime.numba_cache import dependency_digest
 
-    index, source = tmp_path / "k.nbi", tmp_path / "k.py"
-    index.write_text("")
-    source.write_text("")
-    os.utime(index, (1000, 1000))
-    os.utime(source, (2000, 2000))
-    assert is_stale(index, source) and not is_stale(source, index)
-    assert not is_stale(tmp_path / "missing.nbi", source)
+    a, b = tmp_path / "a.py", tmp_path / "b.py"
+    a.write_text("x = 1")
+    b.write_text("y = 2")
+    d = dependency_digest([a, b])
+    os.utime(a, (5000, 5000))
+    assert dependency_digest([a, b]) == d  # touched, same contents
+    assert dependency_digest([b, a]) != d  # in order
+    a.write_text("x = 3")
+    assert dependency_digest([a, b]) != d
+    empty = tmp_path / "empty.py"
+    empty.write_text("")
+    assert dependency_digest([tmp_path / "missing.py"]) == dependency_digest([empty])
 
 
 class _Cache:
@@ -51,29 +56,36 @@ class _Cache:
 
     def __init__(self, index: Path) -> None:
         self._cache_file = type("F", (), {"_index_path": str(index)})()
-        self.flushed = False
+        self.flushed = 0
 
     def flush(self) -> None:
-        self.flushed = True
+        self.flushed += 1
 
 
-def test_drop_stale_flushes_only_kernels_older_than_a_dependency(tmp_path):
+def test_drop_stale_flushes_caches_made_with_other_dependencies(tmp_path):
     """numba would keep running a cached kernel after a change to a module whose kernels it
-    compiles in (it checks only its own file): its index is compared with theirs."""
+    compiles in (it checks only its own file), and an index's time says nothing of its
+    older entries (numba rewrites it with each new one): a cache is kept only when the
+    digest beside it is the dependencies' current one."""
     from types import SimpleNamespace
 
     from rbbench.runtime.numba_cache import drop_stale
 
-    old, new, dep = tmp_path / "old.nbi", tmp_path / "new.nbi", tmp_path / "dep.py"
-    for f, t in ((old, 1000), (dep, 2000), (new, 3000)):
-        f.write_text("")
-        os.utime(f, (t, t))
-    stale, fresh = SimpleNamespace(_cache=_Cache(old)), SimpleNamespace(_cache=_Cache(new))
+    dep = tmp_path / "dep.py"
+    dep.write_text("A = 1")
+    index = tmp_path / "k.nbi"
+    index.write_text("")  # a cache of unknown provenance (no digest beside it)
+    kernel = SimpleNamespace(_cache=_Cache(index))
     never = SimpleNamespace(_cache=_Cache(tmp_path / "missing.nbi"))
     uncached = SimpleNamespace(_cache=object())  # inline kernels: no disk cache
-    assert drop_stale([stale, fresh, never, uncached], [dep]) is True
-    assert stale._cache.flushed and not fresh._cache.flushed and not never._cache.flushed
-    assert drop_stale([fresh, never], [dep]) is False
+    assert drop_stale([kernel, never, uncached], [dep]) is True
+    assert kernel._cache.flushed == 1 and never._cache.flushed == 0
+    assert drop_stale([kernel, never], [dep]) is False  # digests written: nothing stale
+    os.utime(index, (1, 1))  # times do not matter
+    assert drop_stale([kernel], [dep]) is False
+    dep.write_text("A = 2")  # the dependency changed: flushed once, then kept
+    assert drop_stale([kernel], [dep]) is True and kernel._cache.flushed == 2
+    assert drop_stale([kernel], [dep]) is False
 
 
 #: the kernel modules that compile in another module's kernels
@@ -137,6 +149,13 @@ def test_every_kernel_module_it_imports_is_a_dependency(name):
               for d in kernel_imports(name)}
     assert wanted and wanted <= deps, sorted(wanted - deps)
     assert mod.drop_stale_cache() is False  # just imported: nothing stale left
+    from rbbench.runtime.numba_cache import module_kernels
+
+    cached = {f.name for f in ast.walk(ast.parse(Path(mod.__file__).read_text()))
+              if isinstance(f, ast.FunctionDef) and any(
+                  isinstance(d, ast.Call) and getattr(d.func, "id", None) == "njit"
+                  and any(k.arg == "cache" for k in d.keywords) for d in f.decorator_list)}
+    assert cached == {k.py_func.__name__ for k in module_kernels(name)}  # all checked
     kernel = next(v for v in vars(mod).values() if hasattr(v, "_cache")
                   and getattr(v, "py_func", None) is not None
                   and v.py_func.__module__ == name)

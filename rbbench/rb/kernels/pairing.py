@@ -41,7 +41,7 @@ from rbbench.rb.kernels.layout import (
     float_rows,
     int_rows,
 )
-from rbbench.runtime.numba_cache import drop_stale, use_user_cache
+from rbbench.runtime.numba_cache import drop_stale, module_kernels, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 _TOL = 1e-10  # ray_cast's tolerance on the facet coordinate
@@ -286,7 +286,7 @@ def drop_stale_cache() -> bool:
     """Forget the cached kernels of this module that predate one of :data:`DEPENDENCIES`
     (:func:`rbbench.runtime.numba_cache.drop_stale`). Returns whether it flushed. Called
     at import."""
-    return drop_stale([slave_points, pair_points, jump_values, gap_values], DEPENDENCIES)
+    return drop_stale(module_kernels(__name__), DEPENDENCIES)
 
 
 drop_stale_cache()

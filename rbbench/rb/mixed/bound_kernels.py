@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from rbbench.rb.kernels import layout, pairing
-from rbbench.runtime.numba_cache import drop_stale, use_user_cache
+from rbbench.runtime.numba_cache import drop_stale, module_kernels, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True)
 
@@ -285,7 +285,7 @@ def drop_stale_cache() -> bool:
     """Forget the cached kernels of this module that predate one of :data:`DEPENDENCIES`
     (:func:`rbbench.runtime.numba_cache.drop_stale`). Returns whether it flushed. Called
     at import."""
-    return drop_stale([moving_contact_terms], DEPENDENCIES)
+    return drop_stale(module_kernels(__name__), DEPENDENCIES)
 
 
 drop_stale_cache()

@@ -26,7 +26,7 @@ from rbbench.rb.kernels.nnls import (
     nnls_gram,
 )
 from rbbench.rb.mixed import kernels as K
-from rbbench.runtime.numba_cache import drop_stale, use_user_cache
+from rbbench.runtime.numba_cache import drop_stale, module_kernels, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
@@ -112,7 +112,7 @@ def drop_stale_cache() -> bool:
     (:func:`rbbench.runtime.numba_cache.drop_stale`): after a change there alone (an
     editable install updated) the cache would run the old code. Returns whether it
     flushed. Called at import."""
-    return drop_stale([online_nnls], DEPENDENCIES)
+    return drop_stale(module_kernels(__name__), DEPENDENCIES)
 
 
 drop_stale_cache()

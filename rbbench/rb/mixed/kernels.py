@@ -50,7 +50,7 @@ from rbbench.rb.kernels.layout import (
 )
 from rbbench.rb.kernels.pairing import gap_values, jump_values, pair_points
 from rbbench.rb.kernels.surface_pairing import surface_magic_values
-from rbbench.runtime.numba_cache import drop_stale, use_user_cache
+from rbbench.runtime.numba_cache import drop_stale, module_kernels, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
@@ -177,7 +177,7 @@ def drop_stale_cache() -> bool:
     """Forget the cached kernels of this module that predate one of :data:`DEPENDENCIES`
     (:func:`rbbench.runtime.numba_cache.drop_stale`). Returns whether it flushed. Called
     at import."""
-    return drop_stale([magic_values, constraint_rows, online_qp, unscale], DEPENDENCIES)
+    return drop_stale(module_kernels(__name__), DEPENDENCIES)
 
 
 drop_stale_cache()

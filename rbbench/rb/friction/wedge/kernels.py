@@ -42,7 +42,7 @@ from numba import njit
 from rbbench.rb.kernels import layout as K
 from rbbench.rb.kernels import nnls as NN
 from rbbench.rb.kernels import pairing as KP
-from rbbench.runtime.numba_cache import drop_stale, use_user_cache
+from rbbench.runtime.numba_cache import drop_stale, module_kernels, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
@@ -326,11 +326,11 @@ DEPENDENCIES = (K.__file__, KP.__file__, NN.__file__)
 
 
 def drop_stale_cache() -> bool:
-    """Forget the cached :func:`wedge_online` when one of :data:`DEPENDENCIES`, whose
-    functions it inlines, changed after it was cached
+    """Forget the cached kernels of this module when one of :data:`DEPENDENCIES`, whose
+    functions they compile in, changed since they were cached
     (:func:`rbbench.runtime.numba_cache.drop_stale`). Returns whether it flushed. Called
     at import."""
-    return drop_stale([wedge_online], DEPENDENCIES)
+    return drop_stale(module_kernels(__name__), DEPENDENCIES)
 
 
 drop_stale_cache()
