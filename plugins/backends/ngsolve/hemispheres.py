@@ -74,6 +74,10 @@ class NGSolveHemisphereBody:
         on_plane = [np.all(self.points[tri, k] == 0.0, axis=1) for k in range(3)]
         return tri, ~(on_plane[0] | on_plane[1] | on_plane[2])
 
+    def tet_nodes(self) -> np.ndarray:
+        """(m, 4) vertex numbers of each tetrahedron (P1: the nodes are the vertices)."""
+        return np.asarray(self.tets)
+
     def node_groups(self) -> dict[str, np.ndarray]:
         return hs.node_groups(self.node_points)
 
