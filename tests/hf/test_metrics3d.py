@@ -137,3 +137,23 @@ def test_nitsche_force_within_the_discretisation_error_of_mixed(level0, nitsche0
     tol = abs(fm - coarse.metrics["contact_force"]) / fm
     for theta, sol in nitsche0.items():
         assert abs(sol.metrics["contact_force"] - fm) / fm <= tol, theta
+
+
+@pytest.mark.parametrize("theta", [1.0, -1.0])
+def test_nitsche_p2_converges_to_the_reaction_of_the_clamped_face(theta):
+    """P2 on a coarse mesh (3,516 dofs): cold convergence to the independently written
+    equations and the force as the clamped face's reaction (the P2 edge nodes of the face
+    carry reaction too)."""
+    from rbbench.registry import default_registry
+
+    scene = load_scene("hertz_sphere", overrides=[
+        "discretization.level=0", "discretization.h_contact=0.08", "discretization.h_max=0.4",
+        "discretization.degree=2"])
+    b = default_registry().create("backend", "skfem", scene=scene)
+    sol = _nitsche(scene, b, theta)
+    assert sol.metrics["converged"] and sol.result.info["start"].startswith("cold")
+    assert _independent_residual(sol.problem, sol.result.u[sol.problem.free]) < 1e-9
+    lower = b._hemi.bodies[1]
+    z_dofs = lower.node_dofs[lower.node_points[:, 2] == 0.0, 2]
+    reaction = (sol.disc.A @ sol.result.u)[z_dofs].sum()
+    assert 4 * reaction == pytest.approx(sol.metrics["contact_force"], rel=1e-8)
