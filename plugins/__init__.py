@@ -61,8 +61,8 @@ def _backends(add):
                       "linear_target": "rbbench_plugins.backends.skfem.linear:SkfemLinearBackend",
                       "geometry": ("halfdisks", "hemispheres", "unit_square")},
         description="scikit-fem: graded triangle meshes, P1/P2, GPTS contact pairing; 3D "
-                    "hemispheres (tetrahedra, frictionless mixed); linear scenes (thermal, "
-                    "heat): unit square, no contact",
+                    "hemispheres (tetrahedra, frictionless mixed or Nitsche); linear scenes "
+                    "(thermal, heat): unit square, no contact",
     ))
     add(ComponentSpec(
         name="ngsolve", role="backend",
@@ -76,8 +76,8 @@ def _backends(add):
                           "rbbench_plugins.backends.ngsolve.linear:NGSolveLinearBackend",
                       "geometry": ("halfdisks", "hemispheres", "unit_square")},
         description="NGSolve: Netgen meshes (or arrays), P1/P2, sparse Cholesky, "
-                    "GPTS contact pairing; 3D hemispheres (P1/P2, frictionless mixed); linear "
-                    "scenes (P1, the scikit-fem mesh)",
+                    "GPTS contact pairing; 3D hemispheres (P1/P2, frictionless mixed or "
+                    "Nitsche); linear scenes (P1, the scikit-fem mesh)",
     ))
 
 

@@ -8,6 +8,8 @@
   (:func:`cap_triangles`, :func:`tri_surface`), handed to
   :func:`rbbench.hf.geometry.surface.contact_operators_3d` through a
   :class:`~rbbench.hf.geometry.surface.SurfaceLayout` (:func:`surface_layout`);
+* the slave body's tetrahedra under its contact triangles (:func:`slave_solid`), for the
+  normal stress ``Snn`` of Nitsche's method;
 * the Dirichlet data (:func:`dirichlet_data`): the upper flat face moves by
   ``(0, 0, -d)``, the lower flat face is clamped, the symmetry planes ``x = 0`` / ``y = 0``
   hold the normal displacement at zero.
@@ -32,6 +34,7 @@ from rbbench_plugins.backends.hemisphere_mesh import quarter_hemisphere
 from rbbench.hf.geometry.chains import AffineMap
 from rbbench.hf.geometry.pairing import PairingError
 from rbbench.hf.geometry.surface import SurfaceLayout, TriSurface, contact_operators_3d
+from rbbench.hf.geometry.surface_stress import SlaveSolid, contact_operators_3d_stress
 from rbbench.interfaces import BodyMesh, ContactOperators, Discretization
 from rbbench.scene.loading import Scene, SceneError
 
@@ -133,16 +136,52 @@ def surface_layout(scene: Scene, slave: TriSurface, master: TriSurface | None, d
         raise SceneError(f"{scene.path}: [discretization]: {exc}") from None
 
 
-def surface_contact(scene: Scene, layout: SurfaceLayout, mu: np.ndarray) -> ContactOperators:
-    """The contact operators at mu; a slave point missing the master cap becomes a
-    :class:`SceneError` naming ``[geometry] master_cap``."""
+def surface_contact(scene: Scene, layout: SurfaceLayout, mu: np.ndarray,
+                    solid: SlaveSolid | None = None) -> ContactOperators:
+    """The contact operators at mu, with ``Snn`` and ``facet_length`` when the slave
+    ``solid`` is given (:func:`~rbbench.hf.geometry.surface_stress.contact_operators_3d_stress`);
+    a slave point missing the master cap becomes a :class:`SceneError` naming
+    ``[geometry] master_cap``."""
     try:
-        return contact_operators_3d(layout, mu)
+        if solid is None:
+            return contact_operators_3d(layout, mu)
+        return contact_operators_3d_stress(layout, solid, mu)
     except PairingError as exc:
         raise SceneError(
             f"{scene.path}: [geometry] master_cap: {exc.n_missed} slave quadrature point(s) "
             f"(e.g. x = {np.asarray(exc.example).round(4).tolist()}) miss the master cap "
             f"{scene.data['geometry']['master_cap']} (polar angle / pi); widen it") from None
+
+
+def tets_of_faces(tets: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """The tetrahedron (row of ``tets`` (m, 4), vertex numbers) having each boundary
+    triangle (``triangles`` (n, 3), vertex numbers) as a face; a triangle that is no face
+    raises a ``ValueError``."""
+    faces = np.sort(tets[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]], axis=2)
+    n = np.int64(max(int(tets.max()), int(triangles.max())) + 1)
+    weights = np.array([n * n, n, 1], dtype=np.int64)
+    key = faces.reshape(-1, 3).astype(np.int64) @ weights
+    want = np.sort(triangles, axis=1).astype(np.int64) @ weights
+    order = np.argsort(key, kind="stable")
+    pos = np.minimum(np.searchsorted(key, want, sorter=order), key.size - 1)
+    found = order[pos]
+    if not np.array_equal(key[found], want):
+        raise ValueError("a contact triangle is not a face of any tetrahedron of its body")
+    return found // 4
+
+
+def slave_solid(scene: Scene, body: Any, triangles: np.ndarray) -> SlaveSolid:
+    """The :class:`~rbbench.hf.geometry.surface_stress.SlaveSolid` of the slave
+    ``triangles`` (node numbers of ``body``, first 3 columns the vertices): the
+    tetrahedron under each (:func:`tets_of_faces`), its reference vertices and the global
+    dofs of its nodes (``body.tet_nodes()``: vertices, then for P2 the midpoints of the
+    edges :data:`~rbbench.hf.geometry.surface_stress.TET_EDGES`), the body's material."""
+    nodes = body.tet_nodes()
+    owner = tets_of_faces(nodes[:, :4], triangles[:, :3])
+    table = scene.data["material"][body.name]
+    return SlaveSolid(tets=np.asarray(body.node_points, float)[nodes[owner, :4]],
+                      dofs=np.asarray(body.node_dofs)[nodes[owner]],
+                      E=scene.affine(table["E"]), nu=scene.affine(table["nu"]))
 
 
 def node_groups(points: np.ndarray) -> dict[str, np.ndarray]:
@@ -187,7 +226,10 @@ class HemisphereModel:
     ``make_body(spec, mesh, degree, offset)`` builds one body in a backend's numbering: it
     has ``name``, ``spec``, ``offset``, ``ndofs``, ``node_points`` (n, 3) and
     ``node_dofs`` (n, 3) (vertices, then P2 edge nodes), ``surface_triangles()``,
-    ``node_groups()``, ``lame_terms()`` and ``h1()`` (local matrices) and ``vertices``.
+    ``tet_nodes()`` (m, 4 or 10: the node numbers of each tetrahedron, vertices then P2
+    edge midpoints in the order of
+    :data:`~rbbench.hf.geometry.surface_stress.TET_EDGES`), ``node_groups()``,
+    ``lame_terms()`` and ``h1()`` (local matrices) and ``vertices``.
     With the same mesh, two backends give the same operators up to dof numbering."""
 
     def __init__(self, scene: Scene, degree: int, h_contact: float, h_max: float,
@@ -211,6 +253,8 @@ class HemisphereModel:
         self.moving = np.isin(self.dirichlet, np.concatenate(moving))
         self._k_ref: list[tuple[sp.csr_matrix, sp.csr_matrix]] | None = None
         self._layout: SurfaceLayout | None = None
+        self._slave_triangles: np.ndarray | None = None
+        self._solid: SlaveSolid | None = None
 
     # -------------------------------------------------------------- stiffness
     def _global(self, body: Any, k: sp.spmatrix) -> sp.csr_matrix:
@@ -262,19 +306,33 @@ class HemisphereModel:
                 cap = cap_triangles(body.node_points, tri, curved, body.spec)
                 surfaces.append(tri_surface(body.node_points, tri[cap], body.node_dofs,
                                                body.spec, self.maps[body.name]))
+                if body is self.bodies[0]:
+                    self._slave_triangles = tri[cap]
             master = surfaces[1] if len(surfaces) > 1 else None
             self._layout = surface_layout(self.scene, surfaces[0], master, self.degree,
                                              self.ndofs)
         return self._layout
 
-    def discretize(self, mu, backend: str, inner_product: sp.csr_matrix) -> Discretization:
-        """The operators at mu (frictionless: no tangential or stress operators yet)."""
+    def slave_solid(self) -> SlaveSolid:
+        """The upper (slave) body's tetrahedra under its contact triangles, in the order of
+        the layout's slave triangles (:func:`slave_solid`), built once."""
+        if self._solid is None:
+            self.contact_layout()
+            self._solid = slave_solid(self.scene, self.bodies[0], self._slave_triangles)
+        return self._solid
+
+    def discretize(self, mu, backend: str, inner_product: sp.csr_matrix,
+                   stress: bool = False) -> Discretization:
+        """The operators at mu; ``stress``: with the slave normal stress ``Snn`` and the
+        triangle diameters ``facet_length`` (Nitsche's method). Frictionless: no
+        tangential operators."""
         t0 = time.perf_counter()
         A = self.stiffness(mu)
         t_asm = time.perf_counter() - t0
         d = float(self.scene.value("load", "displacement", mu))
         values = np.where(self.moving, -d, 0.0)
-        contact = surface_contact(self.scene, self.contact_layout(), mu)
+        contact = surface_contact(self.scene, self.contact_layout(), mu,
+                                  self.slave_solid() if stress else None)
         bodies = []
         for body in self.bodies:
             E, nu = self.scene.material(body.name, mu)

@@ -35,6 +35,7 @@ import scipy.sparse.linalg as spla
 from rbbench_plugins.solvers.nitsche_friction_newton import solve_friction
 
 from rbbench.hf.algebra import nitsche as nt
+from rbbench.hf.condensation.dense import factorize
 from rbbench.interfaces import (
     FrictionProblem,
     NitscheFrictionProblem,
@@ -173,7 +174,10 @@ class NewtonSolver(Solver):
     def _direction(prob: NitscheProblem, K, R: np.ndarray, symmetric: bool | None = None
                    ) -> np.ndarray:
         """``K^{-1} (-R)``: the backend's direct solver for symmetric tangents (checked),
-        else SuperLU (``symmetric``: default ``theta == 1``)."""
+        else SuperLU in symmetric mode (:func:`rbbench.hf.condensation.dense.factorize`: the
+        ordering of ``K + K^T``, no pivoting; checked, the tangent's pattern is symmetric
+        for every theta), else SuperLU with COLAMD and partial pivoting (``symmetric``:
+        default ``theta == 1``)."""
         symmetric = prob.theta == 1.0 if symmetric is None else symmetric
         if prob.factorize is not None and symmetric:
             try:
@@ -183,6 +187,12 @@ class NewtonSolver(Solver):
                     return d
             except Exception:  # noqa: BLE001 - e.g. not positive definite: use SuperLU
                 pass
+        try:  # SuperLU in symmetric mode (fill-reducing on A + A^T: 3D tangents), checked
+            d = factorize(K).solve(-R)
+            if np.all(np.isfinite(d)) and np.linalg.norm(K @ d + R) <= 1e-8 * np.linalg.norm(R):
+                return d
+        except RuntimeError:  # a zero pivot without pivoting: COLAMD with partial pivoting
+            pass
         return spla.splu(K.tocsc()).solve(-R)
 
     def _result(self, prob, u, it, reason, why, residuals, t0, extra=None) -> SolveResult:

@@ -18,7 +18,7 @@ from rbbench.scene.loading import PROBLEMS_DIR, SceneError, load_scene
 def _solve_components(scene, args, options: dict, f_options: dict | None = None):
     """Backend (with ``options``), formulation (with ``f_options``) and solver for
     ``rbbench solve``."""
-    from rbbench.hf.components import check_names
+    from rbbench.hf.components import check_names, warm_up
 
     reg = default_registry()
     check_names(scene, reg, args.backend, args.formulation, args.solver)  # before any meshing
@@ -28,6 +28,7 @@ def _solve_components(scene, args, options: dict, f_options: dict | None = None)
         raise
     except (TypeError, ValueError) as exc:
         raise SceneError(f"--backend-option: {exc}") from None
+    warm_up(backend)  # mu-independent operators: setup, not the timed discretisation
     try:
         form = reg.create("formulation", args.formulation, **(f_options or {}))
     except (TypeError, ValueError) as exc:

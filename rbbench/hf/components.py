@@ -89,12 +89,17 @@ def check_mesher(scene: Scene) -> None:
                          'pip install "rbbench[ngsolve]"')
 
 
+#: What a formulation may ask of a 3D (``hemispheres``) backend besides the normal contact
+#: operators: the slave normal stress (Nitsche).
+SURFACE_NEEDS = frozenset({"stress"})
+
+
 def check_geometry_support(scene: Scene, registry: Registry, backend: str,
                            formulation: str) -> None:
     """Refuse a geometry kind the backend does not declare (``capabilities["geometry"]``;
     undeclared: any), and, on the 3D ``hemispheres``, a formulation that needs more than
-    the normal contact operators (Nitsche's stress): the first 3D slice is frictionless
-    mixed."""
+    the normal contact operators and the slave normal stress (:data:`SURFACE_NEEDS`): 3D
+    is frictionless, mixed or Nitsche."""
     kind = scene.data["geometry"]["kind"]
     kinds = registry.get("backend", backend).capabilities.get("geometry")
     if kinds is not None and kind not in kinds:
@@ -104,10 +109,12 @@ def check_geometry_support(scene: Scene, registry: Registry, backend: str,
                          f"supports {', '.join(map(repr, kinds))}; backends for {kind!r}: "
                          + ", ".join(map(repr, ok)))
     needs = getattr(registry.load("formulation", formulation), "needs", frozenset())
-    if kind == "hemispheres" and needs:
-        raise SceneError(f"{scene.path}: [geometry] kind = 'hemispheres' (3D) is solved by the "
-                         f"'mixed' formulation for now; {formulation!r} needs "
-                         f"{', '.join(sorted(needs))} operators")
+    extra = set(needs) - SURFACE_NEEDS
+    if kind == "hemispheres" and extra:
+        raise SceneError(f"{scene.path}: [geometry] kind = 'hemispheres' (3D) builds the normal "
+                         f"contact operators and the slave normal stress only; {formulation!r} "
+                         f"needs {', '.join(sorted(extra))} operators (valid formulations: "
+                         "'mixed', 'nitsche')")
     check_mesher(scene)
 
 

@@ -1,7 +1,11 @@
-"""The labelled numbers of a 3D HF contact solution (``summary.json``, frictionless mixed
-formulation): contact force (whole body), contact radius (quantised and from the pointwise
-gap), peak pressure, complementarity, penetration, and the 3D Hertz check
+"""The labelled numbers of a 3D HF contact solution (``summary.json``, frictionless mixed or
+Nitsche formulation): contact force (whole body), contact radius (quantised and from the
+pointwise gap), peak pressure, complementarity, penetration, and the 3D Hertz check
 (:mod:`rbbench.hf.references.hertz3d`, at the solver's own force).
+
+A Nitsche solve's ``lam`` is its point pressure ``-[P_gamma(u)]_-`` projected on the
+multiplier space (as in 2D), so radii and peak read as for mixed; its force is integrated
+from the point pressures (the reaction of the Nitsche equation), and ``e_ac`` is added.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import numpy as np
 
 from rbbench.hf.geometry.checks import gap_tolerance, under_resolution
 from rbbench.hf.references.hertz3d import hertz3d_of_bodies
+from rbbench.interfaces import NitscheProblem
 
 #: Relative threshold on lam (w.r.t. max lam) above which a multiplier counts as active
 #: (the 2D one, :data:`rbbench.hf.metrics.ACTIVE_THRESHOLD`).
@@ -47,6 +52,8 @@ def contact_metrics_3d(sol: Any) -> dict[str, Any]:
     support = np.asarray(c.Mlam.T @ c.weights).ravel()
     lam_q = np.asarray(c.Mlam @ lam).ravel()
     force = copies * float(np.sum(c.weights * lam_q * -c.normals[:, 2]))
+    extra = _nitsche_metrics(prob, res, c, copies) if isinstance(prob, NitscheProblem) else {}
+    force = extra.get("contact_force", force)
     lam_max = float(np.max(lam)) if lam.size else 0.0
     active = lam > ACTIVE_THRESHOLD * max(lam_max, np.finfo(float).tiny)
     radius_max = float(c.mult_extent[active, 1].max()) if active.any() else 0.0
@@ -90,12 +97,34 @@ def contact_metrics_3d(sol: Any) -> dict[str, Any]:
         "material": {b.name: {"E": b.E, "nu": b.nu} for b in disc.bodies},
         "radii": {"R1": geo["R1"], "R2": geo["R2"]},
     }
+    m.update(extra)
     if sol.scene.data["reference"]["hertz"] and force > 0:
         m["hertz"] = _hertz_block(m, hertz3d_of_bodies(force, geo, disc.bodies).as_dict())
         m["hertz"].update(_profile_fit(c, lam, active, m["hertz"]))
     m["units"] = dict(SI_UNITS_3D)
+    if extra:
+        m["units"]["max_pressure_quadrature"] = "Pa"
     m["definitions"] = DEFINITIONS_3D
     return m
+
+
+def _nitsche_metrics(prob: NitscheProblem, res: Any, c: Any, copies: int) -> dict[str, Any]:
+    """Nitsche in 3D: the whole-body force ``copies int p (-n_z)`` from the point pressures
+    ``p = -[P_gamma(u)]_-``, their peak, and Benaceur et al.'s relative Alart-Curnier
+    residual ``e_ac`` (:func:`rbbench.hf.algebra.nitsche.ac_residual`)."""
+    from rbbench.hf.algebra import nitsche as nt
+
+    if not np.all(np.isfinite(res.u)):
+        return {"contact_force": float("nan"), "e_ac": None,
+                "nitsche": {"theta": prob.theta, "gamma0": prob.gamma0}}
+    u = res.u[prob.free]
+    p = nt.pressure(prob, u)
+    return {"contact_force": copies * float(np.sum(prob.weights * p * -c.normals[:, 2])),
+            "max_pressure_quadrature": float(p.max()) if p.size else 0.0,
+            "e_ac": nt.ac_residual(prob, u),
+            "nitsche": {"theta": prob.theta, "gamma0": prob.gamma0, "E": prob.E,
+                        "h_min": float(prob.h.min()), "h_max": float(prob.h.max()),
+                        "n_active_points": int(np.sum(p > 0))}}
 
 
 def _hertz_block(m: dict[str, Any], h: dict[str, float]) -> dict[str, Any]:
@@ -149,7 +178,8 @@ DEFINITIONS_3D = {
     "symmetry_copies": "copies of the modelled part that make the whole bodies (quarter: 4); "
                        "forces and energies are of the whole bodies",
     "contact_force": "total normal contact force on the whole body (N): vertical resultant "
-                     "int lam (-n_z) over the slave surface, times symmetry_copies",
+                     "int lam (-n_z) over the slave surface, times symmetry_copies (Nitsche: "
+                     "int p (-n_z) with the point pressures p = -[P_gamma(u)]_-)",
     "contact_radius": "radius of the disc whose area is the projected (onto z) area of the "
                       "union of the active multipliers' supports, whole body (m): QUANTISED "
                       "to whole multiplier supports",
@@ -161,7 +191,8 @@ DEFINITIONS_3D = {
                           "is <= contact_radius_gap_tol, whole body (m)",
     "contact_radius_gap_tol": "the gap tolerance of contact_radius_gap and of the "
                               "under-resolution check (m): 1e-3 max_q |Un u|_q",
-    "max_pressure": "largest multiplier value (Pa): the peak of the discrete pressure",
+    "max_pressure": "largest multiplier value (Pa): the peak of the discrete pressure "
+                    "(Nitsche: of its L2 projection on the multiplier space)",
     "complementarity": "|lam . (G - B u)| / (||lam||_2 ||G||_2), dimensionless",
     "penetration_max": "largest mean penetration over one multiplier's support (m), "
                        "clipped at 0",
@@ -178,7 +209,14 @@ DEFINITIONS_3D = {
              "of contact_radius, contact_radius_gap and max_pressure; profile_fit_a and "
              "profile_fit_p0: the least-squares fit of p^2 = p0^2 (1 - r^2 / a^2) to the "
              "active multipliers at their supports' centroids",
-    "final_residual": "relative natural residual of the condensed LCP at the last iterate",
+    "final_residual": "relative natural residual of the condensed LCP at the last iterate "
+                      "(Nitsche: relative Newton residual)",
+    "e_ac": "Nitsche only: relative Alart-Curnier residual (Benaceur et al.) "
+            "||sigma_nn - [P_gamma]_-|| / ||sigma_nn||, L2 by the contact quadrature, a "
+            "fraction",
+    "max_pressure_quadrature": "Nitsche only: largest point pressure -[P_gamma(u)]_- (Pa)",
+    "nitsche": "Nitsche only: theta, gamma0, the slave E (Pa), the smallest and largest slave "
+               "triangle diameter h (m) of gamma = gamma0 E / h, contact points with p > 0",
     "stop_reason": "the solver's stop reason, or 'flagged' (zero force on an overlapping "
                    "solution)",
 }

@@ -28,9 +28,18 @@ def test_3d_scene_refuses_a_backend_without_hemispheres():
         check_names(scene, reg, "ngsolve", "mixed", None)
 
 
-def test_3d_scene_refuses_nitsche():
+def test_3d_scene_takes_nitsche_and_refuses_a_formulation_needing_more(monkeypatch):
+    """Nitsche needs the slave normal stress, which the 3D backends build; a formulation that
+    needs the tangential operators too (Nitsche's needs widened for the test) is refused,
+    naming the valid formulations."""
+    from rbbench_plugins.formulations.nitsche import NitscheFormulation
+
     scene = load_scene("hertz_sphere")
-    with pytest.raises(SceneError, match="'mixed' formulation for now; 'nitsche' needs stress"):
+    for backend in ("skfem", "ngsolve"):
+        assert check_names(scene, default_registry(), backend, "nitsche", None) == "newton"
+    monkeypatch.setattr(NitscheFormulation, "needs", frozenset({"stress", "tangential"}))
+    with pytest.raises(SceneError, match=r"'nitsche' needs tangential operators \(valid "
+                                         r"formulations: 'mixed', 'nitsche'\)"):
         check_names(scene, default_registry(), "skfem", "nitsche", None)
 
 

@@ -92,3 +92,94 @@ def test_rigid_flat_force_is_the_reaction_of_the_pressed_face():
     assert -4 * reaction == pytest.approx(m["contact_force"], rel=1e-8)  # pushed down
     h = m["hertz"]
     assert h["R_star"] == pytest.approx(1.0) and h["E_star"] == pytest.approx(2e11 / 0.91)
+
+
+# ---------------------------------------------------------------------------
+# Nitsche in 3D
+# ---------------------------------------------------------------------------
+#: A mesh twice as coarse as level 0 (its force against level 0's: the discretisation error)
+COARSER = ["discretization.level=0", "discretization.h_contact=0.06", "discretization.h_max=0.6"]
+
+
+def _nitsche(scene, backend, theta):
+    from rbbench_plugins.formulations.nitsche import NitscheFormulation
+    from rbbench_plugins.solvers.newton import NewtonSolver
+
+    return solve_hf(scene, scene.default_mu, formulation="nitsche", floor=False,
+                    components=(backend, NitscheFormulation(theta, 10.0), NewtonSolver()))
+
+
+def _independent_residual(prob, u):
+    """The Nitsche equations written out from Benaceur et al.'s slide "Nitsche's method" (not
+    rbbench.hf.algebra.nitsche), relative."""
+    s = prob.Snn @ u + prob.snn_lift
+    P = s - prob.gamma * (prob.Un @ u - prob.gap)
+    neg = np.minimum(P, 0.0)
+    d = prob.weights / prob.gamma
+    R = prob.A @ u - prob.F + prob.Snn.T @ (prob.theta * d * (neg - s)) \
+        - prob.Un.T @ (prob.weights * neg)
+    return np.linalg.norm(R) / max(np.linalg.norm(prob.F), np.linalg.norm(prob.A @ u))
+
+
+@pytest.fixture(scope="module")
+def nitsche0():
+    from rbbench.registry import default_registry
+
+    scene = load_scene("hertz_sphere", overrides=["discretization.level=0"])
+    b = default_registry().create("backend", "skfem", scene=scene)
+    return {theta: _nitsche(scene, b, theta) for theta in (1.0, 0.0, -1.0)}
+
+
+@pytest.mark.parametrize("theta", [1.0, 0.0, -1.0])
+def test_nitsche_converges_cold_and_its_force_is_the_reaction_of_the_clamped_face(
+        nitsche0, theta):
+    """Each theta converges from u = 0 to the Nitsche equations written out independently;
+    its force (whole body, integrated from the point pressures) is 4 times the vertical
+    reaction on the lower body's clamped face (the lower body sees only ``Un``)."""
+    sol = nitsche0[theta]
+    m, disc = sol.metrics, sol.disc
+    assert m["converged"] and sol.result.info["start"].startswith("cold")
+    assert _independent_residual(sol.problem, sol.result.u[sol.problem.free]) < 1e-9
+    lower = disc.bodies[1]
+    z_dofs = lower.vertex_dofs[lower.points[:, 2] == 0.0, 2]
+    reaction = (disc.A @ sol.result.u)[z_dofs].sum()
+    assert 4 * reaction == pytest.approx(m["contact_force"], rel=1e-8)
+    assert 0.0 < m["e_ac"] < 1.0 and m["nitsche"]["theta"] == theta
+    assert sol.result.lam.shape == (disc.contact.n_mult,) and sol.result.lam.min() >= 0.0
+    assert m["max_pressure_quadrature"] >= m["max_pressure"] > 0.0
+
+
+def test_nitsche_force_within_the_discretisation_error_of_mixed(level0, nitsche0):
+    """|F_nitsche - F_mixed| / F_mixed at level 0 is below the mixed force's own change from
+    a mesh twice as coarse to level 0 (as the 2D test on hertz_halfdisks)."""
+    from rbbench.registry import default_registry
+
+    scene = load_scene("hertz_sphere", overrides=COARSER)
+    b = default_registry().create("backend", "skfem", scene=scene)
+    coarse = solve_hf(scene, scene.default_mu, components=(
+        b, default_registry().create("formulation", "mixed"),
+        default_registry().create("solver", "ssn")), floor=False)
+    fm = level0.metrics["contact_force"]
+    tol = abs(fm - coarse.metrics["contact_force"]) / fm
+    for theta, sol in nitsche0.items():
+        assert abs(sol.metrics["contact_force"] - fm) / fm <= tol, theta
+
+
+@pytest.mark.parametrize("theta", [1.0, -1.0])
+def test_nitsche_p2_converges_to_the_reaction_of_the_clamped_face(theta):
+    """P2 on a coarse mesh (3,516 dofs): cold convergence to the independently written
+    equations and the force as the clamped face's reaction (the P2 edge nodes of the face
+    carry reaction too)."""
+    from rbbench.registry import default_registry
+
+    scene = load_scene("hertz_sphere", overrides=[
+        "discretization.level=0", "discretization.h_contact=0.08", "discretization.h_max=0.4",
+        "discretization.degree=2"])
+    b = default_registry().create("backend", "skfem", scene=scene)
+    sol = _nitsche(scene, b, theta)
+    assert sol.metrics["converged"] and sol.result.info["start"].startswith("cold")
+    assert _independent_residual(sol.problem, sol.result.u[sol.problem.free]) < 1e-9
+    lower = b._hemi.bodies[1]
+    z_dofs = lower.node_dofs[lower.node_points[:, 2] == 0.0, 2]
+    reaction = (sol.disc.A @ sol.result.u)[z_dofs].sum()
+    assert 4 * reaction == pytest.approx(sol.metrics["contact_force"], rel=1e-8)

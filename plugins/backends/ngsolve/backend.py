@@ -304,10 +304,12 @@ class NGSolveBackend(common.HalfDiskContact, Backend):
         if self.kind == "unit_square":
             return self._discretize_square(mu)
         if self.kind == "hemispheres":
-            if needs:
-                raise ValueError(f"ngsolve backend: the 3D hemispheres have no {sorted(needs)} "
-                                 "operators yet (frictionless mixed formulation only)")
-            disc = self._hemi.discretize(mu, self.name, self.inner_product())
+            if needs - {"stress"}:
+                raise ValueError(f"ngsolve backend: the 3D hemispheres have no "
+                                 f"{sorted(needs - {'stress'})} operators (frictionless: "
+                                 "valid needs are 'stress' or none)")
+            disc = self._hemi.discretize(mu, self.name, self.inner_product(),
+                                        stress="stress" in needs)
             disc.factorize = self._factorize()
             return disc
         return self._discretize_halfdisks(mu, common.scene_needs(self.scene, needs))

@@ -126,6 +126,10 @@ class NGSolveHemisphereBody:
                                           for a, b in ((0, 1), (1, 2), (0, 2)))])
         return tri, curved
 
+    def tet_nodes(self) -> np.ndarray:
+        """(m, 4) vertex numbers of each tetrahedron (P1: the nodes are the vertices)."""
+        return np.asarray(self.tets)
+
     def node_groups(self) -> dict[str, np.ndarray]:
         return hs.node_groups(self.node_points)
 

@@ -268,10 +268,12 @@ class SkfemBackend(common.HalfDiskContact, Backend):
         if self.kind == "unit_square":
             return self._discretize_square(mu)
         if self.kind == "hemispheres":
-            if needs:
-                raise ValueError(f"skfem backend: the 3D hemispheres have no {sorted(needs)} "
-                                 "operators yet (frictionless mixed formulation only)")
-            return self._hemi.discretize(mu, self.name, self.inner_product())
+            if needs - {"stress"}:
+                raise ValueError(f"skfem backend: the 3D hemispheres have no "
+                                 f"{sorted(needs - {'stress'})} operators (frictionless: "
+                                 "valid needs are 'stress' or none)")
+            return self._hemi.discretize(mu, self.name, self.inner_product(),
+                                        stress="stress" in needs)
         return self._discretize_halfdisks(mu, common.scene_needs(self.scene, needs))
 
     def _discretize_halfdisks(self, mu, needs=frozenset()) -> Discretization:

@@ -25,6 +25,7 @@ from rbbench_plugins.backends.hemisphere_mesh import (
 from skfem import Basis, BilinearForm, ElementTetP1, ElementTetP2, ElementVector, MeshTet, asm
 from skfem.models.elasticity import linear_elasticity
 
+from rbbench.hf.geometry.surface_stress import TET_EDGES
 from rbbench.scene.loading import Scene
 
 
@@ -76,6 +77,17 @@ class HemisphereBody:
                     for a, b in ((0, 1), (1, 2), (0, 2))]
             tri = np.column_stack([tri, *mids])
         return tri, curved
+
+    def tet_nodes(self) -> np.ndarray:
+        """(m, 4) vertex numbers of each tetrahedron; P2: (m, 10), then the edge nodes of
+        :data:`~rbbench.hf.geometry.surface_stress.TET_EDGES` (numbered as ``node_points``)."""
+        m = self.mesh
+        t = m.t.T
+        if self.degree == 1:
+            return np.ascontiguousarray(t)
+        lookup = edge_lookup(m.edges.T, m.nvertices)
+        mids = [lookup(t[:, a], t[:, b]) + m.nvertices for a, b in TET_EDGES]
+        return np.column_stack([t, *mids])
 
     def node_groups(self) -> dict[str, np.ndarray]:
         """Masks of the nodes on the flat face and on the symmetry planes."""
