@@ -130,6 +130,7 @@ def nitsche0():
     return {theta: _nitsche(scene, b, theta) for theta in (1.0, 0.0, -1.0)}
 
 
+@pytest.mark.netgen
 @pytest.mark.parametrize("theta", [1.0, 0.0, -1.0])
 def test_nitsche_converges_cold_and_its_force_is_the_reaction_of_the_clamped_face(
         nitsche0, theta):
@@ -149,6 +150,7 @@ def test_nitsche_converges_cold_and_its_force_is_the_reaction_of_the_clamped_fac
     assert m["max_pressure_quadrature"] >= m["max_pressure"] > 0.0
 
 
+@pytest.mark.netgen
 def test_nitsche_force_within_the_discretisation_error_of_mixed(level0, nitsche0):
     """|F_nitsche - F_mixed| / F_mixed at level 0 is below the mixed force's own change from
     a mesh twice as coarse to level 0 (as the 2D test on hertz_halfdisks)."""
@@ -165,6 +167,7 @@ def test_nitsche_force_within_the_discretisation_error_of_mixed(level0, nitsche0
         assert abs(sol.metrics["contact_force"] - fm) / fm <= tol, theta
 
 
+@pytest.mark.netgen
 @pytest.mark.parametrize("theta", [1.0, -1.0])
 def test_nitsche_p2_converges_to_the_reaction_of_the_clamped_face(theta):
     """P2 on a coarse mesh (3,516 dofs): cold convergence to the independently written

@@ -12,6 +12,8 @@ from rbbench_plugins.backends.skfem.hemispheres import skfem_hemisphere_model
 
 from rbbench.scene.loading import load_scene
 
+pytestmark = pytest.mark.netgen
+
 COARSE = ["discretization.h_contact=0.08", "discretization.h_max=0.4"]
 
 
