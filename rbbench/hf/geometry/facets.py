@@ -12,8 +12,8 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["facet_shape", "gauss_legendre_01", "multiplier_basis", "outward_normals", "ray_cast",
-           "ray_cast_window", "window_tangent_ranges"]
+__all__ = ["facet_shape", "gauss_legendre_01", "multiplier_basis", "outward_normals",
+           "point_support", "ray_cast", "ray_cast_window", "window_tangent_ranges"]
 
 
 @lru_cache(maxsize=16)
@@ -209,3 +209,17 @@ def multiplier_basis(kind: str, n_facets: int, facet_of_q: np.ndarray, s_q: np.n
         return sp.csr_matrix((vals, (np.concatenate([rows, rows]), cols)),
                              shape=(nq, n_facets + 1))
     raise ValueError(f"multiplier space {kind!r} is not one of 'lac', 'p0', 'p1'")
+
+
+def point_support(Mrows: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The slave points of the rows ``pos`` of ``Mrows`` (rows x points, the multiplier
+    basis at the points), padded: ``(points, values)``, each (len(pos), P), with
+    ``values`` the multiplier basis there (0 on padding)."""
+    M = Mrows[np.asarray(pos, dtype=np.int64)]
+    P = max(int((M != 0).sum(axis=1).max()), 1) if M.size else 1
+    pts = np.zeros((M.shape[0], P), dtype=np.int64)
+    vals = np.zeros((M.shape[0], P))
+    for i, row in enumerate(M):
+        nz = np.flatnonzero(row)
+        pts[i, :nz.size], vals[i, :nz.size] = nz, row[nz]
+    return pts, vals

@@ -39,7 +39,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from rbbench.hf.geometry.facets import multiplier_basis, window_tangent_ranges
+from rbbench.hf.geometry.facets import multiplier_basis, point_support, window_tangent_ranges
 from rbbench.hf.geometry.pairing import ContactLayout, pair
 from rbbench.rb.algorithms.eim import EIMResult, deim, eim_error, matrix_eim
 
@@ -97,14 +97,7 @@ class RowEvaluator:
     def support(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Quadrature points of the rows ``rows[pos]``, padded: ``(points, values)``, each
         (len(pos), P), with ``values`` the multiplier basis there (0 on padding)."""
-        M = self.Mrows[np.asarray(pos)]
-        P = max(int((M != 0).sum(axis=1).max()), 1) if M.size else 1
-        pts = np.zeros((M.shape[0], P), dtype=np.int64)
-        vals = np.zeros((M.shape[0], P))
-        for i, row in enumerate(M):
-            nz = np.flatnonzero(row)
-            pts[i, :nz.size], vals[i, :nz.size] = nz, row[nz]
-        return pts, vals
+        return point_support(self.Mrows, pos)
 
     def entries(self, mu: np.ndarray, Z_loc: np.ndarray, pts: np.ndarray, vals: np.ndarray,
                 cols: np.ndarray, pos_G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -6,9 +6,10 @@ The 3D counterpart of :func:`rbbench.rb.kernels.plan.reference_points`,
 from a :class:`~rbbench.rb.hyper.surface_eim.SurfaceRowEvaluator` (its restricted layout
 and master windows): the slave Gauss points, unit outward normals and weights on the
 reference surface (:func:`reference_surface_points`), the rows' points and multiplier
-values per magic entry (:func:`point_support`), the slave half of every magic entry
-(:func:`surface_slave_terms`) and the master window: its reference vertices, triangles,
-candidate lists and ``Z^T`` on its dofs (:func:`surface_master_plan`);
+values per magic entry (:func:`~rbbench.hf.geometry.facets.point_support`), the slave
+half of every magic entry (:func:`surface_slave_terms`) and the master window: its
+reference vertices, triangles, candidate lists and ``Z^T`` on its dofs
+(:func:`surface_master_plan`);
 :func:`surface_eim_arrays` assembles them. numpy only.
 """
 
@@ -18,9 +19,10 @@ from typing import Any
 
 import numpy as np
 
+from rbbench.hf.geometry.facets import point_support
 from rbbench.hf.geometry.surface_rules import triangle_rule, triangle_shape
 
-__all__ = ["point_support", "reference_surface_points", "surface_eim_arrays",
+__all__ = ["reference_surface_points", "surface_eim_arrays",
            "surface_master_plan", "surface_slave_terms"]
 
 
@@ -49,20 +51,6 @@ def reference_surface_points(lay: Any) -> tuple[np.ndarray, ...]:
     w_hat = (wg[None, :] * 0.5 * area2[:, None]).ravel()
     sphi = triangle_shape(np.tile(bary, (sl.n_tri, 1)), lay.degree)
     return np.ascontiguousarray(x), n_hat, w_hat, sphi
-
-
-def point_support(Mrows: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The slave points of the rows ``pos`` of ``Mrows`` (rows x points, the multiplier
-    basis at the points), padded: ``(points, values)``, each (len(pos), P), with
-    ``values`` the multiplier basis there (0 on padding)."""
-    M = Mrows[np.asarray(pos, dtype=np.int64)]
-    P = max(int((M != 0).sum(axis=1).max()), 1) if M.size else 1
-    pts = np.zeros((M.shape[0], P), dtype=np.int64)
-    vals = np.zeros((M.shape[0], P))
-    for i, row in enumerate(M):
-        nz = np.flatnonzero(row)
-        pts[i, :nz.size], vals[i, :nz.size] = nz, row[nz]
-    return pts, vals
 
 
 def surface_slave_terms(lay: Any, Z_loc: np.ndarray, cols: np.ndarray, sphi: np.ndarray,
