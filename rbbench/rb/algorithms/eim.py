@@ -149,17 +149,18 @@ def _pivot(r: np.ndarray, groups: np.ndarray | None, threshold: float,
     (``groups``, ``threshold < 1``): the largest ``|r_i|`` among the entries whose group is
     ``paid`` (a boolean mask over groups), if it is at least ``threshold max |r|``; else
     ``argmax |r|``. This is threshold partial pivoting (Duff, Erisman & Reid, "Direct
-    Methods for Sparse Matrices", sec. 5.4 and 7.8: accept any pivot within a factor ``u``
-    of the column's largest entry to limit fill-in; here the "fill" is a new multiplier
-    row to pair online): the new basis vector ``q = r / r_i`` is then bounded by
+    Methods for Sparse Matrices", 1986: accept any pivot within a factor ``u`` of the
+    column's largest entry to limit fill-in; here the "fill" is a new multiplier row to
+    pair online): the new basis vector ``q = r / r_i`` is then bounded by
     ``1 / threshold`` instead of 1 in the max norm, so ``Q[magic]`` stays unit lower
     triangular with entries at most ``1 / threshold`` and the Lebesgue-constant bound
     ``2^M - 1`` of the greedy EIM (Maday, Nguyen, Patera & Pau, CPAA 8 (2009) 383-404)
-    becomes ``(1 + 1 / threshold)^M - 1``. In the entry-wise matrix DEIM of Negri,
-    Manzoni & Amsallem (J. Comput. Phys. 303 (2015) 431-454) the online cost is the
-    number of *rows* (here: multiplier rows, their quadrature points) touched by the magic
-    entries, not the number of entries; Chaturantabut & Sorensen's DEIM (SIAM J. Sci.
-    Comput. 32 (2010) 2737-2764) picks the same ``argmax |r|`` as the plain greedy step.
+    becomes ``(1 + 1 / threshold)^M - 1``. In the matrix DEIM of Negri, Manzoni &
+    Amsallem (J. Comput. Phys. 303 (2015) 431-454) the online cost is the assembly on the
+    reduced mesh, the elements supporting the magic entries, not the entries themselves
+    (here: the quadrature points of the multiplier rows holding them); Chaturantabut &
+    Sorensen's DEIM (SIAM J. Sci. Comput. 32 (2010) 2737-2764) picks the same
+    ``argmax |r|`` as the plain greedy step.
     """
     a = np.abs(r)
     i = int(np.argmax(a))

@@ -33,7 +33,7 @@ __all__ = ["ROW_THRESHOLD", "SurfaceRowEvaluator", "build_surface_row_evaluator"
 #: entries (:func:`rbbench.rb.algorithms.eim.deim` ``groups``, ``threshold``): an entry in
 #: a multiplier row already evaluated (its slave points paired) is taken when its residual
 #: is at least this fraction of the largest. Sparse LU's threshold pivoting uses 0.1 (Duff,
-#: Erisman & Reid, sec. 7.8); on ``hertz_sphere`` at mesh level 1, 0.25 cut the rows to pair
+#: Erisman & Reid, 1986); on ``hertz_sphere`` at mesh level 1, 0.25 cut the rows to pair
 #: from 57 to 20 at the same EIM size and validation error within 1.4x, 0.1 to 16 rows at a
 #: fivefold validation error of ``B_N``.
 ROW_THRESHOLD = 0.25
