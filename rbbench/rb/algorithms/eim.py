@@ -84,7 +84,8 @@ class EIMResult:
 
 
 def deim(snapshots: np.ndarray, tol: float | None = None, m_max: int | None = None,
-         method: str = "eim", rank_tol: float = RANK_TOL) -> EIMResult:
+         method: str = "eim", rank_tol: float = RANK_TOL, groups: np.ndarray | None = None,
+         threshold: float = 1.0, paid: np.ndarray | None = None) -> EIMResult:
     """Empirical interpolation of the columns of ``snapshots`` (n x P).
 
     Parameters
@@ -102,6 +103,18 @@ def deim(snapshots: np.ndarray, tol: float | None = None, m_max: int | None = No
         basis with the DEIM index selection of Chaturantabut-Sorensen.
     rank_tol : float
         Stop when the residual is below ``rank_tol`` times the largest snapshot entry.
+    groups : (n,) int, optional
+        Greedy EIM only: the group of every entry (3D contact: the multiplier row of an
+        entry of ``B(mu) Z``, whose quadrature points an online evaluation pays for once
+        for all its entries). With ``threshold < 1`` the magic entry of each step is the
+        largest residual entry in a group already *paid* for (``paid``, or holding an
+        earlier magic entry), provided it is at least ``threshold`` times the largest
+        residual entry of the picked snapshot; else the largest entry (row-aware
+        selection, :func:`_pivot`).
+    threshold : float in (0, 1]
+        The relative pivot threshold of the row-aware selection (1: plain greedy EIM).
+    paid : (k,) int, optional
+        Groups paid for before the first step (e.g. the rows another EIM evaluates).
     """
     S = np.asarray(snapshots, dtype=float)
     if S.ndim == 1:
@@ -112,16 +125,64 @@ def deim(snapshots: np.ndarray, tol: float | None = None, m_max: int | None = No
     if scale == 0.0 or m_max == 0:
         return EIMResult(np.zeros((n, 0)), np.zeros(0, dtype=np.int64), np.zeros(0),
                          method=method, tol=tol)
+    if not 0.0 < threshold <= 1.0:
+        raise ValueError(f"threshold = {threshold!r}: expected a float in (0, 1]")
+    if groups is not None:
+        groups = np.asarray(groups, dtype=np.int64)
+        if groups.shape != (n,):
+            raise ValueError(f"groups: expected one group per entry ({n},), got shape "
+                             f"{groups.shape}")
+        if method != "eim":
+            raise ValueError("groups (row-aware selection) needs method = 'eim'")
     if method == "eim":
-        return _greedy_eim(S, scale, tol, m_max, rank_tol)
+        return _greedy_eim(S, scale, tol, m_max, rank_tol, groups, threshold, paid)
     if method == "deim":
         return _pod_deim(S, scale, tol, m_max, rank_tol)
     raise ValueError(f"method = {method!r}: expected 'eim' or 'deim'")
 
 
+def _pivot(r: np.ndarray, groups: np.ndarray | None, threshold: float,
+           paid: np.ndarray | None) -> int:
+    """The magic entry of one greedy step in the residual ``r`` of the picked snapshot.
+
+    Plain greedy EIM (Barrault-Maday-Nguyen-Patera 2004): ``argmax |r|``. Row-aware
+    (``groups``, ``threshold < 1``): the largest ``|r_i|`` among the entries whose group is
+    ``paid`` (a boolean mask over groups), if it is at least ``threshold max |r|``; else
+    ``argmax |r|``. This is threshold partial pivoting (Duff, Erisman & Reid, "Direct
+    Methods for Sparse Matrices", 1986: accept any pivot within a factor ``u`` of the
+    column's largest entry to limit fill-in; here the "fill" is a new multiplier row to
+    pair online): the new basis vector ``q = r / r_i`` is then bounded by
+    ``1 / threshold`` instead of 1 in the max norm, so ``Q[magic]`` stays unit lower
+    triangular with entries at most ``1 / threshold`` and the Lebesgue-constant bound
+    ``2^M - 1`` of the greedy EIM (Maday, Nguyen, Patera & Pau, CPAA 8 (2009) 383-404)
+    becomes ``(1 + 1 / threshold)^M - 1``. In the matrix DEIM of Negri, Manzoni &
+    Amsallem (J. Comput. Phys. 303 (2015) 431-454) the online cost is the assembly on the
+    reduced mesh, the elements supporting the magic entries, not the entries themselves
+    (here: the quadrature points of the multiplier rows holding them); Chaturantabut &
+    Sorensen's DEIM (SIAM J. Sci. Comput. 32 (2010) 2737-2764) picks the same
+    ``argmax |r|`` as the plain greedy step.
+    """
+    a = np.abs(r)
+    i = int(np.argmax(a))
+    if groups is None or threshold >= 1.0 or paid is None or not paid.any():
+        return i
+    ok = paid[groups]
+    if not ok.any():
+        return i
+    j = int(np.flatnonzero(ok)[np.argmax(a[ok])])
+    return j if a[j] >= threshold * a[i] else i
+
+
 def _greedy_eim(S: np.ndarray, scale: float, tol: float | None, m_max: int,
-                rank_tol: float) -> EIMResult:
+                rank_tol: float, groups: np.ndarray | None = None, threshold: float = 1.0,
+                paid: np.ndarray | None = None) -> EIMResult:
     n, _ = S.shape
+    paid_mask = None
+    if groups is not None:
+        paid_mask = np.zeros(int(groups.max(initial=-1)) + 1, dtype=bool)
+        if paid is not None:
+            pg = np.asarray(paid, dtype=np.int64)
+            paid_mask[pg[pg < paid_mask.size]] = True
     R = np.array(S, dtype=float, order="F", copy=True)  # residuals s - I_k s
     Q = np.zeros((n, m_max), order="F")
     magic: list[int] = []
@@ -137,7 +198,9 @@ def _greedy_eim(S: np.ndarray, scale: float, tol: float | None, m_max: int,
         p = int(np.argmax(col_err))
         if col_err[p] <= rank_tol * scale:
             break
-        i = int(np.argmax(np.abs(R[:, p])))
+        i = _pivot(R[:, p], groups, threshold, paid_mask)
+        if paid_mask is not None:
+            paid_mask[groups[i]] = True
         q = R[:, p] / R[i, p]
         q[magic] = 0.0  # exact zeros at the previous magic points (rounding only)
         q[i] = 1.0

@@ -277,7 +277,8 @@ class ContactEIM:
 def contact_eim(layout: Any, B_train: list, G_train: np.ndarray,
                 Z: np.ndarray, Vg: np.ndarray, free: np.ndarray, mus_sample: np.ndarray,
                 tol: float = 1e-8, m_max: int | None = None,
-                row_evaluator: Callable | None = None) -> ContactEIM:
+                row_evaluator: Callable | None = None, row_threshold: float = 1.0
+                ) -> ContactEIM:
     """Build :class:`ContactEIM` from the training constraint operators.
 
     Parameters
@@ -302,9 +303,18 @@ def contact_eim(layout: Any, B_train: list, G_train: np.ndarray,
     row_evaluator : callable, optional
         ``(layout, rows, mus_sample) -> evaluator`` of the magic rows (default
         :func:`build_row_evaluator`, 2D).
+    row_threshold : float in (0, 1]
+        Row-aware selection of the magic entries (:func:`rbbench.rb.algorithms.eim.deim`
+        ``groups``): a magic entry of ``B(mu) Z`` in a multiplier row already evaluated is
+        preferred when its residual is at least this fraction of the largest, and G's magic
+        rows prefer the rows of B's entries. 1 (default): the plain greedy EIM.
     """
-    res_B, e_row, e_col, T_B = column_eim(B_train, Z, Vg, tol, m_max)
-    res_G = deim(np.asarray(G_train), tol=tol, m_max=m_max)
+    res_B, e_row, e_col, T_B = column_eim(B_train, Z, Vg, tol, m_max, row_threshold)
+    m = np.asarray(G_train).shape[0]
+    res_G = deim(np.asarray(G_train), tol=tol, m_max=m_max,
+                 **({} if row_threshold >= 1.0 else
+                    {"groups": np.arange(m), "threshold": row_threshold,
+                     "paid": np.unique(e_row)}))
     if res_B.m == 0 or res_G.m == 0:
         raise HyperReductionError("EIM found no term: the training B(mu) Z or G(mu) is zero")
     rows_B = np.unique(e_row)
@@ -326,13 +336,17 @@ def contact_eim(layout: Any, B_train: list, G_train: np.ndarray,
 
 
 def column_eim(B_train: list, Z: np.ndarray, Vg: np.ndarray, tol: float | None,
-               m_max: int | None) -> tuple[EIMResult, np.ndarray, np.ndarray, np.ndarray]:
+               m_max: int | None, row_threshold: float = 1.0
+               ) -> tuple[EIMResult, np.ndarray, np.ndarray, np.ndarray]:
     """Greedy EIM of the entries of ``C(mu) = B(mu) Z`` (m x N) over the training
     ``B_train``: ``(result, entry rows, entry columns, T)`` with ``T[k] = Vg^T C_k``
-    (R x N; empty when no term)."""
+    (R x N; empty when no term). ``row_threshold < 1``: row-aware selection, the entries
+    grouped by their row of ``C`` (:func:`rbbench.rb.algorithms.eim.deim` ``groups``)."""
     m, N = B_train[0].shape[0], Z.shape[1]
     S = np.stack([np.asarray(B @ Z).ravel() for B in B_train], axis=1)  # (m N, P)
-    res = deim(S, tol=tol, m_max=m_max)
+    rows = {} if row_threshold >= 1.0 else {"groups": np.arange(m * N) // N,
+                                             "threshold": row_threshold}
+    res = deim(S, tol=tol, m_max=m_max, **rows)
     e_row, e_col = np.divmod(res.magic, N)
     if res.m == 0:
         return res, e_row, e_col, np.zeros((0, Vg.shape[1], N))

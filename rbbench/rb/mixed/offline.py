@@ -305,7 +305,7 @@ def _contact_eim(backend, scene: Scene, backend_name: str, options: MixedOptions
     from rbbench.hf.geometry.operators import contact_operators
     from rbbench.hf.geometry.surface import SurfaceLayout, contact_operators_3d
     from rbbench.rb.hyper.contact_eim import contact_eim, entrywise_eim_error
-    from rbbench.rb.hyper.surface_eim import build_surface_row_evaluator
+    from rbbench.rb.hyper.surface_eim import ROW_THRESHOLD, build_surface_row_evaluator
 
     if not hasattr(backend, "contact_layout"):
         raise ValueError(f"hyper 'eim': backend {backend_name!r} provides no contact layout "
@@ -328,10 +328,11 @@ def _contact_eim(backend, scene: Scene, backend_name: str, options: MixedOptions
                              "from a nonhomogeneous Dirichlet boundary")
         B_eim.append(Bfull[:, p0.free])
         G_eim.append(c.G())
+    surface = isinstance(layout, SurfaceLayout)  # 3D: row-aware magic entries
     ceim = contact_eim(layout, B_eim, np.stack(G_eim, axis=1), Z, Vg, p0.free, mus_eim,
                        tol=options.tol_eim, m_max=options.m_eim,
-                       row_evaluator=(build_surface_row_evaluator
-                                      if isinstance(layout, SurfaceLayout) else None))
+                       row_evaluator=build_surface_row_evaluator if surface else None,
+                       row_threshold=ROW_THRESHOLD if surface else 1.0)
     ceim.info["n_eim_train"] = len(mus_eim)
     # validation e_EIM of the reduced constraint (Benaceur et al.'s ratio of maxima over the set)
     num_b = den_b = num_g = den_g = 0.0

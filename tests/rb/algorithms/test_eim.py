@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from rbbench.rb.algorithms.eim import deim, eim_error, matrix_eim
 
@@ -126,3 +128,83 @@ def test_matrix_eim_tolerance_and_unseen_pattern():
     outside = smooth(1.0).tolil()
     outside[0, N_COLS - 1] = 5.0
     assert eim_error(res, [outside.tocsr()]) == pytest.approx(1.0)
+
+
+# ---------------------------------------------------------------------------
+# row-aware selection (groups, threshold)
+# ---------------------------------------------------------------------------
+def _grouped_family(seed: int, n_groups: int = 12, per: int = 6, P: int = 25) -> np.ndarray:
+    """Smooth snapshots of n_groups x per entries (a matrix C(mu) flattened by rows)."""
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(0.0, 1.0, n_groups * per)[:, None]
+    a = rng.uniform(0.5, 2.0, n_groups * per)[:, None]
+    mu = np.linspace(0.2, 2.0, P)[None, :]
+    return a * np.exp(-mu * x) * np.cos(3.0 * mu * x + a)
+
+
+def _residual(S, Q, magic, k, p):
+    """The residual of snapshot p after the first k terms, by solving the interpolation
+    system (independent of the BMNP recursion the greedy loop uses)."""
+    if k == 0:
+        return S[:, p].copy()
+    theta = np.linalg.solve(Q[magic[:k], :k], S[magic[:k], p])
+    return S[:, p] - Q[:, :k] @ theta
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), threshold=st.floats(0.05, 1.0))
+def test_row_aware_eim_interpolates_and_keeps_the_threshold(seed, threshold):
+    per = 6
+    S = _grouped_family(seed, per=per)
+    groups = np.arange(S.shape[0]) // per
+    r = deim(S, tol=1e-9, groups=groups, threshold=threshold)
+    assert r.m >= 3 and len(np.unique(r.magic)) == r.m
+    scale = np.abs(S).max()
+    # exact at the magic entries for every training snapshot
+    assert np.abs(r.approximate(S)[r.magic] - S[r.magic]).max() <= 1e-10 * scale
+    Qm = r.Q[r.magic]
+    np.testing.assert_array_equal(np.diag(Qm), 1.0)
+    np.testing.assert_array_equal(np.triu(Qm, 1), 0.0)
+    paid: set[int] = set()
+    for k in range(r.m):
+        res = _residual(S, r.Q, r.magic, k, r.picks[k])
+        i, top = r.magic[k], np.abs(res).max()
+        # the pivot is within the threshold of the largest residual entry ...
+        assert abs(res[i]) >= threshold * top * (1 - 1e-9)
+        # ... so the basis vector is bounded by 1 / threshold (the Lebesgue bound's input)
+        assert np.abs(r.Q[:, k]).max() <= (1 + 1e-9) / threshold
+        in_paid = np.isin(groups, list(paid))
+        best_paid = np.abs(res[in_paid]).max(initial=0.0)
+        if groups[i] in paid:  # the largest entry among the paid groups
+            assert abs(res[i]) == pytest.approx(best_paid, rel=1e-9)
+        else:  # a new group only when no paid entry reaches the threshold: the largest
+            assert best_paid < threshold * top * (1 + 1e-9)
+            assert abs(res[i]) == pytest.approx(top, rel=1e-9)
+        paid.add(int(groups[i]))
+
+
+def test_row_aware_eim_touches_fewer_groups_and_threshold_one_is_plain():
+    per = 6
+    S = _grouped_family(3, per=per)
+    groups = np.arange(S.shape[0]) // per
+    plain = deim(S, tol=1e-8)
+    same = deim(S, tol=1e-8, groups=groups, threshold=1.0)
+    np.testing.assert_array_equal(same.magic, plain.magic)
+    aware = deim(S, tol=1e-8, groups=groups, threshold=0.1)
+    assert aware.errors[-1] <= 1e-8
+    n_plain = np.unique(groups[plain.magic]).size
+    n_aware = np.unique(groups[aware.magic]).size
+    assert n_aware < n_plain
+    # groups paid before the first step are preferred from the start
+    pre = deim(S, tol=1e-8, groups=groups, threshold=0.1, paid=np.array([0, 1]))
+    assert groups[pre.magic[1]] in (0, 1, groups[pre.magic[0]])
+
+
+def test_row_aware_eim_refuses_bad_input():
+    S = _grouped_family(0)
+    with pytest.raises(ValueError, match="threshold"):
+        deim(S, groups=np.zeros(S.shape[0], dtype=int), threshold=0.0)
+    with pytest.raises(ValueError, match="groups"):
+        deim(S, groups=np.zeros(3, dtype=int), threshold=0.5)
+    with pytest.raises(ValueError, match="method"):
+        deim(S, groups=np.zeros(S.shape[0], dtype=int), threshold=0.5, method="deim")
