@@ -26,7 +26,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-__all__ = ["cache_dir", "dependency_digest", "drop_stale", "module_kernels",
+__all__ = ["cache_dir", "dependency_digest", "drop_stale", "is_stale", "module_kernels",
            "use_user_cache"]
 
 
@@ -58,6 +58,16 @@ def module_kernels(name: str) -> list[Any]:
     return [v for v in vars(sys.modules[name]).values()
             if getattr(getattr(v, "py_func", None), "__module__", None) == name
             and getattr(getattr(v, "_cache", None), "_cache_file", None) is not None]
+
+
+def is_stale(index: str | os.PathLike, dependency: str | os.PathLike) -> bool:
+    """Whether the file ``index`` is older than the source file ``dependency`` (kept from
+    0.1; :func:`drop_stale` compares contents instead: numba rewrites an index with every
+    new entry, so its time says nothing of its older entries)."""
+    try:
+        return os.path.getmtime(index) < os.path.getmtime(dependency)
+    except OSError:  # no index yet (nothing cached) or no source file (frozen install)
+        return False
 
 
 def dependency_digest(dependencies: Iterable[str | os.PathLike]) -> str:

@@ -51,6 +51,21 @@ def test_dependency_digest_follows_the_contents_not_the_times(tmp_path):
     assert dependency_digest([tmp_path / "missing.py"]) == dependency_digest([empty])
 
 
+def test_is_stale_compares_the_times():
+    import tempfile
+
+    from rbbench.runtime.numba_cache import is_stale
+
+    with tempfile.TemporaryDirectory() as d:
+        index, source = Path(d) / "k.nbi", Path(d) / "k.py"
+        index.write_text("")
+        source.write_text("")
+        os.utime(index, (1000, 1000))
+        os.utime(source, (2000, 2000))
+        assert is_stale(index, source) and not is_stale(source, index)
+        assert not is_stale(Path(d) / "missing.nbi", source)
+
+
 class _Cache:
     """The two numba cache internals drop_stale reads: the index path and flush()."""
 
