@@ -10,6 +10,8 @@ from rbbench.hf.components import check_names
 from rbbench.registry import default_registry
 from rbbench.scene.loading import SceneError, load_scene
 
+HAS_NETGEN = importlib.util.find_spec("netgen") is not None
+
 
 def test_3d_scene_refuses_a_backend_without_hemispheres():
     """A backend that declares its geometry kinds without 'hemispheres' is refused (a copy
@@ -28,6 +30,7 @@ def test_3d_scene_refuses_a_backend_without_hemispheres():
         check_names(scene, reg, "ngsolve", "mixed", None)
 
 
+@pytest.mark.skipif(not HAS_NETGEN, reason='Netgen not installed: pip install "rbbench[ngsolve]"')
 def test_3d_scene_takes_nitsche_and_refuses_a_formulation_needing_more(monkeypatch):
     """Nitsche needs the slave normal stress, which the 3D backends build; a formulation that
     needs the tangential operators too (Nitsche's needs widened for the test) is refused,
@@ -42,8 +45,6 @@ def test_3d_scene_takes_nitsche_and_refuses_a_formulation_needing_more(monkeypat
                                          r"formulations: 'mixed', 'nitsche'\)"):
         check_names(scene, default_registry(), "skfem", "nitsche", None)
 
-
-HAS_NETGEN = importlib.util.find_spec("netgen") is not None
 
 
 @pytest.mark.skipif(not HAS_NETGEN, reason='Netgen not installed: pip install "rbbench[ngsolve]"')
