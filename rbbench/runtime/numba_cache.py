@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
 __all__ = ["cache_dir", "dependency_digest", "drop_stale", "is_stale", "module_kernels",
-           "use_user_cache"]
+           "stale_cache_dropper", "use_user_cache"]
 
 
 def cache_dir() -> Path:
@@ -113,3 +113,13 @@ def drop_stale(kernels: Iterable[Any], dependencies: Iterable[str | os.PathLike]
         except OSError:
             pass  # a read-only cache: checked again next time
     return flushed
+
+
+def stale_cache_dropper(module: str, dependencies: Iterable[str | os.PathLike]
+                        ) -> Callable[[], bool]:
+    """The ``drop_stale_cache()`` of kernel module ``module``: :func:`drop_stale` of all its
+    cached kernels (:func:`module_kernels`) against ``dependencies``, the modules whose
+    kernels they compile in. Returns whether it flushed; a kernel module calls it once at
+    the end of its import."""
+    deps = tuple(dependencies)
+    return lambda: drop_stale(module_kernels(module), deps)

@@ -41,7 +41,7 @@ from rbbench.rb.kernels.layout import (
     float_rows,
     int_rows,
 )
-from rbbench.runtime.numba_cache import drop_stale, module_kernels, use_user_cache
+from rbbench.runtime.numba_cache import stale_cache_dropper, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 _TOL = 1e-10  # ray_cast's tolerance on the facet coordinate
@@ -282,11 +282,6 @@ def gap_values(w, gap, vals_g, pts_g, g):
 DEPENDENCIES = (layout.__file__,)
 
 
-def drop_stale_cache() -> bool:
-    """Forget the cached kernels of this module that predate one of :data:`DEPENDENCIES`
-    (:func:`rbbench.runtime.numba_cache.drop_stale`). Returns whether it flushed. Called
-    at import."""
-    return drop_stale(module_kernels(__name__), DEPENDENCIES)
-
-
+# forget this module's cached kernels made against other dependencies' contents
+drop_stale_cache = stale_cache_dropper(__name__, DEPENDENCIES)
 drop_stale_cache()

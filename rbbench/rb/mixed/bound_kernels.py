@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from rbbench.rb.kernels import layout, pairing
-from rbbench.runtime.numba_cache import drop_stale, module_kernels, use_user_cache
+from rbbench.runtime.numba_cache import stale_cache_dropper, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True)
 
@@ -281,11 +281,6 @@ def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, C
 DEPENDENCIES = (layout.__file__, pairing.__file__)
 
 
-def drop_stale_cache() -> bool:
-    """Forget the cached kernels of this module that predate one of :data:`DEPENDENCIES`
-    (:func:`rbbench.runtime.numba_cache.drop_stale`). Returns whether it flushed. Called
-    at import."""
-    return drop_stale(module_kernels(__name__), DEPENDENCIES)
-
-
+# forget this module's cached kernels made against other dependencies' contents
+drop_stale_cache = stale_cache_dropper(__name__, DEPENDENCIES)
 drop_stale_cache()

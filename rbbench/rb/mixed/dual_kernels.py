@@ -26,7 +26,7 @@ from rbbench.rb.kernels.nnls import (
     nnls_gram,
 )
 from rbbench.rb.mixed import kernels as K
-from rbbench.runtime.numba_cache import drop_stale, module_kernels, use_user_cache
+from rbbench.runtime.numba_cache import stale_cache_dropper, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
@@ -106,13 +106,6 @@ DEPENDENCIES = (K.__file__, L.__file__, pairing.__file__, surface_pairing.__file
                 nnls.__file__)
 
 
-def drop_stale_cache() -> bool:
-    """Forget the cached :func:`online_nnls` when one of :data:`DEPENDENCIES`, whose
-    functions it inlines, changed after it was cached
-    (:func:`rbbench.runtime.numba_cache.drop_stale`): after a change there alone (an
-    editable install updated) the cache would run the old code. Returns whether it
-    flushed. Called at import."""
-    return drop_stale(module_kernels(__name__), DEPENDENCIES)
-
-
+# forget this module's cached kernels made against other dependencies' contents
+drop_stale_cache = stale_cache_dropper(__name__, DEPENDENCIES)
 drop_stale_cache()

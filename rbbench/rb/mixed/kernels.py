@@ -50,7 +50,7 @@ from rbbench.rb.kernels.layout import (
 )
 from rbbench.rb.kernels.pairing import gap_values, jump_values, pair_points
 from rbbench.rb.kernels.surface_pairing import surface_magic_values
-from rbbench.runtime.numba_cache import drop_stale, module_kernels, use_user_cache
+from rbbench.runtime.numba_cache import stale_cache_dropper, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
@@ -173,11 +173,6 @@ def unscale(y, lam, qp, n, m):
 DEPENDENCIES = (layout.__file__, pairing.__file__, surface_pairing.__file__)
 
 
-def drop_stale_cache() -> bool:
-    """Forget the cached kernels of this module that predate one of :data:`DEPENDENCIES`
-    (:func:`rbbench.runtime.numba_cache.drop_stale`). Returns whether it flushed. Called
-    at import."""
-    return drop_stale(module_kernels(__name__), DEPENDENCIES)
-
-
+# forget this module's cached kernels made against other dependencies' contents
+drop_stale_cache = stale_cache_dropper(__name__, DEPENDENCIES)
 drop_stale_cache()

@@ -42,7 +42,7 @@ from numba import njit
 from rbbench.rb.kernels import layout as K
 from rbbench.rb.kernels import nnls as NN
 from rbbench.rb.kernels import pairing as KP
-from rbbench.runtime.numba_cache import drop_stale, module_kernels, use_user_cache
+from rbbench.runtime.numba_cache import stale_cache_dropper, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
@@ -325,12 +325,6 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
 DEPENDENCIES = (K.__file__, KP.__file__, NN.__file__)
 
 
-def drop_stale_cache() -> bool:
-    """Forget the cached kernels of this module when one of :data:`DEPENDENCIES`, whose
-    functions they compile in, changed since they were cached
-    (:func:`rbbench.runtime.numba_cache.drop_stale`). Returns whether it flushed. Called
-    at import."""
-    return drop_stale(module_kernels(__name__), DEPENDENCIES)
-
-
+# forget this module's cached kernels made against other dependencies' contents
+drop_stale_cache = stale_cache_dropper(__name__, DEPENDENCIES)
 drop_stale_cache()
