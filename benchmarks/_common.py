@@ -114,6 +114,19 @@ def reduced_case(case: str, cache_dir: str, **changes) -> dict:
     return {"model": res.model, "mu": sc.default_mu, "summary": summary}
 
 
+def online_median_s(model, mu, repeats: int, method: str, case: str) -> float:
+    """Median (s) of ``repeats`` online solves of ``model`` at ``mu``
+    (:func:`rbbench.rb.online.timed_online_solves`, protocol ``ONLINE_PROTOCOL``); raise
+    (a failing benchmark) when a solve did not converge."""
+    from rbbench.rb.online import timed_online_solves
+
+    run = timed_online_solves(model, [mu], repeats, method=method)
+    bad = {s.stop_reason for sols in run.per_mu for s in sols} - {"converged"}
+    if bad:
+        raise RuntimeError(f"{case}: online solve stopped: {sorted(bad)}")
+    return run.summary()["t_online_median_s"]
+
+
 def finite(value, what: str) -> float:
     """``float(value)``, or raise (a failing benchmark) when it is None or not finite."""
     if value is None or not math.isfinite(float(value)):

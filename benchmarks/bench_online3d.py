@@ -10,7 +10,7 @@ does not depend on the HF size.
 
 import tempfile
 
-from ._common import SPHERE_CASES, TIMEOUT, reduced_case
+from ._common import SPHERE_CASES, TIMEOUT, online_median_s, reduced_case
 
 #: timed solves per online benchmark (the protocol's ``repeats`` at one mu)
 REPEATS = 200
@@ -49,12 +49,6 @@ class OnlineSolve3D:
         """Median (s) of :data:`REPEATS` online solves at the default mu, protocol
         ``ONLINE_PROTOCOL`` (warm-up solve excluded, one BLAS thread, garbage collector
         paused)."""
-        from rbbench.rb.online import timed_online_solves
-
-        run = timed_online_solves(self.model, [self.mu], REPEATS, method=method)
-        bad = {s.stop_reason for sols in run.per_mu for s in sols} - {"converged"}
-        if bad:
-            raise RuntimeError(f"{case}: online solve stopped: {sorted(bad)}")
-        return run.summary()["t_online_median_s"]
+        return online_median_s(self.model, self.mu, REPEATS, method, case)
 
     track_online_median_s.unit = "seconds"
