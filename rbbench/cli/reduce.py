@@ -128,12 +128,14 @@ def cmd_online_scaling(args: argparse.Namespace) -> int:
     try:
         rows = online_scaling(args.scene, make_config(**reduce_fields(args)),
                               tuple(args.levels), tuple(args.set or ()), repeats=args.repeats,
-                              progress=_Progress(args.quiet))
+                              progress=_Progress(args.quiet), baseline=args.baseline,
+                              baseline_overrides=tuple(args.baseline_set or ()))
     except (OptionError, FieldError) as exc:
         raise _flagged(exc) from None
     print(scaling_markdown(rows))
     print("(online time: one reduced solve incl. the EIM evaluation; median and IQR over "
-          "validation mus x repeats, models interleaved; ratio: median / first level's)")
+          "validation mus x repeats, models interleaved; ratios: median / the first level's "
+          "and / the baseline scene's)")
     return 0
 
 
@@ -287,6 +289,12 @@ def _add_online_scaling_parser(sub) -> None:
     osc.add_argument("--repeats", type=int, default=30,
                      help="online solves of every validation parameter per level, the "
                           "levels interleaved")
+    osc.add_argument("--baseline", default=None, metavar="SCENE",
+                     help="also reduce SCENE with the same flags and time it in the same loop "
+                          "(e.g. the 2D counterpart of a 3D scene); its row comes first")
+    osc.add_argument("--baseline-set", action="append", default=None,
+                     metavar="SECTION.KEY=VALUE", help="override a value of the baseline scene "
+                                                       "(repeatable)")
     osc.add_argument("--quiet", action="store_true", default=False, help="no progress lines")
     osc.set_defaults(func=cmd_online_scaling, hyper="eim")
     state_defaults(osc)

@@ -15,24 +15,32 @@ __all__ = ["online_scaling", "scaling_markdown"]
 
 
 def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int = 30,
-                   progress=print) -> list[dict]:
+                   progress=print, baseline: str | None = None,
+                   baseline_overrides=()) -> list[dict]:
     """Online time of the same reduction at several mesh levels, timed side by side.
 
-    One reduced model is built per ``discretization.level``; then every model
+    One reduced model is built per ``discretization.level`` (and, with ``baseline``, one
+    more of that scene with ``baseline_overrides``, built with the same configuration: e.g.
+    the 2D counterpart of a 3D scene, timed in the same loop); then every model
     solves every validation mu ``repeats`` times under the online-time protocol
     (:func:`rbbench.rb.online.timed_online_solves`: one untimed warm-up solve per model, one
     BLAS thread, garbage collector paused), the models interleaved in each round so that
     machine load hits them alike. Reports per level the HF size, the reduced sizes, the
-    median and inter-quartile range of the online time (s), its ratio to the first level,
-    the online path that ran (``compiled`` or ``python``), the online method that ran
+    median and inter-quartile range of the online time (s), its ratio to the first level
+    (``ratio_to_first``) and to the baseline's (``ratio_to_baseline``, with ``baseline``;
+    the baseline's own row comes first, ``level`` None), the online path that ran
+    (``compiled`` or ``python``), the online method that ran
     (``online_method``; ``auto`` resolved) and the protocol's name (``online_protocol``).
     """
     from rbbench.rb.offline import reduce
 
+    cases = ([(None, load_scene(baseline, list(baseline_overrides)))] if baseline is not None
+             else [])
+    cases += [(level, load_scene(scene, [*overrides, f"discretization.level={level}"]))
+              for level in levels]  # every scene is loaded (and checked) before any offline
     results = []
-    for level in levels:
-        sc = load_scene(scene, [*overrides, f"discretization.level={level}"])
-        progress(f"level {level}: offline")
+    for level, sc in cases:
+        progress(f"{sc.name} level {level if level is not None else 'default'}: offline")
         res = reduce(sc, config)
         if res.hyper == "none":
             raise ValueError(f"hyper {res.hyper!r} builds no HF-independent model; use 'eim' "
@@ -47,15 +55,19 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                 timed[k].extend(timed_online_solves(res.model, res.valid_mus, 1,
                                                     warm_up=False))
     rows = []
-    base = float(np.median(timed[0].times))
-    for level, res, t in zip(levels, results, timed, strict=True):
+    medians = [float(np.median(t.times)) for t in timed]
+    first = medians[1] if baseline is not None else medians[0]
+    for (level, sc), res, t in zip(cases, results, timed, strict=True):
         s, on = res.summary(), t.summary()
-        rows.append({"level": level, "n_hf_dofs": s["n_hf_dofs"], "n_contact": s["n_contact"],
+        rows.append({"scene": sc.name, "level": level, "n_hf_dofs": s["n_hf_dofs"],
+                     "n_contact": s["n_contact"],
                      "N": s["N"], "K_pga": s["K_pga"], "R": s["R"], "M_eim": s["M_eim"],
                      "err_u_max": s["err_u_max"], "err_lam_max": s["err_lam_max"],
                      "t_online_median_s": on["t_online_median_s"],
                      "t_online_iqr_s": on["t_online_iqr_s"],
-                     "ratio_to_first": on["t_online_median_s"] / base,
+                     "ratio_to_first": on["t_online_median_s"] / first,
+                     "ratio_to_baseline": (on["t_online_median_s"] / medians[0]
+                                           if baseline is not None else None),
                      "t_hf_median_s": s["t_hf_median_s"], "floor_s": s["floor_s"],
                      "online_method": on["online_method"], "online_path": on["online_path"],
                      "online_protocol": ONLINE_PROTOCOL})
@@ -65,14 +77,19 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
 def scaling_markdown(rows: list[dict]) -> str:
     """The rows of :func:`online_scaling` as a Markdown table (online times in us), followed
     by the name of the online-time protocol."""
-    head = ("level", "HF dofs", "contact rows", "N + K", "R", "EIM rows", "err u max",
-            "err lam max", "online median (us)", "IQR (us)", "ratio", "HF median (s)",
-            "HF floor (s)", "online method", "online path")
+    with_base = any(r.get("ratio_to_baseline") is not None for r in rows)
+    head = ("scene", "level", "HF dofs", "contact rows", "N + K", "R", "EIM rows", "err u max",
+            "err lam max", "online median (us)", "IQR (us)", "ratio to first level",
+            *(("ratio to baseline",) if with_base else ()), "HF median (s)", "HF floor (s)",
+            "online method", "online path")
     table = markdown_table(head, (
-        (r["level"], r["n_hf_dofs"], r["n_contact"], f"{r['N']} + {r['K_pga']}", r["R"],
+        (r.get("scene", ""), "baseline" if r["level"] is None else r["level"], r["n_hf_dofs"],
+         r["n_contact"], f"{r['N']} + {r['K_pga']}", r["R"],
          r["M_eim"], f"{r['err_u_max']:.2e}", f"{r['err_lam_max']:.2e}",
          f"{1e6 * r['t_online_median_s']:.1f}", f"{1e6 * r['t_online_iqr_s']:.1f}",
-         f"{r['ratio_to_first']:.2f}", f"{r['t_hf_median_s']:.2f}",
+         f"{r['ratio_to_first']:.2f}",
+         *((f"{r['ratio_to_baseline']:.2f}",) if with_base else ()),
+         f"{r['t_hf_median_s']:.2f}",
          "" if r.get("floor_s") is None else f"{r['floor_s']:.3f}", r["online_method"],
          r["online_path"])
         for r in rows))

@@ -192,3 +192,21 @@ def test_online_scaling_study_runs_on_two_levels(tmp_path, monkeypatch):
     assert all(r["floor_s"] > 0 for r in rows)
     text = scaling_markdown(rows)
     assert "| 1 |" in text and ONLINE_PROTOCOL in text
+
+
+def test_online_scaling_times_a_baseline_scene_in_the_same_loop(tmp_path, monkeypatch):
+    from rbbench.studies.scaling import online_scaling, scaling_markdown
+
+    monkeypatch.chdir(tmp_path)
+    cfg = make_config(dual="mcpg", stabilizer="none", hyper="eim", N=4, R=4, n_train=5,
+                       n_valid=2, n_jobs=1, cache_dir=str(tmp_path), online_repeats=1)
+    rows = online_scaling("hertz_halfdisks", cfg, levels=(1,), overrides=COARSE, repeats=2,
+                          progress=lambda _m: None, baseline="hertz_halfdisks",
+                          baseline_overrides=(*COARSE, "discretization.level=0"))
+    assert [r["level"] for r in rows] == [None, 1]
+    assert rows[0]["n_hf_dofs"] < rows[1]["n_hf_dofs"]
+    assert rows[0]["ratio_to_baseline"] == 1.0 and rows[1]["ratio_to_first"] == 1.0
+    assert rows[1]["ratio_to_baseline"] == (rows[1]["t_online_median_s"]
+                                            / rows[0]["t_online_median_s"])
+    text = scaling_markdown(rows)
+    assert "ratio to baseline" in text and "| baseline |" in text
