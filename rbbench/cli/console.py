@@ -190,6 +190,11 @@ def _print_hertz(m: dict, units: dict) -> None:
         print(f"    profile fit p^2 = p0^2 (1 - r^2/a^2): a rel. error "
               f"{100 * h['profile_fit_a_rel_error']:+.2f} %, p0 rel. error "
               f"{100 * h['profile_fit_p0_rel_error']:+.2f} %")
+    if "peak_patch_p0" in h:
+        print(f"    p0 over the peak support = "
+              f"{_valued('max_pressure', h['peak_patch_p0'], units)}  rel. error "
+              f"{100 * h['peak_patch_rel_error']:+.2f} % (patch mean vs pointwise p0: "
+              f"{100 * h['peak_patch_averaging']:+.2f} %)")
 
 
 def _print_mindlin(b: dict | None, units: dict) -> None:

@@ -23,6 +23,9 @@ from rbbench.interfaces import NitscheProblem
 #: (the 2D one, :data:`rbbench.hf.metrics.ACTIVE_THRESHOLD`).
 ACTIVE_THRESHOLD = 1e-8
 
+#: Multiplier spaces whose basis functions are support indicators (a value is a patch mean).
+PIECEWISE_CONSTANT = ("lac", "p0")
+
 #: The unit of each dimensional number of a 3D summary (SI; whole bodies).
 SI_UNITS_3D = {"contact_force": "N", "energy": "J", "max_pressure": "Pa",
                "contact_radius": "m", "contact_radius_max": "m", "contact_radius_gap": "m",
@@ -101,6 +104,8 @@ def contact_metrics_3d(sol: Any) -> dict[str, Any]:
     if sol.scene.data["reference"]["hertz"] and force > 0:
         m["hertz"] = _hertz_block(m, hertz3d_of_bodies(force, geo, disc.bodies).as_dict())
         m["hertz"].update(_profile_fit(c, lam, active, m["hertz"]))
+        if c.multiplier in PIECEWISE_CONSTANT:
+            m["hertz"].update(_peak_patch(c, lam, m["hertz"]))
     m["units"] = dict(SI_UNITS_3D)
     if extra:
         m["units"]["max_pressure_quadrature"] = "Pa"
@@ -152,6 +157,31 @@ def hertz_profile_fit(r: np.ndarray, p: np.ndarray) -> tuple[float, float]:
     if c0 <= 0 or c1 >= 0:
         return math.nan, math.nan
     return math.sqrt(-c0 / c1), math.sqrt(c0)
+
+
+def hertz_patch_average(M: Any, weights: np.ndarray, r: np.ndarray, a: float,
+                        p0: float) -> np.ndarray:
+    """The 3D Hertz pressure ``p0 sqrt(1 - r^2 / a^2)`` (Johnson 1985, eq. 4.22) averaged
+    over each multiplier's support with the contact quadrature:
+    ``sum_q M_qi w_q p(r_q) / sum_q M_qi w_q`` (Pa), the quantity a piecewise-constant
+    (LAC / P0) multiplier approximates (``b(v, eta) = int v_n eta`` tests the pressure
+    with the support's indicator). ``M`` (n_q x n_mult): the multiplier basis at the
+    points, ``weights`` their area weights, ``r`` their distances to the axis."""
+    r = np.asarray(r, float)
+    p = p0 * np.sqrt(np.clip(1.0 - (r / a) ** 2, 0.0, None))
+    area = np.asarray(M.T @ weights).ravel()
+    return np.asarray(M.T @ (weights * p)).ravel() / area
+
+
+def _peak_patch(c: Any, lam: np.ndarray, h: dict) -> dict[str, float]:
+    """The largest multiplier against :func:`hertz_patch_average` on its own support (like
+    with like: no averaging bias), and that average against the pointwise p0."""
+    i = int(np.argmax(lam))
+    ph = float(hertz_patch_average(c.Mlam[:, [i]], c.weights, np.hypot(c.points[:, 0],
+                                   c.points[:, 1]), h["a"], h["p0"])[0])
+    return {"peak_patch_p0": ph,
+            "peak_patch_rel_error": (float(lam[i]) - ph) / ph if ph > 0 else math.nan,
+            "peak_patch_averaging": (ph - h["p0"]) / h["p0"]}
 
 
 def _profile_fit(c: Any, lam: np.ndarray, active: np.ndarray, h: dict) -> dict[str, float]:
@@ -208,7 +238,13 @@ DEFINITIONS_3D = {
              "a = (3 P R* / (4 E*))^(1/3), p0 = 3 P / (2 pi a^2), signed relative errors "
              "of contact_radius, contact_radius_gap and max_pressure; profile_fit_a and "
              "profile_fit_p0: the least-squares fit of p^2 = p0^2 (1 - r^2 / a^2) to the "
-             "active multipliers at their supports' centroids",
+             "active multipliers at their supports' centroids; LAC / P0 multipliers only: "
+             "peak_patch_p0, the Hertz pressure averaged (contact quadrature) over the "
+             "support of the largest multiplier (Pa), peak_patch_rel_error = (max_pressure "
+             "- peak_patch_p0) / peak_patch_p0 (like with like: the multiplier is a patch "
+             "mean), and peak_patch_averaging = (peak_patch_p0 - p0) / p0 (the bias of "
+             "comparing a patch mean with the pointwise peak); 1 + p0_rel_error = (1 + "
+             "peak_patch_rel_error) (1 + peak_patch_averaging)",
     "final_residual": "relative natural residual of the condensed LCP at the last iterate "
                       "(Nitsche: relative Newton residual)",
     "e_ac": "Nitsche only: relative Alart-Curnier residual (Benaceur et al.) "
