@@ -130,9 +130,11 @@ def _trace_axes(lay: Any, n_hat: np.ndarray, x_hat: np.ndarray | None) -> np.nda
     direction in which the line moves with mu (the slave map is affine in mu, so the line's
     trace on the plane normal to ``n_hat[q]`` is straight), or any normal axis where it
     does not move. Candidates sorted by ``e_q . centroid`` are searched by bisection
-    online: ``|e_q . (centroid - x)|`` is at most the distance from the centroid to the
-    line, so every triangle the reference's bounding-sphere test keeps lies in the range
-    searched (:func:`rbbench.rb.kernels.surface_pairing.pair_surface_points`)."""
+    online, in the master's reference frame (the point ``y``, the line still along
+    ``n_hat[q]``): ``|e_q . (centroid - y)|`` is at most the distance from the centroid to
+    the line, so every triangle the reference's bounding-sphere test keeps lies in the range
+    searched, whatever the axis normal to the line
+    (:func:`rbbench.rb.kernels.surface_pairing.pair_surface_points`)."""
     sl = lay.slave
     x = reference_surface_points(lay)[0] if x_hat is None else x_hat
     scale, shift = np.asarray(sl.map.scale, float), np.asarray(sl.map.shift, float)
