@@ -12,8 +12,9 @@ Moller & Trumbore ("Fast, minimum storage ray-triangle intersection", J. Graphic
 :func:`surface_magic_values` both steps and the magic rows of ``G(mu)``. Under the
 similarity maps ``x = s(mu) x_hat + c(mu)`` of the bodies, the slave points, normals and
 weights are ``s x_hat + c``, ``sign(s) n_hat`` and ``s^2 w_hat`` (tabulated once on the
-reference surface); only the window's master vertices are mapped per mu, never the mesh.
-The formulas are the reference's, written per point; only the summation order differs
+reference surface); the master surface is never mapped: each line is cast in the master's
+reference frame, on triangles tabulated once. The formulas are the reference's, written
+per point; only the summation order and the frame of the ray-triangle test differ
 (round-off). The module imports numba at the top: import it only when numba is installed.
 """
 
@@ -27,10 +28,9 @@ from rbbench.rb.kernels.layout import (
     COLS_B,
     DIMS,
     M_DOFS,
+    M_GEO,
     M_SCALE,
     M_SHIFT,
-    M_TRI,
-    M_V,
     N_HAT,
     NO_HIT,
     OK,
@@ -58,9 +58,9 @@ from rbbench.runtime.numba_cache import stale_cache_dropper, use_user_cache
 
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
-#: the reference's barycentric tolerance (a line through an edge hits) and its test of a
-#: degenerate determinant (:func:`rbbench.hf.geometry.surface.ray_cast_pairs`)
-_TOL, _DET = 1e-9, 1e-12
+#: the reference's barycentric tolerance (a line through an edge hits,
+#: :func:`rbbench.hf.geometry.surface.ray_cast_pairs`)
+_TOL = 1e-9
 
 
 @njit(cache=True)
@@ -93,64 +93,31 @@ def _tri_shape(l0, l1, l2, degree, out, q):
 
 
 @njit(cache=True)
-def _window_triangles(th, fb, ib, meta):
-    """The window's master triangles at ``th``, one row each: ``[v0 (3), e1 = v1 - v0 (3),
-    e2 = v2 - v0 (3), 1e-12 |e1| |e2|, centroid (3), bounding radius with its slack]``
-    (the reference's, :class:`rbbench.hf.geometry.surface._Nearest`): only the window's
-    vertices ``m_v`` are mapped, once per call."""
-    sm, cm = _map3(th, flat_floats(fb, meta, M_SCALE), flat_floats(fb, meta, M_SHIFT))
-    mvh, tri = float_rows(fb, meta, M_V), int_rows(ib, meta, M_TRI)
-    nv, nt = mvh.shape[0], tri.shape[0]
-    mv = np.empty((nv, 3))
-    for i in range(nv):
-        for d in range(3):
-            mv[i, d] = sm * mvh[i, d] + cm[d]
-    out = np.empty((nt, 14))
-    rad_max = 0.0
-    for j in range(nt):
-        a, b, c = tri[j, 0], tri[j, 1], tri[j, 2]
-        r2 = 0.0
-        for d in range(3):
-            out[j, d] = mv[a, d]
-            out[j, 3 + d] = mv[b, d] - mv[a, d]
-            out[j, 6 + d] = mv[c, d] - mv[a, d]
-            out[j, 10 + d] = (mv[a, d] + mv[b, d] + mv[c, d]) / 3.0
-        for v in (a, b, c):
-            dv = 0.0
-            for d in range(3):
-                dv += (mv[v, d] - out[j, 10 + d]) ** 2
-            r2 = max(r2, dv)
-        out[j, 13] = np.sqrt(r2)
-        rad_max = max(rad_max, out[j, 13])
-        n1 = np.sqrt(out[j, 3] ** 2 + out[j, 4] ** 2 + out[j, 5] ** 2)
-        n2 = np.sqrt(out[j, 6] ** 2 + out[j, 7] ** 2 + out[j, 8] ** 2)
-        out[j, 9] = _DET * n1 * n2
-    for j in range(nt):
-        out[j, 13] = out[j, 13] * (1.0 + 1e-6) + 1e-12 * rad_max
-    return out
-
-
-@njit(cache=True)
-def _cast(x0, x1, x2, n0, n1, n2, T, j):
-    """The line ``x + t n`` against window triangle ``j`` (row ``j`` of ``T``,
-    :func:`_window_triangles`): ``(ok, u, v, t)`` with ``x + t n = v0 + u e1 + v e2``. A
-    line missing the triangle's bounding sphere is skipped first, as the reference does;
-    then the Moller-Trumbore test with the reference's operations in its order
-    (:func:`rbbench.hf.geometry.surface._moller_trumbore`)."""
-    r0, r1, r2 = T[j, 10] - x0, T[j, 11] - x1, T[j, 12] - x2
+def _cast(y0, y1, y2, n0, n1, n2, geo, j):
+    """The line ``y + t n`` against window triangle ``j`` in the master's reference frame
+    (row ``j`` of ``geo``: ``[v0, e1 = v1 - v0, e2 = v2 - v0, 1e-12 |e1| |e2|, centroid,
+    bounding radius with the reference's slack]``, tabulated offline,
+    :func:`rbbench.rb.kernels.surface_plan.surface_master_plan`): ``(ok, u, v, t)`` with
+    ``y + t n = v0 + u e1 + v e2``. A line missing the triangle's bounding sphere is skipped
+    first, as the reference does; then the Moller-Trumbore test with the reference's
+    operations in its order (:func:`rbbench.hf.geometry.surface._moller_trumbore`). Under
+    the master map ``x = s_m y + c_m`` the physical line ``x + t' n`` is ``y + (t' / s_m)
+    n``: the same barycentric coordinates, ``t' = s_m t``, and the tests are relative (the
+    slack and the determinant's threshold scale with the triangle)."""
+    r0, r1, r2 = geo[j, 10] - y0, geo[j, 11] - y1, geo[j, 12] - y2
     c0, c1, c2 = r1 * n2 - r2 * n1, r2 * n0 - r0 * n2, r0 * n1 - r1 * n0
-    if c0 * c0 + c1 * c1 + c2 * c2 > T[j, 13] * T[j, 13]:
+    if c0 * c0 + c1 * c1 + c2 * c2 > geo[j, 13] * geo[j, 13]:
         return False, 0.0, 0.0, 0.0
-    e10, e11, e12 = T[j, 3], T[j, 4], T[j, 5]
-    e20, e21, e22 = T[j, 6], T[j, 7], T[j, 8]
+    e10, e11, e12 = geo[j, 3], geo[j, 4], geo[j, 5]
+    e20, e21, e22 = geo[j, 6], geo[j, 7], geo[j, 8]
     p0 = n1 * e22 - n2 * e21  # p = n x e2
     p1 = n2 * e20 - n0 * e22
     p2 = n0 * e21 - n1 * e20
     det = e10 * p0 + e11 * p1 + e12 * p2
-    if not abs(det) > T[j, 9]:
+    if not abs(det) > geo[j, 9]:
         return False, 0.0, 0.0, 0.0
     inv = 1.0 / det
-    s0, s1, s2 = x0 - T[j, 0], x1 - T[j, 1], x2 - T[j, 2]
+    s0, s1, s2 = y0 - geo[j, 0], y1 - geo[j, 1], y2 - geo[j, 2]
     q0 = s1 * e12 - s2 * e11  # q = s x e1
     q1 = s2 * e10 - s0 * e12
     q2 = s0 * e11 - s1 * e10
@@ -176,27 +143,27 @@ def _first_at_least(key, first, last, value):
 
 @njit(cache=True)
 def pair_surface_points(th, fb, ib, meta, w, gap, mphi, mtri):
-    """The pairing at ``th = [1, mu]`` of the plan's slave points: weights ``w``, gaps
-    ``gap``, master shape values ``mphi`` (row per point) and master triangles ``mtri``
-    (into the plan's window triangles ``m_tri``; -1 for the rigid plane), written in place.
-    Returns ``(status, s)``, ``s`` the slave map's scale (the normals are ``sign(s)
-    n_hat``).
+    """The pairing at ``th = [1, mu]`` of the plan's slave points: weights ``w``, gaps ``gap``,
+    master shape values ``mphi`` (row per point) and master triangles ``mtri`` (into the
+    plan's window triangles ``m_tri``; -1 for the rigid plane), written in place. Returns
+    ``(status, s)``, ``s`` the slave map's scale (the normals are ``sign(s) n_hat``).
 
     Per point, the line along its normal is cast on the candidate triangles of its window
     (``w_tri[w_ptr[q]:w_ptr[q + 1]]``, sorted by the key ``e_q . centroid_hat`` along an
     axis ``e_q`` normal to the line,
-    :func:`rbbench.rb.kernels.surface_plan.surface_master_plan`)
-    whose mapped key ``sm key + e_q . cm`` lies within the largest bounding radius of the
-    point's candidates (``w_axis[q, 3]``, mapped, with the reference's slack) of
-    ``e_q . x``: found by bisection, a superset of the triangles the reference's
+    :func:`rbbench.rb.kernels.surface_plan.surface_master_plan`) whose key lies within the
+    largest bounding radius of the point's candidates (``w_axis[q, 3]``, with the
+    reference's slack) of ``e_q . y`` (``y = (x - c_m) / s_m``, the point in the master's
+    reference frame): found by bisection, a superset of the triangles the reference's
     bounding-sphere test keeps, and a few per point whatever the mesh size (the window of a
     point is a band along its trace; the key range cuts the band across). Of the hits, the
     smallest ``|t|``, on ties the first in the reference's order (``rank``); its clipped,
-    renormalised barycentric coordinates give the master shape values. The window's
-    triangles are mapped once per call (:func:`_window_triangles`). The rigid plane ``z =
-    0``: ``gap = -x_z / n_z``. ``NO_HIT`` when a point hits no candidate (it left its
-    window), meets the plane at a grazing angle, or the slave map is degenerate: the
-    reference then decides."""
+    renormalised barycentric coordinates give the master shape values. The lines are cast in
+    the master's reference frame on triangles tabulated offline (``m_geo``, :func:`_cast`):
+    nothing is mapped per window triangle, so the work per point does not grow with the
+    window (which grows with the mesh level). The rigid plane ``z = 0``: ``gap = -x_z /
+    n_z``. ``NO_HIT`` when a point hits no candidate (it left its window), meets the plane
+    at a grazing angle, or a body's map is degenerate: the reference then decides."""
     xh, nh = float_rows(fb, meta, X_HAT), float_rows(fb, meta, N_HAT)
     wh = flat_floats(fb, meta, W_HAT)
     dims = flat_ints(ib, meta, DIMS)
@@ -216,32 +183,28 @@ def pair_surface_points(th, fb, ib, meta, w, gap, mphi, mtri):
             gap[q] = g
             mtri[q] = -1
         return OK, s
-    T = _window_triangles(th, fb, ib, meta)
-    r_all = 0.0  # the largest bounding radius (the reference's slack has 1e-12 of it)
-    for j in range(T.shape[0]):
-        r_all = max(r_all, T[j, 13])
     sm, cm = _map3(th, flat_floats(fb, meta, M_SCALE), flat_floats(fb, meta, M_SHIFT))
+    if not (sm != 0.0 and np.isfinite(sm)):  # a degenerate master map: the reference decides
+        return NO_HIT, s
     ptr, cand = flat_ints(ib, meta, W_PTR), int_rows(ib, meta, W_TRI)
     axis, key = float_rows(fb, meta, W_AXIS), flat_floats(fb, meta, W_KEY)
+    geo = float_rows(fb, meta, M_GEO)
     for q in range(nq):
-        x0, x1, x2 = s * xh[q, 0] + c[0], s * xh[q, 1] + c[1], s * xh[q, 2] + c[2]
+        # the point in the master's reference frame: y = (x - c_m) / s_m
+        y0 = (s * xh[q, 0] + c[0] - cm[0]) / sm
+        y1 = (s * xh[q, 1] + c[1] - cm[1]) / sm
+        y2 = (s * xh[q, 2] + c[2] - cm[2]) / sm
         n0, n1, n2 = sign * nh[q, 0], sign * nh[q, 1], sign * nh[q, 2]
-        first, last = ptr[q], ptr[q + 1]
-        if sm != 0.0:  # the candidates whose key can pass the bounding-sphere test
-            half = 1.001 * (abs(sm) * axis[q, 3] * (1.0 + 1e-6) + 1e-12 * r_all)
-            a = axis[q, 0] * (x0 - cm[0]) + axis[q, 1] * (x1 - cm[1]) + axis[q, 2] * (x2 - cm[2])
-            lo, hi = (a - half) / sm, (a + half) / sm
-            if sm < 0:
-                lo, hi = hi, lo
-            first = _first_at_least(key, first, last, lo)
-        else:
-            hi = np.inf
+        # the candidates whose key can pass the bounding-sphere test
+        a = axis[q, 0] * y0 + axis[q, 1] * y1 + axis[q, 2] * y2
+        half = 1.001 * axis[q, 3]
+        last, hi = ptr[q + 1], a + half
         best, bj, bu, bv, bt, br = np.inf, -1, 0.0, 0.0, np.nan, 0
-        for k in range(first, last):
+        for k in range(_first_at_least(key, ptr[q], last, a - half), last):
             if key[k] > hi:
                 break
             j = cand[k, 0]
-            ok, u, v, t = _cast(x0, x1, x2, n0, n1, n2, T, j)
+            ok, u, v, t = _cast(y0, y1, y2, n0, n1, n2, geo, j)
             if ok and (abs(t) < best or (abs(t) == best and cand[k, 1] < br)):
                 best, bj, bu, bv, bt, br = abs(t), j, u, v, t, cand[k, 1]
         if bj < 0:
@@ -249,7 +212,7 @@ def pair_surface_points(th, fb, ib, meta, w, gap, mphi, mtri):
         l0, l1, l2 = max(1.0 - bu - bv, 0.0), max(bu, 0.0), max(bv, 0.0)
         tot = max(l0 + l1 + l2, 1e-300)
         _tri_shape(l0 / tot, l1 / tot, l2 / tot, dims[0], mphi, q)
-        mtri[q], gap[q] = bj, bt
+        mtri[q], gap[q] = bj, sm * bt
     return OK, s
 
 

@@ -68,14 +68,14 @@ def surface_slave_terms(lay: Any, Z_loc: np.ndarray, cols: np.ndarray, sphi: np.
 
 def surface_master_plan(ev: Any, Z_loc: np.ndarray, x_hat: np.ndarray | None = None,
                         n_hat: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """The master window of ``ev`` (a
-    :class:`~rbbench.rb.hyper.surface_eim.SurfaceRowEvaluator`): reference vertices
-    ``m_v`` (the window triangles' vertices only), triangles ``m_tri`` into them, each
-    point's candidates as rows ``w_tri[w_ptr[q]:w_ptr[q + 1]]`` of ``[triangle, rank]``
-    (``rank``: the position in the order the reference tests them, which breaks ties
-    alike), sorted by ``w_key = e_q . centroid`` along the axis ``e_q``
-    (:func:`_trace_axes`; ``w_axis[q] = [e_q, the largest bounding radius of q's
-    candidates]``), ``Z^T`` on the window's master dofs (``zt_m``) and ``m_dofs``
+    """The master window of ``ev`` (a :class:`~rbbench.rb.hyper.surface_eim.SurfaceRowEvaluator`):
+    reference vertices ``m_v`` (the window triangles' vertices only), triangles ``m_tri``
+    into them, each point's candidates as rows ``w_tri[w_ptr[q]:w_ptr[q + 1]]`` of
+    ``[triangle, rank]`` (``rank``: the position in the order the reference tests them,
+    which breaks ties alike), sorted by ``w_key = e_q . centroid`` along the axis ``e_q``
+    (:func:`_trace_axes`; ``w_axis[q] = [e_q, the largest bounding radius of q's candidates,
+    with the reference's slack]``), the window triangles in the reference frame (``m_geo``,
+    :func:`_triangle_rows`), ``Z^T`` on the window's master dofs (``zt_m``) and ``m_dofs``
     (triangle, node x component) numbered into it. ``x_hat``, ``n_hat``: the reference
     points (:func:`reference_surface_points`, computed when not given). A rigid plane:
     one-entry placeholders."""
@@ -87,7 +87,7 @@ def surface_master_plan(ev: Any, Z_loc: np.ndarray, x_hat: np.ndarray | None = N
                 "m_tri": np.zeros((1, 3), dtype=np.int64),
                 "w_ptr": np.zeros(2, dtype=np.int64),
                 "w_tri": np.zeros((1, 2), dtype=np.int64), "w_axis": np.zeros((1, 4)),
-                "w_key": np.zeros(1)}
+                "w_key": np.zeros(1), "m_geo": np.zeros((1, 14))}
     pi, ti = (np.asarray(a, dtype=np.int64) for a in ev.windows)
     rank = np.arange(pi.size)  # the reference's order of the pairs (its ties)
     axis = _trace_axes(ev.layout, n_hat if n_hat is not None
@@ -96,8 +96,9 @@ def surface_master_plan(ev: Any, Z_loc: np.ndarray, x_hat: np.ndarray | None = N
     cen = corners.mean(axis=1)
     rad = np.sqrt(((corners - cen[:, None]) ** 2).sum(axis=2).max(axis=1))
     key = np.einsum("kd,kd->k", axis[pi], cen[ti])
+    slack = rad * (1.0 + 1e-6) + 1e-12 * rad.max()  # the reference's (surface._Nearest)
     r_max = np.zeros(ev.Mrows.shape[1])
-    np.maximum.at(r_max, pi, rad[ti])
+    np.maximum.at(r_max, pi, slack[ti])
     order = np.lexsort((key, pi))  # by point, then by the key along its axis
     nq = ev.Mrows.shape[1]
     ptr = np.concatenate([[0], np.cumsum(np.bincount(pi, minlength=nq))])
@@ -105,6 +106,7 @@ def surface_master_plan(ev: Any, Z_loc: np.ndarray, x_hat: np.ndarray | None = N
     dofs = ms.dofs[ms.triangles].reshape(ms.n_tri, -1)  # (tri, nodes x 3)
     used, m_dofs = np.unique(dofs, return_inverse=True)
     return {"m_v": ms.points[verts], "m_tri": inv.reshape(-1, 3).astype(np.int64),
+            "m_geo": _triangle_rows(corners, cen, slack),
             "w_ptr": ptr.astype(np.int64),
             "w_tri": np.stack([ti[order], rank[order]], axis=1),
             "w_axis": np.column_stack([axis, r_max]), "w_key": key[order],
@@ -112,14 +114,27 @@ def surface_master_plan(ev: Any, Z_loc: np.ndarray, x_hat: np.ndarray | None = N
             "m_dofs": m_dofs.reshape(dofs.shape).astype(np.int64)}
 
 
+def _triangle_rows(corners: np.ndarray, cen: np.ndarray, slack: np.ndarray) -> np.ndarray:
+    """Rows ``[v0, e1 = v1 - v0, e2 = v2 - v0, 1e-12 |e1| |e2|, centroid, bounding radius
+    with slack]`` of triangles ``corners`` (T, 3, 3) on the reference surface: what the
+    ray-triangle test of :func:`rbbench.rb.kernels.surface_pairing.pair_surface_points`
+    reads (the reference's degenerate-determinant threshold,
+    :func:`rbbench.hf.geometry.surface._moller_trumbore`)."""
+    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    det = 1e-12 * np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
+    return np.ascontiguousarray(np.column_stack([corners[:, 0], e1, e2, det, cen, slack]))
+
+
 def _trace_axes(lay: Any, n_hat: np.ndarray, x_hat: np.ndarray | None) -> np.ndarray:
     """A unit axis ``e_q`` normal to each point's line direction ``n_hat[q]``: the
     direction in which the line moves with mu (the slave map is affine in mu, so the line's
     trace on the plane normal to ``n_hat[q]`` is straight), or any normal axis where it
     does not move. Candidates sorted by ``e_q . centroid`` are searched by bisection
-    online: ``|e_q . (centroid - x)|`` is at most the distance from the centroid to the
-    line, so every triangle the reference's bounding-sphere test keeps lies in the range
-    searched (:func:`rbbench.rb.kernels.surface_pairing.pair_surface_points`)."""
+    online, in the master's reference frame (the point ``y``, the line still along
+    ``n_hat[q]``): ``|e_q . (centroid - y)|`` is at most the distance from the centroid to
+    the line, so every triangle the reference's bounding-sphere test keeps lies in the range
+    searched, whatever the axis normal to the line
+    (:func:`rbbench.rb.kernels.surface_pairing.pair_surface_points`)."""
     sl = lay.slave
     x = reference_surface_points(lay)[0] if x_hat is None else x_hat
     scale, shift = np.asarray(sl.map.scale, float), np.asarray(sl.map.shift, float)

@@ -7,6 +7,7 @@ random mu off the sample the windows were built on."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -18,6 +19,7 @@ from hypothesis import strategies as st
 pytest.importorskip("numba")
 
 from rbbench.hf.components import make_components  # noqa: E402
+from rbbench.hf.geometry.chains import AffineMap  # noqa: E402
 from rbbench.hf.geometry.surface import pair_surfaces, surface_rows  # noqa: E402
 from rbbench.hf.geometry.surface_rules import triangle_rule  # noqa: E402
 from rbbench.rb.hyper.surface_eim import (  # noqa: E402
@@ -36,13 +38,23 @@ from rbbench.scene.loading import load_scene  # noqa: E402
 SAMPLE = np.linspace(0.7, 1.3, 9)[:, None]
 
 
-@pytest.fixture(scope="module", params=["hemisphere", "rigid_flat"])
+#: a master map moving with mu (the scene's lower hemisphere is fixed): scale 0.9 + 0.1 mu,
+#: a lateral shift, and the cap's top kept at z = 1 (the scene's gap unchanged)
+MOVING_MASTER = AffineMap(scale=np.array([0.9, 0.1]),
+                          shift=np.array([[0.003, -0.002], [-0.001, 0.002], [0.1, -0.1]]))
+
+
+@pytest.fixture(scope="module", params=["hemisphere", "rigid_flat", "moving_master"])
 def case(request):
     """A layout, an evaluator of 7 rows spread over the cap, a random local basis and
-    magic entries (fixed seed), and the packed plan of the kernels."""
-    sc = load_scene("hertz_sphere", ["discretization.level=0",
-                                     f"geometry.lower={request.param}"])
+    magic entries (fixed seed), and the packed plan of the kernels. ``moving_master``: the
+    hemispheres with the master mapped by :data:`MOVING_MASTER` (the lines are cast in the
+    master's reference frame: this exercises it)."""
+    lower = "hemisphere" if request.param == "moving_master" else request.param
+    sc = load_scene("hertz_sphere", ["discretization.level=0", f"geometry.lower={lower}"])
     lay = make_components(sc)[0].contact_layout()
+    if request.param == "moving_master":
+        lay = replace(lay, master=replace(lay.master, map=MOVING_MASTER))
     rows = np.unique(np.linspace(0, lay.n_mult - 1, 7).astype(int))
     ev = build_surface_row_evaluator(lay, rows, SAMPLE)
     rng = np.random.default_rng(3)
