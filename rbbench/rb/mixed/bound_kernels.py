@@ -143,113 +143,40 @@ def _slave_terms(sr, Vg, a, Cs, c, d):
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
-def _open_row(r, rptr, rpts, sign, n_hat, mdofs, Pk, y, rn, rq, cperp, cn, w, gap, mphi, seg,
-              markk, uzk, touchedk, ntk, d):
-    """Try to prove ``d_r < 0`` from the rank-k master displacements ``uzk = Pk y`` (``|uz -
-    uzk| <= rn cperp + rq ||c||`` per dof); on success write the upper bound in ``d[r]``.
-    Returns ``(proved, ntk)``."""
-    dk = d[r]
-    de = 0.0
-    mag = abs(d[r])
+def _master_terms(s, n_hat, mdofs, rows, Zl, c, U, w, gap, mphi, seg, mark, uz, b, touched,
+                  lam, d):
+    """Add the master part of ``d`` (``uz = Zl c`` at the paired facets' dofs only) and
+    return ``(||b_M||^2, g = U^T b_M)`` with ``b_M = B_M(mu)^T lam`` on ``lam``'s support;
+    ``mark`` and ``b`` are left zero."""
+    N = c.size
+    sign = 1.0 if s > 0 else -1.0
+    nt = 0
     k = mphi.shape[1]
-    for idx in range(rptr[r], rptr[r + 1]):
-        q = rpts[idx]
+    for q in range(w.size):
         n0, n1 = sign * n_hat[q, 0], sign * n_hat[q, 1]
         f = seg[q]
-        jk = 0.0
-        ek = 0.0
+        jm = 0.0
         for e in range(k):
             for t in range(2):
                 dof = mdofs[f, e, t]
-                if markk[dof] == 0:
-                    markk[dof] = 1
-                    touchedk[ntk] = dof
-                    ntk += 1
+                if mark[dof] == 0:
+                    mark[dof] = 1
+                    touched[nt] = dof
+                    nt += 1
                     v = 0.0
-                    for i in range(y.size):
-                        v += Pk[dof, i] * y[i]
-                    uzk[dof] = v
-            x0, x1 = mdofs[f, e, 0], mdofs[f, e, 1]
-            jk += mphi[q, e] * (n0 * uzk[x0] + n1 * uzk[x1])
-            ek += abs(mphi[q, e]) * (abs(n0) * (rn[x0] * cperp + rq[x0] * cn)
-                                     + abs(n1) * (rn[x1] * cperp + rq[x1] * cn))
-        dk += w[q] * (-jk - gap[q])
-        de += abs(w[q]) * ek
-        mag += abs(w[q]) * (abs(jk) + abs(gap[q]))
-    up = dk + de + 1e-12 * mag  # + a margin for the float64 sums
-    if up < 0.0:
-        d[r] = up
-        return True, ntk
-    return False, ntk
-
-
-@njit(cache=True, fastmath={"reassoc", "contract"})
-def _master_terms(s, n_hat, mdofs, rptr, rpts, Zl, Pk, Qt, rn, rq, c, U, w, gap, mphi, seg,
-                  mark, uz, b, touched, markk, uzk, touchedk, lam, d):
-    """Add the master part of ``d`` and return ``(||b_M||^2, g = U^T b_M, n_open)`` with
-    ``b_M = B_M(mu)^T lam`` on ``lam``'s support; ``mark``, ``markk`` and ``b`` are left zero.
-
-    Row by row (``rptr``, ``rpts``: the points of each multiplier row): a row with ``lam_r =
-    0`` is first tried with the rank-k displacements ``Pk (Qt c)`` (:func:`_open_row`); where
-    that proves ``d_r < 0`` the row adds nothing to sigma, kappa or ``b_M`` and its exact
-    value is not needed (``n_open`` such rows); every other row gets ``uz = Zl c`` at its
-    paired master dofs, exact."""
-    N = c.size
-    kk = Qt.shape[0]
-    sign = 1.0 if s > 0 else -1.0
-    y = np.zeros(kk)
-    for i in range(kk):
-        v = 0.0
-        for j in range(N):
-            v += Qt[i, j] * c[j]
-        y[i] = v
-    cc = 0.0
-    for j in range(N):
-        cc += c[j] * c[j]
-    yy = 0.0
-    for i in range(kk):
-        yy += y[i] * y[i]
-    cn = np.sqrt(cc)
-    cperp = np.sqrt(max(cc - yy, 0.0) + 1e-12 * cc)  # ||c - Q Q^T c||, Q^T Q = I to 1e-12
-    nt = 0
-    ntk = 0
-    n_open = 0
-    k = mphi.shape[1]
-    m = rptr.size - 1
-    for r in range(m):
-        if kk > 0 and lam[r] == 0.0:
-            proved, ntk = _open_row(r, rptr, rpts, sign, n_hat, mdofs, Pk, y, rn, rq, cperp,
-                                    cn, w, gap, mphi, seg, markk, uzk, touchedk, ntk, d)
-            if proved:
-                n_open += 1
-                continue
-        for idx in range(rptr[r], rptr[r + 1]):
-            q = rpts[idx]
-            n0, n1 = sign * n_hat[q, 0], sign * n_hat[q, 1]
-            f = seg[q]
-            jm = 0.0
+                    for j in range(N):
+                        v += Zl[dof, j] * c[j]
+                    uz[dof] = v
+            jm += mphi[q, e] * (n0 * uz[mdofs[f, e, 0]] + n1 * uz[mdofs[f, e, 1]])
+        r = rows[q]
+        d[r] += w[q] * (-jm - gap[q])
+        lw = w[q] * lam[r]
+        if lw != 0.0:
             for e in range(k):
-                for t in range(2):
-                    dof = mdofs[f, e, t]
-                    if mark[dof] == 0:
-                        mark[dof] = 1
-                        touched[nt] = dof
-                        nt += 1
-                        v = 0.0
-                        for j in range(N):
-                            v += Zl[dof, j] * c[j]
-                        uz[dof] = v
-                jm += mphi[q, e] * (n0 * uz[mdofs[f, e, 0]] + n1 * uz[mdofs[f, e, 1]])
-            d[r] += w[q] * (-jm - gap[q])
-            lw = w[q] * lam[r]
-            if lw != 0.0:
-                for e in range(k):
-                    b[mdofs[f, e, 0]] -= lw * mphi[q, e] * n0
-                    b[mdofs[f, e, 1]] -= lw * mphi[q, e] * n1
-                    mark[mdofs[f, e, 0]] = 2
-                    mark[mdofs[f, e, 1]] = 2
-    for i in range(ntk):
-        markk[touchedk[i]] = 0
+                b[mdofs[f, e, 0]] -= lw * mphi[q, e] * n0
+                b[mdofs[f, e, 1]] -= lw * mphi[q, e] * n1
+                mark[mdofs[f, e, 0]] = 2
+                mark[mdofs[f, e, 1]] = 2
     K = U.shape[1]
     g = np.zeros(K)
     bb = 0.0
@@ -262,21 +189,16 @@ def _master_terms(s, n_hat, mdofs, rptr, rpts, Zl, Pk, Qt, rn, rq, c, U, w, gap,
                 g[j] += U[dof, j] * bd
             b[dof] = 0.0
         mark[dof] = 0
-    return bb, g, n_open
+    return bb, g
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
-def _residual_norms(T, eT, kj, j_lam, sr, c, a, g):
-    """``(||T w||, ||T_lam w_lam||, sum eT |w|, sum_lam eT |w|)`` for ``w = [1, -c, -s_r
-    a, -g]``: ``eT`` the column norms of the rounding of ``T`` (zero in float64), so norm
-    plus term bounds the norm with the exact ``T``; ``T`` used on rows ``< kj[j]`` of column ``j``
-    (upper trapezoidal), the multiplier part from ``j_lam``; columns with ``w_j = 0``
-    skipped."""
+def _residual_norms(T, kj, j_lam, sr, c, a, g):
+    """``(||T w||, ||T_lam w_lam||)`` for ``w = [1, -c, -s_r a, -g]``, ``T`` used on rows
+    ``< kj[j]`` of column ``j`` (upper trapezoidal), the multiplier part from ``j_lam``."""
     N, R = c.size, a.size
     y = np.zeros(T.shape[0])
     yl = np.zeros(T.shape[0])
-    rt = 0.0
-    rtl = 0.0
     for j in range(T.shape[1]):
         if j == 0:
             wj = 1.0
@@ -286,12 +208,7 @@ def _residual_norms(T, eT, kj, j_lam, sr, c, a, g):
             wj = -sr * a[j - 1 - N]
         else:
             wj = -g[j - 1 - N - R]
-        if wj == 0.0:
-            continue
-        ew = eT[j] * abs(wj)
-        rt += ew
         if j >= j_lam:
-            rtl += ew
             for i in range(kj[j]):
                 tw = T[i, j] * wj
                 y[i] += tw
@@ -304,7 +221,7 @@ def _residual_norms(T, eT, kj, j_lam, sr, c, a, g):
     for i in range(y.size):
         rho2 += y[i] * y[i]
         l2 += yl[i] * yl[i]
-    return np.sqrt(rho2), np.sqrt(l2), rt, rtl
+    return np.sqrt(rho2), np.sqrt(l2)
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
@@ -326,27 +243,19 @@ def _violation_terms(Linv, d, lam):
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})  # SIMD sums: round-off only
-def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rptr, rpts, s_terms, Vg, a, Cs, Zl,
-                         Pk, Qt, rn, rq, c, U, DU, T, eT, kj, j_lam, Linv, w, gap, mphi, seg,
-                         mark, uz, b, touched, markk, uzk, touchedk, d, out):
+def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rows, s_terms, Vg, a, Cs, Zl, c, U,
+                         T, kj, j_lam, Linv, w, gap, mphi, seg, mark, uz, b, touched, d, out):
     """The terms of :meth:`rbbench.rb.mixed.contact_bound.ContactBound.terms` in one call,
     touching only the data the pairing at mu needs. Returns the pairing's status (``out``
-    is valid when it is ``OK``): ``out = [||T w|| (+ rounding), ||T_lam w_lam|| (+
-    rounding), ||b_M||^2, ||g||^2, sigma, kappa, n_open, g^T DU g, T's rounding term]``.
+    is valid when it is ``OK``): ``out = [||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2,
+    sigma, kappa]``.
 
     The slave part of ``d`` is ``s_r(mu) Cs c`` (``s_r = [1, mu] . s_terms``), the master
     part sums over the points with ``uz = Zl c`` evaluated only at the master dofs of the
-    paired facets, except on the ``n_open`` rows under a zero multiplier that the rank-k
-    displacements ``Pk Qt c`` prove open (:func:`_master_terms`; ``rptr``, ``rpts``: the
-    points of each row); ``b_M = B_M(mu)^T lam`` only where ``lam`` is non-zero, and ``g =
-    U^T b_M`` over that support; ``T`` (Fortran order) is used on rows ``< kj[j]`` of
-    column ``j`` (it is upper trapezoidal: Gram-Schmidt); ``w = [1, -c, -s_r a, -g]``, its
-    multiplier part from column ``j_lam``. ``T`` may be stored in float32 (sums in
-    float64): ``eT``, the column norms of its rounding error (zero in float64), makes
-    ``||T w||`` a bound of its value with the exact ``T``. ``U`` may be a float32 rounding
-    of an orthonormal basis, ``DU = U^T U - I`` then (else empty): ``||b_M - U g||^2 =
-    ||b_M||^2 - ||g||^2 + g^T DU g`` exactly. ``mark``, ``markk``, ``b`` must be zero on
-    entry (left so).
+    paired facets; ``b_M = B_M(mu)^T lam`` only where ``lam`` is non-zero, and ``g = U^T
+    b_M`` over that support; ``T`` (Fortran order) is used on rows ``< kj[j]`` of column
+    ``j`` (it is upper trapezoidal: Gram-Schmidt); ``w = [1, -c, -s_r a, -g]``, its
+    multiplier part from column ``j_lam``. ``mark``, ``b`` must be zero on entry (left so).
     """
     status, th = layout.theta(mu, fb, meta)
     if status != layout.OK:
@@ -358,31 +267,14 @@ def moving_contact_terms(mu, fb, ib, meta, n_hat, mdofs, rptr, rpts, s_terms, Vg
     for i in range(mu.size):
         sr += s_terms[i + 1] * mu[i]
     lam = _slave_terms(sr, Vg, a, Cs, c, d)
-    bb, g, n_open = _master_terms(s, n_hat, mdofs, rptr, rpts, Zl, Pk, Qt, rn, rq, c, U, w,
-                                  gap, mphi, seg, mark, uz, b, touched, markk, uzk, touchedk,
-                                  lam, d)
-    rho, rl, rt, rtl = _residual_norms(T, eT, kj, j_lam, sr, c, a, g)
-    out[0], out[1], out[8] = rho + rt, rl + rtl, rt
+    bb, g = _master_terms(s, n_hat, mdofs, rows, Zl, c, U, w, gap, mphi, seg, mark, uz, b,
+                          touched, lam, d)
+    out[0], out[1] = _residual_norms(T, kj, j_lam, sr, c, a, g)
     out[2] = bb
     out[3] = float(np.sum(g * g))
     out[4], out[5] = _violation_terms(Linv, d, lam)
     out[4] /= abs(sr)
-    out[6] = n_open
-    out[7] = _quadratic_form(DU, g)
     return layout.OK
-
-
-@njit(cache=True, fastmath={"reassoc", "contract"})
-def _quadratic_form(D, g):
-    """``g^T D g`` (0 for an empty ``D``); whole rows, not a triangle: they vectorise (10x
-    faster measured at 250 x 250)."""
-    q = 0.0
-    for i in range(D.shape[0]):
-        s = 0.0
-        for j in range(D.shape[1]):
-            s += D[i, j] * g[j]
-        q += g[i] * s
-    return q
 
 
 #: the modules whose kernels this one's compile in (numba's cache checks only this file)

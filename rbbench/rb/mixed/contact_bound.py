@@ -60,17 +60,12 @@ from rbbench.rb.algorithms.bounds import (
 )
 from rbbench.rb.mixed.bounds import BoundUnsupported, constant_in_mu
 
-__all__ = ["STORAGES", "ContactBound", "build_contact_bound", "contact_rows",
-           "open_row_factors", "rounded_basis", "stored"]
+__all__ = ["ContactBound", "build_contact_bound", "contact_rows"]
 
 #: Relative singular-value cut of the POD of the training vectors ``B(mu)^T Vg``
 POD_RTOL = 1e-9
 #: The most POD modes of ``B(mu)^T Vg`` (online cost O(n_c K))
 POD_MAX = 250
-#: The storages of the online kernel's large arrays (``ContactBound.storage``)
-STORAGES = ("float32", "float64")
-#: Relative margin on the norms of the float32 rounding errors (their float64 evaluation)
-ROUND_MARGIN = 1.0 + 1e-6
 
 
 @dataclass
@@ -102,30 +97,12 @@ class ContactBound:
     kj: np.ndarray | None = None
     #: ``lambda_c^(1/2) ||e||_2`` of the last evaluation (the remainder in ``rho``)
     last_remainder: float = 0.0
-    #: the float32 storage's rounding terms in ``rho`` of the last evaluation
-    last_rounding: float = 0.0
     #: the packed arrays of the numba pairing (:func:`compiled_plan`), None without numba
     plan: dict | None = None
-    #: the kernel's copies of ``T`` and ``U`` (:data:`STORAGES`): float32 halves their
-    #: memory traffic; the rounding of ``T`` is bounded in rho (:func:`stored`), the
-    #: rounded ``U`` is used as the basis of the split with its Gram defect
-    #: (:func:`rounded_basis`). ``Z_loc`` and ``Cs`` stay float64: a relative error e of
-    #: ``d`` moves kappa by about e ||u||_X^2, so the bound by sqrt(e) ||u||_X
-    storage: str = "float32"
-    #: rank of the master displacements that prove rows under a zero multiplier open
-    #: (:func:`open_row_factors`; 0: every row exact)
-    open_rank: int = 8
 
     def __post_init__(self) -> None:
-        _check_storage(self.storage)
         self.MspT = sp.csr_matrix(self.Msp.T)
         self._work: dict | None = None
-
-    def set_storage(self, storage: str) -> None:
-        """Switch the kernel's copies of ``T`` and ``U`` to ``storage`` (:data:`STORAGES`)."""
-        _check_storage(storage)
-        self.storage = storage
-        self._work = None
 
     def rows(self, mu: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
         """``(B(mu), G(mu))`` on the contact rows and dofs (exact)."""
@@ -168,16 +145,7 @@ class ContactBound:
         mu = np.atleast_1d(np.asarray(mu, dtype=float))
         out = self._fast_terms(mu, c, a) if compiled and self.plan is not None else None
         if out is not None:
-            rho_t, lam_t, bb, gg, sigma, kappa = out[:6]
-            # U rounded to float32 (U_s = U - E, DU = U_s^T U_s - I stored as DU_s): the
-            # split b_M = U_s g + e with g = U_s^T b_M; T holds the Riesz representers of
-            # P_M U, so rho gains ||P_M E g||_X' <= lambda_c^(1/2) ||E||_2 ||g||, and
-            # ||e||^2 = bb - gg + g^T DU g <= bb - gg + g^T DU_s g + ||DU - DU_s||_2 gg
-            k = self._work
-            extra = float(np.sqrt(self.lam_c) * k["eE"] * np.sqrt(gg))
-            rho_t, lam_t = rho_t + extra, lam_t + extra
-            self.last_rounding = extra + float(out[8])
-            bb = bb + float(out[7]) + k["eD"] * gg
+            rho_t, lam_t, bb, gg, sigma, kappa = out
         else:
             d, b, lam = self.residuals(mu, c, a, compiled=False)
             sr = self.s_ratio(mu)
@@ -191,7 +159,6 @@ class ContactBound:
             up = np.flatnonzero(d > 0)  # the violated rows
             sigma = float(np.linalg.norm(self.Linv[:, up] @ d[up])) / abs(sr)
             kappa = max(float(lam @ np.maximum(-d, 0.0)), 0.0)
-            self.last_rounding = 0.0
         # ||b_M - U g||_2 by Pythagoras (U orthonormal): one product with U instead of two
         rem = float(np.sqrt(self.lam_c * max(bb - gg, 0.0)))
         self.last_remainder = rem
@@ -199,45 +166,28 @@ class ContactBound:
 
     def _fast_terms(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray
                     ) -> np.ndarray | None:
-        """The kernel's ``[||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2, sigma, kappa]``
-        (``T``'s storage rounding included, :func:`rbbench.rb.mixed.bound_kernels.
-        moving_contact_terms`); None where it declines (mu outside D, a point leaving its
-        window)."""
+        """The kernel's ``[||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2, sigma, kappa]``;
+        None where it declines (mu outside D, a point leaving its window)."""
         pl = self.plan
         if self._work is None:
             from rbbench.rb.kernels import layout
             from rbbench.rb.mixed.bound_kernels import moving_contact_terms
 
-            nq, n_c, m = pl["n_hat"].shape[0], self.Z_loc.shape[0], self.Cs.shape[0]
-            dt = np.float32 if self.storage == "float32" else np.float64
-            T, eT = stored(self.T, dt, axis=0)
-            Pk, Qt, rn, rq = open_row_factors(self.Z_loc, self.mloc, self.open_rank)
-            U, DU, eE, eD = rounded_basis(self.U, self.mloc, dt)
-            rows = pl["rows"]
-            rpts = np.argsort(rows, kind="stable").astype(np.int64)
-            rptr = np.zeros(m + 1, dtype=np.int64)
-            rptr[1:] = np.cumsum(np.bincount(rows, minlength=m))
+            nq, n_c = pl["n_hat"].shape[0], self.Z_loc.shape[0]
             self._work = {"w": np.empty(nq), "gap": np.empty(nq),
                           "mphi": np.zeros((nq, pl["k"])),
                           "seg": np.zeros(nq, dtype=np.int64),
                           "mark": np.zeros(n_c, dtype=np.int64), "uz": np.zeros(n_c),
                           "b": np.zeros(n_c), "touched": np.zeros(n_c, dtype=np.int64),
-                          "d": np.zeros(m), "out": np.zeros(9), "rptr": rptr,
-                          "U": U, "DU": DU, "eE": eE, "eD": eD,
-                          "rpts": rpts, "Pk": Pk, "Qt": Qt, "rn": rn, "rq": rq,
-                          "markk": np.zeros(n_c, dtype=np.int64), "uzk": np.zeros(n_c),
-                          "touchedk": np.zeros(n_c, dtype=np.int64),
-                          "T": np.asfortranarray(T), "eT": eT,
+                          "d": np.zeros(self.Cs.shape[0]), "out": np.zeros(6),
                           "kernel": moving_contact_terms, "ok": layout.OK}
         k = self._work
         status = k["kernel"](
-            mu, pl["fb"], pl["ib"], pl["meta"], pl["n_hat"], pl["mdofs"], k["rptr"],
-            k["rpts"], self.s_terms, self.Vg, np.ascontiguousarray(a, dtype=float), self.Cs,
-            self.Z_loc, k["Pk"], k["Qt"], k["rn"], k["rq"], np.ascontiguousarray(c, dtype=float),
-            k["U"], k["DU"], k["T"], k["eT"], self.kj, 1 + c.size, self.Linv, k["w"], k["gap"],
-            k["mphi"], k["seg"], k["mark"], k["uz"], k["b"], k["touched"], k["markk"],
-            k["uzk"], k["touchedk"], k["d"], k["out"])
-        self.last_open_rows = int(k["out"][6])
+            mu, pl["fb"], pl["ib"], pl["meta"], pl["n_hat"], pl["mdofs"], pl["rows"],
+            self.s_terms, self.Vg, np.ascontiguousarray(a, dtype=float), self.Cs, self.Z_loc,
+            np.ascontiguousarray(c, dtype=float), self.U, self.T, self.kj, 1 + c.size,
+            self.Linv, k["w"], k["gap"], k["mphi"], k["seg"], k["mark"], k["uz"], k["b"],
+            k["touched"], k["d"], k["out"])
         return k["out"].copy() if status == k["ok"] else None
 
     def __call__(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray,
@@ -256,65 +206,6 @@ class ContactBound:
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self.__post_init__()
-
-
-def open_row_factors(Z_loc: np.ndarray, mloc: np.ndarray, k: int
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(Pk, Qt, rn, rq)``: the rank-k truncated SVD ``Z_M ~ Pk Qt`` of the master rows of
-    ``Z_loc`` (``Pk`` zero on the other rows) and per row the norms ``rn = ||R (I - Q
-    Q^T)||``, ``rq = ||R Q|| + 1e-13 ||Z_row||`` of ``R = Z_M - Pk Qt`` (``Q = Qt^T``), times
-    :data:`ROUND_MARGIN`: ``|Z_row c - Pk_row Qt c| <= rn ||c - Q Q^T c|| + rq ||c||``."""
-    n_c, N = Z_loc.shape
-    k = int(max(0, min(k, N, mloc.size)))
-    Pk, rn, rq = np.zeros((n_c, k)), np.zeros(n_c), np.zeros(n_c)
-    if k == 0:
-        return Pk, np.zeros((0, N)), rn, rq
-    ZM = Z_loc[mloc]
-    P, S, Vt = np.linalg.svd(ZM, full_matrices=False)
-    Qt = np.ascontiguousarray(Vt[:k])
-    Pk[mloc] = P[:, :k] * S[:k]
-    R = ZM - Pk[mloc] @ Qt
-    RQ = R @ Qt.T
-    rn[mloc] = np.linalg.norm(R - RQ @ Qt, axis=1) * ROUND_MARGIN
-    rq[mloc] = (np.linalg.norm(RQ, axis=1) + 1e-13 * np.linalg.norm(ZM, axis=1)) * ROUND_MARGIN
-    return Pk, Qt, rn, rq
-
-
-def rounded_basis(U: np.ndarray, mloc: np.ndarray, dtype: Any
-                  ) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """``(U_s, DU_s, eE, eD)`` for the l2-orthonormal ``U`` stored in ``dtype``: ``U_s``,
-    ``DU_s`` = ``U_s^T U_s - I`` (over the rows ``mloc``, in float64, then stored in
-    ``dtype``), ``eE >= ||U - U_s||_2`` (spectral) and ``eD >= ||DU - DU_s||_2``
-    (Frobenius), times :data:`ROUND_MARGIN`; in float64 ``U`` itself, an empty ``DU_s``
-    and zeros."""
-    Us = np.ascontiguousarray(U, dtype=dtype)
-    if Us.dtype == U.dtype:
-        return Us, np.zeros((0, 0)), 0.0, 0.0
-    Um = Us[mloc].astype(np.float64)
-    E = np.asarray(U[mloc], dtype=np.float64) - Um
-    D = Um.T @ Um - np.eye(U.shape[1])
-    Ds = np.ascontiguousarray(D, dtype=dtype)
-    eE = float(np.linalg.norm(E, 2)) * ROUND_MARGIN
-    eD = float(np.linalg.norm(D - Ds.astype(np.float64))) * ROUND_MARGIN
-    return Us, Ds, eE, eD
-
-
-def _check_storage(storage: str) -> None:
-    if storage not in STORAGES:
-        raise ValueError(f"storage {storage!r} of the bound's kernel arrays: valid values: "
-                         f"{', '.join(STORAGES)}")
-
-
-def stored(A: np.ndarray, dtype: Any, axis: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(A_s, e)``: ``A`` stored in ``dtype`` (C order) and the 2-norms of its rounding
-    error ``A - A_s`` along ``axis`` (1: per row, 0: per column), times
-    :data:`ROUND_MARGIN` (zero in float64). ``|(A - A_s) x|_i <= e_i ||x||_2`` per row by
-    Cauchy-Schwarz, ``||(A - A_s) x||_2 <= sum_j e_j |x_j|`` by columns."""
-    As = np.ascontiguousarray(A, dtype=dtype)
-    if As.dtype == A.dtype:
-        return As, np.zeros(A.shape[1 - axis])
-    E = np.asarray(A, dtype=np.float64) - As.astype(np.float64)
-    return As, np.sqrt(np.sum(E * E, axis=axis)) * ROUND_MARGIN
 
 
 def contact_rows(ev: Any, Msp: sp.csr_matrix, mu: np.ndarray) -> tuple[sp.csr_matrix,
