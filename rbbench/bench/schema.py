@@ -247,7 +247,9 @@ COLUMNS: tuple[Column, ...] = (
        "time of the HF part of the online step (assembly at mu, online supremizers, "
        "projection), included in t_online_median_s"),
     _c("t_bound_median_s", "float", "timings", "s", "certified = 'rigorous': one online "
-       "evaluation of the error bound, median over validation mus x repeats"),
+       "evaluation of the error bound, median over validation mus x repeats, timed "
+       "interleaved with reduced solves (solve, bound, solve, bound ...) under "
+       "online_protocol"),
     _c("t_online_iqr_s", "float", "timings", "s", "inter-quartile range of the online time"),
     _c("online_protocol", "str", "timings", "", "the protocol of t_online_median_s and "
        "t_online_iqr_s: " + ONLINE_PROTOCOL_DEFINITION),

@@ -238,8 +238,8 @@ def _print_reduce_summary(s: dict, formulation: str, units: dict | None = None) 
             "gcns_iterations", "gcns_stop", "err_lam_t_max", "err_lam_t_mean", "lam_t_best_max",
             "friction_residual_max", "friction_law_residual_max", "slip_law_residual_max",
             "certified", "err_bound_u_max", "effectivity_min",
-            "effectivity_median", "effectivity_max", "t_bound_median_s", "t_bound_ratio",
-            "t_bound_hf_median_s"]
+            "effectivity_median", "effectivity_max", "t_bound_median_s",
+            "t_bound_solve_median_s", "t_bound_ratio", "t_bound_hf_median_s"]
     for k in keys:
         if k in s and not (k.startswith("t_bound") and s[k] is None):
             print(f"  {k:<20} {_valued(k, s[k], units)}{_REDUCE_NOTES.get(k, '')}")

@@ -7,7 +7,8 @@ the contact rows; with the contact EIM on a two-body scene
 theorem with the HF operators at each validation mu (``certified = "rigorous
 (HF-evaluated)"``: no online bound), else reports why there is none. Per validation mu it
 records the bound beside the true error in the same norm and their ratio (the
-effectivity), and the bound's online time beside the online solve's.
+effectivity), and the bound's online time side by side with the online solve's (one
+interleaved loop of solve, bound, solve, bound ... under the online-time protocol).
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ from rbbench.rb.mixed.bounds import (
     constant_in_mu,
     hf_bound,
 )
+from rbbench.runtime.threads import one_blas_thread
+from rbbench.runtime.timing import gc_paused
 
 __all__ = ["BOUND_DEFINITIONS", "Certifier"]
 
@@ -53,9 +56,15 @@ BOUND_DEFINITIONS = {
                           "U U^T b_M||_2 (an upper bound of its X' norm; the slave half is "
                           "exact), per validation mu, divided by the HF ||u||_X; it is "
                           "INCLUDED in bound_rho and err_bound_u",
-    "t_bound": "t_bound_median_s: median wall time of one online bound evaluation (one BLAS "
-               "thread, numba kernel) over validation mus x repeats; t_bound_ratio: that over "
-               "t_online_median_s (the reduced solve); t_bound_hf_median_s: certified = "
+    "t_bound": "the bound's online time, measured side by side with the reduced solve: at "
+               "each validation mu, online_repeats rounds of one reduced solve (its own "
+               "time_s, as t_online) then one bound evaluation at its (c, a) (wall time of "
+               "the call), under the online-time protocol (one untimed warm-up round, one "
+               "BLAS thread, garbage collector paused); t_bound_median_s and "
+               "t_bound_solve_median_s: the medians of the bound's and of the solve's times "
+               "of that one interleaved loop over validation mus x repeats; t_bound_ratio: "
+               "their quotient (not t_bound_median_s over t_online_median_s, which comes "
+               "from the separate consecutive solves); t_bound_hf_median_s: certified = "
                "'rigorous (HF-evaluated)': median time of one HF evaluation of the bound "
                "(m solves with X for D = B X^-1 B^T, then the terms)",
 }
@@ -68,8 +77,10 @@ class Certifier:
         t0 = time.perf_counter()
         self.ctx, self.x_solve = ctx, stage.x_solve
         self.info: dict[str, Any] = {}
-        self.rows: dict[str, list[float]] = {"t_bound": [], "effectivity": []}
+        self.rows: dict[str, list[float]] = {"t_bound": [], "t_bound_solve": [],
+                                             "effectivity": []}
         self.online, self.certified = None, "none"
+        self.model, self._warm = stage.model, False
         self.alpha: float | None = None
         self.gamma: float | None = None
         model = stage.model
@@ -134,13 +145,7 @@ class Certifier:
         err = float(np.sqrt(max(e @ (X @ e), 0.0)))
         norm = float(np.sqrt(u @ (X @ u)))
         if self.online is not None:
-            reps = max(1, int(self.ctx.config.online_repeats))
-            times = []
-            for _ in range(reps):
-                t0 = time.perf_counter()
-                b = self.online(mu, res.c, res.alpha)
-                times.append(time.perf_counter() - t0)
-            self.rows["t_bound"].extend(times)
+            b = self._side_by_side(mu)
             extra = {"bound_eim_residual": float(getattr(self.online, "last_remainder",
                                                          0.0))}
         else:
@@ -163,16 +168,38 @@ class Certifier:
                 "bound_rho": b.terms.rho / norm, "bound_sigma": b.terms.sigma / norm,
                 **{k: v / norm for k, v in extra.items()}}
 
-    def summary(self, t_online: float | None) -> dict[str, Any]:
+    def _side_by_side(self, mu: np.ndarray) -> Any:
+        """``online_repeats`` rounds of one reduced solve then one bound at its coefficients
+        (the online-time protocol: one untimed round first, one BLAS thread, the garbage
+        collector paused); records both times, returns the last bound."""
+        reps = max(1, int(self.ctx.config.online_repeats))
+        model, bound = self.model, self.online
+        t_solve, t_bound = self.rows["t_bound_solve"], self.rows["t_bound"]
+        with one_blas_thread(), gc_paused():
+            if not self._warm:
+                sol = model.solve(mu)
+                bound(mu, sol.c, sol.alpha)
+                self._warm = True
+            for _ in range(reps):
+                sol = model.solve(mu)
+                t0 = time.perf_counter()
+                b = bound(mu, sol.c, sol.alpha)
+                t_bound.append(time.perf_counter() - t0)
+                t_solve.append(float(sol.time_s))
+        return b
+
+    def summary(self) -> dict[str, Any]:
         eff = [x for x in self.rows["effectivity"] if np.isfinite(x)]
-        tb = self.rows["t_bound"]
+        tb, ts = self.rows["t_bound"], self.rows["t_bound_solve"]
         t_bound = float(np.median(tb)) if tb else None
+        t_solve = float(np.median(ts)) if ts else None
         return {"certified": self.certified,
                 "effectivity_min": min(eff) if eff else None,
                 "effectivity_median": float(np.median(eff)) if eff else None,
                 "effectivity_max": max(eff) if eff else None,
                 "t_bound_median_s": t_bound,
-                "t_bound_ratio": t_bound / t_online if t_bound and t_online else None,
+                "t_bound_solve_median_s": t_solve,
+                "t_bound_ratio": t_bound / t_solve if t_bound and t_solve else None,
                 "t_bound_hf_median_s": (float(np.median(self.rows["t_bound_hf"]))
                                         if self.rows.get("t_bound_hf") else None)}
 

@@ -149,7 +149,6 @@ class MixedStage(ReducedStage):
         self._hyper_step(ctx, fixed_points)
         ctx.progress("error bound (offline stage)")
         self.certifier = Certifier(ctx, self)
-        self.t_solve: list[float] = []
         self.beta: dict[str, list] = {"hf": [], "dec": [], "on": [], "off": []}
         self.lam_floor: list[float] = []
         self.t_asm: list[float] = []
@@ -236,9 +235,7 @@ class MixedStage(ReducedStage):
 
     # -- validation --------------------------------------------------------------------
     def record_online(self, mu: np.ndarray, solutions: list) -> None:
-        """The plain model: its HF assembly and projection at mu (``t_online_hf_assembly_s``);
-        the solve times (the bound's time ratio)."""
-        self.t_solve.extend(s.time_s for s in solutions)
+        """The plain model: its HF assembly and projection at mu (``t_online_hf_assembly_s``)."""
         if solutions[-1].assembly_s:
             self.t_asm.append(solutions[-1].assembly_s)
 
@@ -259,8 +256,7 @@ class MixedStage(ReducedStage):
 
     def summary(self) -> dict[str, Any]:
         """The bound's entries of the row (:data:`BOUND_DEFINITIONS`)."""
-        return self.certifier.summary(float(np.median(self.t_solve)) if self.t_solve
-                                      else None)
+        return self.certifier.summary()
 
     def _infsup(self, p: Any) -> None:
         """beta_HF, beta_dec, beta_on (and beta_off) at one validation mu; H H^T =

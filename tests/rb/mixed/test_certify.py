@@ -28,11 +28,16 @@ def test_rows_of_the_bound(tmp_path, stabilizer, certified):
                   np.array(s["per_mu"]["err_lam_nat"]))
     assert "err_bound_u" in s["definitions"] and "certified" in s["definitions"]
     if certified == "rigorous":
-        assert s["t_bound_median_s"] > 0 and s["t_bound_ratio"] > 0
+        # side by side: both medians from one interleaved loop, the ratio their quotient
+        assert s["t_bound_median_s"] > 0 and s["t_bound_solve_median_s"] > 0
+        assert s["t_bound_ratio"] == pytest.approx(s["t_bound_median_s"]
+                                                   / s["t_bound_solve_median_s"])
+        assert "side by side" in s["definitions"]["t_bound"]
         b = res.model.error_bound(res.model.solve(res.valid_mus[0]))
         assert b.delta_u > 0
     else:
-        assert s["t_bound_median_s"] is None
+        assert s["t_bound_median_s"] is None and s["t_bound_solve_median_s"] is None
+        assert s["t_bound_ratio"] is None
 
 
 def test_a_parameter_without_natural_norm_gets_nan_rows(tmp_path, monkeypatch):
