@@ -34,7 +34,7 @@ POSITIVE = ("N", "R", "S", "n_train", "n_valid", "n_jobs", "m_eim", "n_eim_train
             "online_repeats", "gcns_per_iteration", "gcns_max", "gcns_patience")
 #: argparse destinations that are not reduction fields
 _NOT_FIELDS = {"scene", "func", "command", "set", "out", "quiet", "backend_option",
-               "formulation_option", "levels", "repeats"}
+               "formulation_option", "levels", "repeats", "baseline", "baseline_set"}
 
 
 def flag(field: str) -> str:

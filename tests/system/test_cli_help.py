@@ -147,3 +147,15 @@ def test_subcommand_help_opens_with_its_description(capsys):
     with pytest.raises(SystemExit):
         main(["studies", "snapshot-workers", "--help"])
     assert "HF snapshots with 1 and n worker processes" in capsys.readouterr().out
+
+
+def test_online_scaling_keeps_its_own_flags_out_of_the_reduction():
+    from rbbench.cli.reduce import reduce_fields
+    from rbbench.rb.config import make_config
+
+    args = build_parser().parse_args(["online-scaling", "hertz_sphere", "--levels", "0", "1",
+                                      "--baseline", "hertz_halfdisks", "--baseline-set",
+                                      "discretization.level=0", "-N", "5"])
+    fields = reduce_fields(args)
+    assert fields["N"] == 5 and not {"baseline", "baseline_set", "levels"} & set(fields)
+    make_config(**fields)  # every field left is a reduction field
