@@ -165,9 +165,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     registry : Registry, optional
         Where the component names are looked up (default: the discovered plugins).
     mp_context : {"fork", "forkserver", "spawn"}, optional
-        Start method of the worker processes (default: the platform's); ``"fork"`` from
-        a thread other than the main one is served by ``"forkserver"``
-        (:func:`rbbench.runtime.workers.start_method`).
+        Start method (the platform's by default): :func:`rbbench.runtime.workers.start_method`.
     blas_threads : int, optional
         BLAS threads per worker process (default ``cpu_count // n_jobs``, at least 1;
         see :func:`limit_blas_threads`); ``0`` leaves them alone. Not applied with
