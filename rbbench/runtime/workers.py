@@ -30,17 +30,22 @@ A ``fork`` pool is started with this process's BLAS pools capped at the workers'
 count (``blas_cap``, :func:`rbbench.runtime.threads.capped_for_fork`), so that the workers
 inherit the cap instead of setting it (which re-creates OpenBLAS's spinning threads in
 them); the cap is lifted at the end of that call (after the shutdown of a pool not kept),
-also when the pool is kept. Held across a :func:`keep_workers` block, a process forked by
-another thread between two calls of the block got a pending Python exception in its
-``threading`` fork hook (``SystemError`` in ``RLock()``) and hung at exit in
-``threading._shutdown`` (``tests/studies/test_snapshot_workers.py``, run after the other
-``tests/test_s*.py``; the cause inside the libraries was not found).
+also when the pool is kept.
+
+A pool is forked from the main thread only (:func:`start_method`): forked from another
+thread while a SciPy ``SuperLU`` factorisation is alive (SciPy 1.17.1, CPython 3.11.7;
+the HF solves and the shape benchmarks keep them), the child gets a pending
+``SystemError`` in ``threading``'s fork hook, its ``threading`` state still lists the
+parent's threads, and its ``threading._shutdown`` (which a ``multiprocessing`` worker
+runs at exit) can wait for ever for one of them, e.g. a process pool's manager thread of
+the parent. From the main thread the hook completes.
 """
 
 from __future__ import annotations
 
 import contextlib
 import ctypes
+import multiprocessing
 import os
 import signal
 import sys
@@ -52,7 +57,7 @@ from typing import Any
 from rbbench.runtime.threads import capped_for_fork
 
 __all__ = ["die_with_parent", "keep_workers", "kept_pool_alive", "release_free_heap",
-           "shutdown_kept", "worker_pool"]
+           "shutdown_kept", "start_method", "worker_pool"]
 
 #: the kept pool: ``owner`` (pid) and ``depth`` of the :func:`keep_workers` blocks,
 #: ``ident`` of the calls it serves, ``registry`` (held, so its ``id`` stays unique)
@@ -72,6 +77,19 @@ def die_with_parent(sig: int = signal.SIGKILL) -> bool:
         return ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(sig)) == 0
     except OSError:  # pragma: no cover - no glibc
         return False
+
+
+def start_method(mp_context: str | None = None) -> str:
+    """The start method of a pool started by this thread: ``mp_context`` (default: the
+    platform's), except ``"fork"`` outside the main thread, which becomes ``"forkserver"``
+    (``"spawn"`` where there is none): a process forked from another thread may hang at
+    its exit (module docstring), and ``PR_SET_PDEATHSIG`` follows the forking thread
+    (:func:`die_with_parent`). Its workers build their components themselves."""
+    method = mp_context or multiprocessing.get_start_method()
+    if method == "fork" and threading.current_thread() is not threading.main_thread():
+        return "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() \
+            else "spawn"
+    return method
 
 
 def release_free_heap() -> bool:

@@ -4,6 +4,7 @@ results in parameter order and equal to the serial ones."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import multiprocessing
 import os
@@ -12,6 +13,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -359,6 +361,90 @@ def test_a_kept_pool_serves_only_its_process_and_main_thread(scene, tmp_path, lo
         assert _pids(path, mus[6:]) <= {str(p) for p in kept._processes}
     assert compute_snapshots(scene, mus[4:6], cache_dir=tmp_path, n_jobs=1, progress=False,
                              solver_options={"tol": 1e-11}).n_computed == 0
+
+
+#: run by the test below in a fresh interpreter: the shape benchmark's setup (which keeps
+#: SciPy SuperLU factorisations alive), a kept fork pool, then calls from a second thread
+_FORK_FROM_THREAD = """
+import json, multiprocessing, os, sys, threading
+
+from rbbench.hf.snapshots import compute
+
+
+def hook_completed():
+    return threading.main_thread() is threading.current_thread()
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, sys.argv[2])  # the repository root: benchmarks/
+    from benchmarks import bench_shape_optimisation as shape
+    from rbbench.runtime.workers import keep_workers, start_method
+    from rbbench.scene.loading import load_scene
+    from rbbench.scene.sampling import parameter_set
+
+    methods, real_pool = [], compute.ProcessPoolExecutor
+
+    def recording_pool(*args, mp_context, **kwargs):
+        methods.append((threading.current_thread() is threading.main_thread(),
+                        mp_context.get_start_method()))
+        return real_pool(*args, mp_context=mp_context, **kwargs)
+
+    compute.ProcessPoolExecutor = recording_pool
+    bench = shape.ShapeReducedEvaluation()
+    bench.setup(shape.SHAPE_CASES[0])
+    sc = load_scene("membrane_obstacle")
+    mus = parameter_set(sc, "train", n=4)
+    kw = dict(cache_dir=sys.argv[1], n_jobs=2, progress=False, mp_context="fork")
+    out = {}
+
+    def other():
+        res = compute.compute_snapshots(sc, mus[2:], solver_options={"tol": 1e-11}, **kw)
+        out["thread_rows"] = res.stop_reasons
+        ctx = multiprocessing.get_context(start_method("fork"))
+        with real_pool(1, mp_context=ctx) as pool:
+            out["hook"] = pool.submit(hook_completed).result(timeout=60)
+
+    with keep_workers():
+        out["main_rows"] = compute.compute_snapshots(sc, mus[:2], **kw).stop_reasons
+        thread = threading.Thread(target=other)
+        thread.start()
+        thread.join(120)
+        out["thread_alive"] = thread.is_alive()
+    out["methods"] = methods
+    print(json.dumps(out), flush=True)
+    os._exit(0)
+"""
+
+
+@fork_only
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="killpg, forkserver")
+def test_a_pool_started_in_another_thread_is_not_forked_from_it(tmp_path):
+    """With SciPy SuperLU factorisations alive (the shape benchmark's setup keeps some), a
+    process forked from a second thread gets a broken ``threading`` state and its
+    ``threading._shutdown`` can wait for ever (a worker of such a pool did, at its exit):
+    a pool started outside the main thread is forked from a fork server instead, its
+    workers' state is whole, the calls end with every row converged."""
+    script = tmp_path / "fork_from_thread.py"
+    script.write_text(_FORK_FROM_THREAD)
+    out_file = tmp_path / "out.json"
+    root = str(Path(__file__).resolve().parents[2])
+    with open(out_file, "w") as out:  # not a pipe: a hung worker would hold it open
+        proc = subprocess.Popen([sys.executable, str(script), str(tmp_path / "c"), root],
+                                stdout=out, start_new_session=True)
+        try:
+            proc.wait(timeout=180)
+        except subprocess.TimeoutExpired:
+            pass
+        finally:  # the script, its workers and a hung worker: none outlives the test
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    text = out_file.read_text()
+    assert text.strip(), "the script did not finish (hung in a pool started by a thread?)"
+    data = json.loads(text.splitlines()[-1])
+    assert data["main_rows"] == ["converged"] * 2 and data["thread_rows"] == ["converged"] * 2
+    assert data["thread_alive"] is False and data["hook"] is True
+    assert data["methods"] == [[True, "fork"], [False, "forkserver"]]
 
 
 def _worker_threads() -> tuple[int, list[int]]:

@@ -42,7 +42,7 @@ from rbbench.hf.snapshots.cache import (
 from rbbench.hf.snapshots.key import key_payload, payload_key
 from rbbench.registry import default_registry
 from rbbench.runtime.threads import limit_blas_threads
-from rbbench.runtime.workers import die_with_parent, release_free_heap, worker_pool
+from rbbench.runtime.workers import die_with_parent, release_free_heap, start_method, worker_pool
 from rbbench.scene.friction import friction_of
 
 __all__ = ["compute_snapshots", "n_cpus"]
@@ -165,7 +165,7 @@ def compute_snapshots(scene: Any, mus: Sequence | np.ndarray, backend: str = "sk
     registry : Registry, optional
         Where the component names are looked up (default: the discovered plugins).
     mp_context : {"fork", "forkserver", "spawn"}, optional
-        Start method of the worker processes (default: the platform's).
+        Start method (the platform's by default): :func:`rbbench.runtime.workers.start_method`.
     blas_threads : int, optional
         BLAS threads per worker process (default ``cpu_count // n_jobs``, at least 1;
         see :func:`limit_blas_threads`); ``0`` leaves them alone. Not applied with
@@ -290,7 +290,7 @@ class _Run:
         pool never fails a call that a new one would not. A kept pool is matched on the
         ``asked`` workers and threads, not on ``n_jobs`` (capped at the parameters to
         solve), so it keeps the size of the call that started it."""
-        ctx = multiprocessing.get_context(mp_context)
+        ctx = multiprocessing.get_context(start_method(mp_context))  # fork: main thread only
         ident = (self.key, asked, ctx.get_start_method())
         bar: list = []
         try:
