@@ -120,14 +120,13 @@ def test_validation_loop_runs_with_one_thread(two_threads):
     assert res.err_u == [0.0] * n  # the HF solution returned: zero error
 
 
-def test_floor_keys_and_below_the_contact_solve(capsys):
-    """``rbbench solve``'s floor: positive, below the solver time on a contact case (the
-    condensed solver factorises the same A and solves 64 more columns)."""
+def test_floor_keys_on_a_contact_solve(capsys):
+    """``rbbench solve``'s floor: positive parts, the ratio it defines, the keys defined
+    (no timing comparison: the solve against its floor is measured in benchmarks)."""
     sol = solve_hf(load_scene("hertz_halfdisks", list(HERTZ_COARSE)))
     m = sol.metrics
     assert m["floor_s"] > 0 and m["solve_over_floor"] > 0
     assert m["floor"]["factor_s"] > 0 and m["floor"]["solve_s"] > 0
-    assert m["floor_s"] < m["times_s"]["solve_s"]
     assert m["solve_over_floor"] == pytest.approx(m["times_s"]["solve_s"] / m["floor_s"])
     assert m["n_active"] > 0
     for key in ("floor_s", "solve_over_floor", "blas_threads"):

@@ -80,18 +80,24 @@ def make_solver(X) -> Solver:
     Parameters
     ----------
     X : sparse matrix, ndarray, object with a ``solve`` method, or callable
-        A sparse matrix is factorised once with SuperLU in symmetric mode
-        (:func:`rbbench.hf.condensation.dense.factorize`), a dense one with a Cholesky
-        factorisation; an existing factorisation (``scipy.sparse.linalg.splu`` result, ...) is used
-        through its ``solve`` method; a callable is returned unchanged.
+        A sparse matrix is factorised once, by PARDISO's Cholesky when ``pypardiso`` is
+        installed (:func:`rbbench.hf.condensation.pardiso.factorized`), else by SuperLU in
+        symmetric mode (:func:`rbbench.hf.condensation.dense.factorize`); a dense one with a
+        Cholesky factorisation; an existing factorisation (``scipy.sparse.linalg.splu``
+        result, ...) is used through its ``solve`` method; a callable is returned unchanged.
 
     Notes
     -----
     Matrix right-hand sides are passed in Fortran order (SuperLU's layout). Measured at
-    n = 35k (2D vector Laplacian, 173k non-zeros): factorise 0.05 s, 256 right-hand sides
-    0.4 s.
+    n = 35k (2D vector Laplacian, 173k non-zeros, SuperLU): factorise 0.05 s, 256
+    right-hand sides 0.4 s. The energy product of ``hertz_sphere`` level 1 (n = 29,488, 1.2M
+    non-zeros, 3D P1), one thread: PARDISO 1.0 s, SuperLU 7.9 s (27M non-zeros in L + U).
     """
     if sp.issparse(X):
+        from rbbench.hf.condensation import pardiso
+
+        if pardiso.available():  # the HF solves' default too; SuperLU fills far more in 3D
+            return pardiso.factorized(X)
         from rbbench.hf.condensation.dense import factorize
 
         lu = factorize(X)

@@ -202,6 +202,24 @@ def test_solver_inputs_agree():
     assert np.allclose(H_sparse @ H_sparse.T, G, rtol=1e-10, atol=1e-12)
 
 
+@pytest.mark.parametrize("use_pardiso", [True, False])
+def test_make_solver_of_a_sparse_matrix_solves_it(use_pardiso, monkeypatch):
+    """Both factorisations of a sparse X (PARDISO when installed, else SuperLU) against a
+    dense solve, for one and for several right-hand sides."""
+    from rbbench.hf.condensation import pardiso
+
+    if use_pardiso and not pardiso.available():
+        pytest.skip("pypardiso / MKL not installed")
+    monkeypatch.setattr(pardiso, "available", lambda: use_pardiso)
+    _, X, _, _ = _problem(1)
+    rhs = np.random.default_rng(3).standard_normal((X.shape[0], 4))
+    want = np.linalg.solve(X.toarray(), rhs)
+    solve = make_solver(X)
+    assert np.allclose(solve(rhs), want, rtol=1e-10, atol=1e-12 * np.abs(want).max())
+    assert np.allclose(solve(rhs[:, 0]), want[:, 0], rtol=1e-10,
+                       atol=1e-12 * np.abs(want).max())
+
+
 def test_hf_constants_against_dense_svd():
     """Independent dense computation: beta_HF(span, Vg = I) and c_HF are the extreme
     singular values of W^{-1/2} B L^{-T}, X = L L^T."""
