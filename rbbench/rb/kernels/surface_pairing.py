@@ -144,8 +144,8 @@ def _first_at_least(key, first, last, value):
 @njit(cache=True)
 def pair_surface_points(th, fb, ib, meta, w, gap, mphi, mtri):
     """The pairing at ``th = [1, mu]`` of the plan's slave points: weights ``w``, gaps ``gap``,
-    master shape values ``mphi`` (row per point) and master triangles ``mtri`` (into the
-    plan's window triangles ``m_tri``; -1 for the rigid plane), written in place. Returns
+    master shape values ``mphi`` (row per point) and master triangles ``mtri`` (rows of the
+    plan's ``m_geo``; -1 for the rigid plane), written in place. Returns
     ``(status, s)``, ``s`` the slave map's scale (the normals are ``sign(s) n_hat``).
 
     Per point, the line along its normal is cast on the candidate triangles of its window

@@ -69,13 +69,13 @@ def surface_slave_terms(lay: Any, Z_loc: np.ndarray, cols: np.ndarray, sphi: np.
 def surface_master_plan(ev: Any, Z_loc: np.ndarray, x_hat: np.ndarray | None = None,
                         n_hat: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The master window of ``ev`` (a :class:`~rbbench.rb.hyper.surface_eim.SurfaceRowEvaluator`):
-    reference vertices ``m_v`` (the window triangles' vertices only), triangles ``m_tri``
-    into them, each point's candidates as rows ``w_tri[w_ptr[q]:w_ptr[q + 1]]`` of
+    each point's candidates as rows ``w_tri[w_ptr[q]:w_ptr[q + 1]]`` of
     ``[triangle, rank]`` (``rank``: the position in the order the reference tests them,
     which breaks ties alike), sorted by ``w_key = e_q . centroid`` along the axis ``e_q``
     (:func:`_trace_axes`; ``w_axis[q] = [e_q, the largest bounding radius of q's candidates,
-    with the reference's slack]``), the window triangles in the reference frame (``m_geo``,
-    :func:`_triangle_rows`), ``Z^T`` on the window's master dofs (``zt_m``) and ``m_dofs``
+    with the reference's slack]``), the master triangles in the reference frame (``m_geo``,
+    :func:`_triangle_rows`; ``m_v`` and ``m_tri``, the 2D layout's vertex slots, are
+    placeholders), ``Z^T`` on the window's master dofs (``zt_m``) and ``m_dofs``
     (triangle, node x component) numbered into it. ``x_hat``, ``n_hat``: the reference
     points (:func:`reference_surface_points`, computed when not given). A rigid plane:
     one-entry placeholders."""
@@ -102,10 +102,9 @@ def surface_master_plan(ev: Any, Z_loc: np.ndarray, x_hat: np.ndarray | None = N
     order = np.lexsort((key, pi))  # by point, then by the key along its axis
     nq = ev.Mrows.shape[1]
     ptr = np.concatenate([[0], np.cumsum(np.bincount(pi, minlength=nq))])
-    verts, inv = np.unique(ms.triangles[:, :3], return_inverse=True)
     dofs = ms.dofs[ms.triangles].reshape(ms.n_tri, -1)  # (tri, nodes x 3)
     used, m_dofs = np.unique(dofs, return_inverse=True)
-    return {"m_v": ms.points[verts], "m_tri": inv.reshape(-1, 3).astype(np.int64),
+    return {"m_v": np.zeros((1, 3)), "m_tri": np.zeros((1, 3), dtype=np.int64),  # unread in 3D
             "m_geo": _triangle_rows(corners, cen, slack),
             "w_ptr": ptr.astype(np.int64),
             "w_tri": np.stack([ti[order], rank[order]], axis=1),
