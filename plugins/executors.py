@@ -24,6 +24,7 @@ from typing import Any
 from rbbench.bench.execution import CaseTimeout, alarm, execute_case, failed_row
 from rbbench.bench.matrix import Case
 from rbbench.hf.snapshots.compute import n_cpus
+from rbbench.runtime.workers import start_method
 
 OnResult = Callable[[Case, dict], None]
 OnStage = Callable[[str], None]
@@ -119,10 +120,13 @@ def _record(kind: str, payload: Any, case: Case, run_id: str, name: str) -> dict
                       "that signal, e.g. -9 out of memory)")
 
 
-def _context(start_method: str | None) -> mp.context.BaseContext:
-    if start_method is None:
-        start_method = "fork" if sys.platform.startswith("linux") else "spawn"
-    return mp.get_context(start_method)
+def _context(method: str | None) -> mp.context.BaseContext:
+    """``method``, else ``fork`` on Linux from the main thread (``forkserver`` from another
+    thread, where a forked child may hang at its exit: :func:`rbbench.runtime.workers.
+    start_method`), else ``spawn``."""
+    if method is None:
+        method = start_method("fork") if sys.platform.startswith("linux") else "spawn"
+    return mp.get_context(method)
 
 
 class ProcessExecutor:

@@ -32,7 +32,8 @@ inherit the cap instead of setting it (which re-creates OpenBLAS's spinning thre
 them); the cap is lifted at the end of that call (after the shutdown of a pool not kept),
 also when the pool is kept.
 
-A pool is forked from the main thread only (:func:`start_method`): forked from another
+A pool is forked from the main thread only (:func:`start_method`; the run matrices'
+processes too): forked from another
 thread while a SciPy ``SuperLU`` factorisation is alive (SciPy 1.17.1, CPython 3.11.7;
 the HF solves and the shape benchmarks keep them), the child gets a pending
 ``SystemError`` in ``threading``'s fork hook, its ``threading`` state still lists the

@@ -281,3 +281,23 @@ def test_frictionless_rows_carry_beta_over_c_hf(tmp_path):
         value = row[f"beta_{b}_rel_min"]
         assert math.isfinite(value) and value > 0, b
         assert value == pytest.approx(s[f"beta_{b}_rel_min"], rel=1e-9), b
+
+
+def test_processes_fork_from_the_main_thread_only():
+    """A child forked from a thread other than the main one may hang at its exit (with a live
+    SciPy SuperLU in the parent): both process launchers switch to forkserver there."""
+    import threading
+
+    from rbbench_plugins.executors import _context
+
+    from rbbench.bench.runner import _snapshot_context
+
+    assert _context(None).get_start_method() == _snapshot_context().get_start_method() \
+        == "fork"
+    seen = []
+    th = threading.Thread(target=lambda: seen.extend(
+        [_context(None).get_start_method(), _snapshot_context().get_start_method(),
+         _context("spawn").get_start_method()]))
+    th.start()
+    th.join()
+    assert seen == ["forkserver", "forkserver", "spawn"]
