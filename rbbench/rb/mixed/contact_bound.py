@@ -59,13 +59,12 @@ from rbbench.rb.algorithms.bounds import (
     vi_bound,
 )
 from rbbench.rb.mixed.bounds import BoundUnsupported, constant_in_mu
+from rbbench.rb.mixed.options import BOUND_POD_MAX
 
 __all__ = ["ContactBound", "build_contact_bound", "contact_rows"]
 
 #: Relative singular-value cut of the POD of the training vectors ``B(mu)^T Vg``
 POD_RTOL = 1e-9
-#: The most POD modes of ``B(mu)^T Vg`` (online cost O(n_c K))
-POD_MAX = 250
 
 
 @dataclass
@@ -197,6 +196,31 @@ class ContactBound:
         return vi_bound(self.terms(mu, np.asarray(c, float), np.asarray(a, float), compiled),
                         self.alpha, self.gamma)
 
+    def with_modes(self, k: int) -> ContactBound:
+        """The bound built with at most ``k`` POD modes of ``b_M``, from this one without
+        rebuilding: the POD keeps the leading modes and the Riesz factor is a Gram-Schmidt
+        with the modes last, so its first columns and rows are those of the smaller build
+        (the same numbers up to round-off). ``k`` >= the modes held: this bound."""
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise ValueError(f"bound_pod_max {k!r}: give an integer >= 1")
+        K = self.U.shape[1]
+        if k >= K:
+            return self
+        q = self.T.shape[1] - (K - k)
+        # the directions of the first q pieces: a piece that added one has kj = the count so
+        # far + 1; a dropped piece used all rows, here those of the smaller build (its
+        # components on later directions are below the cut of the Gram-Schmidt)
+        rank = 0
+        for kk in self.kj[:q]:
+            rank += int(kk == rank + 1)
+        kj = np.minimum(self.kj[:q], rank)
+        state = {**self.__getstate__(), "U": np.ascontiguousarray(self.U[:, :k]),
+                 "T": np.asfortranarray(self.T[:rank, :q]),
+                 "kj": np.ascontiguousarray(kj, dtype=np.int64), "last_remainder": 0.0}
+        out = ContactBound.__new__(ContactBound)
+        out.__setstate__(state)
+        return out
+
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
         state.pop("MspT", None)
@@ -220,9 +244,11 @@ def contact_rows(ev: Any, Msp: sp.csr_matrix, mu: np.ndarray) -> tuple[sp.csr_ma
 def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z: np.ndarray,
                         Vg: np.ndarray, X: Any, x_solve: Callable[[np.ndarray], np.ndarray],
                         bounds: np.ndarray, mus_sample: np.ndarray,
-                        progress: Callable[[str], None] = lambda m: None) -> ContactBound:
+                        progress: Callable[[str], None] = lambda m: None,
+                        pod_max: int = BOUND_POD_MAX) -> ContactBound:
     """The offline stage (module docstring): ``mus_sample`` a dense sample of D (the master
-    windows and the POD of ``B(mu)^T Vg``). :class:`BoundUnsupported` when ``A`` or ``F``
+    windows and the POD of ``B(mu)^T Vg``, at most ``pod_max`` modes: online cost
+    O(n_l pod_max + pod_max^2)). :class:`BoundUnsupported` when ``A`` or ``F``
     depends on mu, the rows touch Dirichlet dofs, or ``B`` off the master chain is not
     ``s(mu) M``."""
     from rbbench.rb.hyper.contact_eim import build_row_evaluator, local_free_rows
@@ -268,7 +294,7 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
     progress("error bound: POD of B_M(mu)^T Vg on the master dofs")
     S = np.hstack([np.asarray(contact_rows(ev, Msp, mu)[0][:, mloc].T @ Vg)
                    for mu in mus_sample])
-    Um = _pod(S, POD_MAX, POD_RTOL)
+    Um = _pod(S, pod_max, POD_RTOL)
     U = np.zeros((ev.n_local, Um.shape[1]))
     U[mloc] = Um
     n = free.size
