@@ -47,7 +47,7 @@ def bound_cap_study(scene: Scene, caps: tuple[int, ...] = (250, 150, 100, 60, 30
         raise SceneError(f"{scene.name}: no two-body online bound to cut ("
                          f"{info.get('online_refused', 'no contact EIM')}): the study needs "
                          "a two-body scene with the contact EIM")
-    bounds = [top.with_modes(k) for k in caps]
+    bounds = [top.with_modes(k, stage.x_solve) for k in caps]
     mus = np.asarray(ctx.mus_valid)
     valid = compute_snapshots(scene, mus, cache_dir=cache_dir)
     X, Z, model = ctx.X, stage.Z_off, stage.model

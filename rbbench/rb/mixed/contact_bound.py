@@ -65,6 +65,10 @@ __all__ = ["ContactBound", "build_contact_bound", "contact_rows"]
 
 #: Relative singular-value cut of the POD of the training vectors ``B(mu)^T Vg``
 POD_RTOL = 1e-9
+#: The leading eigenvectors of ``P_M^T X^{-1} P_M`` computed offline for the modes of
+#: :func:`master_modes` (they alternate with the POD modes, so a cap of ``k`` uses at most
+#: ``ceil(k / 2)`` of them)
+EIG_MODES = 64
 
 
 @dataclass
@@ -98,6 +102,10 @@ class ContactBound:
     last_remainder: float = 0.0
     #: the packed arrays of the numba pairing (:func:`compiled_plan`), None without numba
     plan: dict | None = None
+    #: the free-dof index of each master dof (``mloc``), and the number of free dofs: the
+    #: operator ``P_M^T X^{-1} P_M`` of ``lambda_c``
+    mfree: np.ndarray | None = None
+    n_free: int = 0
 
     def __post_init__(self) -> None:
         self.MspT = sp.csr_matrix(self.Msp.T)
@@ -196,13 +204,20 @@ class ContactBound:
         return vi_bound(self.terms(mu, np.asarray(c, float), np.asarray(a, float), compiled),
                         self.alpha, self.gamma)
 
-    def with_modes(self, k: int) -> ContactBound:
-        """The bound built with at most ``k`` POD modes of ``b_M``, from this one without
-        rebuilding: the POD keeps the leading modes and the Riesz factor is a Gram-Schmidt
-        with the modes last, so its first columns and rows are those of the smaller build
-        (the same numbers up to round-off). ``k`` >= the modes held: this bound."""
+    def with_modes(self, k: int, x_solve: Callable[[np.ndarray], np.ndarray]
+                   ) -> ContactBound:
+        """The bound built with at most ``k`` modes of ``b_M``, from this one without
+        rebuilding the rest: the modes of :func:`master_modes` do not depend on the cap, so
+        a smaller cap keeps the first columns of ``U``, and the Riesz factor is a
+        Gram-Schmidt with the modes last, so its first columns and rows are those of the
+        smaller build (the same numbers up to round-off); ``lambda_c`` on the complement of
+        the fewer modes is computed again (``x_solve``: solves with X, offline). ``k`` >=
+        the modes held: this bound."""
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
             raise ValueError(f"bound_pod_max {k!r}: give an integer >= 1")
+        if self.mfree is None:
+            raise RuntimeError("this error bound was built by an earlier rbbench (no master "
+                               "dof map): rebuild the reduced model")
         K = self.U.shape[1]
         if k >= K:
             return self
@@ -214,7 +229,10 @@ class ContactBound:
         for kk in self.kj[:q]:
             rank += int(kk == rank + 1)
         kj = np.minimum(self.kj[:q], rank)
+        Um = self.U[self.mloc, :k]
+        lam_c = _local_dual_max(self.mfree, self.n_free, x_solve, Um)
         state = {**self.__getstate__(), "U": np.ascontiguousarray(self.U[:, :k]),
+                 "lam_c": lam_c,
                  "T": np.asfortranarray(self.T[:rank, :q]),
                  "kj": np.ascontiguousarray(kj, dtype=np.int64), "last_remainder": 0.0}
         out = ContactBound.__new__(ContactBound)
@@ -291,13 +309,15 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
     s0 = float(np.concatenate([[1.0], bounds.mean(axis=1)]) @ s_terms)
     BS = sp.csr_matrix(Bc[:, sloc]) / s0
     Cs = np.ascontiguousarray(BS @ Z[loc][sloc])
-    progress("error bound: POD of B_M(mu)^T Vg on the master dofs")
+    n = free.size
+    mfree = loc[mloc]
+    progress("error bound: modes of the master half (eigenvectors of P_M^T X^-1 P_M, POD of "
+             "B_M(mu)^T Vg)")
     S = np.hstack([np.asarray(contact_rows(ev, Msp, mu)[0][:, mloc].T @ Vg)
                    for mu in mus_sample])
-    Um = _pod(S, pod_max, POD_RTOL)
+    Um = master_modes(S, _dual_eigenvectors(mfree, n, x_solve, EIG_MODES), pod_max)
     U = np.zeros((ev.n_local, Um.shape[1]))
     U[mloc] = Um
-    n = free.size
 
     def embed(V: np.ndarray, at: np.ndarray) -> np.ndarray:
         out = np.zeros((n, V.shape[1]))
@@ -309,14 +329,15 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
     T, kj = riesz_factor(np.hstack([p0.F[:, None], p0.A @ Z,
                                     embed(np.asarray(BS.T @ Vg), sloc), embed(Um, mloc)]),
                          X, x_solve, return_ranks=True)
-    lam_c = _local_dual_max(loc[mloc], n, x_solve)
+    lam_c = _local_dual_max(mfree, n, x_solve, Um)
     alpha, gamma = coercivity_constants(p0.A, X)
     return ContactBound(ev=ev, Msp=Msp, Z_loc=np.ascontiguousarray(Z[loc]),
                         Vg=np.ascontiguousarray(Vg), U=U, T=np.asfortranarray(T),
                         lam_c=lam_c, Linv=np.asfortranarray(Linv), s_terms=s_terms,
                         alpha=alpha, gamma=gamma, Cs=Cs, mloc=mloc,
                         kj=np.ascontiguousarray(kj, dtype=np.int64),
-                        plan=compiled_plan(ev, Msp, bounds))
+                        plan=compiled_plan(ev, Msp, bounds), mfree=mfree,
+                        n_free=n)
 
 
 def _pod(S: np.ndarray, k_max: int, rtol: float) -> np.ndarray:
@@ -388,17 +409,57 @@ def _compiled_residuals(plan: dict, mu: np.ndarray, uz: np.ndarray, lam: np.ndar
     return d, b
 
 
-def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable) -> float:
-    """``lambda_c``: the largest eigenvalue of ``P^T X^{-1} P`` (Lanczos), relative margin
-    :data:`~rbbench.rb.algorithms.bounds.EIG_MARGIN` upwards."""
+def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable,
+                    U: np.ndarray | None = None) -> float:
+    """``lambda_c``: the largest eigenvalue of ``P^T X^{-1} P`` on the l2-complement of the
+    orthonormal ``U`` (all of it without ``U``): ``(I - U U^T) P^T X^{-1} P (I - U U^T)``,
+    Lanczos, relative margin :data:`~rbbench.rb.algorithms.bounds.EIG_MARGIN` upwards. The
+    remainder ``e = b_M - U U^T b_M`` lies in that complement, so ``||P e||_X'^2 <=
+    lambda_c ||e||_2^2``."""
+    def mv(x: np.ndarray) -> np.ndarray:
+        x = np.ravel(x)
+        if U is not None:
+            x = x - U @ (U.T @ x)
+        v = np.zeros(n)
+        v[loc] = x
+        y = np.asarray(x_solve(v)).ravel()[loc]
+        return y - U @ (U.T @ y) if U is not None else y
+
+    op = spla.LinearOperator((loc.size, loc.size), matvec=mv, dtype=float)
+    top = float(spla.eigsh(op, k=1, which="LA", tol=1e-12, return_eigenvectors=False)[0])
+    return top * (1.0 + EIG_MARGIN)
+
+
+def _dual_eigenvectors(loc: np.ndarray, n: int, x_solve: Callable, k: int) -> np.ndarray:
+    """The ``k`` leading eigenvectors of ``P^T X^{-1} P`` (Lanczos; fewer on a small
+    chain), largest first, l2-orthonormal."""
     def mv(x: np.ndarray) -> np.ndarray:
         v = np.zeros(n)
         v[loc] = np.ravel(x)
         return np.asarray(x_solve(v)).ravel()[loc]
 
+    k = int(min(k, loc.size - 2))
+    if k < 1:
+        return np.zeros((loc.size, 0))
     op = spla.LinearOperator((loc.size, loc.size), matvec=mv, dtype=float)
-    top = float(spla.eigsh(op, k=1, which="LA", tol=1e-12, return_eigenvectors=False)[0])
-    return top * (1.0 + EIG_MARGIN)
+    w, V = spla.eigsh(op, k=k, which="LA", tol=1e-10)
+    return np.ascontiguousarray(V[:, np.argsort(w)[::-1]])
+
+
+def master_modes(S: np.ndarray, E: np.ndarray, k_max: int) -> np.ndarray:
+    """The modes ``U`` of the master half (at most ``k_max``, l2-orthonormal): the leading
+    eigenvectors ``E`` of ``P_M^T X^{-1} P_M`` interleaved with the POD of the training
+    vectors ``S`` projected off all of ``E`` (:func:`_pod`), ``[e_1, p_1, e_2, p_2, ...]``,
+    then the longer list alone. The POD shrinks ``||e||_2`` on the data; each eigenvector
+    lowers ``lambda_c``, the largest eigenvalue left on the complement of ``U``. The order
+    does not depend on ``k_max``: a smaller cap keeps the first columns."""
+    P = _pod(S - E @ (E.T @ S), k_max, POD_RTOL) if S.size else np.zeros((E.shape[0], 0))
+    cols = [E[:, i] for i in range(E.shape[1])], [P[:, i] for i in range(P.shape[1])]
+    order: list[np.ndarray] = []
+    for i in range(max(len(cols[0]), len(cols[1]))):
+        order += [c[i] for c in cols if i < len(c)]
+    V = np.stack(order[:k_max], axis=1)
+    return np.ascontiguousarray(np.linalg.qr(V)[0])
 
 
 def _slave_lifting(problem_at: Callable, layout: Any, free: np.ndarray, X: Any,
