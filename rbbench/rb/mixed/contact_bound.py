@@ -69,6 +69,8 @@ POD_RTOL = 1e-9
 #: :func:`master_modes` (they alternate with the POD modes, so a cap of ``k`` uses at most
 #: ``ceil(k / 2)`` of them)
 EIG_MODES = 64
+#: The share of those eigenvectors among the modes (:func:`master_modes`)
+EIG_SHARE = 0.5
 
 
 @dataclass
@@ -315,7 +317,8 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
              "B_M(mu)^T Vg)")
     S = np.hstack([np.asarray(contact_rows(ev, Msp, mu)[0][:, mloc].T @ Vg)
                    for mu in mus_sample])
-    Um = master_modes(S, _dual_eigenvectors(mfree, n, x_solve, EIG_MODES), pod_max)
+    Um = master_modes(S, _dual_eigenvectors(mfree, n, x_solve, EIG_MODES), pod_max,
+                      EIG_SHARE)
     U = np.zeros((ev.n_local, Um.shape[1]))
     U[mloc] = Um
 
@@ -446,19 +449,27 @@ def _dual_eigenvectors(loc: np.ndarray, n: int, x_solve: Callable, k: int) -> np
     return np.ascontiguousarray(V[:, np.argsort(w)[::-1]])
 
 
-def master_modes(S: np.ndarray, E: np.ndarray, k_max: int) -> np.ndarray:
+def master_modes(S: np.ndarray, E: np.ndarray, k_max: int, share: float = EIG_SHARE
+                 ) -> np.ndarray:
     """The modes ``U`` of the master half (at most ``k_max``, l2-orthonormal): the leading
     eigenvectors ``E`` of ``P_M^T X^{-1} P_M`` interleaved with the POD of the training
-    vectors ``S`` projected off all of ``E`` (:func:`_pod`), ``[e_1, p_1, e_2, p_2, ...]``,
-    then the longer list alone. The POD shrinks ``||e||_2`` on the data; each eigenvector
-    lowers ``lambda_c``, the largest eigenvalue left on the complement of ``U``. The order
-    does not depend on ``k_max``: a smaller cap keeps the first columns."""
+    vectors ``S`` projected off all of ``E`` (:func:`_pod`), an eigenvector at every
+    position ``i`` where ``floor((i + 1) share)`` steps up (``share`` 0.5: ``[p_1, e_1, p_2,
+    e_2, ...]``), then the longer list alone. The POD shrinks ``||e||_2`` on the data; each
+    eigenvector lowers ``lambda_c``, the largest eigenvalue left on the complement of
+    ``U``. The order does not depend on ``k_max``: a smaller cap keeps the first columns."""
     P = _pod(S - E @ (E.T @ S), k_max, POD_RTOL) if S.size else np.zeros((E.shape[0], 0))
-    cols = [E[:, i] for i in range(E.shape[1])], [P[:, i] for i in range(P.shape[1])]
     order: list[np.ndarray] = []
-    for i in range(max(len(cols[0]), len(cols[1]))):
-        order += [c[i] for c in cols if i < len(c)]
-    V = np.stack(order[:k_max], axis=1)
+    ie = ip = 0
+    for i in range(min(k_max, E.shape[1] + P.shape[1])):
+        eig = np.floor((i + 1) * share) > np.floor(i * share)
+        if ie < E.shape[1] and (eig or ip >= P.shape[1]):
+            order.append(E[:, ie])
+            ie += 1
+        else:
+            order.append(P[:, ip])
+            ip += 1
+    V = np.stack(order, axis=1)
     return np.ascontiguousarray(np.linalg.qr(V)[0])
 
 
