@@ -71,6 +71,8 @@ POD_RTOL = 1e-9
 EIG_MODES = 64
 #: The share of those eigenvectors among the modes (:func:`master_modes`)
 EIG_SHARE = 0.5
+#: POD modes of the master half computed at a time (:func:`master_modes`)
+POD_BLOCK = 16
 
 
 @dataclass
@@ -343,20 +345,6 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
                         n_free=n)
 
 
-def _pod(S: np.ndarray, k_max: int, rtol: float) -> np.ndarray:
-    """An l2-orthonormal basis of the leading left singular vectors of ``S`` (at most
-    ``k_max``, singular values above ``rtol`` of the largest), from the eigenvectors of the
-    smaller Gram matrix; orthonormalised again by QR (the bound needs ``U^T U = I``, not
-    exact singular vectors)."""
-    G = S @ S.T if S.shape[0] <= S.shape[1] else S.T @ S
-    ev, W = np.linalg.eigh(G)
-    ev, W = ev[::-1], W[:, ::-1]
-    sv = np.sqrt(np.maximum(ev, 0.0))
-    k = int(min(k_max, np.sum(sv > rtol * sv[0])))
-    V = W[:, :k] if S.shape[0] <= S.shape[1] else S @ W[:, :k]
-    return np.ascontiguousarray(np.linalg.qr(V)[0])
-
-
 def compiled_plan(ev: Any, Msp: sp.csr_matrix, bounds: np.ndarray) -> dict | None:
     """The arrays of the numba pairing of all contact rows
     (:func:`rbbench.rb.kernels.pairing.pair_points`, the compiled online solve's) and of
@@ -451,26 +439,60 @@ def _dual_eigenvectors(loc: np.ndarray, n: int, x_solve: Callable, k: int) -> np
 
 def master_modes(S: np.ndarray, E: np.ndarray, k_max: int, share: float = EIG_SHARE
                  ) -> np.ndarray:
-    """The modes ``U`` of the master half (at most ``k_max``, l2-orthonormal): the leading
-    eigenvectors ``E`` of ``P_M^T X^{-1} P_M`` interleaved with the POD of the training
-    vectors ``S`` projected off all of ``E`` (:func:`_pod`), an eigenvector at every
-    position ``i`` where ``floor((i + 1) share)`` steps up (``share`` 0.5: ``[p_1, e_1, p_2,
-    e_2, ...]``), then the longer list alone. The POD shrinks ``||e||_2`` on the data; each
-    eigenvector lowers ``lambda_c``, the largest eigenvalue left on the complement of
-    ``U``. The order does not depend on ``k_max``: a smaller cap keeps the first columns."""
-    P = _pod(S - E @ (E.T @ S), k_max, POD_RTOL) if S.size else np.zeros((E.shape[0], 0))
-    order: list[np.ndarray] = []
-    ie = ip = 0
-    for i in range(min(k_max, E.shape[1] + P.shape[1])):
-        eig = np.floor((i + 1) * share) > np.floor(i * share)
-        if ie < E.shape[1] and (eig or ip >= P.shape[1]):
-            order.append(E[:, ie])
+    """The modes ``U`` of the master half (at most ``k_max``, l2-orthonormal), one at a
+    time: at every position ``i`` where ``floor((i + 1) share)`` steps up the next leading
+    eigenvector of ``P_M^T X^{-1} P_M`` (``E``), elsewhere the next POD mode of the
+    training vectors ``S``, taken from the leading left singular vectors of ``S`` projected
+    off the modes so far (:data:`POD_BLOCK` at a time, Lanczos on the projected Gram
+    matrix; while above :data:`POD_RTOL` of the first singular value); each new mode is
+    orthonormalised against the ones before (twice). The POD shrinks ``||e||_2`` on the
+    data; each eigenvector lowers ``lambda_c``, the largest eigenvalue left on the
+    complement of ``U``. The modes do not depend on the cap: a smaller cap keeps the first
+    columns."""
+    n = E.shape[0] if E.size else S.shape[0]
+    G = S @ S.T if S.size else np.zeros((n, n))
+    Q = np.zeros((n, 0))
+    s0, ie, buf, pod_left = None, 0, [], bool(S.size)
+    for i in range(min(k_max, n)):
+        eig = ie < E.shape[1] and (np.floor((i + 1) * share) > np.floor(i * share)
+                                   or not pod_left)
+        if not eig and pod_left and not buf:
+            top, V = _leading_projected(G, Q, min(POD_BLOCK, n - Q.shape[1] - 2))
+            s0 = top[0] if s0 is None else s0
+            buf = [V[:, j] for j in range(V.shape[1]) if top[j] > POD_RTOL ** 2 * s0]
+            pod_left = len(buf) == V.shape[1] > 0
+        if not eig and buf:
+            v = buf.pop(0)
+        elif ie < E.shape[1]:
+            v = E[:, ie].copy()
             ie += 1
         else:
-            order.append(P[:, ip])
-            ip += 1
-    V = np.stack(order, axis=1)
-    return np.ascontiguousarray(np.linalg.qr(V)[0])
+            break
+        for _ in range(2):
+            v = v - Q @ (Q.T @ v)
+        nv = float(np.linalg.norm(v))
+        if nv > 1e-8:
+            Q = np.hstack([Q, (v / nv)[:, None]])
+    return np.ascontiguousarray(Q)
+
+
+def _leading_projected(G: np.ndarray, Q: np.ndarray, k: int) -> tuple[np.ndarray,
+                                                                      np.ndarray]:
+    """The ``k`` largest eigenvalues (descending) and eigenvectors of ``(I - Q Q^T) G (I -
+    Q Q^T)``."""
+    def mv(x: np.ndarray) -> np.ndarray:
+        x = np.ravel(x)
+        x = x - Q @ (Q.T @ x)
+        y = G @ x
+        return y - Q @ (Q.T @ y)
+
+    if k < 1:
+        return np.zeros(0), np.zeros((G.shape[0], 0))
+    op = spla.LinearOperator(G.shape, matvec=mv, dtype=float)
+    w, V = spla.eigsh(op, k=k, which="LA", tol=1e-10,
+                      v0=np.random.default_rng(0).standard_normal(G.shape[0]))
+    order = np.argsort(w)[::-1]
+    return w[order], V[:, order]
 
 
 def _slave_lifting(problem_at: Callable, layout: Any, free: np.ndarray, X: Any,
