@@ -13,13 +13,16 @@ numbers (1)-(6) of that module). Its terms at mu, for ``u_N = Z c`` and ``lam_N 
   slave half of ``d`` is ``s_r (B_S(mu_0) Z) c`` and of ``b`` is ``s_r B_S(mu_0)^T Vg a``,
   both from offline arrays; the master half ``b_M`` is non-zero only where ``lam_N`` is;
 * ``rho = ||F - A Z c - P b||_X'`` (1), ``P`` the contact dofs among the free ones: ``b_M`` is
-  split into ``U g`` (``U``: an l2-orthonormal POD basis of the training vectors
-  ``B_M(mu)^T Vg`` on the master dofs, ``g = U^T b_M``) and the remainder ``e = b_M - U g``.
+  split into ``U g`` (``U``: at most ``pod_max`` l2-orthonormal modes on the master dofs,
+  :func:`master_modes`: leading eigenvectors of ``P_M^T X^{-1} P_M`` interleaved with the
+  POD of the training vectors ``B_M(mu)^T Vg``; ``g = U^T b_M``) and the remainder
+  ``e = b_M - U g``.
   The Riesz representers of ``F``, ``A Z``, ``P_S B_S(mu_0)^T Vg`` and ``P_M U`` are
   orthonormalised offline (:func:`~rbbench.rb.algorithms.bounds.riesz_factor`): ``||F - A Z c
   - P_S b_S - P_M U g||_X' = ||T w||``; the remainder by ``||P_M e||_X' <= lambda_c^(1/2)
-  ||e||_2``, ``lambda_c`` the largest eigenvalue of ``P_M^T X^{-1} P_M`` (Lanczos, with the
-  margin of the coercivity constants). By the triangle inequality ``rho <= ||T w|| +
+  ||e||_2``, ``lambda_c`` the largest eigenvalue of ``P_M^T X^{-1} P_M`` on the
+  l2-complement of ``U``, where ``e`` lies (Lanczos, with the margin of the coercivity
+  constants). By the triangle inequality ``rho <= ||T w|| +
   lambda_c^(1/2) ||e||_2``: the compression leaves nothing out, it only loosens the bound
   by the remainder term, which is reported (``bound_eim_residual``);
 * ``sigma = ||[d]_+||_*'`` without ``D(mu)^{-1} = (B(mu) X^{-1} B(mu)^T)^{-1}``: any ``v`` with
@@ -39,6 +42,7 @@ multiplier, ``T`` (k x q) used as upper trapezoidal: independent of the HF size.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -156,7 +160,7 @@ class ContactBound:
         mu = np.atleast_1d(np.asarray(mu, dtype=float))
         out = self._fast_terms(mu, c, a) if compiled and self.plan is not None else None
         if out is not None:
-            rho_t, lam_t, bb, gg, sigma, kappa = out
+            rho_t, lam_t, bb, gg, sigma, kappa = out.tolist()
         else:
             d, b, lam = self.residuals(mu, c, a, compiled=False)
             sr = self.s_ratio(mu)
@@ -171,35 +175,38 @@ class ContactBound:
             sigma = float(np.linalg.norm(self.Linv[:, up] @ d[up])) / abs(sr)
             kappa = max(float(lam @ np.maximum(-d, 0.0)), 0.0)
         # ||b_M - U g||_2 by Pythagoras (U orthonormal): one product with U instead of two
-        rem = float(np.sqrt(self.lam_c * max(bb - gg, 0.0)))
+        rem = math.sqrt(self.lam_c * max(bb - gg, 0.0))
         self.last_remainder = rem
         return BoundTerms(rho_t + rem, sigma, kappa, lam_t + rem)
 
     def _fast_terms(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray
                     ) -> np.ndarray | None:
-        """The kernel's ``[||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2, sigma, kappa]``;
-        None where it declines (mu outside D, a point leaving its window)."""
-        pl = self.plan
-        if self._work is None:
-            from rbbench.rb.kernels import layout
-            from rbbench.rb.mixed.bound_kernels import moving_contact_terms
+        """The kernel's ``[||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2, sigma, kappa]`` (its
+        output buffer: read it before the next call); None where it declines (mu outside
+        D, a point leaving its window). The arguments that do not change between calls are
+        gathered once."""
+        k = self._work if self._work is not None else self._make_work(c.size)
+        status = k["kernel"](mu, *k["head"], np.ascontiguousarray(a, dtype=float),
+                             *k["mid"], np.ascontiguousarray(c, dtype=float), *k["tail"])
+        return k["out"] if status == k["ok"] else None
 
-            nq, n_c = pl["n_hat"].shape[0], self.Z_loc.shape[0]
-            self._work = {"w": np.empty(nq), "gap": np.empty(nq),
-                          "mphi": np.zeros((nq, pl["k"])),
-                          "seg": np.zeros(nq, dtype=np.int64),
-                          "mark": np.zeros(n_c, dtype=np.int64), "uz": np.zeros(n_c),
-                          "b": np.zeros(n_c), "touched": np.zeros(n_c, dtype=np.int64),
-                          "d": np.zeros(self.Cs.shape[0]), "out": np.zeros(6),
-                          "kernel": moving_contact_terms, "ok": layout.OK}
-        k = self._work
-        status = k["kernel"](
-            mu, pl["fb"], pl["ib"], pl["meta"], pl["n_hat"], pl["mdofs"], pl["rows"],
-            self.s_terms, self.Vg, np.ascontiguousarray(a, dtype=float), self.Cs, self.Z_loc,
-            np.ascontiguousarray(c, dtype=float), self.U, self.T, self.kj, 1 + c.size,
-            self.Linv, k["w"], k["gap"], k["mphi"], k["seg"], k["mark"], k["uz"], k["b"],
-            k["touched"], k["d"], k["out"])
-        return k["out"].copy() if status == k["ok"] else None
+    def _make_work(self, N: int) -> dict:
+        """The kernel, its work arrays and its fixed arguments (:meth:`_fast_terms`)."""
+        from rbbench.rb.kernels import layout
+        from rbbench.rb.mixed.bound_kernels import moving_contact_terms
+
+        pl = self.plan
+        nq, n_c = pl["n_hat"].shape[0], self.Z_loc.shape[0]
+        out = np.zeros(6)
+        work = (np.empty(nq), np.empty(nq), np.zeros((nq, pl["k"])),
+                np.zeros(nq, dtype=np.int64), np.zeros(n_c, dtype=np.int64), np.zeros(n_c),
+                np.zeros(n_c), np.zeros(n_c, dtype=np.int64), np.zeros(self.Cs.shape[0]), out)
+        self._work = {"kernel": moving_contact_terms, "ok": layout.OK, "out": out,
+                      "head": (pl["fb"], pl["ib"], pl["meta"], pl["n_hat"], pl["mdofs"],
+                               pl["rows"], self.s_terms, self.Vg),
+                      "mid": (self.Cs, self.Z_loc),
+                      "tail": (self.U, self.T, self.kj, 1 + N, self.Linv, *work)}
+        return self._work
 
     def __call__(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray,
                  compiled: bool = True) -> VIBound:
