@@ -22,10 +22,11 @@ ONLINE_METHODS = ("auto", "nnls", "daqp", "pdas")
 #: rows paired online: an offline cost of minutes and an online cost of about ten reduced
 #: solves); ``hf`` always with the HF operators (no online bound)
 BOUND_MODES = ("auto", "online", "hf")
-#: The default of ``bound_pod_max``: the most POD modes of the master half of
-#: ``B(mu)^T lam_N`` in the two-body online bound (a speed / sharpness trade, measured by
-#: ``rbbench studies bound-cap``)
-BOUND_POD_MAX = 250
+#: The default of ``bound_pod_max``: the most modes of the master half of ``B(mu)^T
+#: lam_N`` in the two-body online bound (a speed / sharpness trade, measured by ``rbbench
+#: studies bound-cap``: on hertz_halfdisks the knee of the curve, where fewer modes save
+#: little time and the effectivity rises faster)
+BOUND_POD_MAX = 60
 
 
 @dataclass
