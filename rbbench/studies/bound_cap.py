@@ -29,15 +29,16 @@ __all__ = ["bound_cap_study", "markdown"]
 
 def bound_cap_study(scene: Scene, caps: tuple[int, ...] = (250, 150, 100, 60, 30),
                     N: int = 20, R: int = 20, n_valid: int = 20, repeats: int = 20,
-                    cache_dir: str = ".rbbench_cache",
-                    progress=lambda m: None) -> dict[str, Any]:
+                    cache_dir: str = ".rbbench_cache", progress=lambda m: None,
+                    n_train: int | None = None) -> dict[str, Any]:
     """The curve (module docstring): per cap, over the validation set, the bound's and the
     solve's median times (``repeats`` interleaved rounds per parameter: solve, bound at cap
     1, solve, bound at cap 2, ...), their ratio, the effectivity min / median / max,
-    ``err_bound_u_max`` and the remainder's share of ``rho`` (median)."""
+    ``err_bound_u_max`` and the remainder's share of ``rho`` (median); ``n_train``: the
+    training set's size (default: the scene's)."""
     caps = tuple(sorted({int(k) for k in caps}, reverse=True))
-    off = offline(scene, ReduceConfig(N=N, n_valid=n_valid, cache_dir=cache_dir,
-                                      online_repeats=1,
+    off = offline(scene, ReduceConfig(N=N, n_train=n_train, n_valid=n_valid,
+                                      cache_dir=cache_dir, online_repeats=1,
                                       options={"R": R, "bound": "online",
                                                "bound_pod_max": caps[0]}), progress)
     ctx, stage = off.context, off.stage
