@@ -62,7 +62,7 @@ REDUCE_FIELDS: dict[str, tuple] = {
     "online_repeats": _int(1, 10_000), "exact_max_r": _int(0, MAX_SIZE),
     "m_eim": _int(1, MAX_SIZE), "n_eim_train": _int(1, limits.MAX_SAMPLES),
     "gcns_per_iteration": _int(1, MAX_SIZE), "gcns_max": _int(1, MAX_SIZE),
-    "gcns_patience": _int(1, MAX_SIZE),
+    "gcns_patience": _int(1, MAX_SIZE), "bound_pod_max": _int(1, MAX_SIZE),
     "tol_pod": _nonneg_float(), "tol_dual": _nonneg_float(), "tol_eim": _nonneg_float(),
     "delta_pga": _pos_float(),
     "backend_options": ("dict", None, None), "formulation_options": ("dict", None, None),

@@ -31,7 +31,7 @@ from rbbench.scene.parameters import FieldError
 FLAGS = {"N": "-N", "R": "-R", "S": "-S", "k_pga_max": "--k-max", "n_jobs": "--jobs"}
 #: integer flags that must be >= 1 (checked here, so that the message names the flag)
 POSITIVE = ("N", "R", "S", "n_train", "n_valid", "n_jobs", "m_eim", "n_eim_train", "k_pga_max",
-            "online_repeats", "gcns_per_iteration", "gcns_max", "gcns_patience")
+            "online_repeats", "gcns_per_iteration", "gcns_max", "gcns_patience", "bound_pod_max")
 #: argparse destinations that are not reduction fields
 _NOT_FIELDS = {"scene", "func", "command", "set", "out", "quiet", "backend_option",
                "formulation_option", "levels", "repeats", "baseline", "baseline_set"}
@@ -209,6 +209,9 @@ def _add_mixed_args(m: Any) -> None:
                    "each validation parameter), online (also under the contact EIM of a "
                    "two-body scene, at an offline cost of minutes) or hf (always with the HF "
                    "operators)")
+    m.add_argument("--bound-pod-max", type=int, help="frictionless, --bound online on a "
+                   "two-body scene: the most POD modes of the master half of B(mu)^T lam_N "
+                   "(fewer: a faster bound with a larger rigorous remainder)")
 
 
 def _add_friction_args(f: Any) -> None:

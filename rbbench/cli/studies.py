@@ -1,6 +1,7 @@
 """The study commands: ``rbbench hertz-table``, ``nitsche-table``, ``nitsche-compare`` and
 ``rbbench studies STUDY`` (pymor-thermal-block, heat-robin, shape-side-by-side,
-shape-strategy, snapshot-workers); the studies themselves live in :mod:`rbbench.studies`.
+shape-strategy, snapshot-workers, bound-greedy, bound-cap); the studies themselves live in
+:mod:`rbbench.studies`.
 
 The published figures are those of Benaceur, Drouet, Ehrlacher, Ern & Niakh, "Model order
 reduction methods: parametric variational inequalities" (talk), and of the talk "On
@@ -30,7 +31,8 @@ STUDY_INTS = {"N": ("-N", 1000), "R": ("-R", 1000), "n_train": ("--n-train", 10_
               "n_valid": ("--n-valid", 10_000), "repeats": ("--repeats", 10_000),
               "n_cells": ("--n-cells", 1024), "P": ("-P", 10_000), "jobs": ("--jobs", 256),
               "rounds": ("--rounds", 1000), "max_iter": ("--max-iter", 100_000),
-              "max_evals": ("--max-evals", 100_000), "ny": ("--ny", 100_000)}
+              "max_evals": ("--max-evals", 100_000), "ny": ("--ny", 100_000),
+              "caps": ("--caps", 10_000)}
 #: float arguments: ``dest -> (flag, low, high, low included)`` (high included; eps: the
 #: stopping tolerance relative to J0, at most 1)
 STUDY_FLOATS = {"eps": ("--eps", 0.0, 1.0, False), "pause": ("--pause", 0.0, 60.0, True),
@@ -107,7 +109,8 @@ def _checked(run: Any) -> Any:
 def add_parser(sub) -> None:
     """Register ``studies`` and one subcommand per study on the CLI's subparsers."""
     st = sub.add_parser("studies", help="side-by-side studies (pymor-thermal-block, heat-robin, "
-                        "shape-side-by-side, shape-strategy, snapshot-workers, bound-greedy)")
+                        "shape-side-by-side, shape-strategy, snapshot-workers, bound-greedy, "
+                        "bound-cap)")
     group = st.add_subparsers(dest="study", required=True, metavar="STUDY",
                               help="the study (rbbench studies STUDY --help: its arguments)")
     for add, run in ((_add_pymor_thermal_block_parser, cmd_pymor_thermal_block),
@@ -115,7 +118,8 @@ def add_parser(sub) -> None:
                      (_add_shape_side_by_side_parser, cmd_shape_side_by_side),
                      (_add_shape_strategy_parser, cmd_shape_strategy),
                      (_add_snapshot_workers_parser, cmd_snapshot_workers),
-                     (_add_bound_greedy_parser, cmd_bound_greedy)):
+                     (_add_bound_greedy_parser, cmd_bound_greedy),
+                     (_add_bound_cap_parser, cmd_bound_cap)):
         add(group).set_defaults(func=_checked(run))
 
 
@@ -465,4 +469,37 @@ def cmd_bound_greedy(args: argparse.Namespace) -> int:
     out = bound_greedy_study(scene, args.n_train, args.tol, args.max_iter, args.N, args.R,
                              args.n_valid, args.cache_dir, progress=_Progress(False),
                              pod_sizes=tuple(args.pod_sizes))
+    return print_and_dump(markdown(out), out, args.json)
+
+
+def _add_bound_cap_parser(sub: Any) -> argparse.ArgumentParser:
+    """``rbbench studies bound-cap`` (``sub``: argparse subparsers)."""
+    p = sub.add_parser("bound-cap", help="the two-body online error bound against its number "
+                       "of POD modes (--bound-pod-max): time beside the reduced solve, "
+                       "effectivity")
+    p.add_argument("scene", nargs="?", default="hertz_halfdisks",
+                   help="a two-body scene (contact EIM): name in problems/ or path to a .toml")
+    p.add_argument("--set", dest="overrides", action="append", default=[],
+                   metavar="KEY=VALUE", help="scene override (repeatable)")
+    p.add_argument("--caps", type=int, nargs="+", default=[250, 150, 100, 60, 30],
+                   help="the caps on the POD modes (one reduction, built with the largest)")
+    p.add_argument("-N", type=int, default=20, help="primal size")
+    p.add_argument("-R", type=int, default=20, help="cone size")
+    p.add_argument("--n-valid", dest="n_valid", type=int, default=20,
+                   help="validation parameters (the scene's random validation set)")
+    p.add_argument("--repeats", type=int, default=20,
+                   help="timed rounds per validation parameter (all caps in each round)")
+    p.add_argument("--cache-dir", default=".rbbench_cache", help="HF snapshot cache")
+    p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    return p
+
+
+def cmd_bound_cap(args: argparse.Namespace) -> int:
+    """Run the study and print its table."""
+    from rbbench.scene.loading import load_scene
+    from rbbench.studies.bound_cap import bound_cap_study, markdown
+
+    scene = load_scene(args.scene, args.overrides)
+    out = bound_cap_study(scene, tuple(args.caps), args.N, args.R, args.n_valid,
+                          args.repeats, args.cache_dir, progress=_Progress(False))
     return print_and_dump(markdown(out), out, args.json)

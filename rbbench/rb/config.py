@@ -80,7 +80,7 @@ class ReduceConfig:
 #: counts and sizes: an integer >= 1 (``None`` where the field allows it: the default rule)
 POSITIVE_INTS = frozenset({"N", "R", "S", "n_train", "n_valid", "n_jobs", "online_repeats",
                            "k_pga_max", "m_eim", "n_eim_train", "gcns_per_iteration",
-                           "gcns_max", "gcns_patience"})
+                           "gcns_max", "gcns_patience", "bound_pod_max"})
 #: integers that may be 0
 NONNEGATIVE_INTS = frozenset({"exact_max_r"})
 #: the largest value of an integer field (a run matrix has the same bounds): sample and

@@ -35,6 +35,8 @@ EXPECTED = {
     ("bench_offline", "EIM.time_eim_operators"),
     ("bench_online", "OnlineSolve.track_online_median_s"),
     ("bench_online", "OnlineSolve.peakmem_online_solve"),
+    ("bench_bound", "OnlineBound.track_bound_median_s"),
+    ("bench_bound", "OnlineBound.track_bound_over_solve"),
     ("bench_online3d", "OnlineSolve3D.track_online_median_s"),
     ("bench_online", "Accuracy.track_err_u_max"),
     ("bench_online", "Accuracy.track_err_lam_max"),

@@ -122,7 +122,8 @@ class Certifier:
             self.online = build_contact_bound(
                 ctx.backend.contact_layout(), ctx.problem_at, stage.Z_off, stage.Vg, ctx.X,
                 self.x_solve, ctx.scene.bounds,
-                eim_training_set(ctx.scene, ctx.options, ctx.mus_train), ctx.progress)
+                eim_training_set(ctx.scene, ctx.options, ctx.mus_train), ctx.progress,
+                pod_max=ctx.options.bound_pod_max)
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
             # BoundUnsupported, a pairing outside the sampled windows, no Lanczos convergence
             self.online = None

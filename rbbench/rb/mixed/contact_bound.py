@@ -13,13 +13,16 @@ numbers (1)-(6) of that module). Its terms at mu, for ``u_N = Z c`` and ``lam_N 
   slave half of ``d`` is ``s_r (B_S(mu_0) Z) c`` and of ``b`` is ``s_r B_S(mu_0)^T Vg a``,
   both from offline arrays; the master half ``b_M`` is non-zero only where ``lam_N`` is;
 * ``rho = ||F - A Z c - P b||_X'`` (1), ``P`` the contact dofs among the free ones: ``b_M`` is
-  split into ``U g`` (``U``: an l2-orthonormal POD basis of the training vectors
-  ``B_M(mu)^T Vg`` on the master dofs, ``g = U^T b_M``) and the remainder ``e = b_M - U g``.
+  split into ``U g`` (``U``: at most ``pod_max`` l2-orthonormal modes on the master dofs,
+  :func:`master_modes`: leading eigenvectors of ``P_M^T X^{-1} P_M`` interleaved with the
+  POD of the training vectors ``B_M(mu)^T Vg``; ``g = U^T b_M``) and the remainder
+  ``e = b_M - U g``.
   The Riesz representers of ``F``, ``A Z``, ``P_S B_S(mu_0)^T Vg`` and ``P_M U`` are
   orthonormalised offline (:func:`~rbbench.rb.algorithms.bounds.riesz_factor`): ``||F - A Z c
   - P_S b_S - P_M U g||_X' = ||T w||``; the remainder by ``||P_M e||_X' <= lambda_c^(1/2)
-  ||e||_2``, ``lambda_c`` the largest eigenvalue of ``P_M^T X^{-1} P_M`` (Lanczos, with the
-  margin of the coercivity constants). By the triangle inequality ``rho <= ||T w|| +
+  ||e||_2``, ``lambda_c`` the largest eigenvalue of ``P_M^T X^{-1} P_M`` on the
+  l2-complement of ``U``, where ``e`` lies (Lanczos, with the margin of the coercivity
+  constants). By the triangle inequality ``rho <= ||T w|| +
   lambda_c^(1/2) ||e||_2``: the compression leaves nothing out, it only loosens the bound
   by the remainder term, which is reported (``bound_eim_residual``);
 * ``sigma = ||[d]_+||_*'`` without ``D(mu)^{-1} = (B(mu) X^{-1} B(mu)^T)^{-1}``: any ``v`` with
@@ -39,6 +42,7 @@ multiplier, ``T`` (k x q) used as upper trapezoidal: independent of the HF size.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -59,13 +63,20 @@ from rbbench.rb.algorithms.bounds import (
     vi_bound,
 )
 from rbbench.rb.mixed.bounds import BoundUnsupported, constant_in_mu
+from rbbench.rb.mixed.options import BOUND_POD_MAX
 
 __all__ = ["ContactBound", "build_contact_bound", "contact_rows"]
 
 #: Relative singular-value cut of the POD of the training vectors ``B(mu)^T Vg``
 POD_RTOL = 1e-9
-#: The most POD modes of ``B(mu)^T Vg`` (online cost O(n_c K))
-POD_MAX = 250
+#: The leading eigenvectors of ``P_M^T X^{-1} P_M`` computed offline for the modes of
+#: :func:`master_modes` (they alternate with the POD modes, so a cap of ``k`` uses at most
+#: ``ceil(k / 2)`` of them)
+EIG_MODES = 64
+#: The share of those eigenvectors among the modes (:func:`master_modes`)
+EIG_SHARE = 0.5
+#: POD modes of the master half computed at a time (:func:`master_modes`)
+POD_BLOCK = 16
 
 
 @dataclass
@@ -99,6 +110,10 @@ class ContactBound:
     last_remainder: float = 0.0
     #: the packed arrays of the numba pairing (:func:`compiled_plan`), None without numba
     plan: dict | None = None
+    #: the free-dof index of each master dof (``mloc``), and the number of free dofs: the
+    #: operator ``P_M^T X^{-1} P_M`` of ``lambda_c``
+    mfree: np.ndarray | None = None
+    n_free: int = 0
 
     def __post_init__(self) -> None:
         self.MspT = sp.csr_matrix(self.Msp.T)
@@ -145,7 +160,7 @@ class ContactBound:
         mu = np.atleast_1d(np.asarray(mu, dtype=float))
         out = self._fast_terms(mu, c, a) if compiled and self.plan is not None else None
         if out is not None:
-            rho_t, lam_t, bb, gg, sigma, kappa = out
+            rho_t, lam_t, bb, gg, sigma, kappa = out.tolist()
         else:
             d, b, lam = self.residuals(mu, c, a, compiled=False)
             sr = self.s_ratio(mu)
@@ -160,35 +175,38 @@ class ContactBound:
             sigma = float(np.linalg.norm(self.Linv[:, up] @ d[up])) / abs(sr)
             kappa = max(float(lam @ np.maximum(-d, 0.0)), 0.0)
         # ||b_M - U g||_2 by Pythagoras (U orthonormal): one product with U instead of two
-        rem = float(np.sqrt(self.lam_c * max(bb - gg, 0.0)))
+        rem = math.sqrt(self.lam_c * max(bb - gg, 0.0))
         self.last_remainder = rem
         return BoundTerms(rho_t + rem, sigma, kappa, lam_t + rem)
 
     def _fast_terms(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray
                     ) -> np.ndarray | None:
-        """The kernel's ``[||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2, sigma, kappa]``;
-        None where it declines (mu outside D, a point leaving its window)."""
-        pl = self.plan
-        if self._work is None:
-            from rbbench.rb.kernels import layout
-            from rbbench.rb.mixed.bound_kernels import moving_contact_terms
+        """The kernel's ``[||T w||, ||T_lam w_lam||, ||b_M||^2, ||g||^2, sigma, kappa]`` (its
+        output buffer: read it before the next call); None where it declines (mu outside
+        D, a point leaving its window). The arguments that do not change between calls are
+        gathered once."""
+        k = self._work if self._work is not None else self._make_work(c.size)
+        status = k["kernel"](mu, *k["head"], np.ascontiguousarray(a, dtype=float),
+                             *k["mid"], np.ascontiguousarray(c, dtype=float), *k["tail"])
+        return k["out"] if status == k["ok"] else None
 
-            nq, n_c = pl["n_hat"].shape[0], self.Z_loc.shape[0]
-            self._work = {"w": np.empty(nq), "gap": np.empty(nq),
-                          "mphi": np.zeros((nq, pl["k"])),
-                          "seg": np.zeros(nq, dtype=np.int64),
-                          "mark": np.zeros(n_c, dtype=np.int64), "uz": np.zeros(n_c),
-                          "b": np.zeros(n_c), "touched": np.zeros(n_c, dtype=np.int64),
-                          "d": np.zeros(self.Cs.shape[0]), "out": np.zeros(6),
-                          "kernel": moving_contact_terms, "ok": layout.OK}
-        k = self._work
-        status = k["kernel"](
-            mu, pl["fb"], pl["ib"], pl["meta"], pl["n_hat"], pl["mdofs"], pl["rows"],
-            self.s_terms, self.Vg, np.ascontiguousarray(a, dtype=float), self.Cs, self.Z_loc,
-            np.ascontiguousarray(c, dtype=float), self.U, self.T, self.kj, 1 + c.size,
-            self.Linv, k["w"], k["gap"], k["mphi"], k["seg"], k["mark"], k["uz"], k["b"],
-            k["touched"], k["d"], k["out"])
-        return k["out"].copy() if status == k["ok"] else None
+    def _make_work(self, N: int) -> dict:
+        """The kernel, its work arrays and its fixed arguments (:meth:`_fast_terms`)."""
+        from rbbench.rb.kernels import layout
+        from rbbench.rb.mixed.bound_kernels import moving_contact_terms
+
+        pl = self.plan
+        nq, n_c = pl["n_hat"].shape[0], self.Z_loc.shape[0]
+        out = np.zeros(6)
+        work = (np.empty(nq), np.empty(nq), np.zeros((nq, pl["k"])),
+                np.zeros(nq, dtype=np.int64), np.zeros(n_c, dtype=np.int64), np.zeros(n_c),
+                np.zeros(n_c), np.zeros(n_c, dtype=np.int64), np.zeros(self.Cs.shape[0]), out)
+        self._work = {"kernel": moving_contact_terms, "ok": layout.OK, "out": out,
+                      "head": (pl["fb"], pl["ib"], pl["meta"], pl["n_hat"], pl["mdofs"],
+                               pl["rows"], self.s_terms, self.Vg),
+                      "mid": (self.Cs, self.Z_loc),
+                      "tail": (self.U, self.T, self.kj, 1 + N, self.Linv, *work)}
+        return self._work
 
     def __call__(self, mu: np.ndarray, c: np.ndarray, a: np.ndarray,
                  compiled: bool = True) -> VIBound:
@@ -196,6 +214,41 @@ class ContactBound:
         ``compiled``: the numba pairing where available."""
         return vi_bound(self.terms(mu, np.asarray(c, float), np.asarray(a, float), compiled),
                         self.alpha, self.gamma)
+
+    def with_modes(self, k: int, x_solve: Callable[[np.ndarray], np.ndarray]
+                   ) -> ContactBound:
+        """The bound built with at most ``k`` modes of ``b_M``, from this one without
+        rebuilding the rest: the modes of :func:`master_modes` do not depend on the cap, so
+        a smaller cap keeps the first columns of ``U``, and the Riesz factor is a
+        Gram-Schmidt with the modes last, so its first columns and rows are those of the
+        smaller build (the same numbers up to round-off); ``lambda_c`` on the complement of
+        the fewer modes is computed again (``x_solve``: solves with X, offline). ``k`` >=
+        the modes held: this bound."""
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise ValueError(f"bound_pod_max {k!r}: give an integer >= 1")
+        if self.mfree is None:
+            raise RuntimeError("this error bound was built by an earlier rbbench (no master "
+                               "dof map): rebuild the reduced model")
+        K = self.U.shape[1]
+        if k >= K:
+            return self
+        q = self.T.shape[1] - (K - k)
+        # the directions of the first q pieces: a piece that added one has kj = the count so
+        # far + 1; a dropped piece used all rows, here those of the smaller build (its
+        # components on later directions are below the cut of the Gram-Schmidt)
+        rank = 0
+        for kk in self.kj[:q]:
+            rank += int(kk == rank + 1)
+        kj = np.minimum(self.kj[:q], rank)
+        Um = self.U[self.mloc, :k]
+        lam_c = _local_dual_max(self.mfree, self.n_free, x_solve, Um)
+        state = {**self.__getstate__(), "U": np.ascontiguousarray(self.U[:, :k]),
+                 "lam_c": lam_c,
+                 "T": np.asfortranarray(self.T[:rank, :q]),
+                 "kj": np.ascontiguousarray(kj, dtype=np.int64), "last_remainder": 0.0}
+        out = ContactBound.__new__(ContactBound)
+        out.__setstate__(state)
+        return out
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
@@ -220,9 +273,11 @@ def contact_rows(ev: Any, Msp: sp.csr_matrix, mu: np.ndarray) -> tuple[sp.csr_ma
 def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z: np.ndarray,
                         Vg: np.ndarray, X: Any, x_solve: Callable[[np.ndarray], np.ndarray],
                         bounds: np.ndarray, mus_sample: np.ndarray,
-                        progress: Callable[[str], None] = lambda m: None) -> ContactBound:
+                        progress: Callable[[str], None] = lambda m: None,
+                        pod_max: int = BOUND_POD_MAX) -> ContactBound:
     """The offline stage (module docstring): ``mus_sample`` a dense sample of D (the master
-    windows and the POD of ``B(mu)^T Vg``). :class:`BoundUnsupported` when ``A`` or ``F``
+    windows and the POD of ``B(mu)^T Vg``, at most ``pod_max`` modes: online cost
+    O(n_l pod_max + pod_max^2)). :class:`BoundUnsupported` when ``A`` or ``F``
     depends on mu, the rows touch Dirichlet dofs, or ``B`` off the master chain is not
     ``s(mu) M``."""
     from rbbench.rb.hyper.contact_eim import build_row_evaluator, local_free_rows
@@ -265,13 +320,16 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
     s0 = float(np.concatenate([[1.0], bounds.mean(axis=1)]) @ s_terms)
     BS = sp.csr_matrix(Bc[:, sloc]) / s0
     Cs = np.ascontiguousarray(BS @ Z[loc][sloc])
-    progress("error bound: POD of B_M(mu)^T Vg on the master dofs")
+    n = free.size
+    mfree = loc[mloc]
+    progress("error bound: modes of the master half (eigenvectors of P_M^T X^-1 P_M, POD of "
+             "B_M(mu)^T Vg)")
     S = np.hstack([np.asarray(contact_rows(ev, Msp, mu)[0][:, mloc].T @ Vg)
                    for mu in mus_sample])
-    Um = _pod(S, POD_MAX, POD_RTOL)
+    Um = master_modes(S, _dual_eigenvectors(mfree, n, x_solve, EIG_MODES), pod_max,
+                      EIG_SHARE)
     U = np.zeros((ev.n_local, Um.shape[1]))
     U[mloc] = Um
-    n = free.size
 
     def embed(V: np.ndarray, at: np.ndarray) -> np.ndarray:
         out = np.zeros((n, V.shape[1]))
@@ -283,28 +341,15 @@ def build_contact_bound(layout: Any, problem_at: Callable[[np.ndarray], Any], Z:
     T, kj = riesz_factor(np.hstack([p0.F[:, None], p0.A @ Z,
                                     embed(np.asarray(BS.T @ Vg), sloc), embed(Um, mloc)]),
                          X, x_solve, return_ranks=True)
-    lam_c = _local_dual_max(loc[mloc], n, x_solve)
+    lam_c = _local_dual_max(mfree, n, x_solve, Um)
     alpha, gamma = coercivity_constants(p0.A, X)
     return ContactBound(ev=ev, Msp=Msp, Z_loc=np.ascontiguousarray(Z[loc]),
                         Vg=np.ascontiguousarray(Vg), U=U, T=np.asfortranarray(T),
                         lam_c=lam_c, Linv=np.asfortranarray(Linv), s_terms=s_terms,
                         alpha=alpha, gamma=gamma, Cs=Cs, mloc=mloc,
                         kj=np.ascontiguousarray(kj, dtype=np.int64),
-                        plan=compiled_plan(ev, Msp, bounds))
-
-
-def _pod(S: np.ndarray, k_max: int, rtol: float) -> np.ndarray:
-    """An l2-orthonormal basis of the leading left singular vectors of ``S`` (at most
-    ``k_max``, singular values above ``rtol`` of the largest), from the eigenvectors of the
-    smaller Gram matrix; orthonormalised again by QR (the bound needs ``U^T U = I``, not
-    exact singular vectors)."""
-    G = S @ S.T if S.shape[0] <= S.shape[1] else S.T @ S
-    ev, W = np.linalg.eigh(G)
-    ev, W = ev[::-1], W[:, ::-1]
-    sv = np.sqrt(np.maximum(ev, 0.0))
-    k = int(min(k_max, np.sum(sv > rtol * sv[0])))
-    V = W[:, :k] if S.shape[0] <= S.shape[1] else S @ W[:, :k]
-    return np.ascontiguousarray(np.linalg.qr(V)[0])
+                        plan=compiled_plan(ev, Msp, bounds), mfree=mfree,
+                        n_free=n)
 
 
 def compiled_plan(ev: Any, Msp: sp.csr_matrix, bounds: np.ndarray) -> dict | None:
@@ -362,17 +407,99 @@ def _compiled_residuals(plan: dict, mu: np.ndarray, uz: np.ndarray, lam: np.ndar
     return d, b
 
 
-def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable) -> float:
-    """``lambda_c``: the largest eigenvalue of ``P^T X^{-1} P`` (Lanczos), relative margin
-    :data:`~rbbench.rb.algorithms.bounds.EIG_MARGIN` upwards."""
+def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable,
+                    U: np.ndarray | None = None) -> float:
+    """``lambda_c``: the largest eigenvalue of ``P^T X^{-1} P`` on the l2-complement of the
+    orthonormal ``U`` (all of it without ``U``): ``(I - U U^T) P^T X^{-1} P (I - U U^T)``,
+    Lanczos, relative margin :data:`~rbbench.rb.algorithms.bounds.EIG_MARGIN` upwards. The
+    remainder ``e = b_M - U U^T b_M`` lies in that complement, so ``||P e||_X'^2 <=
+    lambda_c ||e||_2^2``."""
+    def mv(x: np.ndarray) -> np.ndarray:
+        x = np.ravel(x)
+        if U is not None:
+            x = x - U @ (U.T @ x)
+        v = np.zeros(n)
+        v[loc] = x
+        y = np.asarray(x_solve(v)).ravel()[loc]
+        return y - U @ (U.T @ y) if U is not None else y
+
+    op = spla.LinearOperator((loc.size, loc.size), matvec=mv, dtype=float)
+    top = float(spla.eigsh(op, k=1, which="LA", tol=1e-12, return_eigenvectors=False)[0])
+    return top * (1.0 + EIG_MARGIN)
+
+
+def _dual_eigenvectors(loc: np.ndarray, n: int, x_solve: Callable, k: int) -> np.ndarray:
+    """The ``k`` leading eigenvectors of ``P^T X^{-1} P`` (Lanczos; fewer on a small
+    chain), largest first, l2-orthonormal."""
     def mv(x: np.ndarray) -> np.ndarray:
         v = np.zeros(n)
         v[loc] = np.ravel(x)
         return np.asarray(x_solve(v)).ravel()[loc]
 
+    k = int(min(k, loc.size - 2))
+    if k < 1:
+        return np.zeros((loc.size, 0))
     op = spla.LinearOperator((loc.size, loc.size), matvec=mv, dtype=float)
-    top = float(spla.eigsh(op, k=1, which="LA", tol=1e-12, return_eigenvectors=False)[0])
-    return top * (1.0 + EIG_MARGIN)
+    w, V = spla.eigsh(op, k=k, which="LA", tol=1e-10)
+    return np.ascontiguousarray(V[:, np.argsort(w)[::-1]])
+
+
+def master_modes(S: np.ndarray, E: np.ndarray, k_max: int, share: float = EIG_SHARE
+                 ) -> np.ndarray:
+    """The modes ``U`` of the master half (at most ``k_max``, l2-orthonormal), one at a
+    time: at every position ``i`` where ``floor((i + 1) share)`` steps up the next leading
+    eigenvector of ``P_M^T X^{-1} P_M`` (``E``), elsewhere the next POD mode of the
+    training vectors ``S``, taken from the leading left singular vectors of ``S`` projected
+    off the modes so far (:data:`POD_BLOCK` at a time, Lanczos on the projected Gram
+    matrix; while above :data:`POD_RTOL` of the first singular value); each new mode is
+    orthonormalised against the ones before (twice). The POD shrinks ``||e||_2`` on the
+    data; each eigenvector lowers ``lambda_c``, the largest eigenvalue left on the
+    complement of ``U``. The modes do not depend on the cap: a smaller cap keeps the first
+    columns."""
+    n = E.shape[0] if E.size else S.shape[0]
+    G = S @ S.T if S.size else np.zeros((n, n))
+    Q = np.zeros((n, 0))
+    s0, ie, buf, pod_left = None, 0, [], bool(S.size)
+    for i in range(min(k_max, n)):
+        eig = ie < E.shape[1] and (np.floor((i + 1) * share) > np.floor(i * share)
+                                   or not pod_left)
+        if not eig and pod_left and not buf:
+            top, V = _leading_projected(G, Q, min(POD_BLOCK, n - Q.shape[1] - 2))
+            s0 = top[0] if s0 is None else s0
+            buf = [V[:, j] for j in range(V.shape[1]) if top[j] > POD_RTOL ** 2 * s0]
+            pod_left = len(buf) == V.shape[1] > 0
+        if not eig and buf:
+            v = buf.pop(0)
+        elif ie < E.shape[1]:
+            v = E[:, ie].copy()
+            ie += 1
+        else:
+            break
+        for _ in range(2):
+            v = v - Q @ (Q.T @ v)
+        nv = float(np.linalg.norm(v))
+        if nv > 1e-8:
+            Q = np.hstack([Q, (v / nv)[:, None]])
+    return np.ascontiguousarray(Q)
+
+
+def _leading_projected(G: np.ndarray, Q: np.ndarray, k: int) -> tuple[np.ndarray,
+                                                                      np.ndarray]:
+    """The ``k`` largest eigenvalues (descending) and eigenvectors of ``(I - Q Q^T) G (I -
+    Q Q^T)``."""
+    def mv(x: np.ndarray) -> np.ndarray:
+        x = np.ravel(x)
+        x = x - Q @ (Q.T @ x)
+        y = G @ x
+        return y - Q @ (Q.T @ y)
+
+    if k < 1:
+        return np.zeros(0), np.zeros((G.shape[0], 0))
+    op = spla.LinearOperator(G.shape, matvec=mv, dtype=float)
+    w, V = spla.eigsh(op, k=k, which="LA", tol=1e-10,
+                      v0=np.random.default_rng(0).standard_normal(G.shape[0]))
+    order = np.argsort(w)[::-1]
+    return w[order], V[:, order]
 
 
 def _slave_lifting(problem_at: Callable, layout: Any, free: np.ndarray, X: Any,

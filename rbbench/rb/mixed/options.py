@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from rbbench.scene.parameters import FieldError
 
-__all__ = ["BOUND_MODES", "ONLINE_METHODS", "MixedOptions"]
+__all__ = ["BOUND_MODES", "BOUND_POD_MAX", "ONLINE_METHODS", "MixedOptions"]
 
 #: Online solvers of the reduced saddle point
 #: (:meth:`rbbench.rb.mixed.model.ReducedModel.solve` ``method``; the first is the default):
@@ -22,6 +22,11 @@ ONLINE_METHODS = ("auto", "nnls", "daqp", "pdas")
 #: rows paired online: an offline cost of minutes and an online cost of about ten reduced
 #: solves); ``hf`` always with the HF operators (no online bound)
 BOUND_MODES = ("auto", "online", "hf")
+#: The default of ``bound_pod_max``: the most modes of the master half of ``B(mu)^T
+#: lam_N`` in the two-body online bound (a speed / sharpness trade, measured by ``rbbench
+#: studies bound-cap``: on hertz_halfdisks the knee of the curve, where fewer modes save
+#: little time and the effectivity rises faster)
+BOUND_POD_MAX = 60
 
 
 @dataclass
@@ -36,7 +41,9 @@ class MixedOptions:
     ``exact_max_r``: the largest cone whose inf-sup constant is computed exactly (larger:
     bounds); ``tol_eim``, ``m_eim``, ``n_eim_train``: the contact EIM's tolerance, size cap
     and training grid (hyper ``eim``); ``bound``: how the certified bound is evaluated
-    (:data:`BOUND_MODES`).
+    (:data:`BOUND_MODES`); ``bound_pod_max``: with ``bound = "online"`` on a two-body scene,
+    the most POD modes of the master half of ``B(mu)^T lam_N`` (fewer: a cheaper bound with a
+    larger, still rigorous, compression remainder; unused elsewhere).
     """
 
     dual: str = "mcpg"
@@ -51,6 +58,7 @@ class MixedOptions:
     m_eim: int | None = None
     n_eim_train: int | None = None
     bound: str = "auto"
+    bound_pod_max: int = BOUND_POD_MAX
 
     def __post_init__(self) -> None:
         if not isinstance(self.bound, str) or self.bound not in BOUND_MODES:

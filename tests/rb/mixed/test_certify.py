@@ -68,3 +68,22 @@ def test_bound_hf_skips_the_online_bound(tmp_path):
     with pytest.raises(ValueError, match="bound.*valid: auto, online, hf"):
         rbbench.reduce(scene, N=4, R=4, n_train=9, n_valid=3, bound="certified",
                        cache_dir=str(tmp_path))
+
+
+@pytest.mark.parametrize("value, rule", [(0, r"\[1, "), (-3, r"\[1, "), (2.5, r"\[1, "),
+                                         ("60", r"\[1, "), (True, r"\[1, ")])
+def test_bound_pod_max_is_checked_before_any_work(tmp_path, value, rule):
+    """The cap on the bound's POD modes: refused, naming the option and the valid values,
+    before any HF solve (the cache folder stays empty)."""
+    scene = rbbench.load_scene("membrane_obstacle", ["discretization.n_cells=8"])
+    with pytest.raises(ValueError, match="bound_pod_max.*" + rule):
+        rbbench.reduce(scene, N=4, R=4, n_train=9, n_valid=3, bound="online",
+                       bound_pod_max=value, cache_dir=str(tmp_path))
+    assert not any(tmp_path.iterdir())
+
+
+def test_bound_pod_max_flag(capsys):
+    from rbbench.cli import main
+
+    assert main(["reduce", "hertz_halfdisks", "--bound", "online", "--bound-pod-max", "0"]) == 2
+    assert "--bound-pod-max 0: must be an integer >= 1" in capsys.readouterr().err

@@ -21,6 +21,8 @@ from rbbench.rb.mixed.greedy import x_orthonormal
 from rbbench.scene.loading import load_scene
 
 COARSE = ["discretization.h_contact=0.04", "discretization.h_max=0.3"]
+#: a cap on the master-half modes above the rank of the fixture's training vectors
+SPANNING = 250
 
 
 @pytest.fixture(scope="module")
@@ -38,9 +40,15 @@ def hertz():
     LAM = np.stack([s.result.lam for s in sols], axis=1)
     Z = x_orthonormal(U, X)
     Vg = LAM / np.linalg.norm(LAM, axis=0)
-    sample = np.linspace(sc.bounds[0, 0], sc.bounds[0, 1], 25)[:, None]
-    bound = build_contact_bound(b.contact_layout(), at, Z, Vg, X, xs, sc.bounds, sample)
+    # enough modes to span the training vectors B_M(mu)^T Vg (25 x 3): no compression
+    # remainder where the reduced spaces hold the solution (the default cap is smaller)
+    bound = build_contact_bound(b.contact_layout(), at, Z, Vg, X, xs, sc.bounds, _sample(sc),
+                                pod_max=SPANNING)
     return sc, comps, mus, sols, Z, Vg, X, xs, bound, at
+
+
+def _sample(sc):
+    return np.linspace(sc.bounds[0, 0], sc.bounds[0, 1], 25)[:, None]
 
 
 def _reduced_pair(Z, Vg, X, u, lam):
@@ -176,3 +184,62 @@ def test_fast_terms_equal_the_reference(hertz, x, seed):
     assert fast.sigma == pytest.approx(ref.sigma, rel=1e-10, abs=1e-14 * ref.lam_norm)
     # kappa: a sum of lam_N [-d]_+ where d cancels terms of size lam |B| |u_N|
     assert fast.kappa == pytest.approx(ref.kappa, rel=1e-9, abs=tiny)
+
+
+def test_fewer_modes_are_a_build_with_that_cap(hertz):
+    """``with_modes(k)`` cuts the bound without rebuilding it: the same bound as a second
+    build with ``pod_max = k``, to round-off, at random mu, c, a."""
+    sc, comps, _, _, Z, Vg, X, xs, bound, at = hertz
+    K = bound.U.shape[1]
+    assert K > 6  # the fixture's POD keeps enough modes to cut
+    assert bound.with_modes(K, xs) is bound and bound.with_modes(10 * K, xs) is bound
+    k = K // 3
+    rebuilt = build_contact_bound(comps[0].contact_layout(), at, Z, Vg, X, xs, sc.bounds,
+                                  _sample(sc), pod_max=k)
+    cut = bound.with_modes(k, xs)
+    assert rebuilt.U.shape == cut.U.shape == (bound.U.shape[0], k)
+    assert rebuilt.T.shape == cut.T.shape
+    assert np.array_equal(rebuilt.kj, cut.kj)
+    assert cut.lam_c == pytest.approx(rebuilt.lam_c, rel=1e-8)
+    assert cut.lam_c >= bound.lam_c  # fewer modes deflate less of P_M^T X^-1 P_M
+    rng = np.random.default_rng(3)
+    for mu in (np.array([0.77]), np.array([1.18])):
+        c, a = rng.standard_normal(Z.shape[1]), rng.random(Vg.shape[1])
+        for compiled in (True, False):
+            r, t = rebuilt(mu, c, a, compiled), cut(mu, c, a, compiled)
+            assert t.delta_u == pytest.approx(r.delta_u, rel=1e-9)
+            assert t.terms.rho == pytest.approx(r.terms.rho, rel=1e-9)
+            assert cut.last_remainder > 0
+    with pytest.raises(ValueError, match="bound_pod_max 0: give an integer >= 1"):
+        bound.with_modes(0, xs)
+
+
+@settings(max_examples=5, deadline=None, derandomize=True)
+@given(x=st.floats(0, 1))
+def test_a_small_cap_still_bounds_the_error_and_its_remainder_grows(hertz, x):
+    """With 1 to K modes the bound stays above the true error (raw values, the HF solution
+    at random mu), the remainder lambda_c^(1/2) ||b_M - U_k g_k|| stays above the exact X'
+    norm of what it stands for, and it does not fall as the cap k falls (nested modes, and
+    lambda_c on the complement of fewer modes)."""
+    sc, comps, _, _, Z, Vg, X, xs, bound, _ = hertz
+    mu = sc.bounds[:, 0] + x * (sc.bounds[:, 1] - sc.bounds[:, 0])
+    hf = solve_hf(sc, mu, components=comps)
+    u = hf.result.u[hf.problem.free]
+    c, a = _reduced_pair(Z, Vg, X, u, hf.result.lam)
+    err = float(np.sqrt((u - Z @ c) @ (X @ (u - Z @ c))))
+    K = bound.U.shape[1]
+    rems = []
+    full = bound(mu, c, a).terms.lam_norm  # the size of b = B^T lam_N: the round-off scale
+    for k in (K, K // 2, 4, 1):
+        cut = bound.with_modes(k, xs)
+        b = cut(mu, c, a)
+        assert b.delta_u >= err
+        rems.append(cut.last_remainder)
+        # the remainder bounds the exact X' norm of the left-out part P_M (b_M - U U^T b_M)
+        bm = cut.residuals(mu, c, a, compiled=False)[1][cut.mloc]
+        Um = cut.U[cut.mloc]
+        v = np.zeros(X.shape[0])
+        v[cut.mfree] = bm - Um @ (Um.T @ bm)
+        assert np.sqrt(v @ np.ravel(xs(v))) <= cut.last_remainder * (1 + 1e-8) + 1e-9 * full
+    assert np.all(np.diff(rems) >= -1e-7 * full)
+    assert rems[-1] > rems[0]  # one mode leaves more out than all of them
