@@ -207,7 +207,9 @@ def pairing_table(arrays: dict[str, np.ndarray], n_grid: int = TABLE_GRID
     lo, hi = np.atleast_1d(arrays["mu_lo"]), np.atleast_1d(arrays["mu_hi"])
     if lo.size != 1 or not int(arrays["dims"][1]) or not np.all(np.isfinite([lo, hi])):
         return no_table(nq)
-    fb, ib, meta = pack({**arrays, **no_table(nq)})
+    unread = {**dict.fromkeys(layout.FLOATS, np.zeros((1, 1))),  # what pairing does not read
+              **dict.fromkeys(layout.INTS, np.zeros((1, 1), dtype=np.int64))}
+    fb, ib, meta = pack({**unread, **arrays, **no_table(nq)})
     grid = np.linspace(float(lo[0]), float(hi[0]), n_grid)
     tri = np.empty((n_grid, nq), dtype=np.int64)
     w, gap, mphi = np.empty(nq), np.empty(nq), np.zeros((nq, 3 * int(arrays["dims"][0])))
