@@ -197,8 +197,9 @@ def pairing_table(arrays: dict[str, np.ndarray], n_grid: int = TABLE_GRID
     parameter ``t_mu``, a change between two grid points put at their midpoint;
     ``t_ptr[q]:t_ptr[q + 1]`` the runs of point ``q``). Online a run only names the
     triangle to cast first: hit well inside, it is the search's answer; else the search
-    runs. No table (:func:`no_table`) with several parameters, a rigid plane, an unbounded
-    D, or where the search fails at a grid point."""
+    runs. A grid point where the search fails (a point outside its window) is left out.
+    No table (:func:`no_table`) with several parameters, a rigid plane, an unbounded D, or
+    where the search fails at every grid point."""
     from rbbench.rb.kernels import layout
     from rbbench.rb.kernels.plan import pack
     from rbbench.rb.kernels.surface_pairing import pair_surface_points
@@ -213,11 +214,14 @@ def pairing_table(arrays: dict[str, np.ndarray], n_grid: int = TABLE_GRID
     grid = np.linspace(float(lo[0]), float(hi[0]), n_grid)
     tri = np.empty((n_grid, nq), dtype=np.int64)
     w, gap, mphi = np.empty(nq), np.empty(nq), np.zeros((nq, 3 * int(arrays["dims"][0])))
+    ok = np.zeros(n_grid, dtype=bool)
     for g, mu in enumerate(grid):
         status, _ = pair_surface_points(np.array([1.0, mu]), fb, ib, meta, w, gap, mphi,
                                         tri[g])
-        if status != layout.OK:
-            return no_table(nq)
+        ok[g] = status == layout.OK
+    if not ok.any():
+        return no_table(nq)
+    grid, tri = grid[ok], tri[ok]  # where some point left its window: no sample there
     change = np.vstack([np.ones((1, nq), bool), tri[1:] != tri[:-1]]).T  # a run starts
     q_idx, g_idx = np.nonzero(change)  # point by point, then along the grid
     start = np.where(g_idx == 0, grid[0], 0.5 * (grid[g_idx] + grid[np.maximum(g_idx - 1, 0)]))

@@ -236,3 +236,27 @@ def test_run_is_the_last_start_at_most_mu(starts, value, a, b):
         last = first + 1
     want = first + max(int(np.searchsorted(key[first + 1:last], value, side="right")), 0)
     assert SP._run(key, first, last, value) == want
+
+
+@pytest.mark.netgen
+def test_table_leaves_out_grid_points_outside_the_windows():
+    """Windows sampled at mu = 0.7 only, no margin: the search fails over part of D. The
+    table keeps the grid points where it succeeds (it is not dropped), and the pairing
+    stays the search's, bit for bit, where the search succeeds."""
+    sc = load_scene("hertz_sphere", ["discretization.level=0"])
+    lay = make_components(sc)[0].contact_layout()
+    ev = build_surface_row_evaluator(lay, np.arange(lay.n_mult), np.array([[0.7]]), margin=0)
+    ceim = SimpleNamespace(evaluator=ev, Z_loc=np.zeros((ev.n_local, 1)),
+                           pos_B=np.arange(1), entry_row=np.zeros(1, int),
+                           entry_col=np.zeros(1, int), pos_G=np.arange(1))
+    arrays = {"mu_lo": np.array([0.7]), "mu_hi": np.array([1.3]), **surface_eim_arrays(ceim)}
+    nq = arrays["x_hat"].shape[0]
+    table = pairing_table(arrays, n_grid=129)
+    assert table["t_ptr"][-1] >= nq and table["t_mu"].max() < 1.3
+    a_plan, b_plan = _pack({**arrays, **table}), _pack({**arrays, **no_table(nq)})
+    for mu in np.linspace(0.7, 1.3, 61):
+        a, b = _pair(a_plan, mu, nq, 3), _pair(b_plan, mu, nq, 3)
+        assert a[0] == b[0]
+        if a[0] == L.OK:
+            for x, y in zip(a[1:], b[1:], strict=True):
+                np.testing.assert_array_equal(x, y)
