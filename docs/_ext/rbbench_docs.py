@@ -58,7 +58,7 @@ def scene_reference() -> str:
     """The keys of contact scenes, of ``[parameters.NAME]``, of friction, of linear scenes."""
     from rbbench.scene import friction
     from rbbench.scene.linear import LINEAR_SCHEMA
-    from rbbench.scene.schema import _ELASTIC, _PARAM_FIELDS, SCHEMA
+    from rbbench.scene.schema import _ELASTIC, _PARAM_FIELDS, REDUCE_SECTION, SCHEMA
 
     text = ["### Contact scenes\n", _schema_tables(SCHEMA)]
     text.append("**`[material.upper]`, `[material.lower]`** (an elastic body each)\n\n"
@@ -78,6 +78,12 @@ def scene_reference() -> str:
                 + " (fractions of the normal and tangential loads, at most "
                 f"{friction.MAX_STEP_FRACTION:g} in magnitude; at most "
                 f"{friction.MAX_LOAD_STEPS} steps).\n")
+    text.append("**`[reduce]`** (optional, not filled when absent; a scene's own defaults "
+                "of reduction options, used where the command or the API gives none; not part "
+                "of the snapshot cache key)\n\n"
+                + _table(["key", "valid values", "default", "meaning"],
+                         [[f"`{k}`", f.describe(), "none", f.doc]
+                          for k, f in REDUCE_SECTION.items()]))
     text += ["\n### Linear scenes (no contact)\n", _schema_tables(LINEAR_SCHEMA)]
     return "\n".join(text)
 

@@ -38,6 +38,7 @@ from rbbench.scene.schema import (
     _err,
     _parameter_ref,
     _unknown,
+    check_reduce_section,
 )
 
 
@@ -253,7 +254,7 @@ def load_scene(name_or_path: str | Path, overrides: tuple[str, ...] | list[str] 
 
 def _check_sections(data: dict[str, Any], path: str) -> None:
     """Every top-level key is a known section holding a table."""
-    valid_sections = sorted(list(SCHEMA) + ["parameters", "friction"])
+    valid_sections = sorted(list(SCHEMA) + ["parameters", "friction", "reduce"])
     for section in data:
         if section not in valid_sections:
             raise _unknown(path, "top level", section, valid_sections)
@@ -422,6 +423,7 @@ def validate(data: dict[str, Any], path: str = "<scene>", overrides: tuple[str, 
     _check_materials(data, path, params)
     _check_kind(data, path, params, given)
     check_friction(data, path, params)  # [friction], tangential load, load steps
+    check_reduce_section(data, path)  # the scene's reduction defaults, if any
     if not limits.check_name(data["scene"]["name"]):
         raise _err(path, "[scene] name", f"{data['scene']['name']!r} is not a valid name "
                    f"(it names output files); expected {limits.NAME_RULE}")

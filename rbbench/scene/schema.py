@@ -161,6 +161,28 @@ SCHEMA: dict[str, dict[str, Field]] = {
 }
 
 
+#: The optional ``[reduce]`` section: a scene's own defaults of reduction options, used
+#: where the reduction gives none (a value given on the command line or in the API wins).
+#: Not filled when absent, and not part of the snapshot key (it cannot change a snapshot).
+REDUCE_SECTION = {
+    "k_pga_max": Field("int", low=1, high=limits.MAX_SAMPLES,
+                       doc="cap on the PGA supremizers K (mixed formulation, stabilizer "
+                           "'pga') where the reduction gives no --k-max"),
+}
+
+
+def check_reduce_section(data: dict[str, Any], path: str) -> None:
+    """Check the keys and values of an optional ``[reduce]`` section
+    (:data:`REDUCE_SECTION`); nothing is filled in."""
+    table = data.get("reduce")
+    if table is None:
+        return
+    for key, value in table.items():
+        if key not in REDUCE_SECTION:
+            raise _unknown(path, "[reduce]", key, list(REDUCE_SECTION))
+        table[key] = _check_value(path, f"[reduce] {key}", REDUCE_SECTION[key], value, {})
+
+
 _PARAM_FIELDS = {
     "range": Field("pair", required=True),
     "default": Field("float"),

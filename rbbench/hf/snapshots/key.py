@@ -13,8 +13,9 @@ from rbbench.scene.loading import key_data
 
 __all__ = ["key_payload", "payload_key", "snapshot_key"]
 
-#: Parts of the scene data that cannot change a snapshot (excluded from the key).
-_NOT_IN_KEY = ("sampling", "reference")
+#: Parts of the scene data that cannot change a snapshot (excluded from the key; the
+#: ``[reduce]`` section holds reduction defaults only).
+_NOT_IN_KEY = ("sampling", "reference", "reduce")
 
 
 def _formulation_params(formulation: str, options: dict | None = None,

@@ -24,19 +24,22 @@ use_user_cache()  # before any @njit(cache=True): the cache lives in the user's 
 #: :func:`rbbench.rb.mixed.compiled.plan_arrays`)
 FLOATS = ("mu_lo", "mu_hi", "s_scale", "s_shift", "m_scale", "m_shift", "x_hat", "n_hat",
           "w_hat", "m_a", "m_b", "m_v", "zt_m", "slave_b", "vals_b", "vals_g", "w_b", "w_g",
-          "a_terms", "f_terms", "vt", "lam_a", "w_axis", "w_key", "m_geo")
+          "a_terms", "f_terms", "vt", "lam_a", "w_axis", "w_key", "m_geo", "t_mu")
 #: int arrays of the plan: ``dims = [degree, has_master, affine(, space)]`` (``affine``: an
 #: exact affine constraint, whose terms are ``w_b``, ``w_g``: no pairing; ``space``: 3 for
 #: triangulated contact surfaces (:mod:`rbbench.rb.kernels.surface_pairing`), 2 or absent
 #: for facet chains). ``m_tri``, ``w_ptr``, ``w_tri`` (and the floats ``w_axis``,
-#: ``w_key``, ``m_geo``): the 3D master window (one-entry placeholders in 2D plans,
+#: ``w_key``, ``m_geo``): the 3D master window; ``t_ptr``, ``t_tri`` (and ``t_mu``): its
+#: table of the triangle hit against the parameter (one-entry placeholders in 2D plans,
 #: :func:`rbbench.rb.kernels.plan.master_plan`)
 INTS = ("dims", "mono", "m_dofs", "lo", "hi", "pts_b", "cols_b", "order_b", "pts_g",
-        "m_tri", "w_ptr", "w_tri")
+        "m_tri", "w_ptr", "w_tri", "t_ptr", "t_tri")
 
 (MU_LO, MU_HI, S_SCALE, S_SHIFT, M_SCALE, M_SHIFT, X_HAT, N_HAT, W_HAT, M_A, M_B, M_V, ZT_M,
- SLAVE_B, VALS_B, VALS_G, W_B, W_G, A_TERMS, F_TERMS, VT, LAM_A, W_AXIS, W_KEY, M_GEO) = range(25)
-(DIMS, MONO, M_DOFS, LO, HI, PTS_B, COLS_B, ORDER_B, PTS_G, M_TRI, W_PTR, W_TRI) = range(25, 37)
+ SLAVE_B, VALS_B, VALS_G, W_B, W_G, A_TERMS, F_TERMS, VT, LAM_A, W_AXIS, W_KEY, M_GEO,
+ T_MU) = range(26)
+(DIMS, MONO, M_DOFS, LO, HI, PTS_B, COLS_B, ORDER_B, PTS_G, M_TRI, W_PTR, W_TRI, T_PTR,
+ T_TRI) = range(26, 40)
 
 #: statuses of the kernels on a plan (anything but OK: the caller reruns the Python path,
 #: which raises the reference's error)

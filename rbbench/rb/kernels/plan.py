@@ -33,7 +33,8 @@ __all__ = ["NO_SURFACE", "NUMBA_VERSION", "centre", "centre_theta", "coefficient
 #: the 3D master window arrays of the plan, as one-entry placeholders in 2D plans
 NO_SURFACE = {"m_tri": np.zeros((1, 3), dtype=np.int64), "w_ptr": np.zeros(2, dtype=np.int64),
               "w_tri": np.zeros((1, 2), dtype=np.int64), "w_axis": np.zeros((1, 4)),
-              "w_key": np.zeros(1), "m_geo": np.zeros((1, 14))}
+              "w_key": np.zeros(1), "m_geo": np.zeros((1, 14)), "t_mu": np.zeros(1),
+              "t_ptr": np.zeros(2, dtype=np.int64), "t_tri": np.zeros(1, dtype=np.int64)}
 
 
 def pack(arrays: dict[str, np.ndarray], floats: tuple[str, ...] | None = None,

@@ -40,6 +40,9 @@ from rbbench.rb.kernels.layout import (
     S_SCALE,
     S_SHIFT,
     SLAVE_B,
+    T_MU,
+    T_PTR,
+    T_TRI,
     VALS_B,
     VALS_G,
     W_AXIS,
@@ -61,6 +64,9 @@ use_user_cache()  # before any @njit(cache=True): the cache lives in the user's 
 #: the reference's barycentric tolerance (a line through an edge hits,
 #: :func:`rbbench.hf.geometry.surface.ray_cast_pairs`)
 _TOL = 1e-9
+#: the barycentric margin inside which the table's triangle is taken without the search
+#: (:func:`pair_surface_points`): far from every edge, where no neighbour can be hit
+_INSIDE = 1e-6
 
 
 @njit(cache=True)
@@ -142,6 +148,45 @@ def _first_at_least(key, first, last, value):
 
 
 @njit(cache=True)
+def _run(t_mu, first, last, mu):
+    """The run of a point's table holding ``mu``: the last ``k`` in ``first .. last - 1``
+    with ``t_mu[k] <= mu`` (``first`` when none; ``t_mu`` sorted there)."""
+    k = _first_at_least_above(t_mu, first + 1, last, mu)
+    return k - 1
+
+
+@njit(cache=True)
+def _first_at_least_above(key, first, last, value):
+    """The first ``k`` in ``first .. last`` with ``key[k] > value`` (``last`` when none)."""
+    while first < last:
+        mid = (first + last) // 2
+        if key[mid] <= value:
+            first = mid + 1
+        else:
+            last = mid
+    return first
+
+
+@njit(cache=True)
+def _search(y0, y1, y2, n0, n1, n2, q, ptr, cand, axis, key, geo):
+    """The reference's choice for point ``q`` (line ``y + t n`` in the master's reference
+    frame) among its candidates whose key lies in range (:func:`pair_surface_points`):
+    ``(triangle, u, v, t)``, triangle -1 when none is hit."""
+    a = axis[q, 0] * y0 + axis[q, 1] * y1 + axis[q, 2] * y2
+    half = 1.001 * axis[q, 3]
+    last, hi = ptr[q + 1], a + half
+    best, bj, bu, bv, bt, br = np.inf, -1, 0.0, 0.0, np.nan, 0
+    for k in range(_first_at_least(key, ptr[q], last, a - half), last):
+        if key[k] > hi:
+            break
+        j = cand[k, 0]
+        ok, u, v, t = _cast(y0, y1, y2, n0, n1, n2, geo, j)
+        if ok and (abs(t) < best or (abs(t) == best and cand[k, 1] < br)):
+            best, bj, bu, bv, bt, br = abs(t), j, u, v, t, cand[k, 1]
+    return bj, bu, bv, bt
+
+
+@njit(cache=True)
 def pair_surface_points(th, fb, ib, meta, w, gap, mphi, mtri):
     """The pairing at ``th = [1, mu]`` of the plan's slave points: weights ``w``, gaps ``gap``,
     master shape values ``mphi`` (row per point) and master triangles ``mtri`` (rows of the
@@ -161,9 +206,16 @@ def pair_surface_points(th, fb, ib, meta, w, gap, mphi, mtri):
     renormalised barycentric coordinates give the master shape values. The lines are cast in
     the master's reference frame on triangles tabulated offline (``m_geo``, :func:`_cast`):
     nothing is mapped per window triangle, so the work per point does not grow with the
-    window (which grows with the mesh level). The rigid plane ``z = 0``: ``gap = -x_z /
-    n_z``. ``NO_HIT`` when a point hits no candidate (it left its window), meets the plane
-    at a grazing angle, or a body's map is degenerate: the reference then decides."""
+    window (which grows with the mesh level). First, with one parameter, the point's table
+    (``t_tri[t_ptr[q]:t_ptr[q + 1]]``, runs starting at ``t_mu``: the triangle the search
+    chose over a grid of D, :func:`rbbench.rb.kernels.surface_plan.pairing_table`) names a
+    triangle; cast on it, it is kept when hit at least ``_INSIDE`` (barycentric) away from
+    its edges, where a neighbour cannot be hit, with the numbers the search would give;
+    otherwise (near an edge or a change of triangle) the search runs. Then the work per
+    point is one cast and a bisection whatever the mesh. The rigid plane ``z = 0``:
+    ``gap = -x_z / n_z``. ``NO_HIT`` when a point hits no candidate (it left its window),
+    meets the plane at a grazing angle, or a body's map is degenerate: the reference then
+    decides."""
     xh, nh = float_rows(fb, meta, X_HAT), float_rows(fb, meta, N_HAT)
     wh = flat_floats(fb, meta, W_HAT)
     dims = flat_ints(ib, meta, DIMS)
@@ -189,24 +241,22 @@ def pair_surface_points(th, fb, ib, meta, w, gap, mphi, mtri):
     ptr, cand = flat_ints(ib, meta, W_PTR), int_rows(ib, meta, W_TRI)
     axis, key = float_rows(fb, meta, W_AXIS), flat_floats(fb, meta, W_KEY)
     geo = float_rows(fb, meta, M_GEO)
+    t_ptr, t_tri = flat_ints(ib, meta, T_PTR), flat_ints(ib, meta, T_TRI)
+    t_mu = flat_floats(fb, meta, T_MU)
     for q in range(nq):
         # the point in the master's reference frame: y = (x - c_m) / s_m
         y0 = (s * xh[q, 0] + c[0] - cm[0]) / sm
         y1 = (s * xh[q, 1] + c[1] - cm[1]) / sm
         y2 = (s * xh[q, 2] + c[2] - cm[2]) / sm
         n0, n1, n2 = sign * nh[q, 0], sign * nh[q, 1], sign * nh[q, 2]
-        # the candidates whose key can pass the bounding-sphere test
-        a = axis[q, 0] * y0 + axis[q, 1] * y1 + axis[q, 2] * y2
-        half = 1.001 * axis[q, 3]
-        last, hi = ptr[q + 1], a + half
-        best, bj, bu, bv, bt, br = np.inf, -1, 0.0, 0.0, np.nan, 0
-        for k in range(_first_at_least(key, ptr[q], last, a - half), last):
-            if key[k] > hi:
-                break
-            j = cand[k, 0]
+        bj, bu, bv, bt = -1, 0.0, 0.0, np.nan
+        if t_ptr[q + 1] > t_ptr[q]:  # the table's triangle, kept when hit well inside
+            j = t_tri[_run(t_mu, t_ptr[q], t_ptr[q + 1], th[1])]
             ok, u, v, t = _cast(y0, y1, y2, n0, n1, n2, geo, j)
-            if ok and (abs(t) < best or (abs(t) == best and cand[k, 1] < br)):
-                best, bj, bu, bv, bt, br = abs(t), j, u, v, t, cand[k, 1]
+            if ok and u > _INSIDE and v > _INSIDE and 1.0 - u - v > _INSIDE:
+                bj, bu, bv, bt = j, u, v, t
+        if bj < 0:
+            bj, bu, bv, bt = _search(y0, y1, y2, n0, n1, n2, q, ptr, cand, axis, key, geo)
         if bj < 0:
             return NO_HIT, s
         l0, l1, l2 = max(1.0 - bu - bv, 0.0), max(bu, 0.0), max(bv, 0.0)

@@ -22,8 +22,17 @@ import numpy as np
 from rbbench.hf.geometry.facets import point_support
 from rbbench.hf.geometry.surface_rules import triangle_rule, triangle_shape
 
-__all__ = ["reference_surface_points", "surface_eim_arrays",
-           "surface_master_plan", "surface_slave_terms"]
+__all__ = ["TABLE_GRID", "no_table", "pairing_table", "reference_surface_points",
+           "surface_eim_arrays", "surface_master_plan", "surface_slave_terms"]
+
+#: grid points over D of :func:`pairing_table`
+TABLE_GRID = 2049
+
+
+def no_table(nq: int) -> dict[str, np.ndarray]:
+    """No pairing table (every point searched): empty runs for ``nq`` points."""
+    return {"t_mu": np.zeros(1), "t_ptr": np.zeros(nq + 1, dtype=np.int64),
+            "t_tri": np.zeros(1, dtype=np.int64)}
 
 
 def reference_surface_points(lay: Any) -> tuple[np.ndarray, ...]:
@@ -87,7 +96,8 @@ def surface_master_plan(ev: Any, Z_loc: np.ndarray, x_hat: np.ndarray | None = N
                 "m_tri": np.zeros((1, 3), dtype=np.int64),
                 "w_ptr": np.zeros(2, dtype=np.int64),
                 "w_tri": np.zeros((1, 2), dtype=np.int64), "w_axis": np.zeros((1, 4)),
-                "w_key": np.zeros(1), "m_geo": np.zeros((1, 14))}
+                "w_key": np.zeros(1), "m_geo": np.zeros((1, 14)),
+                **no_table(int(ev.Mrows.shape[1]))}
     pi, ti = (np.asarray(a, dtype=np.int64) for a in ev.windows)
     rank = np.arange(pi.size)  # the reference's order of the pairs (its ties)
     axis = _trace_axes(ev.layout, n_hat if n_hat is not None
@@ -108,7 +118,7 @@ def surface_master_plan(ev: Any, Z_loc: np.ndarray, x_hat: np.ndarray | None = N
             "m_geo": _triangle_rows(corners, cen, slack),
             "w_ptr": ptr.astype(np.int64),
             "w_tri": np.stack([ti[order], rank[order]], axis=1),
-            "w_axis": np.column_stack([axis, r_max]), "w_key": key[order],
+            "w_axis": np.column_stack([axis, r_max]), "w_key": key[order], **no_table(nq),
             "zt_m": np.ascontiguousarray(Z_loc[used].T),
             "m_dofs": m_dofs.reshape(dofs.shape).astype(np.int64)}
 
@@ -177,3 +187,43 @@ def surface_eim_arrays(ceim: Any) -> dict[str, np.ndarray]:
            "hi": np.zeros(1, dtype=np.int64)}
     out.update(surface_master_plan(ev, ceim.Z_loc, x_hat, n_hat))
     return out
+
+
+def pairing_table(arrays: dict[str, np.ndarray], n_grid: int = TABLE_GRID
+                  ) -> dict[str, np.ndarray]:
+    """The table of :func:`rbbench.rb.kernels.surface_pairing.pair_surface_points` for a
+    plan's ``arrays`` (with ``mu_lo``, ``mu_hi``): per slave point, the triangle its search
+    chooses at ``n_grid`` equispaced parameters of D, as runs (``t_tri``, the run's first
+    parameter ``t_mu``, a change between two grid points put at their midpoint;
+    ``t_ptr[q]:t_ptr[q + 1]`` the runs of point ``q``). Online a run only names the
+    triangle to cast first: hit well inside, it is the search's answer; else the search
+    runs. A grid point where the search fails (a point outside its window) is left out.
+    No table (:func:`no_table`) with several parameters, a rigid plane, an unbounded D, or
+    where the search fails at every grid point."""
+    from rbbench.rb.kernels import layout
+    from rbbench.rb.kernels.plan import pack
+    from rbbench.rb.kernels.surface_pairing import pair_surface_points
+
+    nq = int(np.asarray(arrays["x_hat"]).shape[0])
+    lo, hi = np.atleast_1d(arrays["mu_lo"]), np.atleast_1d(arrays["mu_hi"])
+    if lo.size != 1 or not int(arrays["dims"][1]) or not np.all(np.isfinite([lo, hi])):
+        return no_table(nq)
+    unread = {**dict.fromkeys(layout.FLOATS, np.zeros((1, 1))),  # what pairing does not read
+              **dict.fromkeys(layout.INTS, np.zeros((1, 1), dtype=np.int64))}
+    fb, ib, meta = pack({**unread, **arrays, **no_table(nq)})
+    grid = np.linspace(float(lo[0]), float(hi[0]), n_grid)
+    tri = np.empty((n_grid, nq), dtype=np.int64)
+    w, gap, mphi = np.empty(nq), np.empty(nq), np.zeros((nq, 3 * int(arrays["dims"][0])))
+    ok = np.zeros(n_grid, dtype=bool)
+    for g, mu in enumerate(grid):
+        status, _ = pair_surface_points(np.array([1.0, mu]), fb, ib, meta, w, gap, mphi,
+                                        tri[g])
+        ok[g] = status == layout.OK
+    if not ok.any():
+        return no_table(nq)
+    grid, tri = grid[ok], tri[ok]  # where some point left its window: no sample there
+    change = np.vstack([np.ones((1, nq), bool), tri[1:] != tri[:-1]]).T  # a run starts
+    q_idx, g_idx = np.nonzero(change)  # point by point, then along the grid
+    start = np.where(g_idx == 0, grid[0], 0.5 * (grid[g_idx] + grid[np.maximum(g_idx - 1, 0)]))
+    ptr = np.concatenate([[0], np.cumsum(np.bincount(q_idx, minlength=nq))])
+    return {"t_mu": start, "t_ptr": ptr.astype(np.int64), "t_tri": tri[g_idx, q_idx]}

@@ -136,12 +136,14 @@ def _eim_plan(model: Any) -> dict[str, np.ndarray]:
     ceim = model.constraint
     ev, lay = ceim.evaluator, ceim.evaluator.layout
     if not hasattr(lay, "integration"):  # 3D: triangulated surfaces
-        from rbbench.rb.kernels.surface_plan import surface_eim_arrays
+        from rbbench.rb.kernels.surface_plan import pairing_table, surface_eim_arrays
 
-        return {**parameter_bounds(model), **surface_eim_arrays(ceim),
-                "w_b": coefficient_map(ceim.lu_B, ceim.T_B),
-                "w_g": coefficient_map(ceim.lu_G, ceim.T_G), "a_terms": model.A.terms,
-                "f_terms": model.F.terms, "vt": np.zeros((1, 1)), "lam_a": np.zeros((1, 1))}
+        out = {**parameter_bounds(model), **surface_eim_arrays(ceim),
+               "w_b": coefficient_map(ceim.lu_B, ceim.T_B),
+               "w_g": coefficient_map(ceim.lu_G, ceim.T_G), "a_terms": model.A.terms,
+               "f_terms": model.F.terms, "vt": np.zeros((1, 1)), "lam_a": np.zeros((1, 1))}
+        out.update(pairing_table(out))
+        return out
     sl, ms = lay.slave, lay.master
     x_hat, n_hat, w_hat, sphi = reference_points(lay)
     pts_b, vals_b = ceim._support

@@ -15,6 +15,7 @@ and the inf-sup constants beta_HF, beta_dec, beta_on, beta_off per validation mu
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -98,6 +99,16 @@ DEFINITIONS = {
 }
 
 
+def scene_defaults(scene: Scene, config: ReduceConfig) -> ReduceConfig:
+    """``config`` with the scene's ``[reduce]`` defaults where the reduction gives none: the
+    PGA cap ``k_pga_max`` (stabilizer ``pga`` only; a ``--k-max`` given wins)."""
+    cap = scene.data.get("reduce", {}).get("k_pga_max")
+    options = config.options
+    if cap is None or options.k_pga_max is not None or options.stabilizer != "pga":
+        return config
+    return replace(config, options=replace(options, k_pga_max=int(cap)))
+
+
 class MixedReduction:
     """The mixed formulation's steps in the offline skeleton (``Formulation.reduction()``)."""
 
@@ -125,7 +136,7 @@ class MixedReduction:
                              "'hemispheres'); here: "
                              "hyper 'auto', 'affine' or 'none'")
         self.fixed_points = fixed_contact_points(scene, config.hyper)
-        return config
+        return scene_defaults(scene, config)
 
     def reduce(self, ctx: Any) -> MixedStage:
         return MixedStage(ctx, self.fixed_points)

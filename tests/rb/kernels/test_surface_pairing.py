@@ -30,6 +30,8 @@ from rbbench.rb.kernels import layout as L  # noqa: E402
 from rbbench.rb.kernels import surface_pairing as SP  # noqa: E402
 from rbbench.rb.kernels.plan import pack  # noqa: E402
 from rbbench.rb.kernels.surface_plan import (  # noqa: E402
+    no_table,
+    pairing_table,
     reference_surface_points,
     surface_eim_arrays,
 )
@@ -179,3 +181,82 @@ def test_first_at_least_is_a_left_bisection(keys, value, a, b):
     first, last = sorted((min(a, key.size), min(b, key.size)))
     want = first + int(np.searchsorted(key[first:last], value, side="left"))
     assert SP._first_at_least(key, first, last, value) == want
+
+
+def _table_plans(case) -> tuple[dict, dict]:
+    """The case's arrays with the pairing table and without (every point searched)."""
+    lay, _, ceim, _ = case
+    arrays = {"mu_lo": np.array([0.7]), "mu_hi": np.array([1.3]), **surface_eim_arrays(ceim)}
+    nq = arrays["x_hat"].shape[0]
+    return {**arrays, **pairing_table(arrays, n_grid=257)}, {**arrays, **no_table(nq)}
+
+
+def test_table_gives_the_search_bit_for_bit(case):
+    """The table's triangle, kept only when hit well inside, leaves every output of the
+    pairing as the search alone gives it, bit for bit: at random mu, at the run starts
+    (where the triangle changes) and one ulp either side of them. The rigid plane has no
+    table."""
+    lay = case[0]
+    with_table, searched = _table_plans(case)
+    nq, k = with_table["x_hat"].shape[0], 3 * lay.degree
+    runs = with_table["t_ptr"][-1]
+    if lay.master is None:
+        assert runs == 0
+        return
+    assert runs > nq  # every point has a run, and some change triangle over D
+    starts = with_table["t_mu"][(with_table["t_mu"] > 0.7) & (with_table["t_mu"] < 1.3)]
+    mus = np.concatenate([np.random.default_rng(5).uniform(0.7, 1.3, 300), starts,
+                          np.nextafter(starts, 0.0), np.nextafter(starts, 2.0)])
+    a_plan, b_plan = _pack(with_table), _pack(searched)
+    for mu in mus:
+        a, b = _pair(a_plan, mu, nq, k), _pair(b_plan, mu, nq, k)
+        assert a[0] == b[0] == L.OK
+        for x, y in zip(a[1:], b[1:], strict=True):
+            np.testing.assert_array_equal(x, y)
+
+
+def test_table_needs_one_bounded_parameter(case):
+    """Several parameters or an unbounded D: no table (the search pairs every point)."""
+    _, _, ceim, _ = case
+    arrays = surface_eim_arrays(ceim)
+    for lo, hi in (([0.7, 0.0], [1.3, 1.0]), ([-np.inf], [1.3])):
+        table = pairing_table({**arrays, "mu_lo": np.array(lo), "mu_hi": np.array(hi)})
+        assert not table["t_ptr"].any()
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(-1e3, 1e3), min_size=1, max_size=40), st.floats(-2e3, 2e3),
+       st.integers(0, 39), st.integers(1, 40))
+def test_run_is_the_last_start_at_most_mu(starts, value, a, b):
+    """The kernel's run lookup on a sorted segment ``first .. last - 1``: the last start
+    ``<= value`` (numpy's right ``searchsorted`` less one), the first run when none."""
+    key = np.sort(np.asarray(starts, dtype=float))
+    first, last = sorted((min(a, key.size - 1), min(b, key.size)))
+    if last <= first:
+        last = first + 1
+    want = first + max(int(np.searchsorted(key[first + 1:last], value, side="right")), 0)
+    assert SP._run(key, first, last, value) == want
+
+
+@pytest.mark.netgen
+def test_table_leaves_out_grid_points_outside_the_windows():
+    """Windows sampled at mu = 0.7 only, no margin: the search fails over part of D. The
+    table keeps the grid points where it succeeds (it is not dropped), and the pairing
+    stays the search's, bit for bit, where the search succeeds."""
+    sc = load_scene("hertz_sphere", ["discretization.level=0"])
+    lay = make_components(sc)[0].contact_layout()
+    ev = build_surface_row_evaluator(lay, np.arange(lay.n_mult), np.array([[0.7]]), margin=0)
+    ceim = SimpleNamespace(evaluator=ev, Z_loc=np.zeros((ev.n_local, 1)),
+                           pos_B=np.arange(1), entry_row=np.zeros(1, int),
+                           entry_col=np.zeros(1, int), pos_G=np.arange(1))
+    arrays = {"mu_lo": np.array([0.7]), "mu_hi": np.array([1.3]), **surface_eim_arrays(ceim)}
+    nq = arrays["x_hat"].shape[0]
+    table = pairing_table(arrays, n_grid=129)
+    assert table["t_ptr"][-1] >= nq and table["t_mu"].max() < 1.3
+    a_plan, b_plan = _pack({**arrays, **table}), _pack({**arrays, **no_table(nq)})
+    for mu in np.linspace(0.7, 1.3, 61):
+        a, b = _pair(a_plan, mu, nq, 3), _pair(b_plan, mu, nq, 3)
+        assert a[0] == b[0]
+        if a[0] == L.OK:
+            for x, y in zip(a[1:], b[1:], strict=True):
+                np.testing.assert_array_equal(x, y)
