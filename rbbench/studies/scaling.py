@@ -30,7 +30,9 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
     (``ratio_to_first``) and to the baseline's (``ratio_to_baseline``, with ``baseline``;
     the baseline's own row comes first, ``level`` None), the online path that ran
     (``compiled`` or ``python``), the online method that ran
-    (``online_method``; ``auto`` resolved) and the protocol's name (``online_protocol``).
+    (``online_method``; ``auto`` resolved), the share of the 3D magic rows' slave points
+    paired through the table of their hit triangle (``pairing_table_share``, None where
+    there is no such pairing) and the protocol's name (``online_protocol``).
     """
     from rbbench.rb.offline import reduce
 
@@ -70,8 +72,16 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                                            if baseline is not None else None),
                      "t_hf_median_s": s["t_hf_median_s"], "floor_s": s["floor_s"],
                      "online_method": on["online_method"], "online_path": on["online_path"],
+                     "pairing_table_share": _table_share(res.model),
                      "online_protocol": ONLINE_PROTOCOL})
     return rows
+
+
+def _table_share(model) -> float | None:
+    """The share of 3D slave points the compiled pairing finds by its table (None: no
+    such pairing)."""
+    share = getattr(model, "pairing_table_share", None)
+    return None if share is None else share()
 
 
 def scaling_markdown(rows: list[dict]) -> str:
@@ -81,7 +91,7 @@ def scaling_markdown(rows: list[dict]) -> str:
     head = ("scene", "level", "HF dofs", "contact rows", "N + K", "R", "EIM rows", "err u max",
             "err lam max", "online median (us)", "IQR (us)", "ratio to first level",
             *(("ratio to baseline",) if with_base else ()), "HF median (s)", "HF floor (s)",
-            "online method", "online path")
+            "online method", "online path", "points by table")
     table = markdown_table(head, (
         (r.get("scene", ""), "baseline" if r["level"] is None else r["level"], r["n_hf_dofs"],
          r["n_contact"], f"{r['N']} + {r['K_pga']}", r["R"],
@@ -91,7 +101,8 @@ def scaling_markdown(rows: list[dict]) -> str:
          *((f"{r['ratio_to_baseline']:.2f}",) if with_base else ()),
          f"{r['t_hf_median_s']:.2f}",
          "" if r.get("floor_s") is None else f"{r['floor_s']:.3f}", r["online_method"],
-         r["online_path"])
+         r["online_path"],
+         "" if r.get("pairing_table_share") is None else f"{r['pairing_table_share']:.0%}")
         for r in rows))
     protocols = sorted({r.get("online_protocol") or ONLINE_PROTOCOL for r in rows})
     return (f"{table}\n\nOnline times: protocol {', '.join(protocols)} (one untimed warm-up "

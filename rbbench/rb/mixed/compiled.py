@@ -242,6 +242,18 @@ class CompiledOnline:
         self.bl = np.full(m, -1e30)
         self.sense = np.zeros(m, dtype=np.int32)
 
+    def pairing_table_share(self) -> float | None:
+        """Share of the plan's slave points whose pairing starts from the table of their hit
+        triangle against mu (:func:`rbbench.rb.kernels.surface_plan.pairing_table`); None
+        where the plan pairs no triangulated surface (2D chains, affine constraints)."""
+        from rbbench.rb.kernels import layout
+
+        dims = layout.flat_ints(self.ib, self.meta, layout.DIMS)
+        if dims.size < 4 or dims[3] != 3 or not dims[1]:
+            return None
+        ptr = layout.flat_ints(self.ib, self.meta, layout.T_PTR)
+        return float(np.mean(np.diff(ptr) > 0)) if ptr.size > 1 else 0.0
+
     def warm_up(self, mu: np.ndarray) -> None:
         """First call of every kernel (compile or load the disk cache), timed into
         :data:`COMPILE` once per process and method."""

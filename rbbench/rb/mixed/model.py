@@ -327,6 +327,13 @@ class ReducedModel:
             return f"compiled (numba {compiled_online.NUMBA_VERSION})"
         return f"python ({self._online_state[method]})"
 
+    def pairing_table_share(self, method: str = "auto") -> float | None:
+        """Share of the magic rows' slave points that the compiled 3D pairing finds through
+        its table (:meth:`rbbench.rb.mixed.compiled.CompiledOnline.pairing_table_share`);
+        None on the Python path or without triangulated contact surfaces."""
+        fast = self._compiled(self.resolve_method(method), "auto")
+        return None if fast is None else fast.pairing_table_share()
+
     def _compiled(self, method: str, path: str):
         """The prepared compiled solve for ``method``, or None (the Python path)."""
         if path not in ONLINE_PATHS:

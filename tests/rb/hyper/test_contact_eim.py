@@ -190,6 +190,7 @@ def test_online_scaling_study_runs_on_two_levels(tmp_path, monkeypatch):
     assert {r["online_path"] for r in rows} == {"compiled" if NUMBA_VERSION else "python"}
     assert {r["online_protocol"] for r in rows} == {ONLINE_PROTOCOL}
     assert all(r["floor_s"] > 0 for r in rows)
+    assert {r["pairing_table_share"] for r in rows} == {None}  # 2D chains: no table
     text = scaling_markdown(rows)
     assert "| 1 |" in text and ONLINE_PROTOCOL in text
 

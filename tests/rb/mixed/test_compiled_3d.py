@@ -70,6 +70,13 @@ def test_the_3d_contact_eim_takes_the_compiled_path(model):
 
 @pytest.mark.netgen
 @pytest.mark.parametrize("method", compiled_online.METHODS)
+def test_every_slave_point_of_the_3d_plan_is_paired_through_its_table(model, method):
+    """Each magic point hits some window triangle over D, so each gets a table."""
+    assert model.pairing_table_share(method) == 1.0
+
+
+@pytest.mark.netgen
+@pytest.mark.parametrize("method", compiled_online.METHODS)
 def test_reduced_solution_equals_the_python_path(model, method):
     """Each compiled method against the Python path of the same method; some constraints
     active (alpha > 0) so the comparison covers the contact rows."""
