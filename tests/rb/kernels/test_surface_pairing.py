@@ -155,18 +155,25 @@ def test_the_key_range_search_equals_the_whole_window(case):
             np.testing.assert_array_equal(x, y)
 
 
-@pytest.mark.netgen
-def test_a_point_outside_its_window_is_no_hit():
-    """Windows sampled at mu = 0.7 only, no margin: at mu = 1.3 a point misses them and
-    the kernel says so (the caller then runs the reference, which raises)."""
+def _windows_at_one_mu() -> dict:
+    """The plan arrays of every row of hertz_sphere level 0 with master windows sampled at
+    mu = 0.7 only, no margin (points leave them over part of D)."""
     sc = load_scene("hertz_sphere", ["discretization.level=0"])
     lay = make_components(sc)[0].contact_layout()
     ev = build_surface_row_evaluator(lay, np.arange(lay.n_mult), np.array([[0.7]]), margin=0)
     ceim = SimpleNamespace(evaluator=ev, Z_loc=np.zeros((ev.n_local, 1)),
                            pos_B=np.arange(1), entry_row=np.zeros(1, int),
                            entry_col=np.zeros(1, int), pos_G=np.arange(1))
-    plan = _pack(surface_eim_arrays(ceim))
-    nq = ev.Mrows.shape[1]
+    return surface_eim_arrays(ceim)
+
+
+@pytest.mark.netgen
+def test_a_point_outside_its_window_is_no_hit():
+    """Windows sampled at mu = 0.7 only, no margin: at mu = 1.3 a point misses them and
+    the kernel says so (the caller then runs the reference, which raises)."""
+    arrays = _windows_at_one_mu()
+    plan = _pack(arrays)
+    nq = arrays["x_hat"].shape[0]
     assert _pair(plan, 0.7, nq, 3)[0] == L.OK
     assert _pair(plan, 1.3, nq, 3)[0] == L.NO_HIT
 
@@ -243,13 +250,7 @@ def test_table_leaves_out_grid_points_outside_the_windows():
     """Windows sampled at mu = 0.7 only, no margin: the search fails over part of D. The
     table keeps the grid points where it succeeds (it is not dropped), and the pairing
     stays the search's, bit for bit, where the search succeeds."""
-    sc = load_scene("hertz_sphere", ["discretization.level=0"])
-    lay = make_components(sc)[0].contact_layout()
-    ev = build_surface_row_evaluator(lay, np.arange(lay.n_mult), np.array([[0.7]]), margin=0)
-    ceim = SimpleNamespace(evaluator=ev, Z_loc=np.zeros((ev.n_local, 1)),
-                           pos_B=np.arange(1), entry_row=np.zeros(1, int),
-                           entry_col=np.zeros(1, int), pos_G=np.arange(1))
-    arrays = {"mu_lo": np.array([0.7]), "mu_hi": np.array([1.3]), **surface_eim_arrays(ceim)}
+    arrays = {"mu_lo": np.array([0.7]), "mu_hi": np.array([1.3]), **_windows_at_one_mu()}
     nq = arrays["x_hat"].shape[0]
     table = pairing_table(arrays, n_grid=129)
     assert table["t_ptr"][-1] >= nq and table["t_mu"].max() < 1.3
