@@ -198,6 +198,7 @@ def _table_plans(case) -> tuple[dict, dict]:
     return {**arrays, **pairing_table(arrays, n_grid=257)}, {**arrays, **no_table(nq)}
 
 
+@pytest.mark.netgen
 def test_table_gives_the_search_bit_for_bit(case):
     """The table's triangle, kept only when hit well inside, leaves every output of the
     pairing as the search alone gives it, bit for bit: at random mu, at the run starts
@@ -222,6 +223,7 @@ def test_table_gives_the_search_bit_for_bit(case):
             np.testing.assert_array_equal(x, y)
 
 
+@pytest.mark.netgen
 def test_table_needs_one_bounded_parameter(case):
     """Several parameters or an unbounded D: no table (the search pairs every point)."""
     _, _, ceim, _ = case
