@@ -24,7 +24,7 @@ from typing import Any
 from rbbench.bench.execution import CaseTimeout, alarm, execute_case, failed_row
 from rbbench.bench.matrix import Case
 from rbbench.hf.snapshots.compute import n_cpus
-from rbbench.runtime.workers import start_method
+from rbbench.runtime.workers import process_context
 
 OnResult = Callable[[Case, dict], None]
 OnStage = Callable[[str], None]
@@ -120,15 +120,6 @@ def _record(kind: str, payload: Any, case: Case, run_id: str, name: str) -> dict
                       "that signal, e.g. -9 out of memory)")
 
 
-def _context(method: str | None) -> mp.context.BaseContext:
-    """``method``, else ``fork`` on Linux from the main thread (``forkserver`` from another
-    thread, where a forked child may hang at its exit: :func:`rbbench.runtime.workers.
-    start_method`), else ``spawn``."""
-    if method is None:
-        method = start_method("fork") if sys.platform.startswith("linux") else "spawn"
-    return mp.get_context(method)
-
-
 class ProcessExecutor:
     """``jobs`` cases at a time, each in its own process (the default).
 
@@ -142,7 +133,7 @@ class ProcessExecutor:
 
     def __init__(self, jobs: int | None = None, start_method: str | None = None) -> None:
         self.jobs = _jobs(jobs)
-        self.ctx = _context(start_method)
+        self.ctx = process_context(start_method)
 
     def run(self, cases: list[Case], run_id: str, cache_dir: str, registry: Any,
             on_result: OnResult, on_stage: OnStage) -> None:

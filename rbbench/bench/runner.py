@@ -159,7 +159,9 @@ def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,
     meets the same failure itself and records it in its row. Returns ``{group: why}``.
     ``watchdog`` kills a group's processes if the run is killed meanwhile.
     """
-    ctx = _snapshot_context()
+    from rbbench.runtime.workers import process_context
+
+    ctx = process_context()  # fork from the main thread only
     groups: dict[tuple, Case] = {}
     limits: dict[tuple, float] = {}
     for c in cases:
@@ -192,17 +194,6 @@ def prepare_snapshots(cases: list[Case], cache_dir: str, jobs: int | None,
         if watchdog is not None:
             watchdog.forget(p.pid)
     return failures
-
-
-def _snapshot_context() -> Any:
-    """``fork`` from the main thread, else ``forkserver`` (a child forked from another thread
-    may hang at its exit: :func:`rbbench.runtime.workers.start_method`); ``spawn`` without
-    fork."""
-    import multiprocessing as mp
-
-    from rbbench.runtime.workers import start_method
-
-    return mp.get_context(start_method("fork") if hasattr(os, "fork") else "spawn")
 
 
 def _check_retry(retry: Iterable[str]) -> set[str]:

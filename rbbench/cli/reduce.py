@@ -210,8 +210,9 @@ def _add_mixed_args(m: Any) -> None:
                    "two-body scene, at an offline cost of minutes) or hf (always with the HF "
                    "operators)")
     m.add_argument("--bound-pod-max", type=int, help="frictionless, --bound online on a "
-                   "two-body scene: the most POD modes of the master half of B(mu)^T lam_N "
-                   "(fewer: a faster bound with a larger rigorous remainder)")
+                   "two-body scene: the most modes (leading eigenvectors of P_M^T X^-1 P_M and "
+                   "POD) of the master half of B(mu)^T lam_N (fewer: a faster bound with a "
+                   "larger rigorous remainder)")
 
 
 def _add_friction_args(f: Any) -> None:

@@ -93,6 +93,15 @@ def start_method(mp_context: str | None = None) -> str:
     return method
 
 
+def process_context(method: str | None = None) -> multiprocessing.context.BaseContext:
+    """The multiprocessing context of processes started by this thread: ``method`` if given,
+    else ``fork`` on Linux (:func:`start_method`: ``forkserver`` outside the main thread)
+    and ``spawn`` elsewhere."""
+    if method is None:
+        method = start_method("fork") if sys.platform.startswith("linux") else "spawn"
+    return multiprocessing.get_context(method)
+
+
 def release_free_heap() -> bool:
     """glibc: return the free heap pages to the kernel (``malloc_trim(0)``).
 

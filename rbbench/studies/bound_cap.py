@@ -20,9 +20,11 @@ import numpy as np
 from rbbench.hf.snapshots.compute import compute_snapshots
 from rbbench.rb.config import ReduceConfig
 from rbbench.rb.offline import offline
+from rbbench.rb.validation import xnorm2
 from rbbench.runtime.threads import one_blas_thread
 from rbbench.runtime.timing import gc_paused
 from rbbench.scene.loading import Scene, SceneError
+from rbbench.studies.formatting import markdown_table
 
 __all__ = ["bound_cap_study", "markdown"]
 
@@ -72,9 +74,9 @@ def bound_cap_study(scene: Scene, caps: tuple[int, ...] = (250, 150, 100, 60, 30
                 sol = model.solve(mu)
                 res = b(mu, sol.c, sol.alpha)
                 e = u - Z @ sol.c
-                err = float(np.sqrt(max(e @ (X @ e), 0.0)))
+                err = float(np.sqrt(max(xnorm2(X, e), 0.0)))
                 row["eff"].append(res.delta_u / err if err > 0 else float("inf"))
-                row["bound_rel"].append(res.delta_u / float(np.sqrt(u @ (X @ u))))
+                row["bound_rel"].append(res.delta_u / float(np.sqrt(xnorm2(X, u))))
                 row["rem_share"].append(b.last_remainder / res.terms.rho)
     out = [_summary(r) for r in rows]
     return {"scene": scene.name, "N": int(stage.N), "K_pga": int(stage.K), "R": int(stage.R),
@@ -96,15 +98,15 @@ def _summary(r: dict[str, Any]) -> dict[str, Any]:
 
 def markdown(out: dict[str, Any]) -> str:
     """The curve as a Markdown table."""
-    lines = [f"{out['scene']}: N = {out['N']} + {out['K_pga']} PGA, R = {out['R']}, "
-             f"{out['n_valid']} validation parameters x {out['repeats']} rounds",
-             "", "| cap | modes | t_bound (us) | t_solve (us) | ratio | effectivity min / "
-             "median / max | err_bound_u_max | remainder / rho median (max) |",
-             "|---|---|---|---|---|---|---|---|"]
-    for r in out["rows"]:
-        lines.append(f"| {r['cap']} | {r['modes']} | {1e6 * r['t_bound_median_s']:.0f} | "
-                     f"{1e6 * r['t_bound_solve_median_s']:.0f} | {r['t_bound_ratio']:.2f} | "
-                     f"{r['effectivity_min']:.2f} / {r['effectivity_median']:.2f} / "
-                     f"{r['effectivity_max']:.2f} | {r['err_bound_u_max']:.3g} | "
-                     f"{r['remainder_share_median']:.2f} ({r['remainder_share_max']:.2f}) |")
-    return "\n".join(lines)
+    head = (f"{out['scene']}: N = {out['N']} + {out['K_pga']} PGA, R = {out['R']}, "
+            f"{out['n_valid']} validation parameters x {out['repeats']} rounds")
+    table = markdown_table(
+        ("cap", "modes", "t_bound (us)", "t_solve (us)", "ratio",
+         "effectivity min / median / max", "err_bound_u_max", "remainder / rho median (max)"),
+        ((r["cap"], r["modes"], f"{1e6 * r['t_bound_median_s']:.0f}",
+          f"{1e6 * r['t_bound_solve_median_s']:.0f}", f"{r['t_bound_ratio']:.2f}",
+          f"{r['effectivity_min']:.2f} / {r['effectivity_median']:.2f} / "
+          f"{r['effectivity_max']:.2f}", f"{r['err_bound_u_max']:.3g}",
+          f"{r['remainder_share_median']:.2f} ({r['remainder_share_max']:.2f})")
+         for r in out["rows"]))
+    return f"{head}\n\n{table}"

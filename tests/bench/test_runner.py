@@ -285,19 +285,20 @@ def test_frictionless_rows_carry_beta_over_c_hf(tmp_path):
 
 def test_processes_fork_from_the_main_thread_only():
     """A child forked from a thread other than the main one may hang at its exit (with a live
-    SciPy SuperLU in the parent): both process launchers switch to forkserver there."""
+    SciPy SuperLU in the parent): both process launchers (the run matrix's executor and the
+    snapshot groups, through one context) switch to forkserver there."""
     import threading
 
-    from rbbench_plugins.executors import _context
+    from rbbench_plugins.executors import ProcessExecutor
 
-    from rbbench.bench.runner import _snapshot_context
+    from rbbench.runtime.workers import process_context
 
-    assert _context(None).get_start_method() == _snapshot_context().get_start_method() \
+    assert ProcessExecutor(1).ctx.get_start_method() == process_context().get_start_method() \
         == "fork"
     seen = []
     th = threading.Thread(target=lambda: seen.extend(
-        [_context(None).get_start_method(), _snapshot_context().get_start_method(),
-         _context("spawn").get_start_method()]))
+        [ProcessExecutor(1).ctx.get_start_method(), process_context().get_start_method(),
+         ProcessExecutor(1, "spawn").ctx.get_start_method()]))
     th.start()
     th.join()
     assert seen == ["forkserver", "forkserver", "spawn"]

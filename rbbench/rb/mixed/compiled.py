@@ -248,8 +248,8 @@ class CompiledOnline:
         where the plan pairs no triangulated surface (2D chains, affine constraints)."""
         from rbbench.rb.kernels import layout
 
-        dims = layout.flat_ints(self.ib, self.meta, layout.DIMS)
-        if dims.size < 4 or dims[3] != 3 or not dims[1]:
+        has_master = layout.flat_ints(self.ib, self.meta, layout.DIMS)[1]
+        if not layout.is_surface(self.ib, self.meta) or not has_master:
             return None
         ptr = layout.flat_ints(self.ib, self.meta, layout.T_PTR)
         return float(np.mean(np.diff(ptr) > 0)) if ptr.size > 1 else 0.0

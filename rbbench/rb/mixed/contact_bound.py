@@ -407,6 +407,30 @@ def _compiled_residuals(plan: dict, mu: np.ndarray, uz: np.ndarray, lam: np.ndar
     return d, b
 
 
+def _dual_matvec(loc: np.ndarray, n: int, x_solve: Callable) -> Callable:
+    """``x -> P^T X^{-1} P x``, ``P`` the free dofs ``loc`` among ``n``."""
+    def mv(x: np.ndarray) -> np.ndarray:
+        v = np.zeros(n)
+        v[loc] = x
+        return np.asarray(x_solve(v)).ravel()[loc]
+
+    return mv
+
+
+def _projected(matvec: Callable, size: int, Q: np.ndarray | None = None
+               ) -> spla.LinearOperator:
+    """``(I - Q Q^T) M (I - Q Q^T)`` for the symmetric ``M`` of ``matvec`` and an
+    l2-orthonormal ``Q`` (``M`` itself without ``Q``)."""
+    def mv(x: np.ndarray) -> np.ndarray:
+        x = np.ravel(x)
+        if Q is not None:
+            x = x - Q @ (Q.T @ x)
+        y = matvec(x)
+        return y - Q @ (Q.T @ y) if Q is not None else y
+
+    return spla.LinearOperator((size, size), matvec=mv, dtype=float)
+
+
 def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable,
                     U: np.ndarray | None = None) -> float:
     """``lambda_c``: the largest eigenvalue of ``P^T X^{-1} P`` on the l2-complement of the
@@ -414,16 +438,7 @@ def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable,
     Lanczos, relative margin :data:`~rbbench.rb.algorithms.bounds.EIG_MARGIN` upwards. The
     remainder ``e = b_M - U U^T b_M`` lies in that complement, so ``||P e||_X'^2 <=
     lambda_c ||e||_2^2``."""
-    def mv(x: np.ndarray) -> np.ndarray:
-        x = np.ravel(x)
-        if U is not None:
-            x = x - U @ (U.T @ x)
-        v = np.zeros(n)
-        v[loc] = x
-        y = np.asarray(x_solve(v)).ravel()[loc]
-        return y - U @ (U.T @ y) if U is not None else y
-
-    op = spla.LinearOperator((loc.size, loc.size), matvec=mv, dtype=float)
+    op = _projected(_dual_matvec(loc, n, x_solve), loc.size, U)
     top = float(spla.eigsh(op, k=1, which="LA", tol=1e-12, return_eigenvectors=False)[0])
     return top * (1.0 + EIG_MARGIN)
 
@@ -431,16 +446,11 @@ def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable,
 def _dual_eigenvectors(loc: np.ndarray, n: int, x_solve: Callable, k: int) -> np.ndarray:
     """The ``k`` leading eigenvectors of ``P^T X^{-1} P`` (Lanczos; fewer on a small
     chain), largest first, l2-orthonormal."""
-    def mv(x: np.ndarray) -> np.ndarray:
-        v = np.zeros(n)
-        v[loc] = np.ravel(x)
-        return np.asarray(x_solve(v)).ravel()[loc]
-
     k = int(min(k, loc.size - 2))
     if k < 1:
         return np.zeros((loc.size, 0))
-    op = spla.LinearOperator((loc.size, loc.size), matvec=mv, dtype=float)
-    w, V = spla.eigsh(op, k=k, which="LA", tol=1e-10)
+    w, V = spla.eigsh(_projected(_dual_matvec(loc, n, x_solve), loc.size), k=k, which="LA",
+                      tol=1e-10)
     return np.ascontiguousarray(V[:, np.argsort(w)[::-1]])
 
 
@@ -487,17 +497,10 @@ def _leading_projected(G: np.ndarray, Q: np.ndarray, k: int) -> tuple[np.ndarray
                                                                       np.ndarray]:
     """The ``k`` largest eigenvalues (descending) and eigenvectors of ``(I - Q Q^T) G (I -
     Q Q^T)``."""
-    def mv(x: np.ndarray) -> np.ndarray:
-        x = np.ravel(x)
-        x = x - Q @ (Q.T @ x)
-        y = G @ x
-        return y - Q @ (Q.T @ y)
-
     if k < 1:
         return np.zeros(0), np.zeros((G.shape[0], 0))
-    op = spla.LinearOperator(G.shape, matvec=mv, dtype=float)
-    w, V = spla.eigsh(op, k=k, which="LA", tol=1e-10,
-                      v0=np.random.default_rng(0).standard_normal(G.shape[0]))
+    w, V = spla.eigsh(_projected(lambda x: G @ x, G.shape[0], Q), k=k, which="LA",
+                      tol=1e-10, v0=np.random.default_rng(0).standard_normal(G.shape[0]))
     order = np.argsort(w)[::-1]
     return w[order], V[:, order]
 

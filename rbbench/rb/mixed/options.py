@@ -42,8 +42,8 @@ class MixedOptions:
     bounds); ``tol_eim``, ``m_eim``, ``n_eim_train``: the contact EIM's tolerance, size cap
     and training grid (hyper ``eim``); ``bound``: how the certified bound is evaluated
     (:data:`BOUND_MODES`); ``bound_pod_max``: with ``bound = "online"`` on a two-body scene,
-    the most POD modes of the master half of ``B(mu)^T lam_N`` (fewer: a cheaper bound with a
-    larger, still rigorous, compression remainder; unused elsewhere).
+    the most modes (eigenvectors and POD) of the master half of ``B(mu)^T lam_N`` (fewer: a
+    cheaper bound with a larger, still rigorous, compression remainder; unused elsewhere).
     """
 
     dual: str = "mcpg"
