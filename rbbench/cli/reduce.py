@@ -129,7 +129,8 @@ def cmd_online_scaling(args: argparse.Namespace) -> int:
         rows = online_scaling(args.scene, make_config(**reduce_fields(args)),
                               tuple(args.levels), tuple(args.set or ()), repeats=args.repeats,
                               progress=_Progress(args.quiet), baseline=args.baseline,
-                              baseline_overrides=tuple(args.baseline_set or ()))
+                              baseline_overrides=tuple(args.baseline_set or ()),
+                              match_sizes=args.match_sizes)
     except (OptionError, FieldError) as exc:
         raise _flagged(exc) from None
     print(scaling_markdown(rows))
@@ -299,6 +300,10 @@ def _add_online_scaling_parser(sub) -> None:
     osc.add_argument("--baseline-set", action="append", default=None,
                      metavar="SECTION.KEY=VALUE", help="override a value of the baseline scene "
                                                        "(repeatable)")
+    osc.add_argument("--match-sizes", action="store_true", default=False,
+                     help="build the first level first and cap the later levels' reduced "
+                          "sizes (N, R, K, EIM terms) at its own, so that the ratios measure "
+                          "the HF size alone (mixed formulation)")
     osc.add_argument("--quiet", action="store_true", default=False, help="no progress lines")
     osc.set_defaults(func=cmd_online_scaling, hyper="eim")
     state_defaults(osc)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from rbbench._compat import deprecated_names
@@ -11,12 +13,12 @@ from rbbench.runtime.timing import ONLINE_PROTOCOL, gc_paused
 from rbbench.scene.loading import load_scene
 from rbbench.studies.formatting import markdown_table
 
-__all__ = ["online_scaling", "scaling_markdown"]
+__all__ = ["capped_config", "online_scaling", "scaling_markdown"]
 
 
 def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int = 30,
                    progress=print, baseline: str | None = None,
-                   baseline_overrides=()) -> list[dict]:
+                   baseline_overrides=(), match_sizes: bool = False) -> list[dict]:
     """Online time of the same reduction at several mesh levels, timed side by side.
 
     One reduced model is built per ``discretization.level`` (and, with ``baseline``, one
@@ -33,17 +35,28 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
     (``online_method``; ``auto`` resolved), the share of the 3D magic rows' slave points
     paired through the table of their hit triangle (``pairing_table_share``, None where
     there is no such pairing) and the protocol's name (``online_protocol``).
+
+    With ``match_sizes`` the first level is built first and every later level is built
+    with its reduced sizes capped at the first level's (:func:`capped_config`): the ratios
+    then measure the HF size alone, at the same reduced problem (a coarse level may stop
+    its cone or EIM early, or have no more to give: the default ratios mix both effects).
+    ``sizes_from`` in the rows names the level whose sizes capped them (None without).
     """
     from rbbench.rb.offline import reduce
 
+    if match_sizes and config.formulation not in (None, "mixed"):
+        raise ValueError(f"match_sizes: caps the mixed formulation's sizes (N, R, K, EIM "
+                         f"terms), not {config.formulation!r}'s")
     cases = ([(None, load_scene(baseline, list(baseline_overrides)))] if baseline is not None
              else [])
     cases += [(level, load_scene(scene, [*overrides, f"discretization.level={level}"]))
               for level in levels]  # every scene is loaded (and checked) before any offline
-    results = []
+    results, level_config, sizes_from = [], config, None
     for level, sc in cases:
         progress(f"{sc.name} level {level if level is not None else 'default'}: offline")
-        res = reduce(sc, config)
+        res = reduce(sc, config if level is None else level_config)
+        if match_sizes and level is not None and sizes_from is None:
+            sizes_from, level_config = level, capped_config(config, res)
         if res.hyper == "none":
             raise ValueError(f"hyper {res.hyper!r} builds no HF-independent model; use 'eim' "
                              "or 'affine'")
@@ -73,8 +86,30 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
                      "t_hf_median_s": s["t_hf_median_s"], "floor_s": s["floor_s"],
                      "online_method": on["online_method"], "online_path": on["online_path"],
                      "pairing_table_share": _table_share(res.model),
+                     "sizes_from": None if level in (None, sizes_from) else sizes_from,
                      "online_protocol": ONLINE_PROTOCOL})
     return rows
+
+
+def capped_config(config, result):
+    """``config`` with the reduced sizes capped at those ``result`` (a built reduction of
+    the mixed formulation) reached: ``N``, the dual size ``R`` (and ``S`` on a friction
+    scene), the supremizers ``k_pga_max`` (when it kept any) and the EIM terms ``m_eim``
+    (the largest term count of its expansions)."""
+    s = result.summary()
+    caps = {"R": s["R"]}
+    if s.get("S") is not None:
+        caps["S"] = s["S"]
+    if s.get("K_pga"):
+        caps["k_pga_max"] = s["K_pga"]
+    eim = result.histories.get("eim", {})
+    terms = [int(v) for k, v in eim.items() if k.startswith("M_") and v is not None]
+    if terms:
+        caps["m_eim"] = max(terms)
+    opts = config.options
+    opts = (dataclasses.replace(opts, **caps) if dataclasses.is_dataclass(opts)
+            else {**dict(opts), **caps})
+    return dataclasses.replace(config, N=s["N"], options=opts)
 
 
 def _table_share(model) -> float | None:
@@ -105,6 +140,10 @@ def scaling_markdown(rows: list[dict]) -> str:
          "" if r.get("pairing_table_share") is None else f"{r['pairing_table_share']:.0%}")
         for r in rows))
     protocols = sorted({r.get("online_protocol") or ONLINE_PROTOCOL for r in rows})
+    capped = sorted({r["sizes_from"] for r in rows if r.get("sizes_from") is not None})
+    if capped:
+        table += ("\n\nReduced sizes (N, R, K, EIM terms) of the later levels capped at level "
+                  f"{', '.join(map(str, capped))}'s.")
     return (f"{table}\n\nOnline times: protocol {', '.join(protocols)} (one untimed warm-up "
             "solve per model, one BLAS thread, garbage collector paused, median over "
             "validation mus x repeats; rbbench reduce and run rows name the same protocol). "

@@ -211,3 +211,40 @@ def test_online_scaling_times_a_baseline_scene_in_the_same_loop(tmp_path, monkey
                                             / rows[0]["t_online_median_s"])
     text = scaling_markdown(rows)
     assert "ratio to baseline" in text and "| baseline |" in text
+
+
+def test_online_scaling_caps_later_levels_at_the_first_levels_sizes(tmp_path, monkeypatch):
+    from rbbench.studies.scaling import online_scaling, scaling_markdown
+
+    monkeypatch.chdir(tmp_path)
+    cfg = make_config(dual="mcpg", stabilizer="none", hyper="eim", N=12, R=12, n_train=5,
+                       n_valid=2, n_jobs=1, cache_dir=str(tmp_path), online_repeats=1)
+    rows = online_scaling("hertz_halfdisks", cfg, levels=(0, 1), overrides=COARSE, repeats=2,
+                          progress=lambda _m: None, match_sizes=True)
+    first, later = rows
+    assert first["sizes_from"] is None and later["sizes_from"] == 0
+    assert later["N"] <= first["N"] and later["R"] <= first["R"]
+    assert "capped at level 0's" in scaling_markdown(rows)
+
+
+def test_capped_config_takes_every_size_the_first_reduction_reached():
+    from types import SimpleNamespace
+
+    from rbbench.studies.scaling import capped_config
+
+    cfg = make_config(dual="mcpg", N=20, R=20, k_pga_max=40, tol_eim=1e-6)
+    built = SimpleNamespace(summary=lambda: {"N": 11, "R": 7, "K_pga": 8, "S": None},
+                            histories={"eim": {"M_B": 13, "M_G": 5, "rows": 20}})
+    capped = capped_config(cfg, built)
+    assert capped.N == 11
+    assert capped.options == {"dual": "mcpg", "R": 7, "k_pga_max": 8, "m_eim": 13,
+                              "tol_eim": 1e-6}
+    assert cfg.N == 20 and cfg.options["R"] == 20  # the given config is left as it was
+
+
+def test_online_scaling_refuses_to_match_sizes_of_another_formulation():
+    from rbbench.studies.scaling import online_scaling
+
+    with pytest.raises(ValueError, match="match_sizes.*nitsche"):
+        online_scaling("hertz_halfdisks", make_config(formulation="nitsche"), levels=(0, 1),
+                       match_sizes=True, progress=lambda _m: None)
