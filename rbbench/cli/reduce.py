@@ -34,7 +34,8 @@ POSITIVE = ("N", "R", "S", "n_train", "n_valid", "n_jobs", "m_eim", "n_eim_train
             "online_repeats", "gcns_per_iteration", "gcns_max", "gcns_patience", "bound_pod_max")
 #: argparse destinations that are not reduction fields
 _NOT_FIELDS = {"scene", "func", "command", "set", "out", "quiet", "backend_option",
-               "formulation_option", "levels", "repeats", "baseline", "baseline_set"}
+               "formulation_option", "levels", "repeats", "baseline", "baseline_set",
+               "match_sizes"}
 
 
 def flag(field: str) -> str:

@@ -155,7 +155,9 @@ def test_online_scaling_keeps_its_own_flags_out_of_the_reduction():
 
     args = build_parser().parse_args(["online-scaling", "hertz_sphere", "--levels", "0", "1",
                                       "--baseline", "hertz_halfdisks", "--baseline-set",
-                                      "discretization.level=0", "-N", "5"])
+                                      "discretization.level=0", "-N", "5", "--match-sizes"])
     fields = reduce_fields(args)
-    assert fields["N"] == 5 and not {"baseline", "baseline_set", "levels"} & set(fields)
+    assert args.match_sizes
+    assert fields["N"] == 5 and not {"baseline", "baseline_set", "levels",
+                                     "match_sizes"} & set(fields)
     make_config(**fields)  # every field left is a reduction field

@@ -28,7 +28,7 @@ from rbbench.rb.kernels import plan
 from rbbench.rb.kernels.plan import NUMBA_VERSION
 
 __all__ = ["COMPILE", "COMPILE_ESTIMATE_S", "CompiledWedge", "is_cached", "path_reason",
-           "prepare", "wedge_plan"]
+           "prepare", "slave_row_sums", "wedge_plan"]
 
 #: first call of the kernel in this process: ``{"first_call_s": s, "from_disk_cache":
 #: bool}`` (compilation, or loading numba's on-disk cache; never part of an online time)
@@ -108,7 +108,9 @@ def wedge_plan(model: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]
         z_s = _master_basis(feim, Zv)
     n_basis, n_rows = Zv.shape[1], model.P.shape[1]
     pts_s, vals_s = slip.support[0][::n_basis], slip.support[1][::n_basis]  # one per row
-    slave_s = slave(slip, t_hat, Zv).reshape(n_rows, n_basis, -1).transpose(0, 2, 1)
+    slave_s = slave_row_sums(
+        slave(slip, t_hat, Zv).reshape(n_rows, n_basis, -1).transpose(0, 2, 1), vals_s,
+        pts_s, w_hat)
     x_train = np.asarray(model.x_train, float).reshape(-1, model.R)
     own = {"t_hat": t_hat, "slave_t": slave(tan, t_hat, Z), "vals_t": tan.support[1],
            "slave_s": np.ascontiguousarray(slave_s), "vals_s": vals_s, "z_s": z_s,
@@ -120,6 +122,14 @@ def wedge_plan(model: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]
            "order_t": np.argsort(tan.col, kind="stable"), "pts_s": pts_s,
            "sizes": np.array([model.P.shape[1], model.max_iter, w_u.shape[1]]), "w_u": w_u}
     return shared, own
+
+
+def slave_row_sums(slave: np.ndarray, vals: np.ndarray, pts: np.ndarray, w_hat: np.ndarray
+                   ) -> np.ndarray:
+    """The slave part of the slip rows summed over their points, up to the scaling ``s``
+    of the map: ``sum_p vals[r, p] w_hat[pts[r, p]] slave[r, p]`` (``slave``: rows x points
+    x basis; padding points have ``vals = 0``)."""
+    return np.ascontiguousarray(np.einsum("rp,rpj->rj", vals * w_hat[pts], slave))
 
 
 def compress_map(W: np.ndarray, values: np.ndarray, rtol: float = 1e-14

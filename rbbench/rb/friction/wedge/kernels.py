@@ -19,7 +19,8 @@ One call of :func:`wedge_online` does for one mu what
 
    ``Bv = B V``, ``Fv = V^T F_N``; the slip rows come out in the same coordinates (their
    entries are linear in the basis: the plan holds ``Z V`` for them), so the nodal
-   tangential gap is ``t0 + T c`` with ``t0 = -Rv (Fv / s)``, ``T = Rv diag(1/s) Bv^T``;
+   tangential gap is ``t0 + T c`` with ``t0 = -Rv (Fv / s)``, ``T = Rv diag(1/s) Bv^T``
+   (applied as two products, ``T`` never formed);
 3. De Saxce's fixed point (:func:`rbbench.rb.friction.wedge.model.desaxce_coulomb`, the same
    stop rule and tolerance): each bound-constrained QP ``min 1/2 c^T D c + g^T c``,
    ``c >= 0``, by Lawson and Hanson's active set in Bro and de Jong's Gram form
@@ -68,31 +69,59 @@ TOL, QP_MAX_ITER = 1e-10, 500
 
 
 @njit(cache=True)
-def jump_rows(s, dh, wh, zs, m_dofs, has_master, slave, vals, pts, mphi, seg, out):
+def _master_rows(row, zs, dofs, cm, k):
+    """``row -= sum_a cm[a] zs[dofs[a]]`` over the ``2 k`` dofs of one master facet, one
+    pass over the columns (a three-node facet unrolled)."""
+    n = row.size
+    if k == 3:
+        z0, z1, z2, z3, z4, z5 = (zs[dofs[0]], zs[dofs[1]], zs[dofs[2]], zs[dofs[3]],
+                                  zs[dofs[4]], zs[dofs[5]])
+        c0, c1, c2, c3, c4, c5 = cm[0], cm[1], cm[2], cm[3], cm[4], cm[5]
+        for j in range(n):
+            row[j] -= (c0 * z0[j] + c1 * z1[j] + c2 * z2[j] + c3 * z3[j] + c4 * z4[j]
+                       + c5 * z5[j])
+    else:
+        for a in range(2 * k):
+            ca, za = cm[a], zs[dofs[a]]
+            for j in range(n):
+                row[j] -= ca * za[j]
+
+
+@njit(cache=True)
+def jump_rows(s, dh, wh, zs, m_dofs, has_master, slave_rows, vals, pts, mphi, seg, out):
     """Whole rows ``out[r] = (J(mu) Z)[row r]`` (the slip rows), as
     :func:`rbbench.rb.kernels.pairing.jump_values` does entry by entry but a row at a time:
-    ``slave[r, p]`` the tabulated slave term of point ``p`` for every column, ``zs`` the
-    basis on the master dofs of the windows, one contiguous row per dof (``out`` zeroed
-    by the caller)."""
+    ``s slave_rows[r]`` the slave part (its points' terms summed offline,
+    :func:`rbbench.rb.friction.wedge.compiled.slave_row_sums`), then the master part, the
+    coefficients of consecutive points on the same master facet summed before one pass over
+    the columns; ``zs`` the basis on the master dofs of the windows, one contiguous row per
+    dof (``out`` zeroed by the caller)."""
     k, n = mphi.shape[1], out.shape[1]
-    acc = np.empty(n)
+    cm = np.zeros(2 * k)
     for r in range(pts.shape[0]):
+        row = out[r]
+        for j in range(n):
+            row[j] += s * slave_rows[r, j]
+        if not has_master:
+            continue
+        open_facet = -1
         for p in range(pts.shape[1]):
             coef = vals[r, p]
             if coef == 0.0:  # padding
                 continue
             q = pts[r, p]
-            acc[:] = slave[r, p]
-            if has_master:
-                f = seg[q]
-                for a in range(k):
-                    dx, dy = mphi[q, a] * dh[q, 0], mphi[q, a] * dh[q, 1]
-                    zx, zy = zs[m_dofs[f, 2 * a]], zs[m_dofs[f, 2 * a + 1]]
-                    for j in range(n):
-                        acc[j] -= dx * zx[j] + dy * zy[j]
+            f = seg[q]
+            if f != open_facet:
+                if open_facet >= 0:
+                    _master_rows(row, zs, m_dofs[open_facet], cm, k)
+                open_facet = f
+                cm[:] = 0.0
             coef *= s * wh[q]
-            for j in range(n):
-                out[r, j] += coef * acc[j]
+            for a in range(k):
+                cm[2 * a] += coef * mphi[q, a] * dh[q, 0]
+                cm[2 * a + 1] += coef * mphi[q, a] * dh[q, 1]
+        if open_facet >= 0:
+            _master_rows(row, zs, m_dofs[open_facet], cm, k)
 
 
 @njit(cache=True)
@@ -110,23 +139,34 @@ def _nearest(mu, mus, xs, c):
 
 
 @njit(cache=True)
-def _slip(t0, tm, c, slip):
-    """``slip = |t0 + T c|``."""
-    for i in range(t0.size):
-        v = t0[i]
-        for j in range(c.size):
-            v += tm[i, j] * c[j]
-        slip[i] = abs(v)
+def _slip(t0, rv_t, kt_t, c, y, slip):
+    """``slip = |t0 + Rv (Kt c)|`` from the transposes ``rv_t = Rv^T`` (n x ms) and
+    ``kt_t = Kt^T`` (r x n) (``y``: work array of A_N's size): the slip rows applied to the
+    displacement's ``c`` part as two sums of rows (vectorised, the zero entries of ``c``
+    skipped) instead of forming ``Rv Kt`` (ms x n x r) once per solve."""
+    y[:] = 0.0
+    for i in range(c.size):
+        ci = c[i]
+        if ci != 0.0:
+            for k in range(y.size):
+                y[k] += ci * kt_t[i, k]
+    slip[:] = t0
+    for k in range(y.size):
+        yk = y[k]
+        for j in range(slip.size):
+            slip[j] += yk * rv_t[k, j]
+    for j in range(slip.size):
+        slip[j] = abs(slip[j])
 
 
 @njit(cache=True)
-def _linear_term(q, pq, slip, g):
-    """``g = q + P slip``."""
-    for i in range(q.size):
-        v = q[i]
-        for j in range(slip.size):
-            v += pq[i, j] * slip[j]
-        g[i] = v
+def _linear_term(q, pq_t, slip, g):
+    """``g = q + P slip`` from ``pq_t = P^T`` (ms x r), as a sum of rows."""
+    g[:] = q
+    for j in range(slip.size):
+        sj = slip[j]
+        for i in range(g.size):
+            g[i] += sj * pq_t[j, i]
 
 
 @njit(cache=True)
@@ -184,7 +224,7 @@ def _reduced_arrays(th, fb, ib, meta, fw, iw, mw, n, r, ms, n_map):
     KP.gap_values(w, gap, K.float_rows(fb, meta, K.VALS_G), K.int_rows(ib, meta, K.PTS_G),
                   gvals)
     jump_rows(s, tangent, wh, K.float_rows(fw, mw, Z_S), m_dofs, dims[1],
-              K.flat_floats(fw, mw, SLAVE_S).reshape((ms, mw[VALS_S, 2], n)),
+              K.float_rows(fw, mw, SLAVE_S),
               K.float_rows(fw, mw, VALS_S), K.int_rows(iw, mw, PTS_S), mphi, seg, rv)
     if n_map > 0:  # the compressed map: B = (c^T U) W_k
         wu = K.float_rows(fw, mw, W_U)
@@ -201,10 +241,11 @@ def _reduced_arrays(th, fb, ib, meta, fw, iw, mw, n, r, ms, n_map):
 
 
 @njit(cache=True)
-def _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, tm, sc, ds):
+def _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, sc, ds):
     """Step 2 of :func:`wedge_online`: the condensation on ``c`` (``d``, ``q``), ``u = a0 -
-    kt c`` in the eigenbasis, the slip rows ``t0 + tm c`` and the Jacobi-scaled ``ds``
-    (``sc`` its scaling); False when ``d`` has a non-positive diagonal."""
+    kt c`` in the eigenbasis, the slip rows' constant part ``t0 = -Rv a0`` (their ``c`` part
+    is applied by :func:`_slip`) and the Jacobi-scaled ``ds`` (``sc`` its scaling); False
+    when ``d`` has a non-positive diagonal."""
     n, r = bt2.shape
     NN.condense(bt2, ft, sd, d, q, gn)
     for k in range(n):
@@ -214,10 +255,7 @@ def _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, tm, sc, ds):
     for j in range(t0.size):
         v = 0.0
         for k in range(n):
-            rjk = rv[j, k]
-            v -= rjk * a0[k]
-            for i in range(r):
-                tm[j, i] += rjk * kt[k, i]
+            v -= rv[j, k] * a0[k]
         t0[j] = v
     for i in range(r):
         if not d[i, i] > 0.0:
@@ -230,14 +268,15 @@ def _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, tm, sc, ds):
 
 
 @njit(cache=True)
-def _desaxce(ds, sc, q, pq, t0, tm, c, tol, warm, hist):
+def _desaxce(ds, sc, q, pq, t0, rv, kt, c, tol, warm, hist):
     """Step 3 of :func:`wedge_online`: De Saxce's fixed point from ``c`` (updated in place),
     the stop rule of :func:`rbbench.rb.friction.wedge.model.desaxce_coulomb`:
     ``(qp ok, iterations, stop index, qp iterations)``."""
     r, ms = c.size, t0.size
     slip, g, g_new, y = np.empty(ms), np.empty(r), np.empty(r), np.empty(r)
-    _slip(t0, tm, c, slip)
-    _linear_term(q, pq, slip, g)
+    work, rv_t, kt_t, pq_t = np.empty(kt.shape[0]), rv.T.copy(), kt.T.copy(), pq.T.copy()
+    _slip(t0, rv_t, kt_t, c, work, slip)
+    _linear_term(q, pq_t, slip, g)
     it, inner, stop, low = 0, 0, 1, np.inf
     while it < hist.size:
         it += 1
@@ -245,8 +284,8 @@ def _desaxce(ds, sc, q, pq, t0, tm, c, tol, warm, hist):
         inner += k_it
         if not ok:
             return False, it, 0, inner
-        _slip(t0, tm, c, slip)
-        _linear_term(q, pq, slip, g_new)
+        _slip(t0, rv_t, kt_t, c, work, slip)
+        _linear_term(q, pq_t, slip, g_new)
         num, den = 0.0, 0.0
         for i in range(r):
             num = max(num, abs(g_new[i] - g[i]))
@@ -292,8 +331,8 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
         if not sd[k] > 0.0:  # A_N(mu) not positive definite: the reference decides
             return NOT_SPD, 0, 0, 0, a, c, hist[:0]
     d, q, a0, kt = np.empty((r, r)), np.empty(r), np.empty(n), np.empty((n, r))
-    t0, tm, sc, ds = np.empty(ms), np.zeros((ms, r)), np.empty(r), np.empty((r, r))
-    if not _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, tm, sc, ds):
+    t0, sc, ds = np.empty(ms), np.empty(r), np.empty((r, r))
+    if not _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, sc, ds):
         return NOT_SPD, 0, 0, 0, a, c, hist[:0]
     # 3. De Saxce's fixed point
     if start == NEAREST:
@@ -302,7 +341,7 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
         c[:] = x0
     for i in range(r):
         c[i] = max(c[i], 0.0)
-    ok, it, stop, inner = _desaxce(ds, sc, q, K.float_rows(fw, mw, PQ), t0, tm, c,
+    ok, it, stop, inner = _desaxce(ds, sc, q, K.float_rows(fw, mw, PQ), t0, rv, kt, c,
                                    K.flat_floats(fw, mw, SETTINGS)[0], start != COLD, hist)
     if not ok:
         return QP_FAILED, it, 0, inner, a, c, hist[:it]
