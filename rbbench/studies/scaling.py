@@ -10,6 +10,7 @@ from rbbench._compat import deprecated_names
 from rbbench.rb.online import OnlineTimes, timed_online_solves
 from rbbench.runtime.threads import one_blas_thread
 from rbbench.runtime.timing import ONLINE_PROTOCOL, gc_paused
+from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import load_scene
 from rbbench.studies.formatting import markdown_table
 
@@ -44,13 +45,15 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
     """
     from rbbench.rb.offline import reduce
 
-    if match_sizes and config.formulation not in (None, "mixed"):
-        raise ValueError(f"match_sizes: caps the mixed formulation's sizes (N, R, K, EIM "
-                         f"terms), not {config.formulation!r}'s")
     cases = ([(None, load_scene(baseline, list(baseline_overrides)))] if baseline is not None
              else [])
     cases += [(level, load_scene(scene, [*overrides, f"discretization.level={level}"]))
               for level in levels]  # every scene is loaded (and checked) before any offline
+    if match_sizes:
+        kind = config.formulation or ("linear" if is_linear(cases[-1][1]) else "mixed")
+        if kind != "mixed":
+            raise ValueError(f"match_sizes: caps the mixed formulation's sizes (N, R, K, EIM "
+                             f"terms), not {kind!r}'s")
     results, level_config, sizes_from = [], config, None
     for level, sc in cases:
         progress(f"{sc.name} level {level if level is not None else 'default'}: offline")

@@ -248,3 +248,6 @@ def test_online_scaling_refuses_to_match_sizes_of_another_formulation():
     with pytest.raises(ValueError, match="match_sizes.*nitsche"):
         online_scaling("hertz_halfdisks", make_config(formulation="nitsche"), levels=(0, 1),
                        match_sizes=True, progress=lambda _m: None)
+    with pytest.raises(ValueError, match="match_sizes.*'linear'"):  # a linear scene's default
+        online_scaling("thermal_block", make_config(), levels=(0, 1), match_sizes=True,
+                       progress=lambda _m: None)
