@@ -63,6 +63,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 __all__ = ["BoundTerms", "VIBound", "coercivity_constants", "delassus", "hf_bound_terms",
+           "lanczos_start",
            "natural_dual", "riesz_factor", "vi_bound"]
 
 #: Relative safety margin on the computed extreme eigenvalues of ``(A, X)`` (Lanczos /
@@ -91,6 +92,13 @@ class VIBound:
     gamma: float
 
 
+def lanczos_start(n: int) -> np.ndarray:
+    """A fixed start vector for ARPACK's Lanczos (``eigsh(..., v0=)``): seeded normal
+    draws. Without one ARPACK draws its own, so two runs may differ, and on a small pencil
+    an unlucky draw stops it ("No shifts could be applied", error 3)."""
+    return np.random.default_rng(0).standard_normal(n)
+
+
 def vi_bound(terms: BoundTerms, alpha: float, gamma: float) -> VIBound:
     """The bound (5)-(6) from its terms, a coercivity lower bound ``alpha`` and a continuity
     upper bound ``gamma`` of ``a`` in X (module docstring's theorem)."""
@@ -117,9 +125,10 @@ def coercivity_constants(A: Any, X: Any) -> tuple[float, float]:
         w = sla.eigh(0.5 * (Ad + Ad.T), Xd, eigvals_only=True)
         lo, hi = float(w[0]), float(w[-1])
     else:
-        lo = float(spla.eigsh(A, k=1, M=X, sigma=0.0, which="LM",
+        lo = float(spla.eigsh(A, k=1, M=X, sigma=0.0, which="LM", v0=lanczos_start(n),
                               return_eigenvectors=False)[0])
-        hi = float(spla.eigsh(A, k=1, M=X, which="LA", return_eigenvectors=False)[0])
+        hi = float(spla.eigsh(A, k=1, M=X, which="LA", v0=lanczos_start(n),
+                              return_eigenvectors=False)[0])
     return lo * (1.0 - EIG_MARGIN), hi * (1.0 + EIG_MARGIN)
 
 

@@ -59,6 +59,7 @@ from rbbench.rb.algorithms.bounds import (
     BoundTerms,
     VIBound,
     coercivity_constants,
+    lanczos_start,
     riesz_factor,
     vi_bound,
 )
@@ -439,7 +440,8 @@ def _local_dual_max(loc: np.ndarray, n: int, x_solve: Callable,
     remainder ``e = b_M - U U^T b_M`` lies in that complement, so ``||P e||_X'^2 <=
     lambda_c ||e||_2^2``."""
     op = _projected(_dual_matvec(loc, n, x_solve), loc.size, U)
-    top = float(spla.eigsh(op, k=1, which="LA", tol=1e-12, return_eigenvectors=False)[0])
+    top = float(spla.eigsh(op, k=1, which="LA", tol=1e-12, v0=lanczos_start(loc.size),
+                           return_eigenvectors=False)[0])
     return top * (1.0 + EIG_MARGIN)
 
 
@@ -450,7 +452,7 @@ def _dual_eigenvectors(loc: np.ndarray, n: int, x_solve: Callable, k: int) -> np
     if k < 1:
         return np.zeros((loc.size, 0))
     w, V = spla.eigsh(_projected(_dual_matvec(loc, n, x_solve), loc.size), k=k, which="LA",
-                      tol=1e-10)
+                      tol=1e-10, v0=lanczos_start(loc.size))
     return np.ascontiguousarray(V[:, np.argsort(w)[::-1]])
 
 
@@ -500,7 +502,7 @@ def _leading_projected(G: np.ndarray, Q: np.ndarray, k: int) -> tuple[np.ndarray
     if k < 1:
         return np.zeros(0), np.zeros((G.shape[0], 0))
     w, V = spla.eigsh(_projected(lambda x: G @ x, G.shape[0], Q), k=k, which="LA",
-                      tol=1e-10, v0=np.random.default_rng(0).standard_normal(G.shape[0]))
+                      tol=1e-10, v0=lanczos_start(G.shape[0]))
     order = np.argsort(w)[::-1]
     return w[order], V[:, order]
 
