@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -13,6 +14,10 @@ from rbbench.runtime.timing import ONLINE_PROTOCOL, gc_paused
 from rbbench.scene.linear import is_linear
 from rbbench.scene.loading import load_scene
 from rbbench.studies.formatting import markdown_table
+
+if TYPE_CHECKING:
+    from rbbench.rb.config import ReduceConfig
+    from rbbench.rb.validation import ReduceResult
 
 __all__ = ["capped_config", "online_scaling", "scaling_markdown"]
 
@@ -94,7 +99,7 @@ def online_scaling(scene: str, config, levels=(0, 1), overrides=(), repeats: int
     return rows
 
 
-def capped_config(config, result):
+def capped_config(config: ReduceConfig, result: ReduceResult) -> ReduceConfig:
     """``config`` with the reduced sizes capped at those ``result`` (a built reduction of
     the mixed formulation) reached: ``N``, the dual size ``R`` (and ``S`` on a friction
     scene), the supremizers ``k_pga_max`` (when it kept any) and the EIM terms ``m_eim``
