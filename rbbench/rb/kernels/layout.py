@@ -73,45 +73,14 @@ def int_rows(ib, meta, k):
 
 
 @njit(cache=True)
-def _add_sixteen(coef, terms, out, k):
-    """``out += sum_{j < 16} coef[k + j] terms[k + j]`` in one pass, in the order of j."""
-    c0, c1, c2, c3 = coef[k], coef[k + 1], coef[k + 2], coef[k + 3]
-    c4, c5, c6, c7 = coef[k + 4], coef[k + 5], coef[k + 6], coef[k + 7]
-    c8, c9, c10, c11 = coef[k + 8], coef[k + 9], coef[k + 10], coef[k + 11]
-    c12, c13, c14, c15 = coef[k + 12], coef[k + 13], coef[k + 14], coef[k + 15]
+def _add_block(coef, terms, out, k, b):
+    """``out += sum_{k <= j < k + b} coef[j] terms[j]`` in one pass over ``out``, each
+    entry summed in the order of j (as one pass per term would)."""
     for i in range(out.size):
-        acc = out[i] + c0 * terms[k, i]
-        acc += c1 * terms[k + 1, i]
-        acc += c2 * terms[k + 2, i]
-        acc += c3 * terms[k + 3, i]
-        acc += c4 * terms[k + 4, i]
-        acc += c5 * terms[k + 5, i]
-        acc += c6 * terms[k + 6, i]
-        acc += c7 * terms[k + 7, i]
-        acc += c8 * terms[k + 8, i]
-        acc += c9 * terms[k + 9, i]
-        acc += c10 * terms[k + 10, i]
-        acc += c11 * terms[k + 11, i]
-        acc += c12 * terms[k + 12, i]
-        acc += c13 * terms[k + 13, i]
-        acc += c14 * terms[k + 14, i]
-        out[i] = acc + c15 * terms[k + 15, i]
-
-
-@njit(cache=True)
-def _add_eight(coef, terms, out, k):
-    """``out += sum_{j < 8} coef[k + j] terms[k + j]`` in one pass, in the order of j."""
-    c0, c1, c2, c3 = coef[k], coef[k + 1], coef[k + 2], coef[k + 3]
-    c4, c5, c6, c7 = coef[k + 4], coef[k + 5], coef[k + 6], coef[k + 7]
-    for i in range(out.size):
-        acc = out[i] + c0 * terms[k, i]
-        acc += c1 * terms[k + 1, i]
-        acc += c2 * terms[k + 2, i]
-        acc += c3 * terms[k + 3, i]
-        acc += c4 * terms[k + 4, i]
-        acc += c5 * terms[k + 5, i]
-        acc += c6 * terms[k + 6, i]
-        out[i] = acc + c7 * terms[k + 7, i]
+        acc = out[i]
+        for j in range(k, k + b):
+            acc += coef[j] * terms[j, i]
+        out[i] = acc
 
 
 @njit(cache=True)
@@ -125,10 +94,10 @@ def combine_terms(coef, terms, out):
     kk = coef.size
     k = 0
     while k + 16 <= kk:
-        _add_sixteen(coef, terms, out, k)
+        _add_block(coef, terms, out, k, 16)
         k += 16
     while k + 8 <= kk:
-        _add_eight(coef, terms, out, k)
+        _add_block(coef, terms, out, k, 8)
         k += 8
     for j in range(k, kk):
         cj = coef[j]
