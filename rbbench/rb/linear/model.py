@@ -35,6 +35,7 @@ import scipy.sparse.linalg as spla
 
 from rbbench.interfaces import HFVectors, ReducedSolution
 from rbbench.rb.algorithms.affine import LinearInMu, affine_decomposition
+from rbbench.rb.algorithms.bounds import lanczos_start
 from rbbench.rb.online import ReducedBasis, require_basis
 
 __all__ = ["ReducedLinear", "build_reduced", "coercivity_reference"]
@@ -138,8 +139,6 @@ def coercivity_reference(A_ref: Any, X: Any) -> float:
     """``alpha(mu_ref) = min_v a(v, v; mu_ref) / ||v||_X^2``: the smallest generalised
     eigenvalue of ``(A(mu_ref), X)`` (shift-invert Lanczos at 0, from a fixed start
     vector: :func:`rbbench.rb.algorithms.bounds.lanczos_start`)."""
-    from rbbench.rb.algorithms.bounds import lanczos_start
-
     vals = spla.eigsh(A_ref, k=1, M=X, sigma=0.0, which="LM", v0=lanczos_start(A_ref.shape[0]),
                       return_eigenvectors=False)
     return float(np.min(vals))

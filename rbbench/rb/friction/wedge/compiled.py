@@ -114,7 +114,8 @@ def wedge_plan(model: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]
     x_train = np.asarray(model.x_train, float).reshape(-1, model.R)
     own = {"t_hat": t_hat, "slave_t": slave(tan, t_hat, Z), "vals_t": tan.support[1],
            "slave_s": np.ascontiguousarray(slave_s), "vals_s": vals_s, "z_s": z_s,
-           "pq": model.P, "mus_train": np.asarray(model.mus_train, float).reshape(
+           "pq_t": np.ascontiguousarray(model.P.T),
+           "mus_train": np.asarray(model.mus_train, float).reshape(
                x_train.shape[0], -1) if x_train.size else np.zeros((1, 1)),
            "x_train": x_train if x_train.size else np.zeros((1, model.R)),
            "settings": np.array([model.tol]),

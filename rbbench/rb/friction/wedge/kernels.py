@@ -48,12 +48,12 @@ from rbbench.runtime.numba_cache import stale_cache_dropper, use_user_cache
 use_user_cache()  # before any @njit(cache=True): the cache lives in the user's cache dir
 
 #: the wedge arrays of the plan (a second buffer beside the frictionless plan's), in order
-FLOATS = ("t_hat", "slave_t", "vals_t", "slave_s", "vals_s", "z_s", "pq", "mus_train",
+FLOATS = ("t_hat", "slave_t", "vals_t", "slave_s", "vals_s", "z_s", "pq_t", "mus_train",
           "x_train", "settings", "w_u")
 #: ``sizes = [M_s, max_iter, k]``, ``k`` the rank of the compressed EIM map (``w_u``,
 #: E x k: ``B = (c^T w_u) w_b``; 0: ``B = c^T w_b``)
 INTS = ("pts_t", "cols_t", "order_t", "pts_s", "sizes")
-(T_HAT, SLAVE_T, VALS_T, SLAVE_S, VALS_S, Z_S, PQ, MUS_TRAIN, X_TRAIN, SETTINGS,
+(T_HAT, SLAVE_T, VALS_T, SLAVE_S, VALS_S, Z_S, PQ_T, MUS_TRAIN, X_TRAIN, SETTINGS,
  W_U) = range(11)
 (PTS_T, COLS_T, ORDER_T, PTS_S, SIZES) = range(11, 16)
 
@@ -241,17 +241,18 @@ def _reduced_arrays(th, fb, ib, meta, fw, iw, mw, n, r, ms, n_map):
 
 
 @njit(cache=True)
-def _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, sc, ds):
+def _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt_t, t0, sc, ds):
     """Step 2 of :func:`wedge_online`: the condensation on ``c`` (``d``, ``q``), ``u = a0 -
-    kt c`` in the eigenbasis, the slip rows' constant part ``t0 = -Rv a0`` (their ``c`` part
-    is applied by :func:`_slip`) and the Jacobi-scaled ``ds`` (``sc`` its scaling); False
-    when ``d`` has a non-positive diagonal."""
+    Kt c`` in the eigenbasis (written as ``kt_t = Kt^T``, r x n), the slip rows' constant
+    part ``t0 = -Rv a0`` (their ``c`` part is applied by :func:`_slip`) and the
+    Jacobi-scaled ``ds`` (``sc`` its scaling); False when ``d`` has a non-positive
+    diagonal."""
     n, r = bt2.shape
     NN.condense(bt2, ft, sd, d, q, gn)
     for k in range(n):
         a0[k] = ft[k] / sd[k]
         for i in range(r):
-            kt[k, i] = bt2[k, i] / sd[k]
+            kt_t[i, k] = bt2[k, i] / sd[k]
     for j in range(t0.size):
         v = 0.0
         for k in range(n):
@@ -268,13 +269,13 @@ def _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, sc, ds):
 
 
 @njit(cache=True)
-def _desaxce(ds, sc, q, pq, t0, rv, kt, c, tol, warm, hist):
+def _desaxce(ds, sc, q, pq_t, t0, rv, kt_t, c, tol, warm, hist):
     """Step 3 of :func:`wedge_online`: De Saxce's fixed point from ``c`` (updated in place),
     the stop rule of :func:`rbbench.rb.friction.wedge.model.desaxce_coulomb`:
     ``(qp ok, iterations, stop index, qp iterations)``."""
     r, ms = c.size, t0.size
     slip, g, g_new, y = np.empty(ms), np.empty(r), np.empty(r), np.empty(r)
-    work, rv_t, kt_t, pq_t = np.empty(kt.shape[0]), rv.T.copy(), kt.T.copy(), pq.T.copy()
+    work, rv_t = np.empty(kt_t.shape[1]), rv.T.copy()
     _slip(t0, rv_t, kt_t, c, work, slip)
     _linear_term(q, pq_t, slip, g)
     it, inner, stop, low = 0, 0, 1, np.inf
@@ -330,9 +331,9 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
     for k in range(n):
         if not sd[k] > 0.0:  # A_N(mu) not positive definite: the reference decides
             return NOT_SPD, 0, 0, 0, a, c, hist[:0]
-    d, q, a0, kt = np.empty((r, r)), np.empty(r), np.empty(n), np.empty((n, r))
+    d, q, a0, kt_t = np.empty((r, r)), np.empty(r), np.empty(n), np.empty((r, n))
     t0, sc, ds = np.empty(ms), np.empty(r), np.empty((r, r))
-    if not _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt, t0, sc, ds):
+    if not _condense_wedge(bt2, ft, sd, gn, rv, d, q, a0, kt_t, t0, sc, ds):
         return NOT_SPD, 0, 0, 0, a, c, hist[:0]
     # 3. De Saxce's fixed point
     if start == NEAREST:
@@ -341,14 +342,14 @@ def wedge_online(mu, fb, ib, meta, fw, iw, mw, x0, start):
         c[:] = x0
     for i in range(r):
         c[i] = max(c[i], 0.0)
-    ok, it, stop, inner = _desaxce(ds, sc, q, K.float_rows(fw, mw, PQ), t0, rv, kt, c,
+    ok, it, stop, inner = _desaxce(ds, sc, q, K.float_rows(fw, mw, PQ_T), t0, rv, kt_t, c,
                                    K.flat_floats(fw, mw, SETTINGS)[0], start != COLD, hist)
     if not ok:
         return QP_FAILED, it, 0, inner, a, c, hist[:it]
     av = a0.copy()
     for k in range(n):
         for i in range(r):
-            av[k] -= kt[k, i] * c[i]
+            av[k] -= kt_t[i, k] * c[i]
     vt = K.float_rows(fb, meta, K.VT)
     for k in range(n):
         for j in range(n):
